@@ -1,0 +1,22 @@
+"""rotorid: identification of bearing stiffness and damping coefficients of rigid rotors from
+imbalance responses and impacts (after De Santiago & San Andrés, TRC-RD-1-01, 2001)."""
+
+from .errors import IdentifiabilityError, RotoridError
+from .identify import Identification, identify_synchronous, identify_synchronous_batch
+from .modal import ModalResult, critical_speeds, modal_analysis
+from .model import REPORT_ORDER, BearingCoefficients, Imbalance, RigidRotor, Rig, nsf_rig
+from .simulate import (
+    ProbeResolution,
+    SyncResponse,
+    bearings_to_probes,
+    imbalance_response,
+    probes_to_bearings,
+)
+
+__all__ = [
+    "BearingCoefficients", "IdentifiabilityError", "Identification", "Imbalance", "ModalResult",
+    "ProbeResolution", "REPORT_ORDER", "RigidRotor", "Rig", "RotoridError", "SyncResponse",
+    "bearings_to_probes", "critical_speeds", "identify_synchronous", "identify_synchronous_batch",
+    "imbalance_response", "modal_analysis", "nsf_rig", "probes_to_bearings",
+]
+__version__ = "0.1.0"

@@ -1,0 +1,73 @@
+"""Argument checks shared by the public API. Every failure raises RotoridError naming the argument."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import RotoridError
+
+
+def real_array(name, value, *, ndim=None, shape=None, positive=False, nonneg=False, nonzero=False):
+    try:
+        a = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise RotoridError(f"{name} must be numeric real values ({exc})") from None
+    return _check(name, a, ndim, shape, positive, nonneg, nonzero)
+
+
+def complex_array(name, value, *, ndim=None, shape=None):
+    try:
+        a = np.asarray(value)
+        if not (np.issubdtype(a.dtype, np.number) or a.dtype == bool):
+            raise TypeError(f"dtype {a.dtype}")
+        a = a.astype(complex)
+    except (TypeError, ValueError) as exc:
+        raise RotoridError(f"{name} must be numeric complex values ({exc})") from None
+    return _check(name, a, ndim, shape, False, False, False)
+
+
+def _check(name, a, ndim, shape, positive, nonneg, nonzero):
+    if ndim is not None and a.ndim != ndim:
+        raise RotoridError(f"{name} must have {ndim} dimension(s), got shape {a.shape}")
+    if shape is not None:
+        if len(shape) != a.ndim or any(s is not None and s != t for s, t in zip(shape, a.shape)):
+            want = tuple("n" if s is None else s for s in shape)
+            raise RotoridError(f"{name} has shape {a.shape}, expected {want}")
+    if a.size and not np.all(np.isfinite(a)):
+        bad = np.argwhere(~np.isfinite(a))[0]
+        raise RotoridError(f"{name} contains NaN or inf (first at index {tuple(int(i) for i in bad)})")
+    if positive and a.size and np.any(a <= 0):
+        raise RotoridError(f"{name} must be > 0 (got min {a.min():g})")
+    if nonneg and a.size and np.any(a < 0):
+        raise RotoridError(f"{name} must be >= 0 (got min {a.min():g})")
+    if nonzero and a.size and np.any(a == 0):
+        raise RotoridError(f"{name} must be non-zero")
+    return a
+
+
+def positive_scalar(name, value):
+    a = real_array(name, value, ndim=0)
+    if not a > 0:
+        raise RotoridError(f"{name} must be > 0, got {float(a):g}")
+    return float(a)
+
+
+def finite_scalar(name, value):
+    return float(real_array(name, value, ndim=0))
+
+
+def speeds_rpm(name, value):
+    a = np.atleast_1d(real_array(name, value))
+    if a.ndim != 1:
+        raise RotoridError(f"{name} must be a scalar or a 1-D array, got shape {a.shape}")
+    if a.size == 0:
+        raise RotoridError(f"{name} is empty")
+    if np.any(a <= 0):
+        raise RotoridError(f"{name} must be > 0 rpm (got min {a.min():g}); zero speed has no synchronous response")
+    return a
+
+
+def choice(name, value, options):
+    if value not in options:
+        raise RotoridError(f"{name} must be one of {sorted(options)}, got {value!r}")
+    return value

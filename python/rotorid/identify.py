@@ -1,0 +1,259 @@
+"""Identification of bearing force coefficients.
+
+Synchronous identification from imbalance runs (report eq. 4-18, probe transform eq. 19). The
+heavy lifting is one call of the Rust core for the whole speed batch (and any leading Monte-Carlo
+batch axis, see ``identify_synchronous_batch``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import _core
+from ._validate import choice, complex_array, real_array
+from .errors import IdentifiabilityError, RotoridError
+from .model import _REPORT_TO_BIJ, REPORT_ORDER, BearingCoefficients, Imbalance, RigidRotor
+from .simulate import RPM, SyncResponse, probes_to_bearings
+
+#: default conditioning threshold above which a point is flagged as not trustworthy
+COND_MAX = 1e4
+#: default minimum response amplitude relative to the peak (report: identification is poor below ~8 %)
+MIN_REL_AMPLITUDE = 0.08
+
+
+@dataclass
+class Identification:
+    """Identified coefficients at each point of an axis (speed or frequency).
+
+    ``k``, ``c``: (n, 2, 2, 2) = [point, bearing, i, j] in N/m and N·s/m. Diagnostics per point:
+    ``cond`` (n, 2) condition number of each bearing's response matrix, ``residual`` (n,) relative
+    least-squares residual (0 for exactly determined sets), ``rel_amplitude`` (n,) largest response
+    amplitude relative to its maximum over the axis, ``k_std``/``c_std`` standard errors (NaN when
+    the set is exactly determined), ``ok`` (n,) False where the point should not be trusted and
+    ``flag`` (n,) saying why ("" where ok).
+    """
+
+    axis_name: str
+    axis: np.ndarray
+    k: np.ndarray
+    c: np.ndarray
+    cond: np.ndarray
+    residual: np.ndarray
+    rel_amplitude: np.ndarray
+    k_std: np.ndarray
+    c_std: np.ndarray
+    ok: np.ndarray
+    flag: np.ndarray
+    method: str
+    runs: list = field(default_factory=list)
+
+    @property
+    def speed_rpm(self):
+        if self.axis_name != "speed_rpm":
+            raise AttributeError("this identification is over freq_hz")
+        return self.axis
+
+    @property
+    def freq_hz(self):
+        if self.axis_name != "freq_hz":
+            raise AttributeError("this identification is over speed_rpm")
+        return self.axis
+
+    def report_vector(self):
+        """(n, 16) coefficients in report eq. 9 order (K then C)."""
+        n = self.axis.size
+        return np.concatenate([self.k.reshape(n, 8)[:, _REPORT_TO_BIJ], self.c.reshape(n, 8)[:, _REPORT_TO_BIJ]], 1)
+
+    def coefficient(self, name: str):
+        """One coefficient over the axis by its report name, e.g. "Kxy1" or "Cyy2"."""
+        if name not in REPORT_ORDER:
+            raise RotoridError(f"unknown coefficient {name!r}; expected one of {REPORT_ORDER}")
+        return self.report_vector()[:, REPORT_ORDER.index(name)]
+
+    def bearings(self) -> BearingCoefficients:
+        """The identified coefficients as a table (only points flagged ok)."""
+        sel = self.ok
+        if sel.sum() < 2:
+            raise RotoridError("fewer than two trustworthy points to build a coefficient table")
+        kw = {self.axis_name: self.axis[sel]}
+        return BearingCoefficients(self.k[sel], self.c[sel], **kw)
+
+    def to_dataframe(self):
+        import pandas as pd
+
+        data = {self.axis_name: self.axis}
+        rv = self.report_vector()
+        for j, nm in enumerate(REPORT_ORDER):
+            data[nm] = rv[:, j]
+        data["cond1"] = self.cond[:, 0]
+        data["cond2"] = self.cond[:, 1]
+        data["residual"] = self.residual
+        data["rel_amplitude"] = self.rel_amplitude
+        data["ok"] = self.ok
+        data["flag"] = self.flag
+        return pd.DataFrame(data)
+
+
+def _run_label(i, run):
+    return f"run {i} ({run.name!r})" if getattr(run, "name", None) else f"run {i}"
+
+
+def _as_runs(runs):
+    if isinstance(runs, dict):
+        out = []
+        for name, r in runs.items():
+            if isinstance(r, SyncResponse) and r.name is None:
+                r.name = str(name)
+            out.append(r)
+        return out
+    if isinstance(runs, (list, tuple)):
+        return list(runs)
+    raise RotoridError(f"runs must be a list or dict of SyncResponse, got {type(runs).__name__}")
+
+
+def check_imbalance_independence(rotor: RigidRotor, imbalances, labels, *, identical=False):
+    """Raise IdentifiabilityError when the imbalance sets cannot excite independent responses."""
+    need = 1 if identical else 2
+    if len(imbalances) < need:
+        raise IdentifiabilityError(
+            f"{len(imbalances)} run(s) given; identifying {'8' if identical else 'all 16'} coefficients needs at least "
+            f"{need} imbalance run(s) with linearly independent imbalance sets (report eq. 11)")
+    U = np.array([imb.forcing(rotor) for imb in imbalances])  # (R, 2): (f1, f2) per run
+    scale = np.abs(U).max(axis=1)
+    for i, s in enumerate(scale):
+        if s == 0:
+            raise IdentifiabilityError(f"{labels[i]} has no imbalance mass (zero excitation)")
+    if identical:
+        return
+    sv = np.linalg.svd(U, compute_uv=False)
+    if sv[-1] <= 1e-9 * sv[0]:
+        planes = np.abs(U) > 1e-12 * scale[:, None]
+        if np.all(~planes[:, 1]) or np.all(~planes[:, 0]):
+            p = 1 if np.all(~planes[:, 1]) else 2
+            raise IdentifiabilityError(
+                f"all runs ({', '.join(labels)}) place imbalance in plane {p} only; one imbalance plane cannot "
+                "give linearly independent excitations (report section 4): use masses in both planes")
+        ref = U[0]
+        j = int(np.argmax(np.abs(ref)))
+        pairs = []
+        for i in range(1, len(U)):
+            ratio = U[i, j] / ref[j]
+            pairs.append(f"{labels[i]} = {abs(ratio):.4g}·exp(j{np.angle(ratio, deg=True):.1f}°) × {labels[0]}")
+        raise IdentifiabilityError(
+            "the imbalance sets are complex multiples of one another, so the responses are linearly dependent "
+            f"(report eq. 11-13): {'; '.join(pairs)}")
+
+
+def _diagnose_singular(qs, labels):
+    """Explain why the response matrices are singular at every point."""
+    x = qs[..., [0, 1]]
+    y = qs[..., [2, 3]]
+    circ = np.abs(y + 1j * x) / np.maximum(np.abs(x) + np.abs(y), 1e-300)  # 0 for forward circular orbits
+    if np.nanmax(circ) < 1e-6:
+        return ("every response is a forward circular orbit (y = -j·x): the bearings are isotropic, and x and y "
+                "coefficients cannot be separated from imbalance responses (report section 4). Runs: "
+                + ", ".join(labels))
+    return ("the response matrices of runs " + ", ".join(labels) + " are singular at every point: the runs are "
+            "linearly dependent (one is a complex multiple of another, or the data repeat a run)")
+
+
+def _finish(axis_name, axis, q_all, k, c, cond, resid, ks, cs, cond_max, min_rel_amplitude, method, labels):
+    amp = np.abs(q_all).max(axis=(0, 2))  # (n,)
+    peak = amp.max() if amp.size else 0.0
+    rel = amp / peak if peak > 0 else np.zeros_like(amp)
+    finite = np.all(np.isfinite(k.reshape(len(axis), -1)), axis=1)
+    worst = np.max(cond, axis=1)
+    flag = np.full(axis.size, "", dtype=object)
+    flag[rel < min_rel_amplitude] = "low amplitude"
+    flag[worst > cond_max] = "ill-conditioned"
+    flag[~finite] = "singular"
+    ok = flag == ""
+    return Identification(axis_name, axis, k, c, cond, resid, rel, ks, cs, ok, flag, method, labels)
+
+
+def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", identical: bool = False,
+                         cond_max: float = COND_MAX, min_rel_amplitude: float = MIN_REL_AMPLITUDE) -> Identification:
+    """Synchronous K and C of both bearings at every speed from two or more imbalance runs.
+
+    ``runs``: list (or dict name -> run) of SyncResponse, each with its added ``imbalance`` and the
+    same ``speed_rpm``; responses at the probes are moved to the bearings with eq. 19. Two runs
+    solve eq. 11 exactly; more runs are solved in the least-squares sense.
+
+    ``method``: "forces" (default; bearing reaction forces from the rotor equations, then a 2-unknown
+    complex least-squares problem per bearing and direction) or "report" (the report's 16 real
+    unknowns, eq. 8-18, solved by QR). Both give the same answer for two runs; for redundant runs
+    "forces" weights every equation in newtons, "report" mixes force and moment rows.
+    ``identical=True`` assumes the same coefficients at both bearings (8 unknowns; one run suffices).
+    """
+    if not isinstance(rotor, RigidRotor):
+        raise RotoridError(f"rotor must be a rotorid.RigidRotor, got {type(rotor).__name__}")
+    choice("method", method, {"forces", "report"})
+    runs = _as_runs(runs)
+    labels = []
+    for i, r in enumerate(runs):
+        if not isinstance(r, SyncResponse):
+            raise RotoridError(f"run {i} must be a rotorid.SyncResponse, got {type(r).__name__}")
+        if r.imbalance is None:
+            raise RotoridError(f"{_run_label(i, r)} has no imbalance: the identification needs the added imbalance of "
+                               "every run (SyncResponse(imbalance=rotorid.Imbalance(...)))")
+        labels.append(_run_label(i, r))
+    check_imbalance_independence(rotor, [r.imbalance for r in runs], labels, identical=identical)
+    rpm = runs[0].speed_rpm
+    for i, r in enumerate(runs[1:], 1):
+        if r.speed_rpm.shape != rpm.shape or not np.allclose(r.speed_rpm, rpm, rtol=1e-9, atol=0):
+            raise RotoridError(f"speed_rpm of {labels[i]} differs from that of {labels[0]}: all runs must be "
+                               "given at the same speeds (interpolate the 1X vectors first)")
+    qs = np.stack([r.at_bearings(rotor).q for r in runs])  # (R, n, 4)
+    om = rpm * RPM
+    e = np.stack([r.imbalance.generalized(rotor) for r in runs])[None]  # (1, R, 4)
+    out = _core.identify(rotor.core_params(), om, om, np.ascontiguousarray(qs[None]), np.ascontiguousarray(e),
+                         om ** 2, identical=identical, method=method, with_std=True)
+    k, c, cond, resid, ks, cs, nbad = out
+    if nbad:
+        raise RotoridError("responses contain NaN or inf")
+    if ks is None:
+        ks = np.full_like(k, np.nan)
+        cs = np.full_like(c, np.nan)
+    if not np.any(np.isfinite(k)):
+        raise IdentifiabilityError(_diagnose_singular(qs, labels))
+    return _finish("speed_rpm", rpm, qs, k[0], c[0], cond[0], resid[0], ks[0], cs[0], cond_max, min_rel_amplitude,
+                   method, labels)
+
+
+def identify_synchronous_batch(rotor: RigidRotor, speed_rpm, q, imbalances, *, method: str = "forces",
+                               identical: bool = False, with_std: bool = False, at: str = "bearings"):
+    """Many identifications in one core call (Monte Carlo): q of shape (trials, runs, n, 4).
+
+    ``imbalances``: list of Imbalance (one per run, shared by all trials) or a complex array
+    (trials, runs, 4) of generalized imbalance vectors F_o/Ω² (eq. 4) when the imbalance itself is
+    perturbed per trial. Returns a dict of arrays k, c (trials, n, 2, 2, 2), cond (trials, n, 2),
+    residual (trials, n) and, with ``with_std``, k_std and c_std. No per-point flags: use cond.
+    """
+    if not isinstance(rotor, RigidRotor):
+        raise RotoridError(f"rotor must be a rotorid.RigidRotor, got {type(rotor).__name__}")
+    choice("method", method, {"forces", "report"})
+    choice("at", at, {"bearings", "probes"})
+    rpm = real_array("speed_rpm", speed_rpm, ndim=1, positive=True)
+    q = complex_array("q", q, ndim=4)
+    if q.shape[2:] != (rpm.size, 4):
+        raise RotoridError(f"q has shape {q.shape}, expected (trials, runs, {rpm.size}, 4)")
+    if at == "probes":
+        q = probes_to_bearings(rotor, q)
+    if isinstance(imbalances, (list, tuple)) and all(isinstance(i, Imbalance) for i in imbalances):
+        labels = [f"run {i}" for i in range(len(imbalances))]
+        check_imbalance_independence(rotor, list(imbalances), labels, identical=identical)
+        e = np.stack([imb.generalized(rotor) for imb in imbalances])[None]
+    else:
+        e = complex_array("imbalances", imbalances, ndim=3)
+    if e.shape[1:] != (q.shape[1], 4) or e.shape[0] not in (1, q.shape[0]):
+        raise RotoridError(f"imbalances give excitation shape {e.shape}, expected (1 or {q.shape[0]}, {q.shape[1]}, 4)")
+    om = rpm * RPM
+    k, c, cond, resid, ks, cs, _ = _core.identify(rotor.core_params(), om, om, np.ascontiguousarray(q),
+                                                 np.ascontiguousarray(e), om ** 2, identical=identical,
+                                                 method=method, with_std=with_std)
+    out = dict(k=k, c=c, cond=cond, residual=resid)
+    if with_std and ks is not None:
+        out.update(k_std=ks, c_std=cs)
+    return out

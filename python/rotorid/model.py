@@ -1,0 +1,233 @@
+"""Rotor, bearing coefficients and imbalance sets (report section 4, Tables 2-4)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ._validate import finite_scalar, positive_scalar, real_array
+from .errors import RotoridError
+
+#: names of the 16 coefficients in report eq. 9 order
+REPORT_ORDER = (
+    "Kxx1", "Kxx2", "Kxy1", "Kxy2", "Kyx1", "Kyx2", "Kyy1", "Kyy2",
+    "Cxx1", "Cxx2", "Cxy1", "Cxy2", "Cyx1", "Cyx2", "Cyy1", "Cyy2",
+)
+# eq. 9 order index -> flat index of [bearing, i, j]
+_REPORT_TO_BIJ = np.array([0, 4, 1, 5, 2, 6, 3, 7])
+
+
+@dataclass(frozen=True)
+class RigidRotor:
+    """Rigid rotor on two bearings (report Fig. 2). SI units: kg, kg·m², m.
+
+    Axial positions are measured from the rotor CG, positive toward bearing 2 (free end):
+    bearing 1 at -l1, bearing 2 at +l2; imbalance planes at -d1, +d2 with radii r1, r2; probes at
+    -s1, +s2.
+    """
+
+    mass_kg: float
+    it_kgm2: float
+    ip_kgm2: float
+    l1: float
+    l2: float
+    d: tuple = (0.0, 0.0)
+    r: tuple = (1.0, 1.0)
+    s: tuple = None  # probes; default: at the bearings
+
+    def __post_init__(self):
+        set_ = lambda k, v: object.__setattr__(self, k, v)  # noqa: E731
+        set_("mass_kg", positive_scalar("mass_kg", self.mass_kg))
+        set_("it_kgm2", positive_scalar("it_kgm2 (transverse inertia)", self.it_kgm2))
+        set_("ip_kgm2", positive_scalar("ip_kgm2 (polar inertia)", self.ip_kgm2))
+        set_("l1", finite_scalar("l1", self.l1))
+        set_("l2", finite_scalar("l2", self.l2))
+        if not self.l1 + self.l2 > 0:
+            raise RotoridError(f"bearing span l1 + l2 must be > 0, got {self.l1 + self.l2:g} m")
+        d = real_array("d (imbalance planes)", self.d, shape=(2,))
+        r = real_array("r (imbalance radii)", self.r, shape=(2,), positive=True)
+        s = real_array("s (probe positions)", (self.l1, self.l2) if self.s is None else self.s, shape=(2,))
+        if abs(s[0] + s[1]) <= 1e-9 * (abs(s[0]) + abs(s[1]) + self.l1 + self.l2):
+            raise RotoridError(f"s (probe positions): the two probe planes coincide (s1 = {s[0]:g}, s2 = {s[1]:g} "
+                               "give the same axial position -s1 = s2); the tilt cannot be measured")
+        set_("d", tuple(map(float, d)))
+        set_("r", tuple(map(float, r)))
+        set_("s", tuple(map(float, s)))
+
+    d1 = property(lambda self: self.d[0])
+    d2 = property(lambda self: self.d[1])
+    r1 = property(lambda self: self.r[0])
+    r2 = property(lambda self: self.r[1])
+    s1 = property(lambda self: self.s[0])
+    s2 = property(lambda self: self.s[1])
+
+    @property
+    def span(self) -> float:
+        return self.l1 + self.l2
+
+    def core_params(self) -> np.ndarray:
+        return np.array([self.mass_kg, self.it_kgm2, self.ip_kgm2, self.l1, self.l2])
+
+    def matrices(self, k=None, c=None):
+        """M, G (and K, C of eq. 3 when 2x2x2 bearing arrays k, c are given) as NumPy arrays."""
+        m, it, ip, l1, l2, L = self.mass_kg, self.it_kgm2, self.ip_kgm2, self.l1, self.l2, self.span
+        M = np.array([[m * l2, m * l1, 0, 0], [0, 0, m * l2, m * l1], [-it, it, 0, 0], [0, 0, it, -it]]) / L
+        G = np.array([[0, 0, 0, 0], [0, 0, 0, 0], [0, 0, -ip, ip], [-ip, ip, 0, 0]]) / L
+        out = [M, G]
+        for b in (k, c):
+            if b is not None:
+                out.append(assemble(np.asarray(b, float), l1, l2))
+        return tuple(out)
+
+
+def assemble(b, l1, l2):
+    """4x4 stiffness/damping matrix of eq. 3 from bearing coefficients b[bearing, i, j]."""
+    (xx1, xy1), (yx1, yy1) = b[0]
+    (xx2, xy2), (yx2, yy2) = b[1]
+    return np.array([
+        [xx1, xx2, xy1, xy2],
+        [yx1, yx2, yy1, yy2],
+        [-xx1 * l1, xx2 * l2, -xy1 * l1, xy2 * l2],
+        [yx1 * l1, -yx2 * l2, yy1 * l1, -yy2 * l2],
+    ])
+
+
+class BearingCoefficients:
+    """Stiffness K (N/m) and damping C (N·s/m) of both bearings, indexed [bearing, i, j], i, j in (x, y).
+
+    Constant: ``k`` and ``c`` of shape (2, 2, 2). Tables: shape (m, 2, 2, 2) together with
+    ``speed_rpm`` (synchronous coefficients vs running speed) or ``freq_hz`` (coefficients vs
+    vibration frequency); values in between are interpolated linearly, values outside the table
+    raise an error.
+    """
+
+    def __init__(self, k, c, *, speed_rpm=None, freq_hz=None):
+        if speed_rpm is not None and freq_hz is not None:
+            raise RotoridError("give a table axis as speed_rpm or as freq_hz, not both")
+        axis = speed_rpm if speed_rpm is not None else freq_hz
+        self.axis_name = None if axis is None else ("speed_rpm" if speed_rpm is not None else "freq_hz")
+        if axis is None:
+            self.k = real_array("k", k, shape=(2, 2, 2))
+            self.c = real_array("c", c, shape=(2, 2, 2))
+            self.axis = None
+        else:
+            ax = real_array(self.axis_name, axis, ndim=1, positive=True)
+            if ax.size < 2 or np.any(np.diff(ax) <= 0):
+                raise RotoridError(f"{self.axis_name} of a coefficient table must be strictly increasing with >= 2 points")
+            self.k = real_array("k", k, shape=(ax.size, 2, 2, 2))
+            self.c = real_array("c", c, shape=(ax.size, 2, 2, 2))
+            self.axis = ax
+
+    # -- constructors -----------------------------------------------------------------------
+    @classmethod
+    def identical(cls, k, c):
+        """Both bearings with the same 2x2 K and C."""
+        k = real_array("k", k, shape=(2, 2))
+        c = real_array("c", c, shape=(2, 2))
+        return cls(np.stack([k, k]), np.stack([c, c]))
+
+    @classmethod
+    def from_report_vector(cls, p):
+        """From the 16 values of report eq. 9 order (K then C: xx1, xx2, xy1, xy2, yx1, yx2, yy1, yy2)."""
+        p = real_array("p", p, shape=(16,))
+        k = np.empty(8)
+        c = np.empty(8)
+        k[_REPORT_TO_BIJ] = p[:8]
+        c[_REPORT_TO_BIJ] = p[8:]
+        return cls(k.reshape(2, 2, 2), c.reshape(2, 2, 2))
+
+    def to_report_vector(self):
+        """16 values in report eq. 9 order (constant coefficients only)."""
+        if self.axis is not None:
+            raise RotoridError("to_report_vector needs constant coefficients")
+        return np.concatenate([self.k.reshape(8)[_REPORT_TO_BIJ], self.c.reshape(8)[_REPORT_TO_BIJ]])
+
+    @property
+    def is_constant(self):
+        return self.axis is None
+
+    def at(self, speed_rpm=None, freq_hz=None):
+        """Coefficients at the given speeds or frequencies: (k, c) each of shape (n, 2, 2, 2)."""
+        x = speed_rpm if speed_rpm is not None else freq_hz
+        n = np.size(x) if x is not None else 1
+        if self.axis is None:
+            return (np.broadcast_to(self.k, (n, 2, 2, 2)).copy(), np.broadcast_to(self.c, (n, 2, 2, 2)).copy())
+        want = "speed_rpm" if speed_rpm is not None else "freq_hz"
+        if want != self.axis_name:
+            raise RotoridError(f"these coefficients are tabulated over {self.axis_name}, not {want}")
+        x = np.atleast_1d(np.asarray(x, float))
+        lo, hi = self.axis[0], self.axis[-1]
+        if np.any(x < lo * (1 - 1e-12)) or np.any(x > hi * (1 + 1e-12)):
+            raise RotoridError(f"{want} outside the coefficient table range [{lo:g}, {hi:g}]")
+        flat_k = self.k.reshape(len(self.axis), 8)
+        flat_c = self.c.reshape(len(self.axis), 8)
+        kk = np.stack([np.interp(x, self.axis, flat_k[:, j]) for j in range(8)], -1).reshape(-1, 2, 2, 2)
+        cc = np.stack([np.interp(x, self.axis, flat_c[:, j]) for j in range(8)], -1).reshape(-1, 2, 2, 2)
+        return kk, cc
+
+    def __repr__(self):
+        if self.axis is None:
+            return f"BearingCoefficients(k={self.k.tolist()}, c={self.c.tolist()})"
+        return f"BearingCoefficients(table over {self.axis_name}, {self.axis.size} points)"
+
+
+@dataclass(frozen=True)
+class Imbalance:
+    """Imbalance masses in the two planes of the rotor (report eq. 5 and Table 3).
+
+    ``angle_deg`` is measured from the keyphasor mark opposite to the direction of rotation, so the
+    forcing of plane i is f_i = m_i r_i exp(-j phi_i). Planes and radii belong to the rotor.
+    """
+
+    mass_kg: tuple
+    angle_deg: tuple = (0.0, 0.0)
+    name: str | None = field(default=None, compare=False)
+
+    def __post_init__(self):
+        m = real_array("mass_kg", self.mass_kg, shape=(2,), nonneg=True)
+        a = real_array("angle_deg", self.angle_deg, shape=(2,))
+        object.__setattr__(self, "mass_kg", tuple(map(float, m)))
+        object.__setattr__(self, "angle_deg", tuple(map(float, a)))
+
+    def forcing(self, rotor: RigidRotor) -> np.ndarray:
+        """(f1, f2) = m_i r_i exp(-j phi_i), kg·m (eq. 5)."""
+        m = np.asarray(self.mass_kg)
+        return m * np.asarray(rotor.r) * np.exp(-1j * np.deg2rad(self.angle_deg))
+
+    def generalized(self, rotor: RigidRotor) -> np.ndarray:
+        """F_o / Omega^2 of eq. 4 (complex 4-vector, kg·m and kg·m²)."""
+        f1, f2 = self.forcing(rotor)
+        d1, d2 = rotor.d
+        return np.array([f1 + f2, -1j * (f1 + f2), -f1 * d1 + f2 * d2, -1j * (f1 * d1 - f2 * d2)])
+
+
+@dataclass(frozen=True)
+class Rig:
+    """A rotor with its bearings and named imbalance sets (and impact tests, if any)."""
+
+    rotor: RigidRotor
+    bearings: BearingCoefficients
+    imbalances: dict
+    impacts: dict = field(default_factory=dict)
+    name: str = ""
+
+
+def nsf_rig() -> Rig:
+    """The NSF-SFD test rig of the report: Table 2 rotor, Table 4 bearings, Table 3 imbalance sets.
+
+    ``impacts`` holds the Table 6 tests: {name: (plane_m, direction, force_N)}.
+    """
+    rotor = RigidRotor(mass_kg=45.3, it_kgm2=0.704, ip_kgm2=0.299, l1=0.189, l2=0.217,
+                       d=(0.067, 0.102), r=(0.114, 0.095), s=(0.119, 0.146))
+    kb = np.array([[3.0e6, 5.0e4], [3.0e4, 3.5e6]])
+    cb = np.array([[2000.0, 250.0], [800.0, 2200.0]])
+    bearings = BearingCoefficients.identical(kb, cb)
+    imb = {  # Table 3, grams -> kg
+        "A": Imbalance((3.3e-3, 3.3e-3), (0.0, 0.0), name="A"),
+        "B": Imbalance((4.1e-3, 5.1e-3), (90.0, 0.0), name="B"),
+        "C": Imbalance((3.3e-3, 4.28e-3), (-90.0, -90.0), name="C"),
+        "D": Imbalance((4.1e-3, 5.1e-3), (0.0, 90.0), name="D"),
+    }
+    impacts = {"A": (0.0, "x", 120.0), "B": (0.0, "y", 100.0)}
+    return Rig(rotor=rotor, bearings=bearings, imbalances=imb, impacts=impacts, name="NSF-SFD rig (TRC-RD-1-01)")

@@ -1,0 +1,113 @@
+//! Batched forced response: H(Omega, omega) q = F with H = -w^2 M + j w Omega G + j w C + K
+//! (report eq. 13-14 for imbalance, eq. 27-28 for impacts).
+
+use crate::model::{assemble, Rotor, C64};
+use rayon::prelude::*;
+
+/// Solve a 4x4 complex system in place by LU with partial pivoting, for `nrhs` right-hand sides
+/// stored consecutively in `rhs` (each of length 4). Returns false if the matrix is singular;
+/// the right-hand sides are then set to NaN.
+#[inline(always)]
+pub fn solve4(h: &mut [[C64; 4]; 4], rhs: &mut [C64]) -> bool {
+    let nrhs = rhs.len() / 4;
+    let mut scale = 0.0f64;
+    for row in h.iter() {
+        for v in row.iter() {
+            scale = scale.max(v.norm());
+        }
+    }
+    let tiny = scale * 1e-15;
+    for k in 0..4 {
+        // pivot
+        let mut p = k;
+        let mut best = h[k][k].norm();
+        for i in (k + 1)..4 {
+            let v = h[i][k].norm();
+            if v > best {
+                best = v;
+                p = i;
+            }
+        }
+        if !(best > tiny) {
+            for v in rhs.iter_mut() {
+                *v = C64::new(f64::NAN, f64::NAN);
+            }
+            return false;
+        }
+        if p != k {
+            h.swap(p, k);
+            for r in 0..nrhs {
+                rhs.swap(4 * r + p, 4 * r + k);
+            }
+        }
+        let inv = 1.0 / h[k][k];
+        for i in (k + 1)..4 {
+            let f = h[i][k] * inv;
+            if f == C64::new(0.0, 0.0) {
+                continue;
+            }
+            for j in (k + 1)..4 {
+                let t = h[k][j];
+                h[i][j] -= f * t;
+            }
+            for r in 0..nrhs {
+                let t = rhs[4 * r + k];
+                rhs[4 * r + i] -= f * t;
+            }
+        }
+    }
+    for r in 0..nrhs {
+        let b = &mut rhs[4 * r..4 * r + 4];
+        for k in (0..4).rev() {
+            let mut s = b[k];
+            for j in (k + 1)..4 {
+                s -= h[k][j] * b[j];
+            }
+            b[k] = s / h[k][k];
+        }
+    }
+    true
+}
+
+/// Dynamic stiffness H at one point.
+#[inline(always)]
+pub fn dynamic_stiffness(rotor: &Rotor, kb: &[f64], cb: &[f64], spin: f64, w: f64) -> [[C64; 4]; 4] {
+    let m = rotor.mass_matrix();
+    let g = rotor.gyro_matrix();
+    let k = assemble(kb, rotor.l1, rotor.l2);
+    let c = assemble(cb, rotor.l1, rotor.l2);
+    let mut h = [[C64::new(0.0, 0.0); 4]; 4];
+    for i in 0..4 {
+        for j in 0..4 {
+            h[i][j] = C64::new(k[i][j] - w * w * m[i][j], w * spin * g[i][j] + w * c[i][j]);
+        }
+    }
+    h
+}
+
+/// For every point i: solve H_i q = F_i for `nrhs` force vectors.
+/// `kb`, `cb`: (n, 8); `spin`, `w`: (n,); `force`: (n, nrhs, 4) or (1, nrhs, 4) broadcast;
+/// `out`: (n, nrhs, 4). Returns the number of singular points (their output is NaN).
+pub fn forced_response(
+    rotor: &Rotor,
+    kb: &[f64],
+    cb: &[f64],
+    spin: &[f64],
+    w: &[f64],
+    force: &[C64],
+    nrhs: usize,
+    out: &mut [C64],
+) -> usize {
+    let n = w.len();
+    let broadcast = force.len() == nrhs * 4 && n != 1;
+    out.par_chunks_mut(nrhs * 4)
+        .with_min_len(256)
+        .enumerate()
+        .map(|(i, o)| {
+            let f = if broadcast { &force[..] } else { &force[i * nrhs * 4..(i + 1) * nrhs * 4] };
+            o.copy_from_slice(f);
+            let mut h = dynamic_stiffness(rotor, &kb[8 * i..8 * i + 8], &cb[8 * i..8 * i + 8], spin[i], w[i]);
+            if solve4(&mut h, o) { 0usize } else { 1usize }
+        })
+        .sum()
+}

@@ -1,0 +1,205 @@
+//! pyo3 bindings of the rotorid core. Only argument checking and conversion live here; the
+//! physics is in the sibling modules. Every entry point releases the GIL while it computes and
+//! converts any Rust panic into a Python RuntimeError (a panic never crosses the boundary).
+
+pub mod forced;
+pub mod identify;
+pub mod modal;
+pub mod model;
+
+use model::{Rotor, C64};
+use numpy::{PyArray1, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
+use pyo3::exceptions::{PyRuntimeError, PyValueError};
+use pyo3::prelude::*;
+use std::panic::{catch_unwind, AssertUnwindSafe};
+
+fn slice<'a, T: numpy::Element>(a: &'a PyReadonlyArrayDyn<'_, T>, name: &str) -> PyResult<&'a [T]> {
+    a.as_slice().map_err(|_| PyValueError::new_err(format!("{name} must be a C-contiguous array")))
+}
+
+fn check_shape(name: &str, got: &[usize], want: &[usize]) -> PyResult<()> {
+    if got != want {
+        return Err(PyValueError::new_err(format!("{name} has shape {got:?}, expected {want:?}")));
+    }
+    Ok(())
+}
+
+fn guarded<T, F: FnOnce() -> T>(f: F) -> PyResult<T> {
+    catch_unwind(AssertUnwindSafe(f)).map_err(|e| {
+        let msg = e
+            .downcast_ref::<String>()
+            .cloned()
+            .or_else(|| e.downcast_ref::<&str>().map(|s| s.to_string()))
+            .unwrap_or_else(|| "unknown".into());
+        PyRuntimeError::new_err(format!("rotorid core failed internally (please report): {msg}"))
+    })
+}
+
+fn rotor_of(p: &PyReadonlyArrayDyn<'_, f64>) -> PyResult<Rotor> {
+    Rotor::from_slice(slice(p, "rotor")?).map_err(PyValueError::new_err)
+}
+
+fn to_py<'py, T: numpy::Element>(py: Python<'py>, v: Vec<T>, shape: &[usize]) -> PyResult<Bound<'py, PyArrayDyn<T>>> {
+    PyArray1::from_vec(py, v).reshape(shape.to_vec())
+}
+
+/// Batched forced response H q = F (see forced.rs). Returns (q, n_singular).
+#[pyfunction]
+fn forced_response<'py>(
+    py: Python<'py>,
+    rotor: PyReadonlyArrayDyn<'py, f64>,
+    k: PyReadonlyArrayDyn<'py, f64>,
+    c: PyReadonlyArrayDyn<'py, f64>,
+    spin: PyReadonlyArrayDyn<'py, f64>,
+    w: PyReadonlyArrayDyn<'py, f64>,
+    force: PyReadonlyArrayDyn<'py, C64>,
+) -> PyResult<(Bound<'py, PyArrayDyn<C64>>, usize)> {
+    let rot = rotor_of(&rotor)?;
+    let n = w.len();
+    check_shape("k", k.shape(), &[n, 8])?;
+    check_shape("c", c.shape(), &[n, 8])?;
+    check_shape("spin", spin.shape(), &[n])?;
+    let fs = force.shape().to_vec();
+    if fs.len() != 3 || fs[2] != 4 || !(fs[0] == n || fs[0] == 1) {
+        return Err(PyValueError::new_err(format!("force has shape {fs:?}, expected (n or 1, nrhs, 4)")));
+    }
+    let nrhs = fs[1];
+    let (ks, cs, ss, ws, fsl) = (slice(&k, "k")?, slice(&c, "c")?, slice(&spin, "spin")?, slice(&w, "w")?, slice(&force, "force")?);
+    let (out, nsing) = py.detach(|| {
+        guarded(|| {
+            let mut out = vec![C64::new(0.0, 0.0); n * nrhs * 4];
+            let ns = forced::forced_response(&rot, ks, cs, ss, ws, fsl, nrhs, &mut out);
+            (out, ns)
+        })
+    })?;
+    Ok((to_py(py, out, &[n, nrhs, 4])?, nsing))
+}
+
+type IdentTuple<'py> = (
+    Bound<'py, PyArrayDyn<f64>>,
+    Bound<'py, PyArrayDyn<f64>>,
+    Bound<'py, PyArrayDyn<f64>>,
+    Bound<'py, PyArrayDyn<f64>>,
+    Option<Bound<'py, PyArrayDyn<f64>>>,
+    Option<Bound<'py, PyArrayDyn<f64>>>,
+    usize,
+);
+
+/// Batched identification (see identify.rs).
+/// q: (B, R, n, 4) complex; e: (1 or B, R, 4) complex; w, spin, gain: (n,).
+/// method: "forces" (default solver) or "report" (16-unknown real formulation).
+/// Returns (k, c, cond, resid, k_std, c_std, n_nonfinite) with k, c: (B, n, 2, 2, 2).
+#[pyfunction]
+#[pyo3(name = "identify", signature = (rotor, w, spin, q, e, gain, identical=false, method="forces", with_std=true))]
+#[allow(clippy::too_many_arguments)]
+fn py_identify<'py>(
+    py: Python<'py>,
+    rotor: PyReadonlyArrayDyn<'py, f64>,
+    w: PyReadonlyArrayDyn<'py, f64>,
+    spin: PyReadonlyArrayDyn<'py, f64>,
+    q: PyReadonlyArrayDyn<'py, C64>,
+    e: PyReadonlyArrayDyn<'py, C64>,
+    gain: PyReadonlyArrayDyn<'py, f64>,
+    identical: bool,
+    method: &str,
+    with_std: bool,
+) -> PyResult<IdentTuple<'py>> {
+    let rot = rotor_of(&rotor)?;
+    let qs = q.shape().to_vec();
+    if qs.len() != 4 || qs[3] != 4 {
+        return Err(PyValueError::new_err(format!("q has shape {qs:?}, expected (batch, runs, n, 4)")));
+    }
+    let (batch, runs, n) = (qs[0], qs[1], qs[2]);
+    check_shape("w", w.shape(), &[n])?;
+    check_shape("spin", spin.shape(), &[n])?;
+    check_shape("gain", gain.shape(), &[n])?;
+    let es = e.shape().to_vec();
+    if es.len() != 3 || es[1] != runs || es[2] != 4 || !(es[0] == 1 || es[0] == batch) {
+        return Err(PyValueError::new_err(format!("e has shape {es:?}, expected (1 or {batch}, {runs}, 4)")));
+    }
+    if runs == 0 {
+        return Err(PyValueError::new_err("at least one run is needed"));
+    }
+    let report = match method {
+        "forces" => false,
+        "report" => true,
+        other => return Err(PyValueError::new_err(format!("method must be 'forces' or 'report', got {other:?}"))),
+    };
+    let ws = slice(&w, "w")?;
+    if ws.iter().any(|&x| !(x.is_finite() && x != 0.0)) {
+        return Err(PyValueError::new_err("w (vibration frequency) must be finite and non-zero"));
+    }
+    let prob = identify::IdentProblem {
+        rotor: rot,
+        w: ws,
+        spin: slice(&spin, "spin")?,
+        q: slice(&q, "q")?,
+        e: slice(&e, "e")?,
+        gain: slice(&gain, "gain")?,
+        batch,
+        runs,
+        identical,
+    };
+    let npts = batch * n;
+    let want_std = with_std && !report;
+    let res = py.detach(|| {
+        guarded(|| {
+            let mut k = vec![0.0; npts * 8];
+            let mut c = vec![0.0; npts * 8];
+            let mut cond = vec![0.0; npts * 2];
+            let mut resid = vec![0.0; npts];
+            let mut ks = if want_std { vec![0.0; npts * 8] } else { Vec::new() };
+            let mut cs = if want_std { vec![0.0; npts * 8] } else { Vec::new() };
+            let out = identify::IdentOut {
+                k: &mut k,
+                c: &mut c,
+                cond: &mut cond,
+                resid: &mut resid,
+                k_std: if want_std { Some(&mut ks[..]) } else { None },
+                c_std: if want_std { Some(&mut cs[..]) } else { None },
+            };
+            let nbad = if report { identify::identify_report(&prob, out) } else { identify::identify_forces(&prob, out) };
+            (k, c, cond, resid, ks, cs, nbad)
+        })
+    })?;
+    let (k, c, cond, resid, ks, cs, nbad) = res;
+    let sh = [batch, n, 2, 2, 2];
+    let kst = if want_std { Some(to_py(py, ks, &sh)?) } else { None };
+    let cst = if want_std { Some(to_py(py, cs, &sh)?) } else { None };
+    Ok((to_py(py, k, &sh)?, to_py(py, c, &sh)?, to_py(py, cond, &[batch, n, 2])?, to_py(py, resid, &[batch, n])?, kst, cst, nbad))
+}
+
+/// Batched eigen-analysis (see modal.rs). Returns (lam (n, 4), shapes (n, 4, 4), n_failed).
+#[pyfunction]
+#[pyo3(name = "modal")]
+fn py_modal<'py>(
+    py: Python<'py>,
+    rotor: PyReadonlyArrayDyn<'py, f64>,
+    k: PyReadonlyArrayDyn<'py, f64>,
+    c: PyReadonlyArrayDyn<'py, f64>,
+    spin: PyReadonlyArrayDyn<'py, f64>,
+) -> PyResult<(Bound<'py, PyArrayDyn<C64>>, Bound<'py, PyArrayDyn<C64>>, usize)> {
+    let rot = rotor_of(&rotor)?;
+    let n = spin.len();
+    check_shape("k", k.shape(), &[n, 8])?;
+    check_shape("c", c.shape(), &[n, 8])?;
+    let (ks, cs, ss) = (slice(&k, "k")?, slice(&c, "c")?, slice(&spin, "spin")?);
+    let (lam, sh, nf) = py.detach(|| {
+        guarded(|| {
+            let mut lam = vec![C64::new(0.0, 0.0); n * 4];
+            let mut sh = vec![C64::new(0.0, 0.0); n * 16];
+            let nf = modal::modal(&rot, ks, cs, ss, &mut lam, &mut sh);
+            (lam, sh, nf)
+        })
+    })?;
+    Ok((to_py(py, lam, &[n, 4])?, to_py(py, sh, &[n, 4, 4])?, nf))
+}
+
+#[pymodule]
+fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(forced_response, m)?)?;
+    m.add_function(wrap_pyfunction!(py_identify, m)?)?;
+    m.add_function(wrap_pyfunction!(py_modal, m)?)?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}

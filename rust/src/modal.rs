@@ -1,0 +1,109 @@
+//! Batched eigen-analysis of the rotor-bearing system (state-space form of eq. 1 without forcing).
+
+use crate::model::{assemble, Rotor, C64};
+use faer::Mat;
+use rayon::prelude::*;
+
+/// Invert a real 4x4 matrix (Gauss-Jordan with partial pivoting).
+fn inv4(a: &[[f64; 4]; 4]) -> Option<[[f64; 4]; 4]> {
+    let mut m = *a;
+    let mut inv = [[0.0; 4]; 4];
+    for i in 0..4 {
+        inv[i][i] = 1.0;
+    }
+    for k in 0..4 {
+        let mut p = k;
+        for i in (k + 1)..4 {
+            if m[i][k].abs() > m[p][k].abs() {
+                p = i;
+            }
+        }
+        if m[p][k] == 0.0 {
+            return None;
+        }
+        m.swap(p, k);
+        inv.swap(p, k);
+        let d = 1.0 / m[k][k];
+        for j in 0..4 {
+            m[k][j] *= d;
+            inv[k][j] *= d;
+        }
+        for i in 0..4 {
+            if i != k {
+                let f = m[i][k];
+                for j in 0..4 {
+                    m[i][j] -= f * m[k][j];
+                    inv[i][j] -= f * inv[k][j];
+                }
+            }
+        }
+    }
+    Some(inv)
+}
+
+/// For each point: eigenvalues with positive imaginary part (up to 4, sorted by damped natural
+/// frequency, NaN-padded when a mode is overdamped) and the displacement part of their
+/// eigenvectors (order [x1, x2, y1, y2], normalized to unit largest component, real at that
+/// component). `lam`: (n, 4); `shapes`: (n, 4 modes, 4 dofs). Returns the number of points where
+/// the eigen-solver failed (NaN output).
+pub fn modal(rotor: &Rotor, kb: &[f64], cb: &[f64], spin: &[f64], lam: &mut [C64], shapes: &mut [C64]) -> usize {
+    let m = rotor.mass_matrix();
+    let g = rotor.gyro_matrix();
+    let minv = match inv4(&m) {
+        Some(v) => v,
+        None => {
+            for v in lam.iter_mut().chain(shapes.iter_mut()) {
+                *v = C64::new(f64::NAN, f64::NAN);
+            }
+            return spin.len();
+        }
+    };
+    lam.par_chunks_mut(4)
+        .zip(shapes.par_chunks_mut(16))
+        .enumerate()
+        .map(|(i, (lo, so))| {
+            let k = assemble(&kb[8 * i..8 * i + 8], rotor.l1, rotor.l2);
+            let c = assemble(&cb[8 * i..8 * i + 8], rotor.l1, rotor.l2);
+            let mut a = Mat::<f64>::zeros(8, 8);
+            for r in 0..4 {
+                a[(r, 4 + r)] = 1.0;
+                for col in 0..4 {
+                    let mut sk = 0.0;
+                    let mut sc = 0.0;
+                    for t in 0..4 {
+                        sk += minv[r][t] * k[t][col];
+                        sc += minv[r][t] * (c[t][col] + spin[i] * g[t][col]);
+                    }
+                    a[(4 + r, col)] = -sk;
+                    a[(4 + r, 4 + col)] = -sc;
+                }
+            }
+            for v in lo.iter_mut().chain(so.iter_mut()) {
+                *v = C64::new(f64::NAN, f64::NAN);
+            }
+            let evd = match a.eigen() {
+                Ok(e) => e,
+                Err(_) => return 1usize,
+            };
+            let s = evd.S().column_vector();
+            let u = evd.U();
+            let mut idx: Vec<usize> = (0..8).filter(|&t| s[t].im > 1e-9 * s[t].norm().max(1e-300)).collect();
+            idx.sort_by(|&x, &y| s[x].im.partial_cmp(&s[y].im).unwrap_or(std::cmp::Ordering::Equal));
+            for (mi, &t) in idx.iter().take(4).enumerate() {
+                lo[mi] = C64::new(s[t].re, s[t].im);
+                let mut best = 0usize;
+                for d in 0..4 {
+                    if u[(d, t)].norm() > u[(best, t)].norm() {
+                        best = d;
+                    }
+                }
+                let piv = C64::new(u[(best, t)].re, u[(best, t)].im);
+                let scale = if piv.norm() > 0.0 { 1.0 / piv } else { C64::new(1.0, 0.0) };
+                for d in 0..4 {
+                    so[4 * mi + d] = C64::new(u[(d, t)].re, u[(d, t)].im) * scale;
+                }
+            }
+            0usize
+        })
+        .sum()
+}

@@ -1,0 +1,111 @@
+//! Rigid-rotor model matrices (report eq. 3) and their assembly from bearing coefficients.
+//!
+//! Layout conventions shared by every kernel:
+//! - response vector q = [x1, x2, y1, y2] (report eq. 2);
+//! - bearing coefficients of one point are 8 numbers ordered [bearing][i][j] with i, j in (x, y),
+//!   i.e. index = 4*bearing + 2*i + j.
+
+pub type C64 = num_complex::Complex64;
+
+/// Rigid rotor: mass, transverse and polar inertia, bearing distances from the CG.
+#[derive(Clone, Copy, Debug)]
+pub struct Rotor {
+    pub m: f64,
+    pub it: f64,
+    pub ip: f64,
+    pub l1: f64,
+    pub l2: f64,
+}
+
+impl Rotor {
+    pub fn from_slice(p: &[f64]) -> Result<Rotor, String> {
+        if p.len() != 5 {
+            return Err(format!("rotor parameters must be [m, I_T, I_p, l1, l2], got {} values", p.len()));
+        }
+        let r = Rotor { m: p[0], it: p[1], ip: p[2], l1: p[3], l2: p[4] };
+        if !(r.m > 0.0 && r.it > 0.0 && r.ip >= 0.0 && r.l1.is_finite() && r.l2.is_finite()) {
+            return Err("rotor: mass and inertias must be positive and finite".into());
+        }
+        if !(r.span().abs() > 0.0) {
+            return Err("rotor: bearing span l1 + l2 must be non-zero".into());
+        }
+        Ok(r)
+    }
+
+    #[inline(always)]
+    pub fn span(&self) -> f64 {
+        self.l1 + self.l2
+    }
+
+    /// Inertia matrix M of eq. 3.
+    pub fn mass_matrix(&self) -> [[f64; 4]; 4] {
+        let (m, it, l1, l2, il) = (self.m, self.it, self.l1, self.l2, 1.0 / self.span());
+        [
+            [m * l2 * il, m * l1 * il, 0.0, 0.0],
+            [0.0, 0.0, m * l2 * il, m * l1 * il],
+            [-it * il, it * il, 0.0, 0.0],
+            [0.0, 0.0, it * il, -it * il],
+        ]
+    }
+
+    /// Gyroscopic matrix G of eq. 3 (multiplied by the spin speed in eq. 1).
+    pub fn gyro_matrix(&self) -> [[f64; 4]; 4] {
+        let g = self.ip / self.span();
+        [
+            [0.0, 0.0, 0.0, 0.0],
+            [0.0, 0.0, 0.0, 0.0],
+            [0.0, 0.0, -g, g],
+            [-g, g, 0.0, 0.0],
+        ]
+    }
+
+    /// M q for complex q, exploiting the sparsity of eq. 3.
+    #[inline(always)]
+    pub fn m_times(&self, q: &[C64; 4]) -> [C64; 4] {
+        let il = 1.0 / self.span();
+        let (ml2, ml1, it) = (self.m * self.l2 * il, self.m * self.l1 * il, self.it * il);
+        [
+            q[0] * ml2 + q[1] * ml1,
+            q[2] * ml2 + q[3] * ml1,
+            (q[1] - q[0]) * it,
+            (q[2] - q[3]) * it,
+        ]
+    }
+
+    /// G q for complex q.
+    #[inline(always)]
+    pub fn g_times(&self, q: &[C64; 4]) -> [C64; 4] {
+        let g = self.ip / self.span();
+        let z = C64::new(0.0, 0.0);
+        [z, z, (q[3] - q[2]) * g, (q[1] - q[0]) * g]
+    }
+}
+
+/// Assemble the 4x4 stiffness (or damping) matrix of eq. 3 from the 8 bearing coefficients.
+#[inline(always)]
+pub fn assemble(b: &[f64], l1: f64, l2: f64) -> [[f64; 4]; 4] {
+    let (xx1, xy1, yx1, yy1) = (b[0], b[1], b[2], b[3]);
+    let (xx2, xy2, yx2, yy2) = (b[4], b[5], b[6], b[7]);
+    [
+        [xx1, xx2, xy1, xy2],
+        [yx1, yx2, yy1, yy2],
+        [-xx1 * l1, xx2 * l2, -xy1 * l1, xy2 * l2],
+        [yx1 * l1, -yx2 * l2, yy1 * l1, -yy2 * l2],
+    ]
+}
+
+/// Bearing reaction forces recovered from the four rotor equations.
+///
+/// Given the generalized force vector R = [sum Fx, sum Fy, moment row 3, moment row 4] that the
+/// bearings must balance (left-hand side of eq. 10), return [f1x, f1y, f2x, f2y]: the force each
+/// bearing exerts in reaction (Z_b [x_b, y_b]).
+#[inline(always)]
+pub fn bearing_forces(r: &[C64; 4], l1: f64, l2: f64) -> [C64; 4] {
+    let il = 1.0 / (l1 + l2);
+    [
+        (r[0] * l2 - r[2]) * il,
+        (r[1] * l2 + r[3]) * il,
+        (r[2] + r[0] * l1) * il,
+        (r[1] * l1 - r[3]) * il,
+    ]
+}

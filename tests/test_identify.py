@@ -1,0 +1,223 @@
+import threading
+
+import numpy as np
+import pytest
+from hypothesis import assume, given
+from hypothesis import strategies as st
+
+import rotorid
+from rotorid import IdentifiabilityError, Imbalance, RotoridError, SyncResponse
+
+import oracle
+from strategies import bearing_pair, imbalance_sets, rotors
+
+WELL = 1e3  # condition number below which a point counts as well conditioned
+
+
+def _speeds(rotor, brg, n=12):
+    kx = brg.k[:, 0, 0].sum()
+    wn = np.sqrt(kx / rotor.mass_kg) * 30 / np.pi
+    return np.linspace(0.8 * wn, 2.5 * wn, n)
+
+
+def _rel_err(res, brg, rpm):
+    """Coefficient errors relative to each bearing's impedance scale max(|K|, w|C|)."""
+    w = rpm * np.pi / 30
+    scale = np.maximum(np.abs(brg.k).max(axis=(1, 2))[None, :], np.abs(brg.c).max(axis=(1, 2))[None, :] * w[:, None])
+    ek = np.abs(res.k - brg.k[None]).max(axis=(2, 3)) / scale
+    ec = np.abs(res.c - brg.c[None]).max(axis=(2, 3)) * w[:, None] / scale
+    return np.maximum(ek, ec)  # (n, 2)
+
+
+@given(rotors(), bearing_pair(), st.integers(2, 5).flatmap(imbalance_sets), st.booleans())
+def test_roundtrip_synchronous(rotor, brg, imbs, at_probes):
+    rpm = _speeds(rotor, brg)
+    at = "probes" if at_probes else "bearings"
+    runs = [rotorid.imbalance_response(rotor, brg, imb, speed_rpm=rpm, at=at) for imb in imbs]
+    res = rotorid.identify_synchronous(rotor, runs)
+    well = res.cond.max(axis=1) < WELL
+    assume(well.sum() >= 3)  # Hypothesis fails the test if this filters out too many examples
+    err = _rel_err(res, brg, rpm)
+    assert np.all(err[well] < 1e-8 * np.maximum(1.0, res.cond[well] / 100)), (err[well].max(), res.cond[well].max())
+    assert np.all(res.residual[well] < 1e-8)
+
+
+@given(rotors(probes_at_bearings=True), bearing_pair(), imbalance_sets(2))
+def test_fast_solver_equals_report_formulation_for_two_runs(rotor, brg, imbs):
+    rpm = _speeds(rotor, brg, 6)
+    runs = [rotorid.imbalance_response(rotor, brg, imb, speed_rpm=rpm) for imb in imbs]
+    a = rotorid.identify_synchronous(rotor, runs, method="forces", cond_max=np.inf)
+    b = rotorid.identify_synchronous(rotor, runs, method="report", cond_max=np.inf)
+    well = a.cond.max(axis=1) < WELL
+    assume(well.any())
+    for i in np.nonzero(well)[0]:
+        sc = max(np.abs(b.k[i]).max(), 1.0)
+        np.testing.assert_allclose(a.k[i], b.k[i], atol=1e-7 * sc)
+        np.testing.assert_allclose(a.c[i], b.c[i], atol=1e-7 * max(np.abs(b.c[i]).max(), 1.0))
+
+
+def test_report_method_matches_numpy_oracle_with_redundant_noisy_runs():
+    rig = rotorid.nsf_rig()
+    rpm = np.array([3000.0, 4500.0, 6000.0])
+    rng = np.random.default_rng(1)
+    runs = []
+    for name in "ABCD":
+        r = rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[name], speed_rpm=rpm)
+        noisy = r.q * (1 + 0.01 * (rng.standard_normal(r.q.shape) + 1j * rng.standard_normal(r.q.shape)))
+        runs.append(SyncResponse(rpm, noisy, rig.imbalances[name]))
+    res = rotorid.identify_synchronous(rig.rotor, runs, method="report")
+    M, G = rig.rotor.matrices()[:2]
+    for i, s in enumerate(rpm * oracle.RPM):
+        qs = [r.q[i] for r in runs]
+        Fs = [rig.imbalances[n].generalized(rig.rotor) * s ** 2 for n in "ABCD"]
+        P = oracle.report_identify(qs, Fs, M, G, rig.rotor.l1, rig.rotor.l2, s, s)
+        np.testing.assert_allclose(res.report_vector()[i, :8], P[:8], rtol=1e-7, atol=1e-6 * np.abs(P[:8]).max())
+        np.testing.assert_allclose(res.report_vector()[i, 8:], P[8:] / s, rtol=1e-7, atol=1e-6 * np.abs(P[8:] / s).max())
+    assert np.all(res.residual > 0)
+
+
+def test_least_squares_uses_all_runs_and_reports_standard_errors():
+    rig = rotorid.nsf_rig()
+    rpm = np.linspace(3000, 6000, 7)
+    rng = np.random.default_rng(7)
+    truth = [rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[n], speed_rpm=rpm) for n in "ABCD"]
+    noise = 0.2e-6
+
+    def noisy(r):
+        return SyncResponse(rpm, r.q + noise * (rng.standard_normal(r.q.shape) + 1j * rng.standard_normal(r.q.shape)),
+                            r.imbalance)
+
+    errs2, errs4 = [], []
+    for _ in range(40):
+        runs = [noisy(r) for r in truth]
+        r2 = rotorid.identify_synchronous(rig.rotor, runs[:2])
+        r4 = rotorid.identify_synchronous(rig.rotor, runs)
+        errs2.append(r2.k - rig.bearings.k)
+        errs4.append(r4.k - rig.bearings.k)
+    assert np.all(np.isnan(r2.k_std)) and np.all(np.isfinite(r4.k_std))
+    rms2 = np.sqrt(np.mean(np.square(errs2)))
+    rms4 = np.sqrt(np.mean(np.square(errs4)))
+    assert rms4 < rms2  # redundant runs reduce the scatter
+    # standard errors are of the right size: actual rms error vs mean predicted std within a factor 2
+    pred = np.sqrt(np.mean(np.square(r4.k_std)))
+    assert 0.5 < rms4 / pred < 2.0
+
+
+def test_identical_bearings_from_one_run():
+    rig = rotorid.nsf_rig()
+    rpm = np.linspace(3000, 6000, 5)
+    run = rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances["B"], speed_rpm=rpm)
+    for method in ("forces", "report"):
+        res = rotorid.identify_synchronous(rig.rotor, [run], identical=True, method=method)
+        np.testing.assert_allclose(res.k, np.broadcast_to(rig.bearings.k, res.k.shape), rtol=1e-7, atol=1e-3)
+        np.testing.assert_allclose(res.c, np.broadcast_to(rig.bearings.c, res.c.shape), rtol=1e-6, atol=1e-5)
+
+
+def test_single_plane_runs_are_rejected_with_names():
+    rig = rotorid.nsf_rig()
+    rpm = [3000.0, 4000.0]
+    runs = [rotorid.imbalance_response(rig.rotor, rig.bearings, Imbalance((3e-3, 0.0), (a, 0.0), name=n),
+                                       speed_rpm=rpm) for n, a in [("P", 0.0), ("Q", 90.0)]]
+    with pytest.raises(IdentifiabilityError, match=r"plane 1 only.*|'P'.*'Q'") as ei:
+        rotorid.identify_synchronous(rig.rotor, runs)
+    assert "'P'" in str(ei.value) and "'Q'" in str(ei.value)
+
+
+def test_complex_multiple_run_is_rejected():
+    rig = rotorid.nsf_rig()
+    rpm = [3000.0, 4000.0]
+    a = Imbalance((3e-3, 4e-3), (10.0, 50.0), name="A")
+    b = Imbalance((6e-3, 8e-3), (40.0, 80.0), name="twiceA")  # 2 e^{-j30} x A
+    runs = [rotorid.imbalance_response(rig.rotor, rig.bearings, i, speed_rpm=rpm) for i in (a, b)]
+    with pytest.raises(IdentifiabilityError, match=r"complex multiples.*'twiceA'.*= 2·exp\(j-30.0°\)"):
+        rotorid.identify_synchronous(rig.rotor, runs)
+
+
+def test_isotropic_bearings_are_rejected():
+    rig = rotorid.nsf_rig()
+    iso = rotorid.BearingCoefficients.identical([[3e6, 0], [0, 3e6]], [[2000, 0], [0, 2000]])
+    rpm = np.linspace(2000, 8000, 7)
+    runs = [rotorid.imbalance_response(rig.rotor, iso, rig.imbalances[n], speed_rpm=rpm) for n in "AB"]
+    with pytest.raises(IdentifiabilityError, match="isotropic"):
+        rotorid.identify_synchronous(rig.rotor, runs)
+
+
+def test_ill_conditioned_speeds_are_flagged_not_silent():
+    rig = rotorid.nsf_rig()
+    rpm = np.array([100.0, 300.0, 4000.0, 5000.0])
+    runs = [rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[n], speed_rpm=rpm) for n in "AB"]
+    res = rotorid.identify_synchronous(rig.rotor, runs)
+    assert list(res.ok) == [False, False, True, True]
+    assert res.flag[0] in ("ill-conditioned", "low amplitude")
+    df = res.to_dataframe()
+    assert list(df.columns[:3]) == ["speed_rpm", "Kxx1", "Kxx2"] and "ok" in df and "cond1" in df
+    assert res.bearings().axis.tolist() == [4000.0, 5000.0]
+
+
+def test_bad_inputs_name_the_argument():
+    rig = rotorid.nsf_rig()
+    r1 = rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances["A"], speed_rpm=[3000.0, 4000.0])
+    r2 = rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances["B"], speed_rpm=[3000.0, 4500.0])
+    with pytest.raises(RotoridError, match="speed_rpm of run 1 .* differs"):
+        rotorid.identify_synchronous(rig.rotor, [r1, r2])
+    with pytest.raises(RotoridError, match="has no imbalance"):
+        rotorid.identify_synchronous(rig.rotor, [r1, SyncResponse([3000.0, 4000.0], r1.q)])
+    with pytest.raises(IdentifiabilityError, match="at least 2"):
+        rotorid.identify_synchronous(rig.rotor, [r1])
+    with pytest.raises(RotoridError, match="method must be"):
+        rotorid.identify_synchronous(rig.rotor, [r1, r1], method="magic")
+    with pytest.raises(RotoridError, match="run 1 must be a rotorid.SyncResponse"):
+        rotorid.identify_synchronous(rig.rotor, [r1, np.zeros((2, 4))])
+    with pytest.raises(RotoridError, match="runs must be a list"):
+        rotorid.identify_synchronous(rig.rotor, r1)
+
+
+def test_core_rejects_bad_shapes_without_panicking():
+    from rotorid import _core
+
+    p = rotorid.nsf_rig().rotor.core_params()
+    w = np.ones(3)
+    with pytest.raises(ValueError, match="q has shape"):
+        _core.identify(p, w, w, np.zeros((1, 2, 3, 3), complex), np.zeros((1, 2, 4), complex), w)
+    with pytest.raises(ValueError, match="e has shape"):
+        _core.identify(p, w, w, np.zeros((1, 2, 3, 4), complex), np.zeros((1, 3, 4), complex), w)
+    with pytest.raises(ValueError, match="w .* non-zero"):
+        _core.identify(p, np.zeros(3), w, np.zeros((1, 2, 3, 4), complex), np.zeros((1, 2, 4), complex), w)
+    with pytest.raises(ValueError, match="rotor"):
+        _core.identify(p[:3], w, w, np.zeros((1, 2, 3, 4), complex), np.zeros((1, 2, 4), complex), w)
+    with pytest.raises(ValueError, match="C-contiguous"):
+        _core.identify(p, w, w, np.zeros((1, 2, 3, 8), complex)[..., ::2], np.zeros((1, 2, 4), complex), w)
+    with pytest.raises(TypeError):
+        _core.identify(p, w, w, np.zeros((1, 2, 3, 4)), np.zeros((1, 2, 4), complex), w)
+    q = np.zeros((1, 2, 3, 4), complex)
+    q[0, 1, 2, 3] = np.nan
+    k, *_, nbad = _core.identify(p, w, w, q, np.ones((1, 2, 4), complex), w)
+    assert nbad == 1 and np.all(np.isnan(k[0, 2]))
+
+
+def test_batch_axis_equals_individual_calls_and_threads_are_safe():
+    rig = rotorid.nsf_rig()
+    rpm = np.linspace(2500, 7000, 50)
+    truth = np.stack([rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[n], speed_rpm=rpm).q
+                      for n in "ABCD"])
+    rng = np.random.default_rng(3)
+    trials = truth[None] + 1e-7 * (rng.standard_normal((64,) + truth.shape) + 1j * rng.standard_normal((64,) + truth.shape))
+    imbs = [rig.imbalances[n] for n in "ABCD"]
+    batch = rotorid.identify_synchronous_batch(rig.rotor, rpm, trials, imbs, with_std=True)
+    for t in (0, 17, 63):
+        runs = [SyncResponse(rpm, trials[t, r], imbs[r]) for r in range(4)]
+        one = rotorid.identify_synchronous(rig.rotor, runs)
+        np.testing.assert_array_equal(batch["k"][t], one.k)
+        np.testing.assert_array_equal(batch["c_std"][t], one.c_std)
+    results = [None] * 6
+
+    def work(i):
+        results[i] = rotorid.identify_synchronous_batch(rig.rotor, rpm, trials, imbs)["k"]
+
+    th = [threading.Thread(target=work, args=(i,)) for i in range(6)]
+    for t in th:
+        t.start()
+    for t in th:
+        t.join()
+    for r in results:
+        np.testing.assert_array_equal(r, batch["k"])

@@ -1,0 +1,81 @@
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+import rotorid
+from rotorid import RotoridError, SyncResponse
+
+import oracle
+from strategies import bearing_pair, imbalance_sets, rotors
+
+
+@given(rotors(), bearing_pair(), imbalance_sets(1), st.lists(st.floats(100, 30000), min_size=1, max_size=20))
+def test_imbalance_response_matches_oracle(rotor, brg, imbs, rpm):
+    imb = imbs[0]
+    rpm = np.array(rpm)
+    resp = rotorid.imbalance_response(rotor, brg, imb, speed_rpm=rpm)
+    M, G, K, C = oracle.matrices(rotor.mass_kg, rotor.it_kgm2, rotor.ip_kgm2, rotor.l1, rotor.l2, brg.k, brg.c)
+    F0 = oracle.imbalance_vector(imb.mass_kg, imb.angle_deg, rotor.r, rotor.d)
+    for i, s in enumerate(rpm * oracle.RPM):
+        q = oracle.response(M, G, K, C, s, s, F0 * s ** 2)
+        np.testing.assert_allclose(resp.q[i], q, rtol=1e-9, atol=1e-12 * np.abs(q).max())
+
+
+@given(rotors(), st.lists(st.complex_numbers(max_magnitude=1e-3, allow_nan=False, allow_infinity=False),
+                          min_size=4, max_size=4))
+def test_probe_transform_roundtrip(rotor, q):
+    q = np.array(q)
+    qp = rotorid.bearings_to_probes(rotor, q)
+    back = rotorid.probes_to_bearings(rotor, qp)
+    np.testing.assert_allclose(back, q, atol=1e-12 * (np.abs(q).max() + 1e-30) * 1e3)
+    # eq. 19 literally
+    T = oracle.eq19(rotor.l1, rotor.l2, rotor.s1, rotor.s2)
+    np.testing.assert_allclose(rotorid.probes_to_bearings(rotor, qp)[[0, 1]], T @ qp[[0, 1]], rtol=1e-10, atol=1e-18)
+
+
+def test_probe_transform_is_rigid_body_geometry():
+    rotor = rotorid.nsf_rig().rotor
+    # pure translation: every plane moves the same
+    q = np.array([1e-5, 1e-5, 2e-5j, 2e-5j])
+    np.testing.assert_allclose(rotorid.bearings_to_probes(rotor, q), q)
+    # pure tilt a about the CG: x(z) = a z
+    a = 1e-4
+    qb = np.array([-a * rotor.l1, a * rotor.l2, 0, 0])
+    np.testing.assert_allclose(rotorid.bearings_to_probes(rotor, qb)[:2], [-a * rotor.s1, a * rotor.s2])
+
+
+def test_response_at_probes_on_request():
+    rig = rotorid.nsf_rig()
+    rpm = np.array([2000.0, 4000.0])
+    rb = rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances["B"], speed_rpm=rpm)
+    rp = rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances["B"], speed_rpm=rpm, at="probes")
+    assert rp.at == "probes"
+    np.testing.assert_allclose(rp.at_bearings(rig.rotor).q, rb.q, rtol=1e-12)
+    assert not np.allclose(rp.q, rb.q)
+
+
+def test_figure3_shape_set_A_peaks_near_first_critical():
+    rig = rotorid.nsf_rig()
+    rpm = np.arange(500, 10001, 10.0)
+    r = rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances["A"], speed_rpm=rpm)
+    peak = rpm[np.argmax(np.abs(r.q[:, 0]))]
+    assert 3300 < peak < 3700
+    # report: motions at the first critical of the order of 60-80 µm 0-pk
+    assert 40e-6 < np.abs(r.q).max() < 100e-6
+
+
+def test_bad_inputs():
+    rig = rotorid.nsf_rig()
+    with pytest.raises(RotoridError, match="speed_rpm must be > 0"):
+        rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances["A"], speed_rpm=[0.0, 1000])
+    with pytest.raises(RotoridError, match="speed_rpm contains NaN"):
+        rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances["A"], speed_rpm=[np.nan])
+    with pytest.raises(RotoridError, match="at must be one of"):
+        rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances["A"], speed_rpm=[1000], at="disk")
+    with pytest.raises(RotoridError, match="imbalance must be"):
+        rotorid.imbalance_response(rig.rotor, rig.bearings, "A", speed_rpm=[1000])
+    with pytest.raises(RotoridError, match="q has shape"):
+        SyncResponse(speed_rpm=[1000, 2000], q=np.zeros((2, 3)))
+    with pytest.raises(RotoridError, match="q contains NaN"):
+        SyncResponse(speed_rpm=[1000], q=np.array([[np.nan, 0, 0, 0]]))
