@@ -139,16 +139,18 @@ def imbalance_response(rotor: RigidRotor, bearings: BearingCoefficients, imbalan
 
 @dataclass(frozen=True)
 class ProbeResolution:
-    """Measurement-error model of a vibration DAQ's 1X vectors: the amplitude is reported to a
-    fixed resolution (default 0.01 mil = 0.254 µm 0-pk) and the phase to a fixed resolution
-    (default 1 degree), optionally plus Gaussian noise (µm rms, complex, per component).
+    """Measurement-error model of 1X vectors: the amplitude is rounded to a fixed resolution and
+    the phase to a fixed resolution, optionally after adding complex Gaussian noise (rms, metres).
 
-    This is what limits identification at low speed in the report's Figure 4: where the response is
-    a few resolution steps large, the rounding is a large relative error of the bearing forces.
+    The defaults, 0.001 mil (0.0254 µm) 0-pk and 0.01 degree, are the precision to which the demo
+    tabulates its simulated responses before identifying; with them the NSF experiment shows the
+    report's Figure 4 pattern (poor below ~2000 rpm, good between the critical speeds, cross-coupled
+    stiffness distorted above ~6000 rpm). A DAQ reporting 0.01 mil and 1 degree is far coarser and
+    ruins the cross-coupled coefficients everywhere (README, "Figure 4").
     """
 
-    amplitude_m: float = 0.254e-6
-    phase_deg: float = 1.0
+    amplitude_m: float = 0.0254e-6
+    phase_deg: float = 0.01
     noise_m: float = 0.0
 
     def apply(self, q, rng=None):

@@ -100,8 +100,8 @@ pub fn assemble(b: &[f64], l1: f64, l2: f64) -> [[f64; 4]; 4] {
 /// bearings must balance (left-hand side of eq. 10), return [f1x, f1y, f2x, f2y]: the force each
 /// bearing exerts in reaction (Z_b [x_b, y_b]).
 #[inline(always)]
-pub fn bearing_forces(r: &[C64; 4], l1: f64, l2: f64) -> [C64; 4] {
-    let il = 1.0 / (l1 + l2);
+/// `il` = 1 / (l1 + l2), precomputed by the caller.
+pub fn bearing_forces(r: &[C64; 4], l1: f64, l2: f64, il: f64) -> [C64; 4] {
     [
         (r[0] * l2 - r[2]) * il,
         (r[1] * l2 + r[3]) * il,

@@ -1,0 +1,122 @@
+"""Plots of responses, modal results and identified coefficients (matplotlib, Agg-safe)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+DOF_TITLES = ("Drive end (1), horizontal x", "Free end (2), horizontal x", "Drive end (1), vertical y",
+              "Free end (2), vertical y")
+
+
+def _plt():
+    import matplotlib
+
+    if matplotlib.get_backend().lower() not in ("agg", "module://matplotlib_inline.backend_inline"):
+        try:
+            matplotlib.use("Agg")
+        except Exception:  # pragma: no cover - backend already in use
+            pass
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def bode(response, *, title="", path=None, x_label="Rotor speed (rpm)", axis=None):
+    """Amplitude (µm 0-pk) and phase lag (deg, as a vibration DAQ shows it) of the four responses."""
+    plt = _plt()
+    x = response.speed_rpm if axis is None else axis
+    q = response.q if hasattr(response, "q") else response
+    fig, axes = plt.subplots(2, 4, figsize=(15, 6), sharex=True)
+    for j in range(4):
+        amp = 1e6 * np.abs(q[:, j])
+        lag = np.rad2deg(np.unwrap(-np.angle(q[:, j])))
+        axes[0, j].plot(x, amp)
+        axes[0, j].set_title(DOF_TITLES[j], fontsize=9)
+        axes[1, j].plot(x, lag)
+        axes[1, j].set_xlabel(x_label)
+    axes[0, 0].set_ylabel("Amplitude (µm 0-pk)")
+    axes[1, 0].set_ylabel("Phase lag (deg)")
+    for a in axes.flat:
+        a.grid(True, alpha=0.3)
+    fig.suptitle(title)
+    fig.tight_layout()
+    if path:
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+    return fig
+
+
+def coefficients(ident, truth=None, *, title="", path=None, show_flagged=True, ylim_factor=3.0):
+    """Four panels: direct K, cross-coupled K, direct C, cross-coupled C, both bearings.
+
+    Points flagged by the identification (ok == False) are drawn as hollow markers; ``truth``
+    (BearingCoefficients) is drawn as lines. The y range is clipped to ``ylim_factor`` times the
+    truth range so that wild low-speed values do not hide the rest.
+    """
+    plt = _plt()
+    x = ident.axis
+    xlabel = "Rotor speed (rpm)" if ident.axis_name == "speed_rpm" else "Frequency (Hz)"
+    groups = [("K", [(0, 0), (1, 1)], "Direct stiffness (MN/m)", 1e-6, ident.k),
+              ("K", [(0, 1), (1, 0)], "Cross-coupled stiffness (MN/m)", 1e-6, ident.k),
+              ("C", [(0, 0), (1, 1)], "Direct damping (kN·s/m)", 1e-3, ident.c),
+              ("C", [(0, 1), (1, 0)], "Cross-coupled damping (kN·s/m)", 1e-3, ident.c)]
+    fig, axes = plt.subplots(2, 2, figsize=(13, 8.5), sharex=True)
+    markers = ["o", "s", "^", "v"]
+    for ax, (sym, pairs, label, scale, arr) in zip(axes.flat, groups):
+        tvals = []
+        m = 0
+        for b in range(2):
+            for (i, j) in pairs:
+                name = f"{sym}{'xy'[i]}{'xy'[j]}{b + 1}"
+                y = arr[:, b, i, j] * scale
+                line = ax.plot(x[ident.ok], y[ident.ok], markers[m], ms=3.5, label=name)[0]
+                if show_flagged and (~ident.ok).any():
+                    ax.plot(x[~ident.ok], y[~ident.ok], markers[m], ms=3.5, mfc="none", color=line.get_color(), alpha=0.6)
+                if truth is not None:
+                    kk, cc = truth.at(**{ident.axis_name: x}) if not truth.is_constant else truth.at()
+                    tv = (kk if sym == "K" else cc)
+                    tv = np.broadcast_to(tv[..., b, i, j], x.shape) * scale
+                    ax.plot(x, tv, "-", color=line.get_color(), lw=1)
+                    tvals.append(tv)
+                m += 1
+        if tvals:
+            tv = np.concatenate(tvals)
+            lo, hi = tv.min(), tv.max()
+            span = max(hi - lo, 0.25 * max(abs(hi), abs(lo)), 1e-12)
+            ax.set_ylim(lo - ylim_factor * span / 2, hi + ylim_factor * span / 2)
+        ax.set_ylabel(label)
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8, ncol=2)
+    for ax in axes[1]:
+        ax.set_xlabel(xlabel)
+    fig.suptitle(title + ("\n(hollow markers: points flagged as not trustworthy)" if show_flagged and (~ident.ok).any() else ""))
+    fig.tight_layout()
+    if path:
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+    return fig
+
+
+def campbell(modal_result, *, crit=None, path=None, title="Campbell diagram"):
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(8, 6))
+    rpm = modal_result.speed_rpm
+    f = modal_result.freq_hz * 60
+    for m in range(f.shape[1]):
+        ax.plot(rpm, f[:, m], label=f"mode {m + 1}")
+    ax.plot(rpm, rpm, "k--", lw=1, label="1X")
+    if crit is not None and len(crit):
+        ax.plot(crit.speed_rpm, crit.freq_hz * 60, "ko", mfc="none")
+        for _, r in crit.iterrows():
+            ax.annotate(f"{r.speed_rpm:.0f} cpm\nζ={r.damping_ratio_wd:.3f} {r.whirl[:3]}", (r.speed_rpm, r.freq_hz * 60),
+                        textcoords="offset points", xytext=(6, -22), fontsize=8)
+    ax.set_xlabel("Rotor speed (rpm)")
+    ax.set_ylabel("Damped natural frequency (cpm)")
+    ax.grid(True, alpha=0.3)
+    ax.legend()
+    ax.set_title(title)
+    fig.tight_layout()
+    if path:
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+    return fig
