@@ -189,10 +189,16 @@ def test_core_rejects_bad_shapes_without_panicking():
         _core.identify(p, w, w, np.zeros((1, 2, 3, 8), complex)[..., ::2], np.zeros((1, 2, 4), complex), w)
     with pytest.raises(TypeError):
         _core.identify(p, w, w, np.zeros((1, 2, 3, 4)), np.zeros((1, 2, 4), complex), w)
-    q = np.zeros((1, 2, 3, 4), complex)
+    rig = rotorid.nsf_rig()
+    rpm = np.array([3000.0, 4000.0, 5000.0])
+    om = rpm * np.pi / 30
+    q = np.stack([rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[n], speed_rpm=rpm).q
+                  for n in "AB"])[None]
+    e = np.stack([rig.imbalances[n].generalized(rig.rotor) for n in "AB"])[None]
     q[0, 1, 2, 3] = np.nan
-    k, *_, nbad = _core.identify(p, w, w, q, np.ones((1, 2, 4), complex), w)
-    assert nbad == 1 and np.all(np.isnan(k[0, 2]))
+    k, c, cond, *_, nbad = _core.identify(p, om, om, q, e, om ** 2)
+    assert nbad == 1 and np.all(np.isnan(k[0, 2])) and np.all(np.isnan(cond[0, 2]))
+    np.testing.assert_allclose(k[0, :2], np.broadcast_to(rig.bearings.k, (2, 2, 2, 2)), rtol=1e-8, atol=1e-3)
 
 
 def test_batch_axis_equals_individual_calls_and_threads_are_safe():

@@ -29,8 +29,8 @@ class Identification:
 
     ``k``, ``c``: (n, 2, 2, 2) = [point, bearing, i, j] in N/m and N·s/m. Diagnostics per point:
     ``cond`` (n, 2) condition number of each bearing's response matrix, ``residual`` (n,) relative
-    least-squares residual (0 for exactly determined sets), ``rel_amplitude`` (n,) largest response
-    amplitude relative to its maximum over the axis, ``k_std``/``c_std`` standard errors (NaN when
+    least-squares residual (0 for exactly determined sets), ``rel_amplitude`` (n,) rms response
+    amplitude (over runs and the four coordinates) relative to its maximum over the axis, ``k_std``/``c_std`` standard errors (NaN when
     the set is exactly determined), ``ok`` (n,) False where the point should not be trusted and
     ``flag`` (n,) saying why ("" where ok).
     """
@@ -159,12 +159,13 @@ def _diagnose_singular(qs, labels):
             "linearly dependent (one is a complex multiple of another, or the data repeat a run)")
 
 
-def _finish(axis_name, axis, q_all, k, c, cond, resid, ks, cs, cond_max, min_rel_amplitude, method, labels):
-    amp = np.abs(q_all).max(axis=(0, 2))  # (n,)
+def _finish(axis_name, axis, amp, k, c, cond, resid, ks, cs, cond_max, min_rel_amplitude, method, labels):
+    """Result object with per-point flags. ``amp``: rms response amplitude over runs and coordinates."""
     peak = amp.max() if amp.size else 0.0
     rel = amp / peak if peak > 0 else np.zeros_like(amp)
-    finite = np.all(np.isfinite(k.reshape(len(axis), -1)), axis=1)
-    worst = np.max(cond, axis=1)
+    c1, c2 = cond[:, 0], cond[:, 1]
+    finite = np.isfinite(c1) & np.isfinite(c2)  # the core returns inf (singular) or NaN (bad input)
+    worst = np.maximum(c1, c2)
     flag = np.full(axis.size, "", dtype=object)
     flag[rel < min_rel_amplitude] = "low amplitude"
     flag[worst > cond_max] = "ill-conditioned"
@@ -208,18 +209,20 @@ def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", ide
     qs = np.stack([r.at_bearings(rotor).q for r in runs])  # (R, n, 4)
     om = rpm * RPM
     e = np.stack([r.imbalance.generalized(rotor) for r in runs])[None]  # (1, R, 4)
+    # standard errors need redundant equations: more rows than the 2 unknowns of each system
+    redundant = len(runs) * (2 if identical else 1) > 2
     out = _core.identify(rotor.core_params(), om, om, np.ascontiguousarray(qs[None]), np.ascontiguousarray(e),
-                         om ** 2, identical=identical, method=method, with_std=True)
-    k, c, cond, resid, ks, cs, nbad = out
+                         om ** 2, identical=identical, method=method, with_std=redundant)
+    k, c, cond, resid, amp, ks, cs, nbad = out
     if nbad:
         raise RotoridError("responses contain NaN or inf")
     if ks is None:
         ks = np.full_like(k, np.nan)
         cs = np.full_like(c, np.nan)
-    if not np.any(np.isfinite(k)):
+    if not np.any(np.isfinite(cond)):
         raise IdentifiabilityError(_diagnose_singular(qs, labels))
-    return _finish("speed_rpm", rpm, qs, k[0], c[0], cond[0], resid[0], ks[0], cs[0], cond_max, min_rel_amplitude,
-                   method, labels)
+    return _finish("speed_rpm", rpm, amp[0], k[0], c[0], cond[0], resid[0], ks[0], cs[0], cond_max,
+                   min_rel_amplitude, method, labels)
 
 
 def identify_synchronous_batch(rotor: RigidRotor, speed_rpm, q, imbalances, *, method: str = "forces",
@@ -229,7 +232,8 @@ def identify_synchronous_batch(rotor: RigidRotor, speed_rpm, q, imbalances, *, m
     ``imbalances``: list of Imbalance (one per run, shared by all trials) or a complex array
     (trials, runs, 4) of generalized imbalance vectors F_o/Ω² (eq. 4) when the imbalance itself is
     perturbed per trial. Returns a dict of arrays k, c (trials, n, 2, 2, 2), cond (trials, n, 2),
-    residual (trials, n) and, with ``with_std``, k_std and c_std. No per-point flags: use cond.
+    residual and amplitude (rms response, m) (trials, n) and, with ``with_std``, k_std and c_std.
+    No per-point flags: use cond (inf where singular, NaN where the input was not finite).
     """
     if not isinstance(rotor, RigidRotor):
         raise RotoridError(f"rotor must be a rotorid.RigidRotor, got {type(rotor).__name__}")
@@ -250,10 +254,10 @@ def identify_synchronous_batch(rotor: RigidRotor, speed_rpm, q, imbalances, *, m
     if e.shape[1:] != (q.shape[1], 4) or e.shape[0] not in (1, q.shape[0]):
         raise RotoridError(f"imbalances give excitation shape {e.shape}, expected (1 or {q.shape[0]}, {q.shape[1]}, 4)")
     om = rpm * RPM
-    k, c, cond, resid, ks, cs, _ = _core.identify(rotor.core_params(), om, om, np.ascontiguousarray(q),
-                                                 np.ascontiguousarray(e), om ** 2, identical=identical,
-                                                 method=method, with_std=with_std)
-    out = dict(k=k, c=c, cond=cond, residual=resid)
+    k, c, cond, resid, amp, ks, cs, _ = _core.identify(rotor.core_params(), om, om, np.ascontiguousarray(q),
+                                                      np.ascontiguousarray(e), om ** 2, identical=identical,
+                                                      method=method, with_std=with_std)
+    out = dict(k=k, c=c, cond=cond, residual=resid, amplitude=amp)
     if with_std and ks is not None:
         out.update(k_std=ks, c_std=cs)
     return out

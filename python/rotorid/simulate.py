@@ -107,7 +107,11 @@ class SyncResponse:
         return pd.DataFrame(data)
 
 
-def _core_coeffs(bearings: BearingCoefficients, n, speed_rpm=None, freq_hz=None):
+def _core_coeffs(bearings: BearingCoefficients, n, speed_rpm=None, freq_hz=None, broadcast=False):
+    """Bearing coefficients as the core wants them: (n, 8), or (1, 8) for constant coefficients when
+    the core function broadcasts (``broadcast=True``)."""
+    if broadcast and bearings.is_constant:
+        return bearings.k.reshape(1, 8).copy(), bearings.c.reshape(1, 8).copy()
     k, c = bearings.at(speed_rpm=speed_rpm, freq_hz=freq_hz)
     k = np.ascontiguousarray(np.broadcast_to(k, (n, 2, 2, 2)).reshape(n, 8))
     c = np.ascontiguousarray(np.broadcast_to(c, (n, 2, 2, 2)).reshape(n, 8))
@@ -127,8 +131,8 @@ def imbalance_response(rotor: RigidRotor, bearings: BearingCoefficients, imbalan
     rpm = speeds_rpm("speed_rpm", speed_rpm)
     n = rpm.size
     om = rpm * RPM
-    k, c = _core_coeffs(bearings, n, speed_rpm=rpm)
-    force = np.ascontiguousarray((imbalance.generalized(rotor)[None, :] * (om ** 2)[:, None])[:, None, :])
+    k, c = _core_coeffs(bearings, n, speed_rpm=rpm, broadcast=True)
+    force = (imbalance.generalized(rotor)[None, :] * (om ** 2)[:, None])[:, None, :]
     q, nsing = _core.forced_response(rotor.core_params(), k, c, om, om, force)
     if nsing:
         bad = rpm[~np.all(np.isfinite(q[:, 0, :]), axis=1)]

@@ -69,11 +69,9 @@ pub fn solve4(h: &mut [[C64; 4]; 4], rhs: &mut [C64]) -> bool {
     true
 }
 
-/// Dynamic stiffness H at one point.
+/// Dynamic stiffness H at one point (M and G precomputed by the caller).
 #[inline(always)]
-pub fn dynamic_stiffness(rotor: &Rotor, kb: &[f64], cb: &[f64], spin: f64, w: f64) -> [[C64; 4]; 4] {
-    let m = rotor.mass_matrix();
-    let g = rotor.gyro_matrix();
+pub fn dynamic_stiffness(rotor: &Rotor, m: &[[f64; 4]; 4], g: &[[f64; 4]; 4], kb: &[f64], cb: &[f64], spin: f64, w: f64) -> [[C64; 4]; 4] {
     let k = assemble(kb, rotor.l1, rotor.l2);
     let c = assemble(cb, rotor.l1, rotor.l2);
     let mut h = [[C64::new(0.0, 0.0); 4]; 4];
@@ -86,7 +84,7 @@ pub fn dynamic_stiffness(rotor: &Rotor, kb: &[f64], cb: &[f64], spin: f64, w: f6
 }
 
 /// For every point i: solve H_i q = F_i for `nrhs` force vectors.
-/// `kb`, `cb`: (n, 8); `spin`, `w`: (n,); `force`: (n, nrhs, 4) or (1, nrhs, 4) broadcast;
+/// `kb`, `cb`: (n, 8) or (1, 8) broadcast; `spin`, `w`: (n,); `force`: (n, nrhs, 4) or (1, nrhs, 4) broadcast;
 /// `out`: (n, nrhs, 4). Returns the number of singular points (their output is NaN).
 pub fn forced_response(
     rotor: &Rotor,
@@ -100,13 +98,19 @@ pub fn forced_response(
 ) -> usize {
     let n = w.len();
     let broadcast = force.len() == nrhs * 4 && n != 1;
+    let kbc = kb.len() == 8;
+    let cbc = cb.len() == 8;
+    let m = rotor.mass_matrix();
+    let g = rotor.gyro_matrix();
     out.par_chunks_mut(nrhs * 4)
         .with_min_len(256)
         .enumerate()
         .map(|(i, o)| {
             let f = if broadcast { &force[..] } else { &force[i * nrhs * 4..(i + 1) * nrhs * 4] };
             o.copy_from_slice(f);
-            let mut h = dynamic_stiffness(rotor, &kb[8 * i..8 * i + 8], &cb[8 * i..8 * i + 8], spin[i], w[i]);
+            let ki = if kbc { 0 } else { 8 * i };
+            let ci = if cbc { 0 } else { 8 * i };
+            let mut h = dynamic_stiffness(rotor, &m, &g, &kb[ki..ki + 8], &cb[ci..ci + 8], spin[i], w[i]);
             if solve4(&mut h, o) { 0usize } else { 1usize }
         })
         .sum()

@@ -11,7 +11,8 @@
 //! - `identify_report`: the report's 16-unknown real formulation (eq. 8-12, 16-18) solved with
 //!   faer's QR. Kept as the reference; it equals the default exactly for two runs.
 
-use crate::model::{bearing_forces, Rotor, C64};
+use crate::lanes::{Z, L, V};
+use crate::model::{Rotor, C64};
 use faer::linalg::solvers::SolveLstsq;
 use faer::Mat;
 use rayon::prelude::*;
@@ -116,71 +117,62 @@ impl Givens2 {
     }
 }
 
-/// Solution of one bearing system: z[rhs][unknown], variance factors diag((A^H A)^-1),
-/// condition number, residual and right-hand-side sums of squares per rhs, number of rows.
+/// Lane-parallel solution of one bearing system for L points: z[rhs][unknown], variance factors
+/// diag((A^H A)^-1), condition number, residual and right-hand-side sums of squares per rhs.
 #[derive(Clone, Copy)]
-struct Sol {
-    z: [[C64; 2]; 2],
-    g: [f64; 2],
-    cond: f64,
-    res2: [f64; 2],
-    rhs2: [f64; 2],
-    rows: usize,
+struct LaneSol {
+    z: [[Z; 2]; 2],
+    g: [V; 2],
+    cond: V,
+    res2: [V; 2],
+    rhs2: [V; 2],
+    /// sum of squares of every entry: non-finite exactly when an input was NaN or inf
+    total: V,
+    /// sum of |x|^2 + |y|^2 over the rows
+    qq: V,
 }
 
-/// Largest condition number solved through the corrected semi-normal equations; above it the
-/// rows go through the Givens QR (backward stable up to SINGULAR_COND).
+/// Largest condition number solved through the corrected semi-normal equations; lanes above it
+/// go through the Givens QR (backward stable up to SINGULAR_COND).
 const CSNE_COND: f64 = 1e6;
 
-/// Solve rows [x, y, f_x, f_y] (x z0 + y z1 = f_k) in the least-squares sense.
-///
-/// Fast path: 2x2 Hermitian normal equations in closed form plus one step of refinement with the
-/// residual of the original rows (corrected semi-normal equations; as accurate as QR for
-/// cond^2 * eps << 1, hence the CSNE_COND limit). No square root or division inside the loop.
+/// Solve rows [x, y, f_x, f_y] (x z0 + y z1 = f_k, k = 0, 1) in the least-squares sense for L
+/// points at once: 2x2 Hermitian normal equations in closed form plus one refinement step with
+/// the residual of the original rows (corrected semi-normal equations: as accurate as QR while
+/// cond^2 * eps << 1, hence CSNE_COND). No square root or division inside the row loops.
 #[inline(always)]
-fn solve_rows(rows: &[[C64; 4]]) -> Sol {
-    let (mut a, mut d) = (0.0f64, 0.0f64);
-    let mut gxy = C64::new(0.0, 0.0);
-    let mut h = [[C64::new(0.0, 0.0); 2]; 2]; // h[rhs][unknown] = A^H f
-    let mut rhs2 = [0.0f64; 2];
+fn solve_lanes(rows: &[[Z; 4]]) -> LaneSol {
+    let (mut a, mut d) = (V::zero(), V::zero());
+    let mut gxy = Z::zero();
+    let mut h = [[Z::zero(); 2]; 2];
+    let mut rhs2 = [V::zero(); 2];
     for r in rows {
-        let (xc, yc) = (r[0].conj(), r[1].conj());
         a += r[0].norm_sqr();
         d += r[1].norm_sqr();
-        gxy += xc * r[1];
+        gxy += r[0].cmul(r[1]);
         for k in 0..2 {
-            h[k][0] += xc * r[2 + k];
-            h[k][1] += yc * r[2 + k];
+            h[k][0] += r[0].cmul(r[2 + k]);
+            h[k][1] += r[1].cmul(r[2 + k]);
             rhs2[k] += r[2 + k].norm_sqr();
         }
     }
-    let det = a * d - gxy.norm_sqr();
-    let half = 0.5 * (a + d);
-    let lmax = half + (0.25 * (a - d) * (a - d) + gxy.norm_sqr()).sqrt();
-    let cond = if det > 0.0 { (lmax * lmax / det).sqrt() } else { f64::INFINITY };
-    if !(cond < CSNE_COND) {
-        let mut gv = Givens2::new();
-        for r in rows {
-            gv.push(r[0], r[1], [r[2], r[3]]);
-        }
-        let (z, g, cn) = gv.solve();
-        return Sol { z, g, cond: cn, res2: gv.res2, rhs2: gv.rhs2, rows: rows.len() };
-    }
-    let idet = 1.0 / det;
-    let solve = |v: [C64; 2]| -> [C64; 2] {
-        [(v[0] * d - gxy * v[1]) * idet, (v[1] * a - gxy.conj() * v[0]) * idet]
-    };
+    let g2 = gxy.norm_sqr();
+    let det = a * d - g2;
+    let amd = a - d;
+    let lmax = (a + d) * V::splat(0.5) + (amd * amd * V::splat(0.25) + g2).sqrt();
+    let idet = det.recip();
+    let cond = (lmax * lmax * idet).sqrt();
+    let gc = gxy.conj();
+    let solve = |v: [Z; 2]| -> [Z; 2] { [(v[0].scale(d) - gxy * v[1]).scale(idet), (v[1].scale(a) - gc * v[0]).scale(idet)] };
     let mut z = [solve(h[0]), solve(h[1])];
-    // one refinement step with the residual of the original equations
-    let mut ahr = [[C64::new(0.0, 0.0); 2]; 2];
-    let mut res2 = [0.0f64; 2];
+    let mut ahr = [[Z::zero(); 2]; 2];
+    let mut res2 = [V::zero(); 2];
     for r in rows {
-        let (xc, yc) = (r[0].conj(), r[1].conj());
         for k in 0..2 {
             let res = r[2 + k] - r[0] * z[k][0] - r[1] * z[k][1];
             res2[k] += res.norm_sqr();
-            ahr[k][0] += xc * res;
-            ahr[k][1] += yc * res;
+            ahr[k][0] += r[0].cmul(res);
+            ahr[k][1] += r[1].cmul(res);
         }
     }
     for k in 0..2 {
@@ -188,7 +180,27 @@ fn solve_rows(rows: &[[C64; 4]]) -> Sol {
         z[k][0] += dz[0];
         z[k][1] += dz[1];
     }
-    Sol { z, g: [d * idet, a * idet], cond, res2, rhs2, rows: rows.len() }
+    let total = a + d + rhs2[0] + rhs2[1];
+    LaneSol { z, g: [d * idet, a * idet], cond, res2, rhs2, total, qq: a + d }
+}
+
+/// Re-solve lane `l` of `sol` with the Givens QR (ill-conditioned or degenerate lanes).
+fn givens_lane(rows: &[[Z; 4]], l: usize, sol: &mut LaneSol) {
+    let mut gv = Givens2::new();
+    let at = |z: &Z| C64::new(z.re.0[l], z.im.0[l]);
+    for r in rows {
+        gv.push(at(&r[0]), at(&r[1]), [at(&r[2]), at(&r[3])]);
+    }
+    let (z, g, cn) = gv.solve();
+    for k in 0..2 {
+        for u in 0..2 {
+            sol.z[k][u].re.0[l] = z[k][u].re;
+            sol.z[k][u].im.0[l] = z[k][u].im;
+        }
+        sol.g[k].0[l] = g[k];
+        sol.res2[k].0[l] = gv.res2[k];
+    }
+    sol.cond.0[l] = cn;
 }
 
 /// Inputs shared by both solvers.
@@ -216,6 +228,8 @@ pub struct IdentOut<'a> {
     pub c: &'a mut [f64],      // (B, n, 8)
     pub cond: &'a mut [f64],   // (B, n, 2)
     pub resid: &'a mut [f64],  // (B, n)
+    /// rms response amplitude over runs and the four coordinates, (B, n)
+    pub amp: &'a mut [f64],
     pub k_std: Option<&'a mut [f64]>, // (B, n, 8)
     pub c_std: Option<&'a mut [f64]>, // (B, n, 8)
 }
@@ -271,106 +285,211 @@ fn load_q(p: &IdentProblem, b: usize, r: usize, i: usize) -> [C64; 4] {
 
 const CHUNK: usize = 2048;
 
-/// One chunk of consecutive points starting at flat index `start` (= b * n + i).
-#[allow(clippy::too_many_arguments)]
-fn forces_chunk(
-    p: &IdentProblem,
-    kc: &Consts,
-    start: usize,
-    k: &mut [f64],
-    c: &mut [f64],
-    cond: &mut [f64],
-    resid: &mut [f64],
-    mut ks: Option<&mut [f64]>,
-    mut cs: Option<&mut [f64]>,
-) -> usize {
+/// Output slices of one chunk.
+struct Outs<'a> {
+    k: &'a mut [f64],
+    c: &'a mut [f64],
+    cond: &'a mut [f64],
+    resid: &'a mut [f64],
+    amp: &'a mut [f64],
+    ks: Option<&'a mut [f64]>,
+    cs: Option<&'a mut [f64]>,
+}
+
+/// One chunk of consecutive points starting at flat index `start` (= b * n + i), L at a time.
+#[inline(always)]
+fn forces_chunk(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize {
+    let Outs { k, c, cond, resid, amp, mut ks, mut cs } = out;
     let n = p.w.len();
+    let npts = resid.len();
+    let shared_e = p.e.len() == p.runs * 4;
+    let nsys = if p.identical { 1 } else { 2 };
     let mut nbad = 0;
-    // row buffers of the two bearing systems, reused for every point of the chunk
-    let zero = [C64::new(0.0, 0.0); 4];
-    let mut rows = [vec![zero; 2 * p.runs], vec![zero; 2 * p.runs]];
-    for t in 0..resid.len() {
-        let idx = start + t;
-        let (b, i) = (idx / n, idx % n);
-        let (w, spin, gain) = (p.w[i], p.spin[i], p.gain[i]);
-        let mut bad = false;
-        // rows of the two bearing systems (or of the single system for identical bearings)
-        let mut nr = [0usize; 2];
-        let s2 = if p.identical { 0 } else { 1 };
-        for r in 0..p.runs {
-            let q = load_q(p, b, r, i);
-            bad |= !(q.iter().all(|v| v.re.is_finite() && v.im.is_finite()));
-            let rv = rhs_point(kc, excitation(p, b, r), gain, w, spin, &q);
-            let f = bearing_forces(&rv, kc.l1, kc.l2, kc.il);
-            rows[0][nr[0]] = [q[0], q[2], f[0], f[1]];
-            nr[0] += 1;
-            rows[s2][nr[s2]] = [q[1], q[3], f[2], f[3]];
-            nr[s2] += 1;
+    let zrow = [Z::zero(); 4];
+    let mut rows = [vec![zrow; 2 * p.runs], vec![zrow; 2 * p.runs]];
+    let (ml2, ml1, it) = (V::splat(kc.ml2), V::splat(kc.ml1), V::splat(kc.it));
+    let (l1, l2, il) = (V::splat(kc.l1), V::splat(kc.l2), V::splat(kc.il));
+    for g0 in (0..npts).step_by(L) {
+        let nl = L.min(npts - g0);
+        let mut bi = [(0usize, 0usize); L];
+        let (mut w, mut spin, mut gain) = (V::zero(), V::zero(), V::zero());
+        for l in 0..L {
+            let idx = start + g0 + l.min(nl - 1);
+            bi[l] = (idx / n, idx % n);
+            w.0[l] = p.w[bi[l].1];
+            spin.0[l] = p.spin[bi[l].1];
+            gain.0[l] = p.gain[bi[l].1];
         }
-        let sols = if p.identical {
-            let s0 = solve_rows(&rows[0][..nr[0]]);
-            [s0, s0]
-        } else {
-            [solve_rows(&rows[0][..nr[0]]), solve_rows(&rows[1][..nr[1]])]
-        };
-        let nsys = if p.identical { 1 } else { 2 };
-        let (mut res_tot, mut rhs_tot) = (0.0, 0.0);
-        let iw = 1.0 / w;
-        for sb in 0..2 {
-            let s = &sols[if p.identical { 0 } else { sb }];
-            let (z, g) = (s.z, s.g);
-            cond[2 * t + sb] = s.cond;
-            // z[rhs][unknown]: rhs 0 = x row (Zxx, Zxy), rhs 1 = y row (Zyx, Zyy)
-            for row in 0..2 {
-                for col in 0..2 {
-                    let o = 8 * t + 4 * sb + 2 * row + col;
-                    k[o] = z[row][col].re;
-                    c[o] = z[row][col].im * iw;
+        let w2 = w * w;
+        let wg = w * spin * V::splat(kc.ip);
+        let mut nr = [0usize; 2];
+        for r in 0..p.runs {
+            let mut q = [Z::zero(); 4];
+            let mut e = [Z::zero(); 4];
+            for l in 0..L {
+                let (b, i) = bi[l];
+                let o = ((b * p.runs + r) * n + i) * 4;
+                for dd in 0..4 {
+                    let v = p.q[o + dd];
+                    q[dd].re.0[l] = v.re;
+                    q[dd].im.0[l] = v.im;
                 }
             }
-            if let (Some(ks), Some(cs)) = (ks.as_deref_mut(), cs.as_deref_mut()) {
-                let dof = s.rows as f64 - 2.0;
-                for row in 0..2 {
-                    let var_c = if dof > 0.0 { s.res2[row] / dof } else { f64::NAN };
-                    for col in 0..2 {
-                        let o = 8 * t + 4 * sb + 2 * row + col;
-                        let sd = (0.5 * var_c * g[col]).sqrt();
-                        ks[o] = sd;
-                        cs[o] = sd * iw;
+            if shared_e {
+                for dd in 0..4 {
+                    let ev = p.e[r * 4 + dd];
+                    e[dd] = Z { re: V::splat(ev.re), im: V::splat(ev.im) };
+                }
+            } else {
+                for l in 0..L {
+                    let eo = (bi[l].0 * p.runs + r) * 4;
+                    for dd in 0..4 {
+                        e[dd].re.0[l] = p.e[eo + dd].re;
+                        e[dd].im.0[l] = p.e[eo + dd].im;
                     }
                 }
             }
-            if sb < nsys {
-                res_tot += s.res2[0] + s.res2[1];
-                rhs_tot += s.rhs2[0] + s.rhs2[1];
+            // R = E + w^2 M q - j w Omega G q (eq. 10 / 26), M and G sparse (eq. 3)
+            let rv0 = e[0].scale(gain) + (q[0].scale(ml2) + q[1].scale(ml1)).scale(w2);
+            let rv1 = e[1].scale(gain) + (q[2].scale(ml2) + q[3].scale(ml1)).scale(w2);
+            let rv2 = e[2].scale(gain) + (q[1] - q[0]).scale(it * w2) - (q[3] - q[2]).jscale(wg);
+            let rv3 = e[3].scale(gain) + (q[2] - q[3]).scale(it * w2) - (q[1] - q[0]).jscale(wg);
+            // Bearing reaction forces from the four rotor equations: rows 1 and 3 give
+            // f1x + f2x = R1, -l1 f1x + l2 f2x = R3; rows 2 and 4 give f1y + f2y = R2,
+            // l1 f1y - l2 f2y = R4 (eq. 3 and 10).
+            let f1x = (rv0.scale(l2) - rv2).scale(il);
+            let f1y = (rv1.scale(l2) + rv3).scale(il);
+            let f2x = (rv2 + rv0.scale(l1)).scale(il);
+            let f2y = (rv1.scale(l1) - rv3).scale(il);
+            rows[0][nr[0]] = [q[0], q[2], f1x, f1y];
+            nr[0] += 1;
+            let s2 = if p.identical { 0 } else { 1 };
+            rows[s2][nr[s2]] = [q[1], q[3], f2x, f2y];
+            nr[s2] += 1;
+        }
+        let mut sols = [solve_lanes(&rows[0][..nr[0]]), solve_lanes(&rows[1][..nr[1]])];
+        // rows of the systems together hold every entry of q and E: a NaN/inf input shows up here
+        let mut bad = [false; L];
+        for l in 0..L {
+            bad[l] = !(sols[0].total.0[l] + if p.identical { 0.0 } else { sols[1].total.0[l] }).is_finite();
+        }
+        for sb in 0..nsys {
+            for l in 0..nl {
+                if !(sols[sb].cond.0[l] < CSNE_COND) {
+                    givens_lane(&rows[sb][..nr[sb]], l, &mut sols[sb]);
+                }
             }
         }
-        resid[t] = if rhs_tot > 0.0 { (res_tot / rhs_tot).sqrt() } else { f64::NAN };
-        if bad {
-            for v in k[8 * t..8 * t + 8].iter_mut().chain(c[8 * t..8 * t + 8].iter_mut()) {
-                *v = f64::NAN;
+        if p.identical {
+            sols[1] = sols[0];
+        }
+        // lane-form outputs, then one scatter per lane
+        let iw = w.recip();
+        let mut kv = [V::zero(); 8];
+        let mut cv = [V::zero(); 8];
+        let mut sv = [V::zero(); 8];
+        let want_std = ks.is_some() && cs.is_some();
+        for sb in 0..2 {
+            let s = &sols[sb];
+            let dof = nr[if p.identical { 0 } else { sb }] as f64 - 2.0;
+            for row in 0..2 {
+                let var_half = s.res2[row] * V::splat(if dof > 0.0 { 0.5 / dof } else { f64::NAN });
+                for col in 0..2 {
+                    let o = 4 * sb + 2 * row + col;
+                    kv[o] = s.z[row][col].re;
+                    cv[o] = s.z[row][col].im * iw;
+                    if want_std {
+                        sv[o] = (var_half * s.g[col]).sqrt();
+                    }
+                }
             }
-            nbad += 1;
+        }
+        let res_tot = sols[0].res2[0] + sols[0].res2[1] + if p.identical { V::zero() } else { sols[1].res2[0] + sols[1].res2[1] };
+        let rhs_tot = sols[0].rhs2[0] + sols[0].rhs2[1] + if p.identical { V::zero() } else { sols[1].rhs2[0] + sols[1].rhs2[1] };
+        let rel = (res_tot * rhs_tot.recip()).sqrt();
+        let qsum = sols[0].qq + if p.identical { V::zero() } else { sols[1].qq };
+        let rms = (qsum * V::splat(1.0 / (4.0 * p.runs as f64))).sqrt();
+        for l in 0..nl {
+            let t = g0 + l;
+            let nan = [!(sols[0].cond.0[l] < SINGULAR_COND) || bad[l], !(sols[1].cond.0[l] < SINGULAR_COND) || bad[l]];
+            for o in 0..8 {
+                let m = nan[o / 4];
+                k[8 * t + o] = if m { f64::NAN } else { kv[o].0[l] };
+                c[8 * t + o] = if m { f64::NAN } else { cv[o].0[l] };
+            }
+            if let (Some(ks), Some(cs)) = (ks.as_deref_mut(), cs.as_deref_mut()) {
+                for o in 0..8 {
+                    let m = nan[o / 4];
+                    ks[8 * t + o] = if m { f64::NAN } else { sv[o].0[l] };
+                    cs[8 * t + o] = if m { f64::NAN } else { sv[o].0[l] * iw.0[l] };
+                }
+            }
+            for sb in 0..2 {
+                cond[2 * t + sb] = if nan[sb] && !bad[l] { f64::INFINITY } else if bad[l] { f64::NAN } else { sols[sb].cond.0[l] };
+            }
+            resid[t] = if bad[l] || !(rhs_tot.0[l] > 0.0) { f64::NAN } else { rel.0[l] };
+            amp[t] = rms.0[l];
+            if bad[l] {
+                nbad += 1;
+            }
         }
     }
     nbad
 }
 
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512dq,avx2,fma")]
+fn forces_chunk_avx512(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize {
+    forces_chunk(p, kc, start, out)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn forces_chunk_avx2(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize {
+    forces_chunk(p, kc, start, out)
+}
+
+/// Runtime dispatch to the widest SIMD the CPU has (same arithmetic, same results up to rounding).
+fn forces_chunk_dispatch(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::is_x86_feature_detected!("avx512f") && std::is_x86_feature_detected!("avx512dq") {
+            // SAFETY: the CPU supports the features the function is compiled for.
+            return unsafe { forces_chunk_avx512(p, kc, start, out) };
+        }
+        if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
+            // SAFETY: as above.
+            return unsafe { forces_chunk_avx2(p, kc, start, out) };
+        }
+    }
+    forces_chunk(p, kc, start, out)
+}
+
 /// Fast bearing-force solver. Returns the number of points whose input contained NaN/inf.
 pub fn identify_forces(p: &IdentProblem, out: IdentOut) -> usize {
     let kc = Consts::new(&p.rotor);
-    let IdentOut { k, c, cond, resid, k_std, c_std } = out;
-    let base = (k.par_chunks_mut(8 * CHUNK), c.par_chunks_mut(8 * CHUNK), cond.par_chunks_mut(2 * CHUNK), resid.par_chunks_mut(CHUNK));
+    let IdentOut { k, c, cond, resid, amp, k_std, c_std } = out;
+    let base = (
+        k.par_chunks_mut(8 * CHUNK),
+        c.par_chunks_mut(8 * CHUNK),
+        cond.par_chunks_mut(2 * CHUNK),
+        resid.par_chunks_mut(CHUNK),
+        amp.par_chunks_mut(CHUNK),
+    );
     match (k_std, c_std) {
-        (Some(ks), Some(cs)) => (base.0, base.1, base.2, base.3, ks.par_chunks_mut(8 * CHUNK), cs.par_chunks_mut(8 * CHUNK))
+        (Some(ks), Some(cs)) => (base.0, base.1, base.2, base.3, base.4, ks.par_chunks_mut(8 * CHUNK), cs.par_chunks_mut(8 * CHUNK))
             .into_par_iter()
             .enumerate()
-            .map(|(j, (k, c, cond, resid, ks, cs))| forces_chunk(p, &kc, j * CHUNK, k, c, cond, resid, Some(ks), Some(cs)))
+            .map(|(j, (k, c, cond, resid, amp, ks, cs))| {
+                forces_chunk_dispatch(p, &kc, j * CHUNK, Outs { k, c, cond, resid, amp, ks: Some(ks), cs: Some(cs) })
+            })
             .sum(),
         _ => base
             .into_par_iter()
             .enumerate()
-            .map(|(j, (k, c, cond, resid))| forces_chunk(p, &kc, j * CHUNK, k, c, cond, resid, None, None))
+            .map(|(j, (k, c, cond, resid, amp))| {
+                forces_chunk_dispatch(p, &kc, j * CHUNK, Outs { k, c, cond, resid, amp, ks: None, cs: None })
+            })
             .sum(),
     }
 }
@@ -383,24 +502,26 @@ pub const REPORT_TO_BIJ: [usize; 8] = [0, 4, 1, 5, 2, 6, 3, 7];
 /// real stacked matrix (same value for both bearings). Returns the number of NaN/inf points.
 pub fn identify_report(p: &IdentProblem, out: IdentOut) -> usize {
     let n = p.w.len();
-    let IdentOut { k, c, cond, resid, .. } = out;
+    let IdentOut { k, c, cond, resid, amp, .. } = out;
     let (l1, l2) = (p.rotor.l1, p.rotor.l2);
     let kc = Consts::new(&p.rotor);
     let nu = if p.identical { 8 } else { 16 };
-    (k.par_chunks_mut(8), c.par_chunks_mut(8), cond.par_chunks_mut(2), resid.par_iter_mut())
+    (k.par_chunks_mut(8), c.par_chunks_mut(8), cond.par_chunks_mut(2), resid.par_iter_mut(), amp.par_iter_mut())
         .into_par_iter()
         .with_min_len(64)
         .enumerate()
-        .map(|(idx, (k, c, cond, resid))| {
+        .map(|(idx, (k, c, cond, resid, amp))| {
             let (b, i) = (idx / n, idx % n);
             let rows = 8 * p.runs;
             let mut bm = Mat::<f64>::zeros(rows, nu);
             let mut fv = Mat::<f64>::zeros(rows, 1);
             let mut bad = false;
+            let mut qq = 0.0;
             for r in 0..p.runs {
                 let q = load_q(p, b, r, i);
                 for v in q.iter() {
                     bad |= !(v.re.is_finite() && v.im.is_finite());
+                    qq += v.norm_sqr();
                 }
                 let rv = rhs_point(&kc, excitation(p, b, r), p.gain[i], p.w[i], p.spin[i], &q);
                 // Q of eq. 8 (4 x 16 complex), columns in eq. 9 order
@@ -428,6 +549,7 @@ pub fn identify_report(p: &IdentProblem, out: IdentOut) -> usize {
                     fv[(8 * r + 4 + row, 0)] = rv[row].im;
                 }
             }
+            *amp = (qq / (4.0 * p.runs as f64)).sqrt();
             if bad {
                 for v in k.iter_mut().chain(c.iter_mut()) {
                     *v = f64::NAN;

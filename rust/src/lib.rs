@@ -4,6 +4,7 @@
 
 pub mod forced;
 pub mod identify;
+pub mod lanes;
 pub mod modal;
 pub mod model;
 
@@ -56,8 +57,12 @@ fn forced_response<'py>(
 ) -> PyResult<(Bound<'py, PyArrayDyn<C64>>, usize)> {
     let rot = rotor_of(&rotor)?;
     let n = w.len();
-    check_shape("k", k.shape(), &[n, 8])?;
-    check_shape("c", c.shape(), &[n, 8])?;
+    for (name, a) in [("k", &k), ("c", &c)] {
+        let sh = a.shape();
+        if sh.len() != 2 || sh[1] != 8 || !(sh[0] == n || sh[0] == 1) {
+            return Err(PyValueError::new_err(format!("{name} has shape {sh:?}, expected ({n} or 1, 8)")));
+        }
+    }
     check_shape("spin", spin.shape(), &[n])?;
     let fs = force.shape().to_vec();
     if fs.len() != 3 || fs[2] != 4 || !(fs[0] == n || fs[0] == 1) {
@@ -80,6 +85,7 @@ type IdentTuple<'py> = (
     Bound<'py, PyArrayDyn<f64>>,
     Bound<'py, PyArrayDyn<f64>>,
     Bound<'py, PyArrayDyn<f64>>,
+    Bound<'py, PyArrayDyn<f64>>,
     Option<Bound<'py, PyArrayDyn<f64>>>,
     Option<Bound<'py, PyArrayDyn<f64>>>,
     usize,
@@ -88,7 +94,8 @@ type IdentTuple<'py> = (
 /// Batched identification (see identify.rs).
 /// q: (B, R, n, 4) complex; e: (1 or B, R, 4) complex; w, spin, gain: (n,).
 /// method: "forces" (default solver) or "report" (16-unknown real formulation).
-/// Returns (k, c, cond, resid, k_std, c_std, n_nonfinite) with k, c: (B, n, 2, 2, 2).
+/// Returns (k, c, cond, resid, amp, k_std, c_std, n_nonfinite) with k, c: (B, n, 2, 2, 2),
+/// cond (B, n, 2), resid and amp (rms response amplitude) (B, n).
 #[pyfunction]
 #[pyo3(name = "identify", signature = (rotor, w, spin, q, e, gain, identical=false, method="forces", with_std=true))]
 #[allow(clippy::too_many_arguments)]
@@ -148,6 +155,7 @@ fn py_identify<'py>(
             let mut c = vec![0.0; npts * 8];
             let mut cond = vec![0.0; npts * 2];
             let mut resid = vec![0.0; npts];
+            let mut amp = vec![0.0; npts];
             let mut ks = if want_std { vec![0.0; npts * 8] } else { Vec::new() };
             let mut cs = if want_std { vec![0.0; npts * 8] } else { Vec::new() };
             let out = identify::IdentOut {
@@ -155,18 +163,19 @@ fn py_identify<'py>(
                 c: &mut c,
                 cond: &mut cond,
                 resid: &mut resid,
+                amp: &mut amp,
                 k_std: if want_std { Some(&mut ks[..]) } else { None },
                 c_std: if want_std { Some(&mut cs[..]) } else { None },
             };
             let nbad = if report { identify::identify_report(&prob, out) } else { identify::identify_forces(&prob, out) };
-            (k, c, cond, resid, ks, cs, nbad)
+            (k, c, cond, resid, amp, ks, cs, nbad)
         })
     })?;
-    let (k, c, cond, resid, ks, cs, nbad) = res;
+    let (k, c, cond, resid, amp, ks, cs, nbad) = res;
     let sh = [batch, n, 2, 2, 2];
     let kst = if want_std { Some(to_py(py, ks, &sh)?) } else { None };
     let cst = if want_std { Some(to_py(py, cs, &sh)?) } else { None };
-    Ok((to_py(py, k, &sh)?, to_py(py, c, &sh)?, to_py(py, cond, &[batch, n, 2])?, to_py(py, resid, &[batch, n])?, kst, cst, nbad))
+    Ok((to_py(py, k, &sh)?, to_py(py, c, &sh)?, to_py(py, cond, &[batch, n, 2])?, to_py(py, resid, &[batch, n])?, to_py(py, amp, &[batch, n])?, kst, cst, nbad))
 }
 
 /// Batched eigen-analysis (see modal.rs). Returns (lam (n, 4), shapes (n, 4, 4), n_failed).

@@ -58,27 +58,6 @@ impl Rotor {
             [-g, g, 0.0, 0.0],
         ]
     }
-
-    /// M q for complex q, exploiting the sparsity of eq. 3.
-    #[inline(always)]
-    pub fn m_times(&self, q: &[C64; 4]) -> [C64; 4] {
-        let il = 1.0 / self.span();
-        let (ml2, ml1, it) = (self.m * self.l2 * il, self.m * self.l1 * il, self.it * il);
-        [
-            q[0] * ml2 + q[1] * ml1,
-            q[2] * ml2 + q[3] * ml1,
-            (q[1] - q[0]) * it,
-            (q[2] - q[3]) * it,
-        ]
-    }
-
-    /// G q for complex q.
-    #[inline(always)]
-    pub fn g_times(&self, q: &[C64; 4]) -> [C64; 4] {
-        let g = self.ip / self.span();
-        let z = C64::new(0.0, 0.0);
-        [z, z, (q[3] - q[2]) * g, (q[1] - q[0]) * g]
-    }
 }
 
 /// Assemble the 4x4 stiffness (or damping) matrix of eq. 3 from the 8 bearing coefficients.
@@ -91,21 +70,5 @@ pub fn assemble(b: &[f64], l1: f64, l2: f64) -> [[f64; 4]; 4] {
         [yx1, yx2, yy1, yy2],
         [-xx1 * l1, xx2 * l2, -xy1 * l1, xy2 * l2],
         [yx1 * l1, -yx2 * l2, yy1 * l1, -yy2 * l2],
-    ]
-}
-
-/// Bearing reaction forces recovered from the four rotor equations.
-///
-/// Given the generalized force vector R = [sum Fx, sum Fy, moment row 3, moment row 4] that the
-/// bearings must balance (left-hand side of eq. 10), return [f1x, f1y, f2x, f2y]: the force each
-/// bearing exerts in reaction (Z_b [x_b, y_b]).
-#[inline(always)]
-/// `il` = 1 / (l1 + l2), precomputed by the caller.
-pub fn bearing_forces(r: &[C64; 4], l1: f64, l2: f64, il: f64) -> [C64; 4] {
-    [
-        (r[0] * l2 - r[2]) * il,
-        (r[1] * l2 + r[3]) * il,
-        (r[2] + r[0] * l1) * il,
-        (r[1] * l1 - r[3]) * il,
     ]
 }
