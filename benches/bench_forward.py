@@ -11,7 +11,7 @@ import sys
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(__file__))
-from common import best_of, blas_info  # noqa: E402
+from common import best_of, blas_info, quiet_blas  # noqa: E402
 
 import rotorid  # noqa: E402
 from rotorid.model import assemble  # noqa: E402
@@ -33,6 +33,7 @@ def main():
     ap.add_argument("--speeds", type=int, default=100_000)
     ap.add_argument("--repeat", type=int, default=5)
     args = ap.parse_args()
+    _blas = quiet_blas()  # noqa: F841  (kept alive for the whole run)
     rig = rotorid.nsf_rig()
     rpm = np.linspace(100, 10000, args.speeds)
     imb = rig.imbalances["B"]

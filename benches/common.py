@@ -33,3 +33,15 @@ def blas_info():
                          for i in threadpool_info())
     except ImportError:
         return "threadpoolctl not installed"
+
+
+def quiet_blas():
+    """Limit OpenBLAS to one thread for the whole benchmark. The NumPy baselines only call LAPACK
+    on tiny (16 x 16) matrices, which run single-threaded anyway, but idle OpenBLAS worker threads
+    keep spinning after each call and steal the second core from whatever is timed next."""
+    try:
+        from threadpoolctl import threadpool_limits
+
+        return threadpool_limits(1)
+    except ImportError:
+        return None

@@ -2,19 +2,26 @@
 imbalance responses and impacts (after De Santiago & San Andrés, TRC-RD-1-01, 2001)."""
 
 from .errors import IdentifiabilityError, RotoridError
-from .identify import Identification, identify_synchronous, identify_synchronous_batch
+from .identify import Identification, identify_impact, identify_synchronous, identify_synchronous_batch
 from .modal import ModalResult, critical_speeds, modal_analysis
 from .model import REPORT_ORDER, BearingCoefficients, Imbalance, RigidRotor, Rig, nsf_rig
 from .simulate import (
+    ImpactResponse,
     ProbeResolution,
     SyncResponse,
+    TimeResponse,
     bearings_to_probes,
+    half_sine_pulse,
     imbalance_response,
+    impact_frf,
+    impact_time_response,
+    impact_vector,
     probes_to_bearings,
 )
 
 __all__ = [
-    "BearingCoefficients", "IdentifiabilityError", "Identification", "Imbalance", "ModalResult",
+    "BearingCoefficients", "IdentifiabilityError", "Identification", "ImpactResponse", "Imbalance", "ModalResult",
+    "TimeResponse", "half_sine_pulse", "identify_impact", "impact_frf", "impact_time_response", "impact_vector",
     "ProbeResolution", "REPORT_ORDER", "RigidRotor", "Rig", "RotoridError", "SyncResponse",
     "bearings_to_probes", "critical_speeds", "identify_synchronous", "identify_synchronous_batch",
     "imbalance_response", "modal_analysis", "nsf_rig", "probes_to_bearings",

@@ -27,7 +27,8 @@ def main(argv=None):
             phase_deg=base.phase_deg if args.phase_resolution_deg is None else args.phase_resolution_deg,
             noise_m=args.noise_um * 1e-6)
         out = demo.synchronous(args.out, step_rpm=args.step_rpm, resolution=res)
-        print(f"wrote {len(out['files'])} files to {args.out}/")
+        imp = demo.impact(args.out)
+        print(f"wrote {len(out['files']) + len(imp['files'])} files to {args.out}/")
     return 0
 
 

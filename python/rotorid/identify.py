@@ -15,12 +15,14 @@ from . import _core
 from ._validate import choice, complex_array, real_array
 from .errors import IdentifiabilityError, RotoridError
 from .model import _REPORT_TO_BIJ, REPORT_ORDER, BearingCoefficients, Imbalance, RigidRotor
-from .simulate import RPM, SyncResponse, probes_to_bearings
+from .simulate import RPM, ImpactResponse, SyncResponse, probes_to_bearings
 
 #: default conditioning threshold above which a point is flagged as not trustworthy
 COND_MAX = 1e4
 #: default minimum response amplitude relative to the peak (report: identification is poor below ~8 %)
 MIN_REL_AMPLITUDE = 0.08
+#: FRFs naturally span decades over a band (1/(m w^2) above the modes), so impacts use a lower floor
+MIN_REL_AMPLITUDE_IMPACT = 0.01
 
 
 @dataclass
@@ -261,3 +263,73 @@ def identify_synchronous_batch(rotor: RigidRotor, speed_rpm, q, imbalances, *, m
     if with_std and ks is not None:
         out.update(k_std=ks, c_std=cs)
     return out
+
+
+def check_impact_independence(tests, labels, *, identical=False):
+    """Raise IdentifiabilityError when the impacts cannot excite independent responses."""
+    E = np.array([t.excitation() for t in tests])  # (R, 4), real
+    need = 1 if identical else 2
+    rank = np.linalg.matrix_rank(E, tol=1e-9 * max(1.0, np.abs(E).max()))
+    if rank < need:
+        if len(tests) < need:
+            raise IdentifiabilityError(
+                f"{len(tests)} impact test(s) given; identifying all 16 coefficients needs at least two independent "
+                "impacts at the same speed: two directions at one plane, or one direction at two planes (report section 5). "
+                "With identical bearings one impact suffices (identical=True)")
+        desc = ", ".join(f"{lab}: {t.direction} at plane {t.plane:g} m" for lab, t in zip(labels, tests))
+        raise IdentifiabilityError(
+            "the impact tests are not independent (all in the same direction at the same plane, so every test repeats the "
+            f"same excitation): {desc}. Add an impact in the orthogonal direction or at another plane (report section 5)")
+
+
+def identify_impact(rotor: RigidRotor, tests, *, method: str = "forces", identical: bool = False,
+                    cond_max: float = COND_MAX, min_rel_amplitude: float = MIN_REL_AMPLITUDE_IMPACT) -> Identification:
+    """Frequency-dependent K(w) and C(w) of both bearings from impacts at one running speed (eq. 23-28).
+
+    ``tests``: list (or dict) of ImpactResponse at the same ``speed_rpm`` and ``freq_hz``: FRFs, or
+    response and force spectra. Two independent tests (two directions at one plane, or one
+    direction at two planes) solve the 16 coefficients at every frequency; repeated impacts add
+    redundant equations solved in the least-squares sense. ``identical=True`` assumes the same
+    coefficients at both bearings (8 unknowns) and works from a single impact. C is Im(Z)/w with w
+    the vibration frequency. The whole frequency batch is one core call.
+    """
+    if not isinstance(rotor, RigidRotor):
+        raise RotoridError(f"rotor must be a rotorid.RigidRotor, got {type(rotor).__name__}")
+    choice("method", method, {"forces", "report"})
+    tests = list(tests.values()) if isinstance(tests, dict) else tests
+    if not isinstance(tests, (list, tuple)):
+        raise RotoridError(f"tests must be a list or dict of ImpactResponse, got {type(tests).__name__}")
+    labels = []
+    for i, t in enumerate(tests):
+        if not isinstance(t, ImpactResponse):
+            raise RotoridError(f"test {i} must be a rotorid.ImpactResponse, got {type(t).__name__}")
+        labels.append(f"test {i} ({t.name!r})" if t.name else f"test {i}")
+    if not tests:
+        raise IdentifiabilityError("no impact tests given")
+    f = tests[0].freq_hz
+    speed = tests[0].speed_rpm
+    for i, t in enumerate(tests[1:], 1):
+        if t.freq_hz.shape != f.shape or not np.allclose(t.freq_hz, f, rtol=1e-9, atol=0):
+            raise RotoridError(f"freq_hz of {labels[i]} differs from that of {labels[0]}: all tests must share one "
+                               "frequency axis (same record length and sample rate)")
+        if not np.isclose(t.speed_rpm, speed, rtol=1e-6, atol=1e-9):
+            raise RotoridError(f"speed_rpm of {labels[i]} ({t.speed_rpm:g}) differs from {labels[0]} ({speed:g}): "
+                               "impact identification needs all tests at the same running speed")
+    check_impact_independence(tests, labels, identical=identical)
+    qs = np.stack([t.at_bearings(rotor).frf() for t in tests])  # (R, n, 4) per unit force
+    w = 2 * np.pi * f
+    spin = np.full_like(w, speed * RPM)
+    e = np.stack([t.excitation() for t in tests]).astype(complex)[None]
+    redundant = len(tests) * (2 if identical else 1) > 2
+    k, c, cond, resid, amp, ks, cs, nbad = _core.identify(
+        rotor.core_params(), w, spin, np.ascontiguousarray(qs[None]), np.ascontiguousarray(e), np.ones_like(w),
+        identical=identical, method=method, with_std=redundant)
+    if nbad:
+        raise RotoridError("impact responses contain NaN or inf")
+    if ks is None:
+        ks = np.full_like(k, np.nan)
+        cs = np.full_like(c, np.nan)
+    if not np.any(np.isfinite(cond)):
+        raise IdentifiabilityError(_diagnose_singular(qs, labels))
+    return _finish("freq_hz", f, amp[0], k[0], c[0], cond[0], resid[0], ks[0], cs[0], cond_max, min_rel_amplitude,
+                   method, labels)

@@ -24,8 +24,8 @@ def _plt():
 def bode(response, *, title="", path=None, x_label="Rotor speed (rpm)", axis=None):
     """Amplitude (µm 0-pk) and phase lag (deg, as a vibration DAQ shows it) of the four responses."""
     plt = _plt()
+    q = response.q if hasattr(response, "q") else np.asarray(response)
     x = response.speed_rpm if axis is None else axis
-    q = response.q if hasattr(response, "q") else response
     fig, axes = plt.subplots(2, 4, figsize=(15, 6), sharex=True)
     for j in range(4):
         amp = 1e6 * np.abs(q[:, j])

@@ -142,6 +142,9 @@ const CSNE_COND: f64 = 1e6;
 /// cond^2 * eps << 1, hence CSNE_COND). No square root or division inside the row loops.
 #[inline(always)]
 fn solve_lanes(rows: &[[Z; 4]]) -> LaneSol {
+    if rows.len() == 2 {
+        return solve_square(rows);
+    }
     let (mut a, mut d) = (V::zero(), V::zero());
     let mut gxy = Z::zero();
     let mut h = [[Z::zero(); 2]; 2];
@@ -182,6 +185,35 @@ fn solve_lanes(rows: &[[Z; 4]]) -> LaneSol {
     }
     let total = a + d + rhs2[0] + rhs2[1];
     LaneSol { z, g: [d * idet, a * idet], cond, res2, rhs2, total, qq: a + d }
+}
+
+/// Exactly determined systems (two rows): Cramer's rule on the 2x2 complex matrix (forward stable
+/// for 2x2), condition number from ||A||_F^2 = s1^2 + s2^2 and |det A| = s1 s2. Residual is zero.
+#[inline(always)]
+fn solve_square(rows: &[[Z; 4]]) -> LaneSol {
+    let (r0, r1) = (&rows[0], &rows[1]);
+    let det = r0[0] * r1[1] - r1[0] * r0[1];
+    let dn2 = det.norm_sqr();
+    let a = r0[0].norm_sqr() + r1[0].norm_sqr();
+    let d = r0[1].norm_sqr() + r1[1].norm_sqr();
+    let fro = a + d;
+    let idn = dn2.recip();
+    // 1/det = conj(det) / |det|^2
+    let inv = det.conj().scale(idn);
+    let mut z = [[Z::zero(); 2]; 2];
+    let mut rhs2 = [V::zero(); 2];
+    for k in 0..2 {
+        let (f0, f1) = (r0[2 + k], r1[2 + k]);
+        z[k][0] = (r1[1] * f0 - r0[1] * f1) * inv;
+        z[k][1] = (r0[0] * f1 - r1[0] * f0) * inv;
+        rhs2[k] = f0.norm_sqr() + f1.norm_sqr();
+    }
+    let adet = dn2.sqrt();
+    let disc = (fro * fro - V::splat(4.0) * dn2).sqrt();
+    let cond = (fro + disc) * (V::splat(2.0) * adet).recip();
+    // variance factors diag((A^H A)^-1) = diag(adj adj^H) / |det|^2 (unused: no redundancy)
+    let g = [d * idn, a * idn];
+    LaneSol { z, g, cond, res2: [V::zero(); 2], rhs2, total: fro + rhs2[0] + rhs2[1], qq: fro }
 }
 
 /// Re-solve lane `l` of `sol` with the Givens QR (ill-conditioned or degenerate lanes).
@@ -283,7 +315,9 @@ fn load_q(p: &IdentProblem, b: usize, r: usize, i: usize) -> [C64; 4] {
     [p.q[o], p.q[o + 1], p.q[o + 2], p.q[o + 3]]
 }
 
-const CHUNK: usize = 2048;
+const CHUNK: usize = 1024;
+/// Below this many points one thread is faster than waking the pool.
+const SERIAL_BELOW: usize = 4096;
 
 /// Output slices of one chunk.
 struct Outs<'a> {
@@ -313,26 +347,48 @@ fn forces_chunk(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize
         let nl = L.min(npts - g0);
         let mut bi = [(0usize, 0usize); L];
         let (mut w, mut spin, mut gain) = (V::zero(), V::zero(), V::zero());
+        // (batch, point) of each lane: one division per group, then step with wrap-around
+        let first = start + g0;
+        let (mut b, mut i) = (first / n, first % n);
         for l in 0..L {
-            let idx = start + g0 + l.min(nl - 1);
-            bi[l] = (idx / n, idx % n);
-            w.0[l] = p.w[bi[l].1];
-            spin.0[l] = p.spin[bi[l].1];
-            gain.0[l] = p.gain[bi[l].1];
+            bi[l] = (b, i);
+            w.0[l] = p.w[i];
+            spin.0[l] = p.spin[i];
+            gain.0[l] = p.gain[i];
+            if l + 1 < nl {
+                i += 1;
+                if i == n {
+                    i = 0;
+                    b += 1;
+                }
+            }
         }
+        // all lanes are consecutive points of one batch row: contiguous loads
+        let contiguous = nl == L && bi[0].0 == bi[L - 1].0;
         let w2 = w * w;
         let wg = w * spin * V::splat(kc.ip);
         let mut nr = [0usize; 2];
         for r in 0..p.runs {
             let mut q = [Z::zero(); 4];
             let mut e = [Z::zero(); 4];
-            for l in 0..L {
-                let (b, i) = bi[l];
-                let o = ((b * p.runs + r) * n + i) * 4;
-                for dd in 0..4 {
-                    let v = p.q[o + dd];
-                    q[dd].re.0[l] = v.re;
-                    q[dd].im.0[l] = v.im;
+            if contiguous {
+                let o = ((bi[0].0 * p.runs + r) * n + bi[0].1) * 4;
+                let src = &p.q[o..o + 4 * L];
+                for l in 0..L {
+                    for dd in 0..4 {
+                        q[dd].re.0[l] = src[4 * l + dd].re;
+                        q[dd].im.0[l] = src[4 * l + dd].im;
+                    }
+                }
+            } else {
+                for l in 0..L {
+                    let (b, i) = bi[l];
+                    let o = ((b * p.runs + r) * n + i) * 4;
+                    for dd in 0..4 {
+                        let v = p.q[o + dd];
+                        q[dd].re.0[l] = v.re;
+                        q[dd].im.0[l] = v.im;
+                    }
                 }
             }
             if shared_e {
@@ -409,21 +465,47 @@ fn forces_chunk(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize
         let rel = (res_tot * rhs_tot.recip()).sqrt();
         let qsum = sols[0].qq + if p.identical { V::zero() } else { sols[1].qq };
         let rms = (qsum * V::splat(1.0 / (4.0 * p.runs as f64))).sqrt();
-        for l in 0..nl {
-            let t = g0 + l;
-            let nan = [!(sols[0].cond.0[l] < SINGULAR_COND) || bad[l], !(sols[1].cond.0[l] < SINGULAR_COND) || bad[l]];
-            for o in 0..8 {
-                let m = nan[o / 4];
-                k[8 * t + o] = if m { f64::NAN } else { kv[o].0[l] };
-                c[8 * t + o] = if m { f64::NAN } else { cv[o].0[l] };
+        // singular systems and non-finite input give NaN coefficients
+        let mut nanm = [[false; L]; 2];
+        for sb in 0..2 {
+            for l in 0..L {
+                nanm[sb][l] = !(sols[sb].cond.0[l] < SINGULAR_COND) || bad[l];
             }
-            if let (Some(ks), Some(cs)) = (ks.as_deref_mut(), cs.as_deref_mut()) {
-                for o in 0..8 {
-                    let m = nan[o / 4];
-                    ks[8 * t + o] = if m { f64::NAN } else { sv[o].0[l] };
-                    cs[8 * t + o] = if m { f64::NAN } else { sv[o].0[l] * iw.0[l] };
+        }
+        if nanm.iter().flatten().any(|&m| m) {
+            for o in 0..8 {
+                for l in 0..L {
+                    if nanm[o / 4][l] {
+                        kv[o].0[l] = f64::NAN;
+                        cv[o].0[l] = f64::NAN;
+                        sv[o].0[l] = f64::NAN;
+                    }
                 }
             }
+        }
+        let mut csv = [V::zero(); 8];
+        for o in 0..8 {
+            csv[o] = sv[o] * iw;
+        }
+        // lanes -> rows of 8 values per point (an 8 x L transpose), stored as one block
+        let put = |dst: &mut [f64], src: &[V; 8]| {
+            let mut blk = [0.0f64; 8 * L];
+            for l in 0..L {
+                for o in 0..8 {
+                    blk[8 * l + o] = src[o].0[l];
+                }
+            }
+            dst[8 * g0..8 * (g0 + nl)].copy_from_slice(&blk[..8 * nl]);
+        };
+        put(k, &kv);
+        put(c, &cv);
+        if let (Some(ks), Some(cs)) = (ks.as_deref_mut(), cs.as_deref_mut()) {
+            put(ks, &sv);
+            put(cs, &csv);
+        }
+        for l in 0..nl {
+            let t = g0 + l;
+            let nan = [nanm[0][l], nanm[1][l]];
             for sb in 0..2 {
                 cond[2 * t + sb] = if nan[sb] && !bad[l] { f64::INFINITY } else if bad[l] { f64::NAN } else { sols[sb].cond.0[l] };
             }
@@ -469,6 +551,9 @@ fn forces_chunk_dispatch(p: &IdentProblem, kc: &Consts, start: usize, out: Outs)
 pub fn identify_forces(p: &IdentProblem, out: IdentOut) -> usize {
     let kc = Consts::new(&p.rotor);
     let IdentOut { k, c, cond, resid, amp, k_std, c_std } = out;
+    if resid.len() < SERIAL_BELOW {
+        return forces_chunk_dispatch(p, &kc, 0, Outs { k, c, cond, resid, amp, ks: k_std, cs: c_std });
+    }
     let base = (
         k.par_chunks_mut(8 * CHUNK),
         c.par_chunks_mut(8 * CHUNK),

@@ -7,12 +7,18 @@ pub mod identify;
 pub mod lanes;
 pub mod modal;
 pub mod model;
+pub mod timesim;
 
 use model::{Rotor, C64};
 use numpy::{PyArray1, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use std::panic::{catch_unwind, AssertUnwindSafe};
+
+/// mimalloc keeps freed output buffers mapped, so repeated calls do not page-fault fresh memory
+/// for every result array (glibc maps and unmaps blocks above its mmap threshold each time).
+#[global_allocator]
+static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 fn slice<'a, T: numpy::Element>(a: &'a PyReadonlyArrayDyn<'_, T>, name: &str) -> PyResult<&'a [T]> {
     a.as_slice().map_err(|_| PyValueError::new_err(format!("{name} must be a C-contiguous array")))
@@ -38,6 +44,20 @@ fn guarded<T, F: FnOnce() -> T>(f: F) -> PyResult<T> {
 
 fn rotor_of(p: &PyReadonlyArrayDyn<'_, f64>) -> PyResult<Rotor> {
     Rotor::from_slice(slice(p, "rotor")?).map_err(PyValueError::new_err)
+}
+
+/// An output buffer of `n` values that the kernels overwrite completely before anything reads it
+/// (every kernel writes every output element of every point it owns). Skipping the zero fill
+/// saves a pass over memory that dominated small calls.
+fn out_buf(n: usize) -> Vec<f64> {
+    let mut v = Vec::with_capacity(n);
+    // SAFETY: f64 has no invalid bit patterns, the capacity is n, and the identify kernels write
+    // all n elements before the vector is read or handed to NumPy.
+    #[allow(clippy::uninit_vec)]
+    unsafe {
+        v.set_len(n)
+    };
+    v
 }
 
 fn to_py<'py, T: numpy::Element>(py: Python<'py>, v: Vec<T>, shape: &[usize]) -> PyResult<Bound<'py, PyArrayDyn<T>>> {
@@ -151,13 +171,13 @@ fn py_identify<'py>(
     let want_std = with_std && !report;
     let res = py.detach(|| {
         guarded(|| {
-            let mut k = vec![0.0; npts * 8];
-            let mut c = vec![0.0; npts * 8];
-            let mut cond = vec![0.0; npts * 2];
-            let mut resid = vec![0.0; npts];
-            let mut amp = vec![0.0; npts];
-            let mut ks = if want_std { vec![0.0; npts * 8] } else { Vec::new() };
-            let mut cs = if want_std { vec![0.0; npts * 8] } else { Vec::new() };
+            let mut k = out_buf(npts * 8);
+            let mut c = out_buf(npts * 8);
+            let mut cond = out_buf(npts * 2);
+            let mut resid = out_buf(npts);
+            let mut amp = out_buf(npts);
+            let mut ks = if want_std { out_buf(npts * 8) } else { Vec::new() };
+            let mut cs = if want_std { out_buf(npts * 8) } else { Vec::new() };
             let out = identify::IdentOut {
                 k: &mut k,
                 c: &mut c,
@@ -204,11 +224,47 @@ fn py_modal<'py>(
     Ok((to_py(py, lam, &[n, 4])?, to_py(py, sh, &[n, 4, 4])?, nf))
 }
 
+/// Exact time stepping of a discretized LTI system with piecewise-linear input (see timesim.rs).
+/// phi (n, n), g0 and g1 (n, m), u (N, m), x0 (n,) -> x (N, n).
+#[pyfunction]
+fn lti_run<'py>(
+    py: Python<'py>,
+    phi: PyReadonlyArrayDyn<'py, f64>,
+    g0: PyReadonlyArrayDyn<'py, f64>,
+    g1: PyReadonlyArrayDyn<'py, f64>,
+    u: PyReadonlyArrayDyn<'py, f64>,
+    x0: PyReadonlyArrayDyn<'py, f64>,
+) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+    let ps = phi.shape().to_vec();
+    if ps.len() != 2 || ps[0] != ps[1] {
+        return Err(PyValueError::new_err(format!("phi has shape {ps:?}, expected (n, n)")));
+    }
+    let n = ps[0];
+    let us = u.shape().to_vec();
+    if us.len() != 2 {
+        return Err(PyValueError::new_err(format!("u has shape {us:?}, expected (N, m)")));
+    }
+    let (steps, m) = (us[0], us[1]);
+    check_shape("g0", g0.shape(), &[n, m])?;
+    check_shape("g1", g1.shape(), &[n, m])?;
+    check_shape("x0", x0.shape(), &[n])?;
+    let (p, a, b, uu, x) = (slice(&phi, "phi")?, slice(&g0, "g0")?, slice(&g1, "g1")?, slice(&u, "u")?, slice(&x0, "x0")?);
+    let out = py.detach(|| {
+        guarded(|| {
+            let mut out = vec![0.0; steps * n];
+            timesim::lti_run(n, m, p, a, b, uu, x, &mut out);
+            out
+        })
+    })?;
+    to_py(py, out, &[steps, n])
+}
+
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(forced_response, m)?)?;
     m.add_function(wrap_pyfunction!(py_identify, m)?)?;
     m.add_function(wrap_pyfunction!(py_modal, m)?)?;
+    m.add_function(wrap_pyfunction!(lti_run, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -1,0 +1,184 @@
+import numpy as np
+import pytest
+from hypothesis import assume, given
+from hypothesis import strategies as st
+
+import rotorid
+from rotorid import IdentifiabilityError, ImpactResponse, RotoridError
+
+import oracle
+from strategies import bearing_pair, rotors
+
+
+def freq_table(brg, f):
+    """Frequency-dependent truth: stiffness rising with w^2, damping falling (tilting-pad-like)."""
+    f0 = 100.0
+    k = brg.k[None] * (1 + 0.3 * (f[:, None, None, None] / f0) ** 2)
+    c = brg.c[None] / (1 + 0.5 * f[:, None, None, None] / f0)
+    return rotorid.BearingCoefficients(k, c, freq_hz=f)
+
+
+def test_impact_vector_matches_imbalance_moments():
+    """An imbalance in one plane is an x force f plus a y force -j f at that plane (eq. 4)."""
+    rotor = rotorid.nsf_rig().rotor
+    imb = rotorid.Imbalance((0.0, 2e-3), (0.0, 35.0))
+    f = imb.forcing(rotor)[1]
+    z = rotor.d2
+    F = f * rotorid.impact_vector(z, "x") + (-1j * f) * rotorid.impact_vector(z, "y")
+    np.testing.assert_allclose(F, imb.generalized(rotor))
+    imb1 = rotorid.Imbalance((2e-3, 0.0), (-70.0, 0.0))
+    f1 = imb1.forcing(rotor)[0]
+    z1 = -rotor.d1
+    F1 = f1 * rotorid.impact_vector(z1, "x") + (-1j * f1) * rotorid.impact_vector(z1, "y")
+    np.testing.assert_allclose(F1, imb1.generalized(rotor))
+
+
+@given(rotors(), bearing_pair(), st.floats(0, 20000), st.floats(-0.3, 0.3), st.sampled_from("xy"))
+def test_impact_frf_matches_oracle(rotor, brg, rpm, plane, direction):
+    f = np.linspace(2, 300, 17)
+    h = rotorid.impact_frf(rotor, brg, speed_rpm=rpm, freq_hz=f, plane=plane, direction=direction)
+    M, G, K, C = oracle.matrices(rotor.mass_kg, rotor.it_kgm2, rotor.ip_kgm2, rotor.l1, rotor.l2, brg.k, brg.c)
+    z = plane
+    E = np.array([1, 0, z, 0.0]) if direction == "x" else np.array([0, 1, 0, -z])
+    for i, fi in enumerate(f):
+        q = oracle.response(M, G, K, C, rpm * oracle.RPM, 2 * np.pi * fi, E)
+        np.testing.assert_allclose(h.q[i], q, rtol=1e-9, atol=1e-12 * np.abs(q).max())
+
+
+def test_off_cg_impact_is_force_plus_moment():
+    """Physical check of the moment rows: an impact at plane z equals the superposition of the same
+    force at the CG and the pure moment z*F (responses are linear in the generalized force)."""
+    rig = rotorid.nsf_rig()
+    f = np.linspace(5, 150, 30)
+    z = 0.08
+    for d in "xy":
+        h_z = rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=4000, freq_hz=f, plane=z, direction=d).q
+        h_0 = rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=4000, freq_hz=f, plane=0.0, direction=d).q
+        # the pure moment part, by differencing two planes: h(z) - h(0) is linear in z
+        h_2z = rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=4000, freq_hz=f, plane=2 * z, direction=d).q
+        np.testing.assert_allclose(h_2z - h_0, 2 * (h_z - h_0), rtol=1e-9, atol=1e-18)
+        # an x impact ahead of the CG (toward bearing 2) tilts the rotor so bearing 2 moves more at low frequency
+        if d == "x":
+            assert abs(h_z[0, 1]) > abs(h_0[0, 1]) and abs(h_z[0, 0]) < abs(h_0[0, 0])
+
+
+def test_time_response_matches_frf():
+    rig = rotorid.nsf_rig()
+    fs, n = 10000.0, 2 ** 15
+    u = rotorid.half_sine_pulse(2000.0, 2e-3, fs, n, t0_s=0.01)
+    for d, plane in (("x", 0.0), ("y", 0.05)):
+        tr = rotorid.impact_time_response(rig.rotor, rig.bearings, speed_rpm=1000, force_N=u, fs_hz=fs, plane=plane,
+                                          direction=d)
+        assert np.abs(tr.q[-200:]).max() < 1e-9 * np.abs(tr.q).max()  # decayed: the DFT sees the whole response
+        X = np.fft.rfft(tr.q, axis=0)
+        U = np.fft.rfft(u)
+        f = np.fft.rfftfreq(n, 1 / fs)
+        sel = (f > 2) & (f < 300)
+        h = rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=1000, freq_hz=f[sel], plane=plane, direction=d).q
+        # exact for a piecewise-linear force: the FRF times the hold's sinc^2
+        pred = h * (U[sel] * np.sinc(f[sel] / fs) ** 2)[:, None]
+        main = 0 if d == "x" else 2
+        np.testing.assert_allclose(X[sel, main], pred[:, main], rtol=2e-4)
+        err = np.abs(X[sel] - pred).max() / np.abs(pred).max()
+        assert err < 2e-4
+
+
+@given(rotors(), bearing_pair(), st.floats(200, 15000), st.booleans(), st.booleans())
+def test_roundtrip_impact_frequency_dependent(rotor, brg, rpm, two_planes, at_probes):
+    f = np.linspace(5, 250, 40)
+    truth = freq_table(brg, f)
+    at = "probes" if at_probes else "bearings"
+    if two_planes:  # same direction at two planes, one off the CG
+        specs = [(0.0, "x"), (0.6 * rotor.l2, "x")]
+    else:  # two directions at one plane away from the CG
+        specs = [(-0.3 * rotor.l1, "x"), (-0.3 * rotor.l1, "y")]
+    tests = [rotorid.impact_frf(rotor, truth, speed_rpm=rpm, freq_hz=f, plane=p, direction=d, at=at) for p, d in specs]
+    res = rotorid.identify_impact(rotor, tests)
+    well = res.cond.max(axis=1) < 1e3
+    assume(well.sum() >= 5)
+    kk, cc = truth.at(freq_hz=f)
+    w = 2 * np.pi * f
+    scale = np.maximum(np.abs(kk).max(axis=(2, 3)), np.abs(cc).max(axis=(2, 3)) * w[:, None])  # (n, 2)
+    ek = np.abs(res.k - kk).max(axis=(2, 3)) / scale
+    ec = np.abs(res.c - cc).max(axis=(2, 3)) * w[:, None] / scale
+    assert np.all(ek[well] < 1e-8) and np.all(ec[well] < 1e-8), (ek[well].max(), ec[well].max())
+
+
+def test_force_and_response_spectra_equal_frf_input():
+    rig = rotorid.nsf_rig()
+    f = np.linspace(2, 200, 100)
+    tests, spectra = [], []
+    for name, (plane, d, load) in rig.impacts.items():
+        h = rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=1000, freq_hz=f, plane=plane, direction=d)
+        tests.append(h)
+        F = load * np.exp(-1j * 2 * np.pi * f * 1e-3) * (1 - 0.3 * f / 200)  # non-flat spectrum
+        spectra.append(ImpactResponse(speed_rpm=1000, freq_hz=f, q=h.q * F[:, None], force=F, plane=plane,
+                                      direction=d, name=name))
+    a = rotorid.identify_impact(rig.rotor, tests)
+    b = rotorid.identify_impact(rig.rotor, spectra)
+    np.testing.assert_allclose(a.k, b.k, rtol=1e-10, atol=1e-4)
+    np.testing.assert_allclose(b.k, np.broadcast_to(rig.bearings.k, b.k.shape), rtol=1e-8, atol=1e-3)
+    np.testing.assert_allclose(b.c, np.broadcast_to(rig.bearings.c, b.c.shape), rtol=1e-7, atol=1e-5)
+
+
+def test_identical_bearings_from_a_single_impact():
+    rig = rotorid.nsf_rig()
+    f = np.linspace(2, 200, 60)
+    one = rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=1000, freq_hz=f, plane=0.0, direction="x")
+    for method in ("forces", "report"):
+        res = rotorid.identify_impact(rig.rotor, [one], identical=True, method=method)
+        np.testing.assert_allclose(res.k, np.broadcast_to(rig.bearings.k, res.k.shape), rtol=1e-7, atol=1e-2)
+        np.testing.assert_allclose(res.c, np.broadcast_to(rig.bearings.c, res.c.shape), rtol=1e-6, atol=1e-4)
+    with pytest.raises(IdentifiabilityError, match="at least two independent"):
+        rotorid.identify_impact(rig.rotor, [one])
+
+
+def test_repeated_impacts_least_squares():
+    rig = rotorid.nsf_rig()
+    f = np.linspace(10, 150, 50)
+    rng = np.random.default_rng(5)
+    base = [rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=2000, freq_hz=f, plane=0.0, direction=d) for d in "xy"]
+
+    def noisy(h, i):
+        q = h.q * (1 + 0.005 * (rng.standard_normal(h.q.shape) + 1j * rng.standard_normal(h.q.shape)))
+        return ImpactResponse(speed_rpm=2000, freq_hz=f, q=q, plane=0.0, direction=h.direction, name=f"{h.direction}{i}")
+
+    e2, e8 = [], []
+    for _ in range(20):
+        two = rotorid.identify_impact(rig.rotor, [noisy(b, 0) for b in base])
+        eight = rotorid.identify_impact(rig.rotor, [noisy(b, i) for i in range(4) for b in base])
+        e2.append(two.k - rig.bearings.k)
+        e8.append(eight.k - rig.bearings.k)
+    assert np.sqrt(np.mean(np.square(e8))) < 0.7 * np.sqrt(np.mean(np.square(e2)))
+    assert np.all(np.isfinite(eight.k_std)) and np.all(eight.residual > 0)
+
+
+def test_dependent_and_bad_tests_are_rejected():
+    rig = rotorid.nsf_rig()
+    f = np.linspace(2, 200, 20)
+    hx = rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=1000, freq_hz=f, direction="x", name="x1")
+    hx2 = rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=1000, freq_hz=f, direction="x", name="x2")
+    hy = rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=1000, freq_hz=f, direction="y")
+    with pytest.raises(IdentifiabilityError, match="not independent.*'x1'.*'x2'"):
+        rotorid.identify_impact(rig.rotor, [hx, hx2])
+    hy_f = rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=1000, freq_hz=f * 1.01, direction="y")
+    with pytest.raises(RotoridError, match="freq_hz of test 1.*differs"):
+        rotorid.identify_impact(rig.rotor, [hx, hy_f])
+    hy_s = rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=1200, freq_hz=f, direction="y")
+    with pytest.raises(RotoridError, match="speed_rpm of test 1.*differs"):
+        rotorid.identify_impact(rig.rotor, [hx, hy_s])
+    with pytest.raises(RotoridError, match="freq_hz must be > 0"):
+        ImpactResponse(speed_rpm=1000, freq_hz=np.r_[0.0, f], q=np.zeros((21, 4)), direction="x")
+    with pytest.raises(RotoridError, match="freq_hz must be"):
+        rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=1000, freq_hz=[0.0, 10.0])
+    with pytest.raises(RotoridError, match="q contains NaN"):
+        ImpactResponse(speed_rpm=1000, freq_hz=f, q=np.full((20, 4), np.nan), direction="x")
+    with pytest.raises(RotoridError, match="force spectrum is zero"):
+        ImpactResponse(speed_rpm=1000, freq_hz=f, q=hx.q, force=np.r_[np.ones(19), 0.0], direction="x")
+    with pytest.raises(RotoridError, match="direction must be"):
+        rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=1000, freq_hz=f, direction="z")
+    with pytest.raises(RotoridError, match="test 1 must be"):
+        rotorid.identify_impact(rig.rotor, [hx, hy.q])
+    table = rotorid.BearingCoefficients(np.stack([rig.bearings.k] * 2), np.stack([rig.bearings.c] * 2), freq_hz=[1, 300])
+    with pytest.raises(RotoridError, match="frequency-independent"):
+        rotorid.impact_time_response(rig.rotor, table, speed_rpm=1000, force_N=np.ones(10), fs_hz=1000)
