@@ -16,7 +16,29 @@ def main(argv=None):
                    help="1X amplitude resolution of the measurement model (µm; default 0.0254 = 0.001 mil)")
     d.add_argument("--phase-resolution-deg", type=float, default=None, help="1X phase resolution (deg)")
     d.add_argument("--noise-um", type=float, default=0.0, help="added complex Gaussian noise (µm rms)")
+    i = sub.add_parser("identify", help="identify bearing coefficients from raw recordings described by a TOML config")
+    i.add_argument("kind", choices=["imbalance", "impact"])
+    i.add_argument("config", help="TOML config file (see rotorid.pipeline.CONFIG_DOC)")
+    i.add_argument("--out", default=None, help="output directory (default: [output] dir of the config)")
+    e = sub.add_parser("example", help="write the bundled example data set (raw recordings + configs) to a directory")
+    e.add_argument("--out", default="rotorid_example")
     args = ap.parse_args(argv)
+    if args.cmd == "identify":
+        from .errors import RotoridError
+        from .pipeline import run_config
+
+        try:
+            run_config(args.config, args.kind, out_dir=args.out)
+        except RotoridError as exc:
+            print(f"rotorid: error: {exc}", file=sys.stderr)
+            return 2
+        return 0
+    if args.cmd == "example":
+        from .example import copy_example
+
+        path = copy_example(args.out)
+        print(f"example data set written to {path}/ (try: rotorid identify imbalance {path}/imbalance.toml)")
+        return 0
     if args.cmd == "demo":
         from . import demo
         from .simulate import ProbeResolution

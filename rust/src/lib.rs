@@ -7,6 +7,7 @@ pub mod identify;
 pub mod lanes;
 pub mod modal;
 pub mod model;
+pub mod order;
 pub mod timesim;
 
 use model::{Rotor, C64};
@@ -259,12 +260,99 @@ fn lti_run<'py>(
     to_py(py, out, &[steps, n])
 }
 
+fn check_kp(kp: &[f64]) -> PyResult<()> {
+    if kp.len() < 2 {
+        return Err(PyValueError::new_err("kp needs at least two keyphasor times (one whole revolution)"));
+    }
+    if kp.iter().any(|v| !v.is_finite()) || kp.windows(2).any(|w| !(w[1] > w[0])) {
+        return Err(PyValueError::new_err("kp (keyphasor times) must be finite and strictly increasing"));
+    }
+    Ok(())
+}
+
+/// Resample channels x (C, N) at p uniform angles per revolution for revolutions k0..k1.
+/// Returns (C, k1 - k0, p).
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+fn angle_resample<'py>(
+    py: Python<'py>,
+    x: PyReadonlyArrayDyn<'py, f64>,
+    fs: f64,
+    t0: f64,
+    kp: PyReadonlyArrayDyn<'py, f64>,
+    k0: usize,
+    k1: usize,
+    p: usize,
+) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+    let xs = x.shape().to_vec();
+    if xs.len() != 2 {
+        return Err(PyValueError::new_err(format!("x has shape {xs:?}, expected (channels, samples)")));
+    }
+    let kps = slice(&kp, "kp")?;
+    check_kp(kps)?;
+    if !(k0 < k1 && k1 < kps.len()) || p < 4 || !(fs > 0.0) {
+        return Err(PyValueError::new_err(format!("need k0 < k1 < len(kp) = {}, p >= 4 and fs > 0 (got k0={k0}, k1={k1}, p={p}, fs={fs})", kps.len())));
+    }
+    let xsl = slice(&x, "x")?;
+    let nch = xs[0];
+    let out = py.detach(|| {
+        guarded(|| {
+            let mut out = vec![0.0; nch * (k1 - k0) * p];
+            order::angle_resample(xsl, nch, fs, t0, kps, k0, k1, p, &mut out);
+            out
+        })
+    })?;
+    to_py(py, out, &[nch, k1 - k0, p])
+}
+
+/// Time-domain run-out filter: x (C, N) minus the revolution signature template (C, p) placed by
+/// the keyphasor times kp, for samples i0..i1. Returns (C, i1 - i0); NaN outside the pulses.
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+fn runout_subtract<'py>(
+    py: Python<'py>,
+    x: PyReadonlyArrayDyn<'py, f64>,
+    fs: f64,
+    t0: f64,
+    kp: PyReadonlyArrayDyn<'py, f64>,
+    template: PyReadonlyArrayDyn<'py, f64>,
+    i0: usize,
+    i1: usize,
+) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+    let xs = x.shape().to_vec();
+    if xs.len() != 2 {
+        return Err(PyValueError::new_err(format!("x has shape {xs:?}, expected (channels, samples)")));
+    }
+    let (nch, n) = (xs[0], xs[1]);
+    let ts = template.shape().to_vec();
+    if ts.len() != 2 || ts[0] != nch || ts[1] < 4 {
+        return Err(PyValueError::new_err(format!("template has shape {ts:?}, expected ({nch}, p >= 4)")));
+    }
+    if !(i0 <= i1 && i1 <= n) || !(fs > 0.0) {
+        return Err(PyValueError::new_err(format!("need 0 <= i0 <= i1 <= {n} and fs > 0 (got i0={i0}, i1={i1}, fs={fs})")));
+    }
+    let kps = slice(&kp, "kp")?;
+    check_kp(kps)?;
+    let (xsl, tsl) = (slice(&x, "x")?, slice(&template, "template")?);
+    let p = ts[1];
+    let out = py.detach(|| {
+        guarded(|| {
+            let mut out = vec![0.0; nch * (i1 - i0)];
+            order::runout_subtract(xsl, nch, fs, t0, kps, tsl, p, i0, i1, &mut out);
+            out
+        })
+    })?;
+    to_py(py, out, &[nch, i1 - i0])
+}
+
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(forced_response, m)?)?;
     m.add_function(wrap_pyfunction!(py_identify, m)?)?;
     m.add_function(wrap_pyfunction!(py_modal, m)?)?;
     m.add_function(wrap_pyfunction!(lti_run, m)?)?;
+    m.add_function(wrap_pyfunction!(angle_resample, m)?)?;
+    m.add_function(wrap_pyfunction!(runout_subtract, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

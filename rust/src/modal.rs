@@ -1,5 +1,6 @@
 //! Batched eigen-analysis of the rotor-bearing system (state-space form of eq. 1 without forcing).
 
+use crate::forced::solve4;
 use crate::model::{assemble, Rotor, C64};
 use faer::Mat;
 use rayon::prelude::*;
@@ -91,16 +92,38 @@ pub fn modal(rotor: &Rotor, kb: &[f64], cb: &[f64], spin: &[f64], lam: &mut [C64
             idx.sort_by(|&x, &y| s[x].im.partial_cmp(&s[y].im).unwrap_or(std::cmp::Ordering::Equal));
             for (mi, &t) in idx.iter().take(4).enumerate() {
                 lo[mi] = C64::new(s[t].re, s[t].im);
-                let mut best = 0usize;
+                let mut v = [C64::new(0.0, 0.0); 4];
                 for d in 0..4 {
-                    if u[(d, t)].norm() > u[(best, t)].norm() {
-                        best = d;
+                    v[d] = C64::new(u[(d, t)].re, u[(d, t)].im);
+                }
+                // Two steps of inverse iteration on D(lam) = lam^2 M + lam (C + Omega G) + K with a
+                // relative shift of 1e-12: the Schur-based eigenvectors of (nearly) repeated
+                // eigenvalues can be poor (residual 1e-5 relative seen); this restores them.
+                let lam_s = lo[mi] * (1.0 + 1e-12);
+                for _ in 0..2 {
+                    let mut dm = [[C64::new(0.0, 0.0); 4]; 4];
+                    for r in 0..4 {
+                        for col in 0..4 {
+                            dm[r][col] = lam_s * lam_s * m[r][col] + lam_s * (c[r][col] + spin[i] * g[r][col]) + k[r][col];
+                        }
+                    }
+                    let mut y = v;
+                    if !solve4(&mut dm, &mut y) {
+                        break;
+                    }
+                    let nrm = y.iter().map(|z| z.norm_sqr()).sum::<f64>().sqrt();
+                    if !(nrm > 0.0 && nrm.is_finite()) {
+                        break;
+                    }
+                    for d in 0..4 {
+                        v[d] = y[d] / nrm;
                     }
                 }
-                let piv = C64::new(u[(best, t)].re, u[(best, t)].im);
+                let best = (0..4).fold(0, |b, d| if v[d].norm() > v[b].norm() { d } else { b });
+                let piv = v[best];
                 let scale = if piv.norm() > 0.0 { 1.0 / piv } else { C64::new(1.0, 0.0) };
                 for d in 0..4 {
-                    so[4 * mi + d] = C64::new(u[(d, t)].re, u[(d, t)].im) * scale;
+                    so[4 * mi + d] = v[d] * scale;
                 }
             }
             0usize

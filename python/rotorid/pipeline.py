@@ -1,0 +1,384 @@
+"""End to end: raw recordings -> compensated synchronous vectors or averaged FRFs -> coefficients.
+
+Callable from Python (``imbalance_chain``, ``impact_chain``, ``run_config``) and from the CLI
+(``rotorid identify imbalance CONFIG``, ``rotorid identify impact CONFIG``).
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import signals
+from .errors import RotoridError
+from .identify import Identification, identify_impact, identify_synchronous
+from .model import Imbalance, RigidRotor
+from .recording import DISPLACEMENTS, Recording
+from .simulate import ImpactResponse, SyncResponse
+
+
+def _imbalance_of(rec: Recording, override=None) -> Imbalance:
+    spec = override if override is not None else rec.meta.get("imbalance")
+    if spec is None:
+        raise RotoridError(f"recording {rec.source!r} has no added imbalance: give it in the config "
+                           "(mass_g/mass_kg and angle_deg) or in the file's metadata")
+    if "mass_g" in spec:
+        mass = [m * 1e-3 for m in spec["mass_g"]]
+    else:
+        mass = spec["mass_kg"]
+    return Imbalance(tuple(mass), tuple(spec.get("angle_deg", (0.0, 0.0))), name=spec.get("name") or rec.meta.get("name"))
+
+
+@dataclass
+class ImbalanceChainResult:
+    responses: list          # SyncResponse per run (compensated, on the common speed grid)
+    tracks: list             # raw SyncTrack per run
+    identification: Identification
+    notes: list = field(default_factory=list)
+
+
+def imbalance_chain(rotor: RigidRotor, runs, *, baseline: Recording | None = None, slow_roll: Recording | None = None,
+                    speeds_rpm=None, steady: bool = True, imbalances=None, orders=(1, 2, 3), method: str = "forces",
+                    **ident_kw) -> ImbalanceChainResult:
+    """Imbalance runs (Recordings) -> 1X vectors -> slow-roll and baseline compensation -> identification.
+
+    Baseline subtraction (response of the run minus the baseline run without added mass, at the same
+    speeds) isolates the response to the added imbalance and removes remnant imbalance and 1X
+    run-out together; slow-roll subtraction removes the run-out alone (use it when there is no
+    baseline run). ``speeds_rpm``: common speed grid (default: the first run's steady speeds, or
+    for coast-downs every 50 rpm over the range all runs share).
+    """
+    runs = list(runs)
+    if len(runs) == 0:
+        raise RotoridError("no imbalance runs given")
+    notes = []
+    sr = None
+    if slow_roll is not None:
+        sr = signals.slow_roll_vector(slow_roll, orders=orders)
+        notes.append(f"slow-roll run-out 1X: {np.round(np.abs(sr[0]) * 1e6, 2)} µm")
+    tracks = [signals.track(r, orders=orders, steady=steady) for r in runs]
+    comp = [t.minus(sr) if sr is not None else t for t in tracks]
+    if baseline is not None:
+        bt = signals.track(baseline, orders=orders, steady=steady)
+        bt = bt.minus(sr) if sr is not None else bt
+        comp = [t.minus(bt) for t in comp]
+        notes.append("baseline subtracted (remnant imbalance and run-out removed)")
+    elif sr is None:
+        notes.append("no baseline and no slow-roll: remnant imbalance and run-out stay in the vectors")
+        warnings.warn("imbalance chain without baseline or slow-roll compensation: remnant imbalance and run-out "
+                      "stay in the 1X vectors")
+    if speeds_rpm is None:
+        if steady:
+            grid = comp[0].speed_rpm
+        else:
+            lo = max(t.speed_rpm.min() for t in comp)
+            hi = min(t.speed_rpm.max() for t in comp)
+            grid = np.arange(np.ceil(lo / 50) * 50, hi + 1e-9, 50.0)
+    else:
+        grid = np.asarray(speeds_rpm, float)
+    responses = []
+    for i, (r, t) in enumerate(zip(runs, comp)):
+        imb = _imbalance_of(r, None if imbalances is None else imbalances[i])
+        q = t.at_speeds(grid)[:, t.orders.index(1), :]
+        at = r.meta.get("probes_at", "probes")
+        responses.append(SyncResponse(grid, q, imb, at, imb.name or os.path.basename(r.source) or f"run {i}"))
+    ident = identify_synchronous(rotor, responses, method=method, **ident_kw)
+    return ImbalanceChainResult(responses, tracks, ident, notes)
+
+
+@dataclass
+class ImpactChainResult:
+    tests: list              # ImpactResponse per (plane, direction) group
+    frfs: list               # signals.FRF per group (with coherence)
+    used: list               # per group: list of (source, impact time s)
+    dropped: list            # (source, time s, reason)
+    identification: Identification
+
+
+def impact_segments(rec: Recording, *, record_s: float = 0.25, pre_s: float = 0.01, revs_before: int = 8,
+                    runout: bool = True, kp: signals.Keyphasor | None = None, points_per_rev: int = 256):
+    """Force and (run-out filtered) response segments of every clean impact of a recording.
+
+    Returns (forces, responses, used_times, dropped): equally long records starting ``pre_s`` before
+    each impact. The run-out filter subtracts the synchronous revolution signature of the
+    ``revs_before`` revolutions preceding the impact (run-out and remnant-imbalance response)."""
+    rec.require("force", *DISPLACEMENTS)
+    fs = rec.fs_hz
+    n_seg = int(round(record_s * fs))
+    pre = int(round(pre_s * fs))
+    imps = signals.detect_impacts(rec.channels["force"], fs)
+    if runout:
+        rec.require("kp")
+        kp = kp or signals.keyphasor_times(rec.channels["kp"], fs, t0_s=rec.t0_s)
+    x = rec.displacements()
+    forces, responses, used, dropped = [], [], [], []
+    for j, imp in enumerate(imps):
+        t_imp = rec.t0_s + imp.start / fs
+        if not imp.ok:
+            dropped.append((rec.source, t_imp, ", ".join(imp.flags)))
+            continue
+        a = imp.start - pre
+        b = a + n_seg
+        nxt = imps[j + 1].start if j + 1 < len(imps) else rec.n_samples
+        if a < 0 or b > rec.n_samples or b > nxt - pre:
+            dropped.append((rec.source, t_imp, f"less than record_s = {record_s:g} s of clean record around it"))
+            continue
+        if runout:
+            period = 60.0 / np.median(kp.speed_rpm)
+            t_end = rec.t0_s + a / fs
+            try:
+                tmpl = signals.revolution_signature(x, fs, kp.times, t_end - (revs_before + 1) * period, t_end,
+                                                    t0_s=rec.t0_s, points_per_rev=points_per_rev)
+            except RotoridError as exc:
+                dropped.append((rec.source, t_imp, str(exc)))
+                continue
+            y = signals.runout_filter(x, fs, kp.times, tmpl, a, b, t0_s=rec.t0_s)
+            if not np.all(np.isfinite(y)):
+                dropped.append((rec.source, t_imp, "keyphasor pulses do not cover the record"))
+                continue
+        else:
+            y = x[:, a:b] - x[:, a:a + pre].mean(axis=1, keepdims=True) if pre > 0 else x[:, a:b]
+        f = rec.channels["force"][a:b] * signals.force_window(n_seg, 0, imp.stop - a + pre, taper=0)
+        forces.append(f)
+        responses.append(y)
+        used.append((rec.source, t_imp))
+    return forces, responses, used, dropped
+
+
+def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_s: float = 0.25, runout: bool = True,
+                 identical: bool = False, method: str = "forces", tests_meta=None, **ident_kw) -> ImpactChainResult:
+    """Impact recordings -> impact detection -> run-out filter -> H1 FRFs per test (plane, direction),
+    averaged over all clean impacts -> frequency-dependent identification over ``band_hz``.
+
+    ``record_s``: length of each impact record (from 10 ms before the impact). Long enough for the
+    response to decay, no longer: past the decay a record adds only probe noise (0.25 s suits
+    modes above ~15 Hz with 10 % damping; the frequency resolution is 1/record_s)."""
+    recordings = list(recordings)
+    if not recordings:
+        raise RotoridError("no impact recordings given")
+    groups = {}
+    dropped = []
+    speeds = []
+    for i, rec in enumerate(recordings):
+        meta = dict(rec.meta)
+        if tests_meta is not None:
+            meta.update(tests_meta[i])
+        for key in ("plane", "direction"):
+            if key not in meta:
+                raise RotoridError(f"impact recording {rec.source!r} needs '{key}' (config or file metadata)")
+        kp = signals.keyphasor_times(rec.channels["kp"], rec.fs_hz, t0_s=rec.t0_s) if "kp" in rec.channels else None
+        if kp is not None:
+            speeds.append(float(np.median(kp.speed_rpm)))
+        elif runout:
+            rec.require("kp")
+        f, r, u, d = impact_segments(rec, record_s=record_s, runout=runout, kp=kp)
+        dropped += d
+        key = (float(meta["plane"]), str(meta["direction"]), meta.get("probes_at", "probes"), rec.fs_hz)
+        g = groups.setdefault(key, ([], [], []))
+        g[0].extend(f)
+        g[1].extend(r)
+        g[2].extend(u)
+    for src, t, why in dropped:
+        warnings.warn(f"impact at t = {t:.4f} s in {src!r} dropped: {why}")
+    if speeds and (max(speeds) - min(speeds)) > 0.01 * np.mean(speeds):
+        raise RotoridError(f"impact recordings were taken at different speeds {np.round(speeds)} rpm; "
+                           "identify each speed separately")
+    speed = float(np.mean(speeds)) if speeds else float(recordings[0].meta.get("speed_rpm", 0.0))
+    tests, frfs, used = [], [], []
+    for (plane, direction, at, fs), (fl, rl, ul) in groups.items():
+        if not fl:
+            raise RotoridError(f"no clean impact left for the test in {direction} at plane {plane:g} m")
+        frf = signals.frf_h1(fl, rl, fs)
+        sel = (frf.freq_hz >= band_hz[0]) & (frf.freq_hz <= band_hz[1])
+        low = frf.coherence[sel].min(axis=0)
+        if np.any(low < 0.9):
+            warnings.warn(f"test {direction} at {plane:g} m: coherence drops to {low.min():.2f} in the band")
+        tests.append(ImpactResponse(speed_rpm=speed, freq_hz=frf.freq_hz[sel], q=frf.h[sel], plane=plane,
+                                    direction=direction, at=at, name=f"{direction}@{plane:g}m x{len(fl)}"))
+        frfs.append(frf)
+        used.append(ul)
+    ident = identify_impact(rotor, tests, identical=identical, method=method, **ident_kw)
+    return ImpactChainResult(tests, frfs, used, dropped, ident)
+
+
+# ---------------------------------------------------------------------------------------------
+# configuration files (TOML)
+
+CONFIG_DOC = """
+A config is a TOML file; paths are relative to it. Example (imbalance):
+
+    [rig]
+    builtin = "nsf"                  # or give [rotor] below
+    # [rotor]
+    # mass_kg = 45.3; it_kgm2 = 0.704; ip_kgm2 = 0.299; l1 = 0.189; l2 = 0.217
+    # d = [0.067, 0.102]; r = [0.114, 0.095]; s = [0.119, 0.146]
+
+    [channels]                       # lab channel name -> rotorid channel and file unit
+    "DE X" = { to = "x1", unit = "mil" }
+    "KPH"  = { to = "kp", unit = "V" }
+    # fs_hz = 10000                  # only for CSV files without a time column
+
+    [imbalance]
+    baseline = "baseline.npz"        # optional, recommended
+    slow_roll = "slow_roll.npz"      # optional
+    steady = true                    # dwell recordings; false for coast-downs
+    # speeds_rpm = [3000, 3500]      # common speed grid (default: the first run's dwells)
+    [[imbalance.runs]]
+    file = "run_S0.npz"
+    mass_g = [5.0, 5.0]              # added imbalance, unless the file's metadata has it
+    angle_deg = [0.0, 0.0]
+
+    [impact]
+    band_hz = [5, 150]
+    record_s = 0.25
+    identical = false
+    [[impact.tests]]
+    file = "impact_x.npz"
+    plane_m = 0.0
+    direction = "x"
+
+    [output]
+    dir = "out"
+    units = "SI"                     # or "US" (lbf/in, lbf*s/in) for the coefficient tables
+"""
+
+
+def load_config(path):
+    import tomllib
+
+    try:
+        with open(path, "rb") as fh:
+            cfg = tomllib.load(fh)
+    except FileNotFoundError:
+        raise RotoridError(f"config file {path!r} not found") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise RotoridError(f"config file {path!r} is not valid TOML: {exc}") from None
+    cfg["_dir"] = os.path.dirname(os.path.abspath(path))
+    return cfg
+
+
+def rotor_from_config(cfg) -> RigidRotor:
+    from .model import nsf_rig
+
+    rig = cfg.get("rig", {})
+    if "rotor" in cfg:
+        r = dict(cfg["rotor"])
+        try:
+            return RigidRotor(**r)
+        except TypeError as exc:
+            raise RotoridError(f"[rotor] in the config: {exc}") from None
+    if rig.get("builtin", "nsf") == "nsf":
+        return nsf_rig().rotor
+    raise RotoridError(f"unknown builtin rig {rig.get('builtin')!r}; use 'nsf' or give a [rotor] table")
+
+
+def _load(cfg, entry, needed, meta=None):
+    """Load one recording with the config's channel map, restricted to the channels this kind of
+    recording needs (an imbalance run has no hammer channel)."""
+    from .io import load_recording
+
+    path = entry if isinstance(entry, str) else entry["file"]
+    full = path if os.path.isabs(path) else os.path.join(cfg["_dir"], path)
+    chans = {k: v for k, v in cfg.get("channels", {}).items() if isinstance(v, dict) and v.get("to") in needed}
+    fs = cfg.get("channels", {}).get("fs_hz")
+    return load_recording(full, channel_map=chans or None, fs_hz=fs, meta=meta)
+
+
+def run_config(path, kind: str, *, out_dir=None, log=print):
+    """Run the imbalance or impact chain described by a TOML config; write CSV tables and plots."""
+    from . import plot
+
+    if kind not in ("imbalance", "impact"):
+        raise RotoridError(f"kind must be 'imbalance' or 'impact', got {kind!r}")
+    cfg = load_config(path)
+    if kind not in cfg:
+        raise RotoridError(f"config {path!r} has no [{kind}] section")
+    rotor = rotor_from_config(cfg)
+    sec = cfg[kind]
+    out = out_dir or os.path.join(cfg["_dir"], cfg.get("output", {}).get("dir", f"rotorid_{kind}"))
+    os.makedirs(out, exist_ok=True)
+    us = cfg.get("output", {}).get("units", "SI").upper() == "US"
+    files = []
+    if kind == "imbalance":
+        runs_cfg = sec.get("runs", [])
+        if len(runs_cfg) == 0:
+            raise RotoridError("[imbalance] needs [[imbalance.runs]] entries")
+        need = set(DISPLACEMENTS) | {"kp"}
+        runs = [_load(cfg, r, need) for r in runs_cfg]
+        imbs = []
+        for r, rc in zip(runs, runs_cfg):
+            if "mass_g" in rc or "mass_kg" in rc:
+                imbs.append({k: rc[k] for k in ("mass_g", "mass_kg", "angle_deg", "name") if k in rc})
+            else:
+                imbs.append(None)
+        base = _load(cfg, sec["baseline"], need) if "baseline" in sec else None
+        slow = _load(cfg, sec["slow_roll"], need) if "slow_roll" in sec else None
+        res = imbalance_chain(rotor, runs, baseline=base, slow_roll=slow, speeds_rpm=sec.get("speeds_rpm"),
+                              steady=sec.get("steady", True), imbalances=imbs)
+        ident = res.identification
+        for i, r in enumerate(res.responses):
+            p = os.path.join(out, f"sync_vectors_{i}_{_safe(r.name)}.csv")
+            r.to_dataframe().to_csv(p, index=False, float_format="%.6g")
+            files.append(p)
+        for n in res.notes:
+            log("  " + n)
+    else:
+        tests_cfg = sec.get("tests", [])
+        if len(tests_cfg) == 0:
+            raise RotoridError("[impact] needs [[impact.tests]] entries")
+        recs = [_load(cfg, t, set(DISPLACEMENTS) | {"kp", "force"}) for t in tests_cfg]
+        meta = [{k2: t[k1] for k1, k2 in (("plane_m", "plane"), ("direction", "direction")) if k1 in t} for t in tests_cfg]
+        res = impact_chain(rotor, recs, band_hz=tuple(sec.get("band_hz", (5.0, 150.0))),
+                           record_s=float(sec.get("record_s", 0.25)), identical=bool(sec.get("identical", False)),
+                           tests_meta=meta)
+        ident = res.identification
+        import pandas as pd
+
+        for t, frf in zip(res.tests, res.frfs):
+            df = t.to_dataframe()
+            sel = (frf.freq_hz >= t.freq_hz[0] - 1e-9) & (frf.freq_hz <= t.freq_hz[-1] + 1e-9)
+            for j, nm in enumerate(DISPLACEMENTS):
+                df[f"{nm}_coherence"] = frf.coherence[sel, j]
+            p = os.path.join(out, f"frf_{_safe(t.name)}.csv")
+            df.to_csv(p, index=False, float_format="%.6g")
+            files.append(p)
+        if res.dropped:
+            p = os.path.join(out, "dropped_impacts.csv")
+            pd.DataFrame(res.dropped, columns=["source", "time_s", "reason"]).to_csv(p, index=False)
+            files.append(p)
+        log(f"  {sum(len(u) for u in res.used)} impacts used, {len(res.dropped)} dropped")
+    df = ident.to_dataframe()
+    if us:
+        from .units import from_si
+
+        for col in df.columns:
+            if col[:1] == "K" and col[1:3] in ("xx", "xy", "yx", "yy"):
+                df[col] = from_si(df[col], "lbf/in")
+            elif col[:1] == "C" and col[1:3] in ("xx", "xy", "yx", "yy"):
+                df[col] = from_si(df[col], "lbf*s/in")
+        df = df.rename(columns={c: c + ("_lbf_per_in" if c[0] == "K" else "_lbf_s_per_in") for c in df.columns
+                                if c[:1] in "KC" and c[1:3] in ("xx", "xy", "yx", "yy")})
+    p = os.path.join(out, f"coefficients_{kind}.csv")
+    df.to_csv(p, index=False, float_format="%.6g")
+    files.append(p)
+    p = os.path.join(out, f"coefficients_{kind}.png")
+    plot.coefficients(ident, None, path=p, title=f"Identified coefficients ({kind}), {os.path.basename(path)}")
+    files.append(p)
+    ok = ident.ok
+    log(f"identified {kind}: {ident.axis.size} points ({int(ok.sum())} ok) over {ident.axis_name} "
+        f"{ident.axis.min():.4g}-{ident.axis.max():.4g}")
+    if ok.any():
+        med = np.median(ident.report_vector()[ok], axis=0)
+        log("  median over ok points: " + ", ".join(f"{n} {v:.4g}" for n, v in zip(REPORT_NAMES, med)))
+    log(f"  wrote {len(files)} files to {out}/")
+    return ident, files
+
+
+def _safe(name):
+    return "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in str(name))
+
+
+from .model import REPORT_ORDER as REPORT_NAMES  # noqa: E402

@@ -1,0 +1,140 @@
+"""Simulated raw recordings: what a DAQ would record on the rig, exact for the linear model.
+
+Imbalance runs are sequences of steady-speed dwells; in each dwell the probes see the exact
+steady-state response to (added + remnant) imbalance, plus shaft run-out (1X to 3X, locked to the
+rotor angle), plus white sensor noise, and a keyphasor channel with a smooth rising edge at rotor
+angle 0. Transients between dwells are not simulated (the tracker skips the first revolutions of
+each dwell anyway). Impact runs are at one steady speed: remnant-imbalance response and run-out,
+plus the exact response to sampled force pulses (rotorid.impact_time_response), plus noise.
+Responses are at the probe planes s1, s2 of the rotor.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .model import BearingCoefficients, Imbalance, RigidRotor
+from .recording import Recording
+from .simulate import RPM, bearings_to_probes, half_sine_pulse, imbalance_response, impact_time_response
+
+
+@dataclass(frozen=True)
+class Runout:
+    """Shaft run-out at the four probes: complex amplitudes (m, 0-pk) of orders 1..3, in the rotor
+    frame (the same at every speed). Default: about 8 µm 1X, 3 µm 2X, 1 µm 3X with a fixed
+    pseudo-random phase per probe."""
+
+    amplitudes_m: tuple = (8e-6, 3e-6, 1e-6)
+    seed: int = 11
+
+    def vectors(self) -> np.ndarray:
+        """(3, 4) complex run-out vectors, orders 1..3 x [x1, x2, y1, y2]."""
+        rng = np.random.default_rng(self.seed)
+        ph = rng.uniform(-np.pi, np.pi, (len(self.amplitudes_m), 4))
+        mag = np.asarray(self.amplitudes_m)[:, None] * rng.uniform(0.7, 1.3, (len(self.amplitudes_m), 4))
+        return mag * np.exp(1j * ph)
+
+
+def _keyphasor(theta, fs_hz, omega, volts=5.0, width_rev=0.05):
+    """Pulse train with smooth edges: rises through volts/2 exactly at theta = 0 mod 2 pi."""
+    frac = np.mod(theta, 2 * np.pi) / (2 * np.pi)
+    frac = np.where(frac > 0.5, frac - 1.0, frac)  # in [-0.5, 0.5): 0 at the pulse
+    dt = frac * 2 * np.pi / omega  # time since the pulse (s)
+    tau = 2.0 / fs_hz  # edge time constant: a few samples
+    # a notch of 5 % of a revolution, but never narrower than 32 samples so the pulse reaches its
+    # full height and the rising edge is not shifted by the falling one
+    width = min(max(width_rev * 2 * np.pi / omega, 32.0 / fs_hz), 0.4 * 2 * np.pi / omega)
+    rise = 0.5 * (1 + np.tanh(dt / tau))
+    fall = 0.5 * (1 + np.tanh((width - dt) / tau))
+    return volts * rise * fall
+
+
+def _synchronous(q_vectors, theta):
+    """sum over orders n of Re(V_n e^{j n theta}) for V (orders, 4) -> (4, N)."""
+    out = np.zeros((q_vectors.shape[1], theta.size))
+    for n, v in enumerate(q_vectors, start=1):
+        e = np.exp(1j * n * theta)
+        out += (v[:, None] * e[None, :]).real
+    return out
+
+
+def imbalance_recording(rotor: RigidRotor, bearings: BearingCoefficients, *, speeds_rpm, added: Imbalance | None,
+                        remnant: Imbalance | None = None, runout: Runout | None = Runout(), noise_m: float = 0.5e-6,
+                        dwell_s: float = 6.0, fs_hz: float = 10000.0, seed: int = 0, kind: str = "imbalance",
+                        theta0: float = 0.3) -> Recording:
+    """A run of steady dwells of ``dwell_s`` seconds at ``speeds_rpm`` with the ``added`` imbalance
+    (None for a baseline run) on top of the ``remnant`` imbalance. Channels x1, x2, y1, y2 (probes,
+    m), kp (V)."""
+    rng = np.random.default_rng(seed)
+    speeds = np.atleast_1d(np.asarray(speeds_rpm, float))
+    ro = runout.vectors() if runout is not None else np.zeros((3, 4), complex)
+    chunks, kps = [], []
+    theta_start = theta0
+    for rpm in speeds:
+        om = rpm * RPM
+        n = int(round(dwell_s * fs_hz))
+        theta = theta_start + om * np.arange(n) / fs_hz
+        q = np.zeros(4, complex)
+        for imb in (added, remnant):
+            if imb is not None:
+                q += imbalance_response(rotor, bearings, imb, speed_rpm=[rpm], at="probes").q[0]
+        sig = _synchronous(np.vstack([q[None], np.zeros((2, 4))]) + ro, theta)
+        chunks.append(sig)
+        kps.append(_keyphasor(theta, fs_hz, om))
+        theta_start = theta[-1] + om / fs_hz
+    x = np.concatenate(chunks, axis=1)
+    x = x + noise_m * rng.standard_normal(x.shape)
+    kp = np.concatenate(kps) + 0.01 * rng.standard_normal(x.shape[1])
+    meta = dict(kind=kind, speed_rpm=speeds.tolist(), probes_at="probes")
+    if added is not None:
+        meta["imbalance"] = {"mass_kg": list(added.mass_kg), "angle_deg": list(added.angle_deg)}
+        if added.name:
+            meta["name"] = added.name
+    chans = {"x1": x[0], "x2": x[1], "y1": x[2], "y2": x[3], "kp": kp}
+    return Recording(fs_hz, chans, meta, source=f"simulated {kind}")
+
+
+def impact_recording(rotor: RigidRotor, bearings: BearingCoefficients, *, speed_rpm: float, plane: float,
+                     direction: str, impact_times_s=(0.5, 1.2, 1.9, 2.6, 3.3), peak_N: float = 4000.0,
+                     duration_s: float = 2e-3, record_s: float = 4.0, remnant: Imbalance | None = None,
+                     runout: Runout | None = Runout(), noise_m: float = 0.5e-6, force_noise_N: float = 2.0,
+                     fs_hz: float = 10000.0, seed: int = 0, theta0: float = 0.3, double_hit_at=None) -> Recording:
+    """Impacts at ``plane`` in ``direction`` while the rotor spins at ``speed_rpm``: channels x1, x2,
+    y1, y2 (probes, m), kp (V), force (N). ``double_hit_at``: index of an impact to follow by a
+    rebound 8 ms later (to exercise the detector)."""
+    rng = np.random.default_rng(seed)
+    om = speed_rpm * RPM
+    n = int(round(record_s * fs_hz))
+    theta = theta0 + om * np.arange(n) / fs_hz
+    q = np.zeros(4, complex)
+    if remnant is not None:
+        q = imbalance_response(rotor, bearings, remnant, speed_rpm=[speed_rpm], at="probes").q[0]
+    ro = runout.vectors() if runout is not None else np.zeros((3, 4), complex)
+    x = _synchronous(np.vstack([q[None], np.zeros((2, 4))]) + ro, theta)
+    u = np.zeros(n)
+    for k, t in enumerate(impact_times_s):
+        u += half_sine_pulse(peak_N * (1 + 0.05 * k), duration_s, fs_hz, n, t0_s=t)
+        if double_hit_at is not None and k == double_hit_at:
+            u += half_sine_pulse(0.4 * peak_N, duration_s, fs_hz, n, t0_s=t + 0.008)
+    tr = impact_time_response(rotor, bearings, speed_rpm=speed_rpm, force_N=u, fs_hz=fs_hz, plane=plane,
+                              direction=direction, at="probes")
+    x = x + tr.q.T + noise_m * rng.standard_normal((4, n))
+    chans = {"x1": x[0], "x2": x[1], "y1": x[2], "y2": x[3], "kp": _keyphasor(theta, fs_hz, om),
+             "force": u + force_noise_N * rng.standard_normal(n)}
+    meta = dict(kind="impact", speed_rpm=float(speed_rpm), plane=float(plane), direction=direction, probes_at="probes")
+    return Recording(fs_hz, chans, meta, source=f"simulated impact {direction} at {plane:g} m")
+
+
+def example_rig():
+    """The NSF rotor with two different, cross-coupled bearings (bearing 2 stiffer in x, softer in
+    y, different damping; stiffness 80 % of Table 4 so that 3000-6000 rpm lies mostly between the
+    critical speeds, 3184/3235 and 4552 rpm) and probes away from the bearings, plus a remnant
+    imbalance of 1.0 g and 0.6 g: the example data set's truth."""
+    from .model import nsf_rig
+
+    rig = nsf_rig()
+    k = np.array([[[2.4e6, 4.0e4], [2.4e4, 2.8e6]], [[2.9e6, -6.4e4], [4.8e4, 2.6e6]]])
+    c = np.array([[[2000.0, 250.0], [800.0, 2200.0]], [[2600.0, -300.0], [500.0, 1800.0]]])
+    return rig.rotor, BearingCoefficients(k, c), Imbalance((1.0e-3, 0.6e-3), (35.0, 160.0), name="remnant")

@@ -1,0 +1,120 @@
+//! Keyphasor-referenced order processing: resampling at uniform rotor angles and the report's
+//! time-domain run-out filter (subtract the synchronous revolution signature).
+//!
+//! The rotor angle is taken as linear in time between consecutive keyphasor pulses (times `kp`,
+//! seconds, strictly increasing): angle = 2 pi (k + (t - kp[k]) / (kp[k+1] - kp[k])). Resampling
+//! each revolution separately follows small speed drift, so a signature does not smear.
+
+use rayon::prelude::*;
+
+/// 4-point Lagrange (cubic) interpolation of uniformly sampled `x` at fractional index `u`.
+#[inline(always)]
+pub fn cubic_at(x: &[f64], u: f64) -> f64 {
+    let n = x.len();
+    if n == 0 {
+        return f64::NAN;
+    }
+    let m = u.floor();
+    let f = u - m;
+    let m = m as isize;
+    let at = |i: isize| -> f64 { x[i.clamp(0, n as isize - 1) as usize] };
+    let (xm1, x0, x1, x2) = (at(m - 1), at(m), at(m + 1), at(m + 2));
+    let wm1 = -f * (f - 1.0) * (f - 2.0) / 6.0;
+    let w0 = (f + 1.0) * (f - 1.0) * (f - 2.0) / 2.0;
+    let w1 = -(f + 1.0) * f * (f - 2.0) / 2.0;
+    let w2 = (f + 1.0) * f * (f - 1.0) / 6.0;
+    wm1 * xm1 + w0 * x0 + w1 * x1 + w2 * x2
+}
+
+/// Resample channels at P uniform angles per revolution for revolutions k0..k1 (between pulses
+/// kp[k] and kp[k+1]). `x`: (C, N) row-major, sample i at time t0 + i / fs. `out`: (C, k1-k0, P).
+pub fn angle_resample(x: &[f64], nch: usize, fs: f64, t0: f64, kp: &[f64], k0: usize, k1: usize, p: usize, out: &mut [f64]) {
+    let n = x.len() / nch.max(1);
+    let revs = k1 - k0;
+    out.par_chunks_mut(revs * p).enumerate().for_each(|(c, o)| {
+        let xc = &x[c * n..(c + 1) * n];
+        for r in 0..revs {
+            let (ta, tb) = (kp[k0 + r], kp[k0 + r + 1]);
+            for j in 0..p {
+                let t = ta + (tb - ta) * (j as f64) / (p as f64);
+                o[r * p + j] = cubic_at(xc, (t - t0) * fs);
+            }
+        }
+    });
+}
+
+/// Subtract a revolution signature from samples i0..i1 of every channel.
+/// `template`: (C, P), the signature of each channel over one revolution starting at the pulse.
+/// Samples outside [kp[0], kp[last]) cannot be placed in a revolution and are set to NaN.
+/// `out`: (C, i1 - i0). One pass over the samples: the rotor angle and the interpolation weights
+/// of a sample are computed once and applied to every channel.
+#[allow(clippy::too_many_arguments)]
+pub fn runout_subtract(
+    x: &[f64],
+    nch: usize,
+    fs: f64,
+    t0: f64,
+    kp: &[f64],
+    template: &[f64],
+    p: usize,
+    i0: usize,
+    i1: usize,
+    out: &mut [f64],
+) {
+    let n = x.len() / nch.max(1);
+    let m = i1 - i0;
+    // templates padded periodically (one point before, two after) so stencils need no modulo
+    let mut ext = vec![0.0; nch * (p + 3)];
+    for c in 0..nch {
+        for j in 0..p + 3 {
+            ext[c * (p + 3) + j] = template[c * p + (j + p - 1) % p];
+        }
+    }
+    let inv_period: Vec<f64> = kp.windows(2).map(|w| 1.0 / (w[1] - w[0])).collect();
+    const BLOCK: usize = 1 << 14;
+    let nblocks = m.div_ceil(BLOCK);
+    // output rows are per channel; hand each block its disjoint sub-slices of every row
+    let mut rows: Vec<&mut [f64]> = out.chunks_mut(m.max(1)).collect();
+    let mut per_block: Vec<Vec<&mut [f64]>> = (0..nblocks).map(|_| Vec::with_capacity(nch)).collect();
+    for row in rows.iter_mut() {
+        let mut rest: &mut [f64] = std::mem::take(row);
+        for pb in per_block.iter_mut() {
+            let take = BLOCK.min(rest.len());
+            let (head, tail) = rest.split_at_mut(take);
+            pb.push(head);
+            rest = tail;
+        }
+    }
+    let pf = p as f64;
+    per_block.into_par_iter().enumerate().for_each(|(b, mut outs)| {
+        let first = i0 + b * BLOCK;
+        let len = outs.first().map(|o| o.len()).unwrap_or(0);
+        let t_first = t0 + first as f64 / fs;
+        let mut k = kp.partition_point(|&tk| tk <= t_first).saturating_sub(1);
+        for j in 0..len {
+            let i = first + j;
+            let t = t0 + i as f64 / fs;
+            while k + 1 < kp.len() && kp[k + 1] <= t {
+                k += 1;
+            }
+            if k + 1 >= kp.len() || t < kp[0] {
+                for o in outs.iter_mut() {
+                    o[j] = f64::NAN;
+                }
+                continue;
+            }
+            let u = (t - kp[k]) * inv_period[k] * pf;
+            let mf = u.floor();
+            let f = u - mf;
+            let mi = (mf as usize).min(p - 1);
+            let wm1 = -f * (f - 1.0) * (f - 2.0) * (1.0 / 6.0);
+            let w0 = (f + 1.0) * (f - 1.0) * (f - 2.0) * 0.5;
+            let w1 = -(f + 1.0) * f * (f - 2.0) * 0.5;
+            let w2 = (f + 1.0) * f * (f - 1.0) * (1.0 / 6.0);
+            for (c, o) in outs.iter_mut().enumerate() {
+                let e = &ext[c * (p + 3) + mi..c * (p + 3) + mi + 4];
+                o[j] = x[c * n + i] - (wm1 * e[0] + w0 * e[1] + w1 * e[2] + w2 * e[3]);
+            }
+        }
+    });
+}

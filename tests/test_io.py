@@ -1,0 +1,478 @@
+"""Lab-file I/O: native .npz, CSV, TDMS and UFF 58 round trips, channel maps, units and bad input."""
+
+import ast
+import re
+import warnings
+
+import numpy as np
+import pytest
+from nptdms import ChannelObject, TdmsWriter
+
+from rotorid import io as rio
+from rotorid.errors import RotoridError
+from rotorid.recording import Recording
+
+FS = 2000.0
+N = 2000
+MIL = 25.4e-6
+LBF = 4.4482216152605
+
+LAB_NAMES = {"x1": "Prox DE X", "x2": "Prox FE X", "y1": "Prox DE Y", "y2": "Prox FE Y", "force": "Hammer"}
+LAB_UNITS = {"x1": "mil", "x2": "mil", "y1": "mil", "y2": "mil", "force": "lbf"}
+LAB_MAP = {LAB_NAMES[c]: {"to": c, "unit": LAB_UNITS[c]} for c in LAB_NAMES}
+
+WRITERS = {"csv": (rio.save_csv, ".csv"), "tdms": (rio.save_tdms, ".tdms"), "uff58": (rio.save_uff58, ".uff")}
+# data precision of each lab format: CSV (17 digits) and TDMS (float64) are exact, UFF ASCII has 12 digits
+RTOL = {"csv": 0.0, "tdms": 0.0, "uff58": 1e-9}
+
+
+def make_rec(fs=FS, n=N, t0=0.0, extra=None, meta=None):
+    """x1..y2 orbits in m with noise, a once-per-rev keyphasor in V, one hammer impact in N."""
+    rng = np.random.default_rng(7)
+    t = t0 + np.arange(n) / fs
+    ch = {}
+    for i, c in enumerate(["x1", "x2", "y1", "y2"]):
+        ch[c] = 40e-6 * np.sin(2 * np.pi * 30 * t + i) + 3e-6 + 2e-7 * rng.standard_normal(n)
+    ch["kp"] = np.where(np.arange(n) % 67 < 3, 5.0, 0.0)
+    force = np.zeros(n)
+    force[400:408] = 300.0 * np.sin(np.pi * np.arange(1, 9) / 9)
+    ch["force"] = force
+    ch.update(extra or {})
+    return Recording(fs, ch, dict(meta or {}), t0_s=t0, source="test rig")
+
+
+def quiet_load(path, **kw):
+    """load_recording with every warning turned into an error."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        return rio.load_recording(path, **kw)
+
+
+def assert_channels(got, want, rtol, names=None):
+    names = list(want.channels) if names is None else names
+    assert list(got.channels) == names
+    for c in names:
+        np.testing.assert_allclose(got.channels[c], want.channels[c], rtol=rtol, atol=0, err_msg=c)
+
+
+def dropped_list(message):
+    """The list of dropped channels a drop warning gives."""
+    m = re.search(r"named canonically: (\[.*?\])", message)
+    assert m, message
+    return ast.literal_eval(m.group(1))
+
+
+# ----------------------------------------------------------------------------------------- native
+
+
+def test_native_round_trip_is_exact(tmp_path):
+    meta = {"kind": "imbalance", "speed_rpm": 1800.0, "imbalance": {"mass_kg": [1e-3, 0.0], "angle_deg": [0, 90]},
+            "rig": "NSF", "count": np.int64(3)}
+    rec = make_rec(t0=0.125, extra={"temp": np.linspace(20, 21, N)}, meta=meta)
+    rec.units["temp"] = "degC"
+    path = tmp_path / "run.npz"
+    rio.save_recording(rec, path)
+    got = quiet_load(path)
+    assert got.fs_hz == rec.fs_hz and got.t0_s == rec.t0_s
+    assert list(got.channels) == list(rec.channels)
+    for c in rec.channels:
+        np.testing.assert_array_equal(got.channels[c], rec.channels[c])
+    assert got.meta == {**meta, "count": 3}
+    assert got.units == rec.units
+    assert got.source == "test rig"
+
+    with np.load(path, allow_pickle=False) as z:
+        assert str(z["format"]) == "rotorid-recording" and int(z["format_version"]) == 1
+        assert z["ch_x1"].dtype == np.float64 and float(z["fs_hz"]) == FS
+
+
+def test_native_keeps_path_without_extension_and_merges_meta(tmp_path):
+    rec = make_rec(meta={"kind": "baseline", "rig": "A"})
+    path = tmp_path / "run.bin"
+    rio.save_recording(rec, path)
+    assert path.is_file() and not (tmp_path / "run.bin.npz").exists()
+    got = quiet_load(path, fmt="native", meta={"rig": "B", "speed_rpm": 900.0})
+    assert got.meta == {"kind": "baseline", "rig": "B", "speed_rpm": 900.0}
+
+
+@pytest.mark.parametrize("entries, match", [
+    ({"format": "something-else", "format_version": 1}, "format is 'something-else'"),
+    ({"format": "rotorid-recording", "format_version": 2}, "format_version .* not supported"),
+    ({"format_version": 1}, "no 'format' entry"),
+])
+def test_native_refuses_other_formats_and_versions(tmp_path, entries, match):
+    path = tmp_path / "run.npz"
+    base = dict(fs_hz=FS, t0_s=0.0, meta_json="{}", units_json="{}", source='""', ch_x1=np.zeros(10))
+    np.savez(path, **base, **entries)
+    with pytest.raises(RotoridError, match=match):
+        rio.load_recording(path)
+
+
+def test_native_refuses_meta_that_is_not_json(tmp_path):
+    rec = make_rec(meta={"when": object()})
+    with pytest.raises(RotoridError, match="not JSON"):
+        rio.save_recording(rec, tmp_path / "run.npz")
+
+
+# -------------------------------------------------------------------------------- lab round trips
+
+
+@pytest.mark.parametrize("fmt", list(WRITERS))
+def test_lab_round_trip_in_si(tmp_path, fmt):
+    save, ext = WRITERS[fmt]
+    rec = make_rec(t0=0.5)
+    path = tmp_path / f"run{ext}"
+    save(rec, path)
+    got = quiet_load(path)
+    assert_channels(got, rec, RTOL[fmt])
+    assert got.fs_hz == pytest.approx(FS, rel=1e-12)
+    assert got.t0_s == pytest.approx(0.5, rel=1e-9)
+    assert got.units["x1"] == "m" and got.units["force"] == "N"
+    assert got.meta["source_format"] == fmt
+    assert got.meta["channel_sources"]["x1"]["unit_from"] == "file"
+
+
+@pytest.mark.parametrize("fmt", list(WRITERS))
+def test_lab_units_and_names_through_channel_map(tmp_path, fmt):
+    save, ext = WRITERS[fmt]
+    rec = make_rec()
+    path = tmp_path / f"lab{ext}"
+    save(rec, path, names=LAB_NAMES, units=LAB_UNITS)
+    # the file really holds mils and lbf under the lab names
+    with pytest.warns(UserWarning, match="dropped 3 channel"):
+        raw = rio.load_recording(path, channel_map={"Prox DE X": {"to": "x1", "unit": "m"}, "Hammer": {"to": "force", "unit": "N"}})
+    np.testing.assert_allclose(raw.channels["x1"], rec.channels["x1"] / MIL, rtol=1e-9)
+    np.testing.assert_allclose(raw.channels["force"], rec.channels["force"] / LBF, rtol=1e-9)
+
+    got = quiet_load(path, channel_map=LAB_MAP)
+    assert_channels(got, rec, 1e-9)
+    assert got.units == {"x1": "m", "x2": "m", "y1": "m", "y2": "m", "kp": "V", "force": "N"}
+    assert got.meta["channel_sources"]["x2"] == {"file_channel": "rotorid/Prox FE X" if fmt == "tdms" else "Prox FE X",
+                                                 "unit": "mil", "unit_from": "channel_map", "scale": 1.0,
+                                                 "offset": 0.0}
+
+
+def test_tdms_float32_storage(tmp_path):
+    rec = make_rec()
+    path = tmp_path / "daq.tdms"
+    rio.save_tdms(rec, path, group="DAQ", names=LAB_NAMES, units=LAB_UNITS, dtype="float32")
+    with pytest.raises(RotoridError, match="dtype must be"):
+        rio.save_tdms(rec, path, dtype="int16")
+    got = quiet_load(path, channel_map={f"DAQ/{k}": v for k, v in LAB_MAP.items()})
+    assert_channels(got, rec, 1e-6)
+    assert got.channels["x1"].dtype == np.float64
+    # float32 really was stored: the values are not the float64 ones
+    assert not np.array_equal(got.channels["x1"], rec.channels["x1"])
+
+
+@pytest.mark.parametrize("fmt", list(WRITERS))
+def test_units_stated_in_the_file_are_applied_without_a_map(tmp_path, fmt):
+    save, ext = WRITERS[fmt]
+    rec = make_rec()
+    path = tmp_path / f"lab{ext}"
+    save(rec, path, units={"x1": "um", "y2": "mil", "force": "kN"})
+    got = quiet_load(path)
+    assert_channels(got, rec, 1e-9)
+    assert got.meta["channel_sources"]["y2"]["unit"] == "mil"
+
+
+def test_scale_and_offset_of_a_sensor(tmp_path):
+    rec = make_rec()
+    x_mil = rec.channels["x1"] / MIL
+    volts = (x_mil + 1.0) / 5.0                       # probe: 200 mV/mil around a 0.2 V gap voltage
+    hammer_mv = rec.channels["force"] / LBF / 0.01    # hammer: 10 mV/lbf
+    path = tmp_path / "daq.csv"
+    with open(path, "w") as fh:
+        fh.write("time [s],Prox [V],Hammer [mV]\n")
+        np.savetxt(fh, np.column_stack([rec.t, volts, hammer_mv]), fmt="%.17g", delimiter=",")
+    cmap = {"Prox": {"to": "x1", "unit": "mil", "scale": 5.0, "offset": -1.0},
+            "Hammer": {"to": "force", "unit": "lbf", "scale": 0.01}}
+    got = quiet_load(path, channel_map=cmap)
+    np.testing.assert_allclose(got.channels["x1"], rec.channels["x1"], rtol=1e-9, atol=1e-20)
+    np.testing.assert_allclose(got.channels["force"], rec.channels["force"], rtol=1e-9)
+
+
+# ------------------------------------------------------------------------------ channel selection
+
+
+@pytest.mark.parametrize("fmt", list(WRITERS))
+def test_dropped_channels_are_listed_in_a_warning(tmp_path, fmt):
+    save, ext = WRITERS[fmt]
+    rec = make_rec(extra={"Temp": np.full(N, 21.5), "Tacho 2": np.zeros(N)})
+    path = tmp_path / f"extra{ext}"
+    save(rec, path)
+    with pytest.warns(UserWarning, match="dropped 2 channel") as record:
+        got = rio.load_recording(path)
+    prefix = "rotorid/" if fmt == "tdms" else ""
+    messages = [str(w.message) for w in record if "dropped" in str(w.message)]
+    assert len(messages) == 1
+    assert dropped_list(messages[0]) == [prefix + "Temp", prefix + "Tacho 2"]
+    assert list(got.channels) == ["x1", "x2", "y1", "y2", "kp", "force"]
+
+
+def test_a_mapped_channel_shadows_a_canonical_one(tmp_path):
+    rec = make_rec(extra={"Prox": np.zeros(N)})
+    path = tmp_path / "run.csv"
+    rio.save_csv(rec, path, units={"Prox": ""})
+    with pytest.warns(UserWarning, match=r"because channel_map maps another channel onto that name: \['x1'\]"):
+        got = rio.load_recording(path, channel_map={"Prox": {"to": "x1", "unit": "m"}})
+    np.testing.assert_array_equal(got.channels["x1"], 0.0)
+
+
+@pytest.mark.parametrize("fmt", list(WRITERS))
+def test_missing_mapped_channel_names_it_and_what_the_file_has(tmp_path, fmt):
+    save, ext = WRITERS[fmt]
+    path = tmp_path / f"lab{ext}"
+    save(make_rec(), path, names=LAB_NAMES, units=LAB_UNITS)
+    cmap = dict(LAB_MAP, **{"Prox NDE X": {"to": "x2", "unit": "mil"}})
+    del cmap["Prox FE X"]
+    with pytest.raises(RotoridError, match=r"'Prox NDE X' named in channel_map is not in .*Prox FE X"):
+        rio.load_recording(path, channel_map=cmap)
+
+
+def test_wrong_quantity_units_raise(tmp_path):
+    path = tmp_path / "lab.csv"
+    rio.save_csv(make_rec(), path, names=LAB_NAMES, units=LAB_UNITS)
+    bad = dict(LAB_MAP, **{"Prox DE X": {"to": "x1", "unit": "lbf"}})
+    with pytest.raises(RotoridError, match=r"Prox DE X.*'lbf' is a force, expected a length.*x1"):
+        rio.load_recording(path, channel_map=bad)
+    # a wrong unit stated by the file itself
+    path2 = tmp_path / "wrong.csv"
+    path2.write_text("time [s],x1 [lbf]\n0,1\n0.001,2\n")
+    with pytest.raises(RotoridError, match=r"channel 'x1'.*'lbf' is a force, expected a length"):
+        rio.load_recording(path2)
+
+
+@pytest.mark.parametrize("cmap, match", [
+    ({"Prox DE X": {"to": "x3", "unit": "mil"}}, r"'to' must be one of"),
+    ({"Prox DE X": {"to": "x1", "unit": "mil", "scal": 2.0}}, r"unknown key\(s\) \['scal'\]"),
+    ({"Prox DE X": {"to": "x1"}, "Prox FE X": {"to": "x1"}}, r"maps both 'Prox DE X' and 'Prox FE X' to 'x1'"),
+    ({"Prox DE X": {"to": "x1", "scale": float("nan")}}, r"'scale' must be a finite number"),
+    ({"Prox DE X": "x1"}, r"must be a dict"),
+])
+def test_channel_map_is_checked(tmp_path, cmap, match):
+    path = tmp_path / "lab.csv"
+    rio.save_csv(make_rec(), path, names=LAB_NAMES, units=LAB_UNITS)
+    with pytest.raises(RotoridError, match=match):
+        rio.load_recording(path, channel_map=cmap)
+
+
+def test_non_numeric_column_is_fine_unless_used(tmp_path):
+    path = tmp_path / "notes.csv"
+    path.write_text("time,x1,note\n0,1e-6,ok\n0.0005,2e-6,bump\n0.001,3e-6,ok\n")
+    with pytest.warns(UserWarning, match=r"\['note'\]"):
+        got = rio.load_recording(path)
+    assert got.fs_hz == pytest.approx(2000.0) and list(got.channels) == ["x1"]
+    with pytest.raises(RotoridError, match=r"'note'.*cell 'ok' on line 2 is not a number"):
+        rio.load_recording(path, channel_map={"note": {"to": "kp", "unit": "V"}})
+
+
+# ------------------------------------------------------------------------------- time base: CSV
+
+
+def test_csv_non_uniform_time_column_raises(tmp_path):
+    path = tmp_path / "run.csv"
+    rio.save_csv(make_rec(), path)
+    lines = path.read_text().splitlines()
+    cells = lines[501].split(",")
+    cells[0] = repr(float(cells[0]) + 1e-7)  # sample 500 late by 0.2 % of a step
+    lines[501] = ",".join(cells)
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(RotoridError, match="non-uniform time column.*step 499"):
+        rio.load_recording(path)
+
+
+def test_csv_without_time_column_needs_fs(tmp_path):
+    rec = make_rec()
+    path = tmp_path / "notime.csv"
+    with open(path, "w") as fh:
+        fh.write("x1 [mil];y1 [mil]\n")  # semicolon-separated, as some DAQ software writes
+        np.savetxt(fh, np.column_stack([rec.channels["x1"], rec.channels["y1"]]) / MIL, fmt="%.17g", delimiter=";")
+    with pytest.raises(RotoridError, match=r"no sample rate for channel 'x1'.*pass fs_hz"):
+        rio.load_recording(path)
+    got = quiet_load(path, fs_hz=FS)
+    assert got.fs_hz == FS and got.t0_s == 0.0
+    np.testing.assert_allclose(got.channels["y1"], rec.channels["y1"], rtol=1e-9)
+
+
+def test_fs_hz_does_not_override_the_file(tmp_path):
+    path = tmp_path / "run.csv"
+    rio.save_csv(make_rec(), path)
+    with pytest.warns(UserWarning, match=r"fs_hz=1000 ignored: the file states 2000 Hz"):
+        got = rio.load_recording(path, fs_hz=1000.0)
+    assert got.fs_hz == pytest.approx(FS, rel=1e-12)
+
+
+# ------------------------------------------------------------------------------ time base: TDMS
+
+
+def write_tdms(path, channels):
+    """channels: [(group, name, data, properties)]"""
+    with TdmsWriter(str(path)) as w:
+        w.write_segment([ChannelObject(g, c, np.asarray(d, dtype=np.float64), properties=p) for g, c, d, p in channels])
+
+
+def test_tdms_sample_rates_disagree(tmp_path):
+    path = tmp_path / "rates.tdms"
+    x = np.linspace(0, 1e-5, 100)
+    write_tdms(path, [("DAQ", "x1", x, {"wf_increment": 1 / 2000}),
+                      ("DAQ", "x2", x, {"wf_increment": 1 / 1000}),
+                      ("DAQ", "Temp", x[:10], {"wf_increment": 1.0})])
+    with pytest.raises(RotoridError, match=r"sample rates disagree: DAQ/x1 2000 Hz, DAQ/x2 1000 Hz"), \
+            pytest.warns(UserWarning, match=r"\['DAQ/Temp'\]"):
+        rio.load_recording(path)
+    # only the channels used must agree: channels that are dropped do not matter
+    with pytest.warns(UserWarning, match=r"\['DAQ/Temp'\].*\['DAQ/x1'\]"):
+        got = rio.load_recording(path, channel_map={"x2": {"to": "x1", "unit": "m"}})
+    assert got.fs_hz == 1000.0 and list(got.channels) == ["x1"]
+
+
+def test_tdms_channel_addressing(tmp_path):
+    path = tmp_path / "groups.tdms"
+    rec = make_rec()
+    props = {"wf_increment": 1 / FS, "unit_string": "um"}
+    chans = [("DE", "X", rec.channels["x1"] / 1e-6, props), ("DE", "Y", rec.channels["y1"] / 1e-6, props),
+             ("FE", "X", rec.channels["x2"] / 1e-6, props), ("FE", "Y", rec.channels["y2"] / 1e-6, props),
+             ("Impact", "Hammer", rec.channels["force"], {"wf_increment": 1 / FS})]
+    write_tdms(path, chans)
+    cmap = {"DE/X": {"to": "x1"}, "DE/Y": {"to": "y1"}, "FE/X": {"to": "x2"}, "FE/Y": {"to": "y2"},
+            "Hammer": {"to": "force", "unit": "N"}}
+    got = quiet_load(path, channel_map=cmap)
+    assert_channels(got, rec, 1e-9, names=["x1", "x2", "y1", "y2", "force"])
+    assert got.meta["channel_sources"]["x1"]["unit_from"] == "file"
+    with pytest.raises(RotoridError, match=r"'X' named in channel_map is ambiguous.*\['DE/X', 'FE/X'\]"):
+        rio.load_recording(path, channel_map={"X": {"to": "x1", "unit": "um"}})
+
+
+def test_tdms_rate_from_fs_hz_only_without_wf_increment(tmp_path):
+    path = tmp_path / "norate.tdms"
+    write_tdms(path, [("g", "x1", np.zeros(50), {}), ("g", "y1", np.ones(50) * 1e-6, {})])
+    with pytest.raises(RotoridError, match=r"states no sample rate for channel 'g/x1': pass fs_hz"):
+        rio.load_recording(path)
+    assert quiet_load(path, fs_hz=512.0).fs_hz == 512.0
+
+
+# ------------------------------------------------------------------------------- time base: UFF
+
+
+def test_uff_whole_hertz_rate_survives_the_e13_abscissa(tmp_path):
+    # 1/2048 s is written as 4.88281e-04, i.e. 2048.001 Hz; the reader snaps it back
+    rec = make_rec(fs=2048.0)
+    path = tmp_path / "run.uff"
+    rio.save_uff58(rec, path)
+    assert "4.88281e-04" in path.read_text()
+    got = quiet_load(path)
+    assert got.fs_hz == 2048.0
+    assert_channels(got, rec, 1e-9)
+
+
+def test_uff_sample_rates_disagree(tmp_path):
+    a = tmp_path / "a.uff"
+    b = tmp_path / "b.uff"
+    rio.save_uff58(Recording(2000.0, {"x1": np.zeros(64)}), a)
+    rio.save_uff58(Recording(1000.0, {"x2": np.zeros(64)}), b)
+    both = tmp_path / "both.unv"
+    both.write_text(a.read_text() + b.read_text())
+    with pytest.raises(RotoridError, match=r"sample rates disagree: x1 2000 Hz, x2 1000 Hz"):
+        rio.load_recording(both)
+
+
+# ------------------------------------------------------------------------------------ bad files
+
+GARBAGE = bytes(range(256)) * 4 + b"\x00garbage\xff" * 50
+
+
+@pytest.mark.parametrize("ext", [".npz", ".csv", ".tdms", ".uff", ".unv"])
+def test_garbage_file_raises(tmp_path, ext):
+    path = tmp_path / f"garbage{ext}"
+    path.write_bytes(GARBAGE)
+    with pytest.raises(RotoridError, match=r"cannot read .*garbage.* as "):
+        rio.load_recording(path, fs_hz=FS)
+
+
+@pytest.mark.parametrize("fmt", ["native", *WRITERS])
+def test_truncated_file_raises(tmp_path, fmt):
+    save, ext = (rio.save_recording, ".npz") if fmt == "native" else WRITERS[fmt]
+    path = tmp_path / f"cut{ext}"
+    save(make_rec(), path)
+    data = path.read_bytes()
+    path.write_bytes(data[: int(len(data) * 0.6)])
+    with pytest.raises(RotoridError, match=r"cannot read .*cut.* as "):
+        rio.load_recording(path)
+
+
+def test_uff_without_time_series_raises(tmp_path):
+    path = tmp_path / "empty.uff"
+    path.write_text("    -1\n  2411\n    -1\n")
+    with pytest.raises(RotoridError, match=r"no type-58"):
+        rio.load_recording(path)
+
+
+def test_format_selection(tmp_path):
+    path = tmp_path / "run.dat"
+    rio.save_csv(make_rec(), path)
+    with pytest.raises(RotoridError, match=r"cannot tell the format .*'\.dat'"):
+        rio.load_recording(path)
+    assert quiet_load(path, fmt="csv").n_samples == N
+    with pytest.raises(RotoridError, match=r"fmt must be one of"):
+        rio.load_recording(path, fmt="xlsx")
+    with pytest.raises(RotoridError, match=r"no such file"):
+        rio.load_recording(tmp_path / "absent.csv")
+
+
+def test_writers_check_their_arguments(tmp_path):
+    rec = make_rec()
+    with pytest.raises(RotoridError, match=r"names names channel\(s\) \['x9'\]"):
+        rio.save_csv(rec, tmp_path / "a.csv", names={"x9": "Prox"})
+    # a table for the lab's whole channel set may name canonical channels this recording lacks
+    small = Recording(FS, {"x1": rec.channels["x1"]})
+    rio.save_csv(small, tmp_path / "small.csv", names=LAB_NAMES, units=LAB_UNITS)
+    assert (tmp_path / "small.csv").read_text().startswith("time [s],Prox DE X [mil]\n")
+    (tmp_path / "small.csv").unlink()
+    with pytest.raises(RotoridError, match=r"channel 'x1' from 'm' to 'lbf'"):
+        rio.save_tdms(rec, tmp_path / "a.tdms", units={"x1": "lbf"})
+    with pytest.raises(RotoridError, match=r"two channels would be written as 'Prox'"):
+        rio.save_uff58(rec, tmp_path / "a.uff", names={"x1": "Prox", "x2": "Prox"})
+    assert not list(tmp_path.iterdir())  # nothing half-written left behind
+
+
+# -------------------------------------------------------------------------------------- clipping
+
+
+def test_clipping_is_reported():
+    rec = make_rec()
+    x = rec.channels["x1"]
+    rail = 0.8 * x.max()
+    x = np.minimum(x, rail)
+    rec = Recording(FS, dict(rec.channels, x1=x))
+    first = int(np.flatnonzero(x == rail)[0])
+    with pytest.warns(UserWarning, match=rf"'x1' possibly clipped: it sits at its maximum {rail:.6g} m .* from "
+                                         rf"sample {first} "):
+        found = rio.check_clipping(rec)
+    assert [(f["channel"], f["side"], f["first_index"]) for f in found] == [("x1", "maximum", first)]
+    assert found[0]["runs"] == 30  # every peak of the 30 Hz orbit over 1 s
+    assert found[0]["run_length"] >= 5
+
+
+def test_clipping_needs_five_samples_at_the_extreme():
+    base = np.sin(np.linspace(0, 6 * np.pi, 400))
+    four, five = base.copy(), base.copy()
+    four[100:104] = 2.0
+    five[100:105] = -2.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert rio.check_clipping(Recording(FS, {"y2": four, "kp": five})) == []  # kp is not checked
+        # a quiet baseline at the minimum (a hammer between impacts) is not a rail
+        assert rio.check_clipping(Recording(FS, {"force": np.maximum(base, 0.0)})) == []
+    with pytest.warns(UserWarning, match=r"'force' possibly clipped: it sits at its minimum -2 N for 5 .*sample 100"):
+        assert len(rio.check_clipping(Recording(FS, {"force": five}))) == 1
+
+
+def test_load_checks_clipping(tmp_path):
+    rec = make_rec()
+    f = rec.channels["force"].copy()
+    f[402:410] = f[402:410].max()
+    path = tmp_path / "clipped.tdms"
+    rio.save_tdms(Recording(FS, dict(rec.channels, force=f)), path)
+    with pytest.warns(UserWarning, match=r"'force' possibly clipped.*from sample 402"):
+        rio.load_recording(path)

@@ -1,0 +1,150 @@
+import warnings
+
+import numpy as np
+import pytest
+
+import rotorid
+from rotorid import RotoridError, rawsim, signals
+from rotorid.recording import Recording
+
+
+def _kp_signal(times, fs, n, tau_samples=2.0, width_s=4e-3):
+    t = np.arange(n) / fs
+    out = np.zeros(n)
+    for tk in times:
+        out += 0.5 * (1 + np.tanh((t - tk) * fs / tau_samples)) * 0.5 * (1 + np.tanh((tk + width_s - t) * fs / tau_samples))
+    return 5 * out
+
+
+def test_keyphasor_times_subsample_accuracy_and_speed():
+    fs = 10000.0
+    true = 0.01 + np.cumsum(np.full(60, 60 / 3456.7))  # 3456.7 rpm, non-integer samples per rev
+    kp = _kp_signal(true, fs, int(1.2 * fs) + 2000)
+    k = signals.keyphasor_times(kp, fs)
+    np.testing.assert_allclose(k.times, true[: k.times.size], atol=0.02 / fs)
+    np.testing.assert_allclose(k.speed_rpm, 3456.7, rtol=1e-4)
+
+
+def test_keyphasor_reports_missing_and_extra_pulses():
+    fs = 10000.0
+    true = 0.01 + np.arange(40) * 0.02
+    drop = np.delete(true, [10, 25])
+    kp = _kp_signal(np.sort(np.r_[drop, true[30] + 0.007]), fs, int(0.9 * fs))
+    with pytest.warns(UserWarning) as rec:
+        k = signals.keyphasor_times(kp, fs)
+    msgs = " ".join(str(w.message) for w in rec)
+    assert "extra pulse" in msgs and "missing pulse" in msgs
+    assert len(k.extra) == 1 and abs(k.extra[0] - (true[30] + 0.007)) < 1e-3
+    assert sum(c for _, c in k.missing) == 2
+    np.testing.assert_allclose(k.times, true[: k.times.size], atol=1e-4)
+
+
+def test_keyphasor_flat_channel_is_an_error():
+    with pytest.raises(RotoridError, match="flat"):
+        signals.keyphasor_times(np.zeros(1000), 1000.0)
+
+
+def _steady_recording(fs, rpm, harmonics, n_revs=30, noise=0.0, seed=0):
+    """x = sum Re(V_n e^{j n theta}) for the four probes, keyphasor at theta = 0."""
+    om = rpm * np.pi / 30
+    n = int(n_revs * 2 * np.pi / om * fs)
+    t = np.arange(n) / fs
+    theta = 0.4 + om * t
+    x = np.zeros((4, n))
+    for order, v in harmonics.items():
+        x += (np.asarray(v)[:, None] * np.exp(1j * order * theta)[None]).real
+    x += noise * np.random.default_rng(seed).standard_normal(x.shape)
+    kp_t = (2 * np.pi * np.arange(1, n_revs + 2) - 0.4) / om
+    kp = _kp_signal(kp_t[kp_t < t[-1]], fs, n)
+    return Recording(fs, {"x1": x[0], "x2": x[1], "y1": x[2], "y2": x[3], "kp": kp})
+
+
+def test_1x_has_no_leakage_from_harmonics_or_non_integer_samples_per_rev():
+    v1 = np.array([10e-6, 5e-6j, -3e-6, 2e-6 + 1e-6j])
+    v2 = np.array([4e-6, -4e-6, 3e-6j, 1e-6])
+    v3 = np.array([1e-6j, 1e-6, -1e-6, 2e-6])
+    rec = _steady_recording(7919.0, 3333.3, {1: v1, 2: v2, 3: v3})  # 142.55 samples per rev
+    tr = signals.track(rec)
+    assert tr.speed_rpm.size == 1 and abs(tr.speed_rpm[0] - 3333.3) < 0.01
+    np.testing.assert_allclose(tr.order(1)[0], v1, atol=2e-3 * 10e-6)
+    np.testing.assert_allclose(tr.order(2)[0], v2, atol=2e-3 * 10e-6)
+    np.testing.assert_allclose(tr.order(3)[0], v3, atol=2e-3 * 10e-6)
+    # harmonics alone leave (almost) nothing at 1X
+    rec2 = _steady_recording(7919.0, 3333.3, {2: v2 * 10, 3: v3 * 10})
+    assert np.abs(signals.track(rec2).order(1)).max() < 1e-3 * 40e-6
+
+
+def test_tracking_follows_dwells_and_coastdown_blocks():
+    rotor, brg, remnant = rawsim.example_rig()
+    rpm = [3000.0, 4000.0, 5000.0]
+    rec = rawsim.imbalance_recording(rotor, brg, speeds_rpm=rpm, added=None, remnant=remnant, runout=None, noise_m=0,
+                                     dwell_s=1.0)
+    tr = signals.track(rec)
+    np.testing.assert_allclose(tr.speed_rpm, rpm, rtol=1e-4)
+    truth = rotorid.imbalance_response(rotor, brg, remnant, speed_rpm=rpm, at="probes").q
+    np.testing.assert_allclose(tr.order(1), truth, atol=2e-3 * np.abs(truth).max())
+    blocks = signals.track(rec, steady=False, revs_per_block=5)
+    assert blocks.speed_rpm.size > 20 and blocks.n_revs.tolist() == [5] * blocks.speed_rpm.size
+    assert 2990 < blocks.speed_rpm.min() and blocks.speed_rpm.max() < 5010 and np.all(np.diff(blocks.speed_rpm) > -1)
+
+
+def test_short_record_and_missing_channels_are_errors():
+    rec = _steady_recording(5000.0, 3000.0, {1: np.ones(4) * 1e-6}, n_revs=1)
+    with pytest.raises(RotoridError):
+        signals.track(rec)
+    r2 = Recording(1000.0, {"x1": np.zeros(10), "kp": np.zeros(10)})
+    with pytest.raises(RotoridError, match=r"lacks channel\(s\) \['x2', 'y1', 'y2'\]"):
+        signals.track(r2)
+
+
+def test_runout_filter_removes_synchronous_signature_despite_speed_drift():
+    fs = 10000.0
+    n = 40000
+    t = np.arange(n) / fs
+    # speed drifting 3000 -> 3060 rpm over the record
+    om = (3000 + 60 * t / t[-1]) * np.pi / 30
+    theta = np.cumsum(om) / fs
+    sig = np.stack([8e-6 * np.cos(theta + 0.3) + 3e-6 * np.cos(2 * theta) + 1e-6 * np.sin(3 * theta)] * 4)
+    transient = np.zeros((4, n))
+    i_imp = 30000
+    transient[:, i_imp:] = 50e-6 * np.exp(-(t[i_imp:] - t[i_imp]) * 40) * np.sin(2 * np.pi * 55 * (t[i_imp:] - t[i_imp]))
+    x = sig + transient
+    kp_times = np.interp(2 * np.pi * np.arange(1, int(theta[-1] / (2 * np.pi)) + 1), theta, t)
+    tmpl = signals.revolution_signature(x, fs, kp_times, t[i_imp] - 0.3, t[i_imp] - 0.005)
+    y = signals.runout_filter(x, fs, kp_times, tmpl, i_imp - 100, n - 400)
+    resid = y - transient[:, i_imp - 100:n - 400]
+    assert np.abs(resid).max() < 0.01 * 8e-6
+    # a single fixed-rate template (no per-revolution resampling) would smear: check it is worse
+    per = 60 / 3000.0
+    naive = x[:, i_imp - 100:n - 400] - np.stack([8e-6 * np.cos(2 * np.pi * (t[i_imp - 100:n - 400]) / per + 0.3)] * 4)
+    assert np.abs(naive - transient[:, i_imp - 100:n - 400]).max() > 10 * np.abs(resid).max()
+
+
+def test_impact_detection_flags_double_hits_and_overloads():
+    fs = 10000.0
+    n = 20000
+    f = np.zeros(n)
+    f += rotorid.half_sine_pulse(3000, 2e-3, fs, n, t0_s=0.2)
+    f += rotorid.half_sine_pulse(3000, 2e-3, fs, n, t0_s=0.8)
+    f += rotorid.half_sine_pulse(1200, 2e-3, fs, n, t0_s=0.808)  # rebound 8 ms later
+    clip = rotorid.half_sine_pulse(6000, 2e-3, fs, n, t0_s=1.4)
+    f += np.minimum(clip, 4000.0)
+    imps = signals.detect_impacts(f, fs)
+    assert len(imps) == 3
+    assert imps[0].ok and "double hit" in imps[1].flags and "overload" in imps[2].flags
+    assert abs(imps[0].start / fs - 0.2) < 1e-3
+
+
+def test_h1_frf_and_coherence():
+    rng = np.random.default_rng(0)
+    fs, n = 1000.0, 1024
+    h = np.exp(-np.arange(n) / 20.0) * np.sin(np.arange(n) / 3.0)
+    forces, resp = [], []
+    for _ in range(8):
+        f = rng.standard_normal(n)
+        forces.append(f)
+        y = np.real(np.fft.irfft(np.fft.rfft(f) * np.fft.rfft(h), n))
+        resp.append(np.stack([y, y + 0.5 * rng.standard_normal(n)]))
+    frf = signals.frf_h1(forces, resp, fs)
+    np.testing.assert_allclose(frf.h[:, 0], np.fft.rfft(h), rtol=1e-9, atol=1e-9)
+    assert np.all(frf.coherence[:, 0] > 0.999) and np.median(frf.coherence[:, 1]) < 0.99
