@@ -193,9 +193,12 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
             raise RotoridError(f"no clean impact left for the test in {direction} at plane {plane:g} m")
         frf = signals.frf_h1(fl, rl, fs)
         sel = (frf.freq_hz >= band_hz[0]) & (frf.freq_hz <= band_hz[1])
-        low = frf.coherence[sel].min(axis=0)
-        if np.any(low < 0.9):
-            warnings.warn(f"test {direction} at {plane:g} m: coherence drops to {low.min():.2f} in the band")
+        coh = frf.coherence[sel]
+        if np.any(coh < 0.9):
+            i, j = np.unravel_index(np.argmin(coh), coh.shape)
+            warnings.warn(f"test {direction} at {plane:g} m: coherence drops to {coh[i, j]:.2f} "
+                          f"({DISPLACEMENTS[j]} at {frf.freq_hz[sel][i]:.1f} Hz) in the band; "
+                          f"{int((coh < 0.9).sum())} of {coh.size} points below 0.9")
         tests.append(ImpactResponse(speed_rpm=speed, freq_hz=frf.freq_hz[sel], q=frf.h[sel], plane=plane,
                                     direction=direction, at=at, name=f"{direction}@{plane:g}m x{len(fl)}"))
         frfs.append(frf)

@@ -1,0 +1,165 @@
+"""End-to-end: simulated raw recordings at realistic levels -> coefficients (issue: raw waveforms)."""
+
+import os
+import shutil
+import warnings
+
+import numpy as np
+import pytest
+
+import rotorid
+from rotorid import RotoridError, pipeline, rawsim
+from rotorid import example as ex
+from rotorid.recording import Recording
+
+DIRECT = [(0, 0, 0), (0, 1, 1), (1, 0, 0), (1, 1, 1)]
+
+
+def direct_errors(ident, truth, sel=None):
+    sel = np.ones(ident.axis.size, bool) if sel is None else sel
+    ek = np.abs(ident.k[sel] - truth.k) / np.abs(truth.k)
+    ec = np.abs(ident.c[sel] - truth.c) / np.abs(truth.c)
+    return max(ek[:, b, i, j].max() for b, i, j in DIRECT), max(ec[:, b, i, j].max() for b, i, j in DIRECT)
+
+
+@pytest.fixture(scope="module")
+def imbalance_records():
+    """Four 5 g static/couple runs and a baseline; dwells of 6 s at 3000-6000 rpm, 10 kHz; probe
+    noise 0.5 µm rms; run-out 8/3/1 µm (1X/2X/3X); remnant 1.0 g + 0.6 g; probes off the bearings;
+    bearings 1 and 2 different and cross-coupled."""
+    rotor, brg, remnant = rawsim.example_rig()
+    rpm = np.arange(3000.0, 6001.0, 500.0)
+    runs = []
+    for i, (name, (mass_g, ang)) in enumerate(ex.SETS.items()):
+        imb = rotorid.Imbalance(tuple(m * 1e-3 for m in mass_g), ang, name=name)
+        runs.append(rawsim.imbalance_recording(rotor, brg, speeds_rpm=rpm, added=imb, remnant=remnant, seed=11 + i))
+    base = rawsim.imbalance_recording(rotor, brg, speeds_rpm=rpm, added=None, remnant=remnant, seed=19, kind="baseline")
+    slow = rawsim.imbalance_recording(rotor, brg, speeds_rpm=[400.0], added=None, remnant=remnant, seed=20,
+                                      kind="slow_roll", dwell_s=3.0)
+    return rotor, brg, runs, base, slow
+
+
+def test_imbalance_chain_recovers_direct_coefficients_within_3_percent(imbalance_records):
+    rotor, brg, runs, base, slow = imbalance_records
+    res = pipeline.imbalance_chain(rotor, runs, baseline=base, slow_roll=slow)
+    ident = res.identification
+    assert ident.axis.min() > 2990 and ident.axis.max() < 6010 and ident.axis.size == 7
+    ek, ec = direct_errors(ident, brg)
+    assert ek < 0.03 and ec < 0.03, (ek, ec)
+    assert ident.ok.all()
+
+
+def test_skipping_baseline_subtraction_visibly_degrades(imbalance_records):
+    rotor, brg, runs, base, slow = imbalance_records
+    good = direct_errors(pipeline.imbalance_chain(rotor, runs, baseline=base).identification, brg)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        raw = direct_errors(pipeline.imbalance_chain(rotor, runs).identification, brg)
+    slow_only = direct_errors(pipeline.imbalance_chain(rotor, runs, slow_roll=slow).identification, brg)
+    # remnant imbalance (and run-out) left in the vectors: errors of tens of percent
+    assert min(raw) > 5 * max(good) and max(raw) > 0.2
+    assert max(slow_only) > 0.2
+
+
+@pytest.fixture(scope="module")
+def impact_records():
+    """Five 4 kN, 2 ms impacts per direction at the CG at 2000 rpm, with run-out, remnant imbalance
+    and 0.5 µm probe noise."""
+    rotor, brg, remnant = rawsim.example_rig()
+    recs = [rawsim.impact_recording(rotor, brg, speed_rpm=2000.0, plane=0.0, direction=d, remnant=remnant, seed=31 + i)
+            for i, d in enumerate("xy")]
+    return rotor, brg, recs
+
+
+def test_impact_chain_recovers_direct_coefficients_within_5_percent(impact_records):
+    rotor, brg, recs = impact_records
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # coherence notes in the crossed directions
+        res = pipeline.impact_chain(rotor, recs, band_hz=(5.0, 150.0))
+    f = res.identification.freq_hz
+    sel = (f >= 20) & (f <= 120)
+    ek, ec = direct_errors(res.identification, brg, sel)
+    assert ek < 0.05 and ec < 0.05, (ek, ec)
+    assert [len(u) for u in res.used] == [5, 5] and not res.dropped
+
+
+def test_skipping_the_runout_filter_visibly_degrades(impact_records):
+    rotor, brg, recs = impact_records
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        good = pipeline.impact_chain(rotor, recs).identification
+        bad = pipeline.impact_chain(rotor, recs, runout=False).identification
+    sel = (good.freq_hz >= 20) & (good.freq_hz <= 120)
+    assert max(direct_errors(bad, brg, sel)) > 5 * max(direct_errors(good, brg, sel))
+
+
+def test_double_hit_is_dropped_with_a_warning():
+    rotor, brg, remnant = rawsim.example_rig()
+    recs = [rawsim.impact_recording(rotor, brg, speed_rpm=2000.0, plane=0.0, direction=d, remnant=remnant, seed=41 + i,
+                                    double_hit_at=1 if d == "x" else None) for i, d in enumerate("xy")]
+    with pytest.warns(UserWarning, match="dropped: double hit"):
+        res = pipeline.impact_chain(rotor, recs)
+    assert [len(u) for u in res.used] == [4, 5] and len(res.dropped) == 1
+
+
+def test_missing_keyphasor_and_bad_configs_are_errors(tmp_path):
+    rotor, brg, remnant = rawsim.example_rig()
+    rec = rawsim.imbalance_recording(rotor, brg, speeds_rpm=[3000.0], added=None, remnant=remnant, dwell_s=0.5)
+    nokp = Recording(rec.fs_hz, {k: v for k, v in rec.channels.items() if k != "kp"}, rec.meta)
+    with pytest.raises(RotoridError, match=r"lacks channel\(s\) \['kp'\]"):
+        pipeline.imbalance_chain(rotor, [nokp])
+    with pytest.raises(RotoridError, match="has no added imbalance"):
+        pipeline.imbalance_chain(rotor, [rec, rec])
+    cfg = tmp_path / "c.toml"
+    cfg.write_text("[rig]\nbuiltin = 'nsf'\n")
+    with pytest.raises(RotoridError, match=r"no \[impact\] section"):
+        pipeline.run_config(cfg, "impact")
+    cfg.write_text("[rig\n")
+    with pytest.raises(RotoridError, match="not valid TOML"):
+        pipeline.run_config(cfg, "imbalance")
+    cfg.write_text("[rig]\nbuiltin = 'other'\n[imbalance]\n")
+    with pytest.raises(RotoridError, match="unknown builtin rig"):
+        pipeline.run_config(cfg, "imbalance")
+
+
+def test_cli_on_the_bundled_example(tmp_path):
+    from rotorid import cli
+
+    d = tmp_path / "ex"
+    assert cli.main(["example", "--out", str(d)]) == 0
+    truth = ex.truth()
+    assert cli.main(["identify", "imbalance", str(d / "imbalance.toml")]) == 0
+    import pandas as pd
+
+    df = pd.read_csv(d / "out_imbalance" / "coefficients_imbalance.csv")
+    for name, (b, i, j) in {"Kxx1": (0, 0, 0), "Kyy2": (1, 1, 1), "Cxx2": (1, 0, 0), "Cyy1": (0, 1, 1)}.items():
+        ref = (truth.k if name[0] == "K" else truth.c)[b, i, j]
+        np.testing.assert_allclose(df[name], ref, rtol=0.05)
+    assert (d / "out_imbalance" / "coefficients_imbalance.png").stat().st_size > 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert cli.main(["identify", "impact", str(d / "impact.toml")]) == 0
+    df = pd.read_csv(d / "out_impact" / "coefficients_impact.csv")
+    sel = (df.freq_hz >= 20) & (df.freq_hz <= 120)
+    np.testing.assert_allclose(df.Kxx1[sel], truth.k[0, 0, 0], rtol=0.05)
+    np.testing.assert_allclose(df.Cyy2[sel], truth.c[1, 1, 1], rtol=0.05)
+    frfs = sorted(p.name for p in (d / "out_impact").glob("frf_*.csv"))
+    assert len(frfs) == 2 and "x1_coherence" in pd.read_csv(d / "out_impact" / frfs[0]).columns
+    # a config pointing at a missing file is a clean error, not a traceback
+    (d / "bad.toml").write_text((d / "imbalance.toml").read_text().replace("run_S0.tdms", "nope.tdms"))
+    assert cli.main(["identify", "imbalance", str(d / "bad.toml")]) == 2
+
+
+def test_us_customary_report_units(tmp_path):
+    from rotorid import cli
+
+    d = tmp_path / "ex"
+    shutil.copytree(ex.path(), d)
+    cfg = (d / "imbalance.toml").read_text().replace('units = "SI"', 'units = "US"')
+    (d / "imbalance.toml").write_text(cfg)
+    assert cli.main(["identify", "imbalance", str(d / "imbalance.toml")]) == 0
+    import pandas as pd
+
+    df = pd.read_csv(d / "out_imbalance" / "coefficients_imbalance.csv")
+    np.testing.assert_allclose(df["Kxx1_lbf_per_in"], 2.4e6 * 0.0254 / 4.4482216152605, rtol=0.05)
+    assert os.path.exists(d / "out_imbalance")
