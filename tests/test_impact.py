@@ -182,3 +182,30 @@ def test_dependent_and_bad_tests_are_rejected():
     table = rotorid.BearingCoefficients(np.stack([rig.bearings.k] * 2), np.stack([rig.bearings.c] * 2), freq_hz=[1, 300])
     with pytest.raises(RotoridError, match="frequency-independent"):
         rotorid.impact_time_response(rig.rotor, table, speed_rpm=1000, force_N=np.ones(10), fs_hz=1000)
+
+
+@given(rotors(), bearing_pair(), st.floats(200, 8000), st.floats(1.0, 80.0))
+def test_exponential_window_frfs_are_identified_at_s(rotor, brg, rpm, sigma):
+    """FRFs at s = sigma + j w (what an exponential window exp(-sigma t) produces) identify the true
+    K and C when the decay is given; ignoring it biases the damping."""
+    f = np.linspace(10, 200, 25)
+    M, G, K, C = oracle.matrices(rotor.mass_kg, rotor.it_kgm2, rotor.ip_kgm2, rotor.l1, rotor.l2, brg.k, brg.c)
+    tests, plain = [], []
+    for d in "xy":
+        E = np.array([1, 0, 0.0, 0]) if d == "x" else np.array([0, 1, 0, 0.0])
+        q = np.array([np.linalg.solve(s ** 2 * M + s * (C + rpm * oracle.RPM * G) + K, E)
+                      for s in sigma + 2j * np.pi * f])
+        tests.append(ImpactResponse(speed_rpm=rpm, freq_hz=f, q=q, plane=0.0, direction=d, sigma=sigma))
+        plain.append(ImpactResponse(speed_rpm=rpm, freq_hz=f, q=q, plane=0.0, direction=d))
+    res = rotorid.identify_impact(rotor, tests)
+    well = res.cond.max(axis=1) < 1e3
+    assume(well.sum() >= 5)
+    w = 2 * np.pi * f[well]
+    scale = np.maximum(np.abs(brg.k).max(), np.abs(brg.c).max() * w.max())
+    assert np.abs(res.k[well] - brg.k).max() < 1e-8 * scale
+    assert (np.abs(res.c[well] - brg.c).max(axis=(1, 2, 3)) * w).max() < 1e-8 * scale
+    for method in ("report",):
+        r2 = rotorid.identify_impact(rotor, tests, method=method)
+        assert np.abs(r2.k[well] - brg.k).max() < 1e-6 * scale
+    biased = rotorid.identify_impact(rotor, plain)
+    assert np.abs(biased.k[well] - brg.k).max() > 1e-4 * scale  # the decay shows up as stiffness error

@@ -30,6 +30,7 @@ def identify(
     identical: bool = False,
     method: str = "forces",  # or "report"
     with_std: bool = True,
+    sigma: npt.NDArray[np.float64] | None = None,  # (n,): solve at s = sigma + j w (exponential windows)
 ) -> tuple[
     npt.NDArray[np.float64],  # k (batch, n, 2, 2, 2)
     npt.NDArray[np.float64],  # c (batch, n, 2, 2, 2)

@@ -291,7 +291,9 @@ def identify_impact(rotor: RigidRotor, tests, *, method: str = "forces", identic
     direction at two planes) solve the 16 coefficients at every frequency; repeated impacts add
     redundant equations solved in the least-squares sense. ``identical=True`` assumes the same
     coefficients at both bearings (8 unknowns) and works from a single impact. C is Im(Z)/w with w
-    the vibration frequency. The whole frequency batch is one core call.
+    the vibration frequency; for exponentially windowed spectra (``ImpactResponse.sigma``) the
+    equations are solved at s = sigma + j w and K = Re(Z) - sigma C. The whole frequency batch is
+    one core call.
     """
     if not isinstance(rotor, RigidRotor):
         raise RotoridError(f"rotor must be a rotorid.RigidRotor, got {type(rotor).__name__}")
@@ -315,6 +317,9 @@ def identify_impact(rotor: RigidRotor, tests, *, method: str = "forces", identic
         if not np.isclose(t.speed_rpm, speed, rtol=1e-6, atol=1e-9):
             raise RotoridError(f"speed_rpm of {labels[i]} ({t.speed_rpm:g}) differs from {labels[0]} ({speed:g}): "
                                "impact identification needs all tests at the same running speed")
+        if not np.isclose(t.sigma, tests[0].sigma, rtol=1e-9, atol=0):
+            raise RotoridError(f"sigma (exponential window decay) of {labels[i]} ({t.sigma:g} 1/s) differs from "
+                               f"{labels[0]} ({tests[0].sigma:g} 1/s): window all tests alike")
     check_impact_independence(tests, labels, identical=identical)
     qs = np.stack([t.at_bearings(rotor).frf() for t in tests])  # (R, n, 4) per unit force
     w = 2 * np.pi * f
@@ -323,7 +328,8 @@ def identify_impact(rotor: RigidRotor, tests, *, method: str = "forces", identic
     redundant = len(tests) * (2 if identical else 1) > 2
     k, c, cond, resid, amp, ks, cs, nbad = _core.identify(
         rotor.core_params(), w, spin, np.ascontiguousarray(qs[None]), np.ascontiguousarray(e), np.ones_like(w),
-        identical=identical, method=method, with_std=redundant)
+        identical=identical, method=method, with_std=redundant,
+        sigma=np.full_like(w, tests[0].sigma) if tests[0].sigma else None)
     if nbad:
         raise RotoridError("impact responses contain NaN or inf")
     if ks is None:

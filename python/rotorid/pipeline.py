@@ -99,12 +99,15 @@ class ImpactChainResult:
 
 
 def impact_segments(rec: Recording, *, record_s: float = 0.25, pre_s: float = 0.01, revs_before: int = 8,
-                    runout: bool = True, kp: signals.Keyphasor | None = None, points_per_rev: int = 256):
+                    runout: bool = True, kp: signals.Keyphasor | None = None, points_per_rev: int = 256,
+                    exp_window_tau_s: float | None = None):
     """Force and (run-out filtered) response segments of every clean impact of a recording.
 
     Returns (forces, responses, used_times, dropped): equally long records starting ``pre_s`` before
     each impact. The run-out filter subtracts the synchronous revolution signature of the
-    ``revs_before`` revolutions preceding the impact (run-out and remnant-imbalance response)."""
+    ``revs_before`` revolutions preceding the impact (run-out and remnant-imbalance response).
+    ``exp_window_tau_s``: multiply force and response by exp(-(t - t_impact)/tau) (the FRFs are then
+    at s = 1/tau + j w, which ``impact_chain`` passes on to the identification)."""
     rec.require("force", *DISPLACEMENTS)
     fs = rec.fs_hz
     n_seg = int(round(record_s * fs))
@@ -142,6 +145,10 @@ def impact_segments(rec: Recording, *, record_s: float = 0.25, pre_s: float = 0.
         else:
             y = x[:, a:b] - x[:, a:a + pre].mean(axis=1, keepdims=True) if pre > 0 else x[:, a:b]
         f = rec.channels["force"][a:b] * signals.force_window(n_seg, 0, imp.stop - a + pre, taper=0)
+        if exp_window_tau_s is not None:
+            ew = signals.exponential_window(n_seg, fs, exp_window_tau_s, start=pre)
+            f = f * ew
+            y = y * ew[None, :]
         forces.append(f)
         responses.append(y)
         used.append((rec.source, t_imp))
@@ -149,13 +156,16 @@ def impact_segments(rec: Recording, *, record_s: float = 0.25, pre_s: float = 0.
 
 
 def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_s: float = 0.25, runout: bool = True,
-                 identical: bool = False, method: str = "forces", tests_meta=None, **ident_kw) -> ImpactChainResult:
+                 identical: bool = False, method: str = "forces", tests_meta=None, exp_window_tau_s: float | None = None,
+                 **ident_kw) -> ImpactChainResult:
     """Impact recordings -> impact detection -> run-out filter -> H1 FRFs per test (plane, direction),
     averaged over all clean impacts -> frequency-dependent identification over ``band_hz``.
 
     ``record_s``: length of each impact record (from 10 ms before the impact). Long enough for the
     response to decay, no longer: past the decay a record adds only probe noise (0.25 s suits
-    modes above ~15 Hz with 10 % damping; the frequency resolution is 1/record_s)."""
+    modes above ~15 Hz with 10 % damping; the frequency resolution is 1/record_s).
+    ``exp_window_tau_s``: exponential window on force and response (for records that end before the
+    response has decayed); its decay 1/tau is accounted for in the identification (s = 1/tau + j w)."""
     recordings = list(recordings)
     if not recordings:
         raise RotoridError("no impact recordings given")
@@ -174,7 +184,7 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
             speeds.append(float(np.median(kp.speed_rpm)))
         elif runout:
             rec.require("kp")
-        f, r, u, d = impact_segments(rec, record_s=record_s, runout=runout, kp=kp)
+        f, r, u, d = impact_segments(rec, record_s=record_s, runout=runout, kp=kp, exp_window_tau_s=exp_window_tau_s)
         dropped += d
         key = (float(meta["plane"]), str(meta["direction"]), meta.get("probes_at", "probes"), rec.fs_hz)
         g = groups.setdefault(key, ([], [], []))
@@ -199,8 +209,9 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
             warnings.warn(f"test {direction} at {plane:g} m: coherence drops to {coh[i, j]:.2f} "
                           f"({DISPLACEMENTS[j]} at {frf.freq_hz[sel][i]:.1f} Hz) in the band; "
                           f"{int((coh < 0.9).sum())} of {coh.size} points below 0.9")
+        sigma = 0.0 if exp_window_tau_s is None else 1.0 / exp_window_tau_s
         tests.append(ImpactResponse(speed_rpm=speed, freq_hz=frf.freq_hz[sel], q=frf.h[sel], plane=plane,
-                                    direction=direction, at=at, name=f"{direction}@{plane:g}m x{len(fl)}"))
+                                    direction=direction, at=at, name=f"{direction}@{plane:g}m x{len(fl)}", sigma=sigma))
         frfs.append(frf)
         used.append(ul)
     ident = identify_impact(rotor, tests, identical=identical, method=method, **ident_kw)
@@ -238,6 +249,7 @@ A config is a TOML file; paths are relative to it. Example (imbalance):
     band_hz = [5, 150]
     record_s = 0.25
     identical = false
+    # exp_window_tau_s = 0.05        # exponential window (accounted for in the identification)
     [[impact.tests]]
     file = "impact_x.npz"
     plane_m = 0.0
@@ -334,9 +346,10 @@ def run_config(path, kind: str, *, out_dir=None, log=print):
             raise RotoridError("[impact] needs [[impact.tests]] entries")
         recs = [_load(cfg, t, set(DISPLACEMENTS) | {"kp", "force"}) for t in tests_cfg]
         meta = [{k2: t[k1] for k1, k2 in (("plane_m", "plane"), ("direction", "direction")) if k1 in t} for t in tests_cfg]
+        tau = sec.get("exp_window_tau_s")
         res = impact_chain(rotor, recs, band_hz=tuple(sec.get("band_hz", (5.0, 150.0))),
                            record_s=float(sec.get("record_s", 0.25)), identical=bool(sec.get("identical", False)),
-                           tests_meta=meta)
+                           tests_meta=meta, exp_window_tau_s=None if tau is None else float(tau))
         ident = res.identification
         import pandas as pd
 

@@ -416,9 +416,9 @@ def runout_filter(x, fs_hz: float, kp_times, template, i0: int, i1: int, *, t0_s
 
 def exponential_window(n: int, fs_hz: float, tau_s: float, start: int = 0) -> np.ndarray:
     """w(t) = exp(-(t - t_start)/tau) after ``start`` (1 before). Applied to force and response alike,
-    the FRF it produces is H(s) at s = 1/tau + j w, i.e. the system seen with extra decay 1/tau:
-    identified damping is then biased by about M/tau per unit mass. The processing chain does not
-    use it by default (records long enough for the response to decay need no window)."""
+    the FRF it produces is H(s) at s = 1/tau + j w. Identifying from it as if s were j w would bias
+    the damping; give the decay to the identification (``ImpactResponse(sigma=1/tau)``, or
+    ``impact_chain(exp_window_tau_s=tau)``) and it solves the equations at s instead."""
     t = (np.arange(n) - start) / fs_hz
     return np.where(t > 0, np.exp(-np.clip(t, 0, None) / tau_s), 1.0)
 

@@ -198,6 +198,8 @@ class ImpactResponse:
     ``q``: complex (n, 4) [x1, x2, y1, y2]: the response spectrum when ``force`` (the force spectrum,
     complex (n,)) is given, else already per unit force (an FRF, m/N). ``plane``: axial position of
     the impact from the CG (m, positive toward bearing 2); ``direction``: "x" or "y".
+    ``sigma`` (1/s): when force and response were both multiplied by an exponential window
+    exp(-sigma t), the spectra are those of s = sigma + j w, and the identification accounts for it.
     """
 
     speed_rpm: float
@@ -208,8 +210,10 @@ class ImpactResponse:
     direction: str = "x"
     at: str = "bearings"
     name: str | None = None
+    sigma: float = 0.0
 
     def __post_init__(self):
+        self.sigma = float(real_array("sigma", self.sigma, ndim=0, nonneg=True))
         self.speed_rpm = float(real_array("speed_rpm", self.speed_rpm, ndim=0, nonneg=True))
         self.freq_hz = np.atleast_1d(real_array("freq_hz", self.freq_hz, ndim=None))
         if self.freq_hz.ndim != 1 or self.freq_hz.size == 0:
@@ -240,13 +244,13 @@ class ImpactResponse:
         if self.at == "bearings":
             return self
         return ImpactResponse(self.speed_rpm, self.freq_hz, probes_to_bearings(rotor, self.q), self.force, self.plane,
-                              self.direction, "bearings", self.name)
+                              self.direction, "bearings", self.name, self.sigma)
 
     def at_probes(self, rotor: RigidRotor) -> "ImpactResponse":
         if self.at == "probes":
             return self
         return ImpactResponse(self.speed_rpm, self.freq_hz, bearings_to_probes(rotor, self.q), self.force, self.plane,
-                              self.direction, "probes", self.name)
+                              self.direction, "probes", self.name, self.sigma)
 
     def to_dataframe(self):
         import pandas as pd

@@ -248,6 +248,9 @@ pub struct IdentProblem<'a> {
     pub e: &'a [C64],
     /// gain applied to e at each point (Omega^2 for imbalance, 1 for unit-force FRFs), (n,)
     pub gain: &'a [f64],
+    /// real part of the Laplace variable s = sigma + j w at each point, (n,) or empty for s = j w
+    /// (an exponential window exp(-sigma t) on force and response gives FRFs at sigma + j w)
+    pub sigma: &'a [f64],
     pub batch: usize,
     pub runs: usize,
     /// all bearing coefficients equal on both sides (8 unknowns instead of 16)
@@ -291,21 +294,29 @@ fn excitation<'a>(p: &'a IdentProblem, b: usize, r: usize) -> &'a [C64] {
     &p.e[(be * p.runs + r) * 4..(be * p.runs + r) * 4 + 4]
 }
 
-/// R = E + w^2 M q - j w Omega G q (right-hand side of eq. 10 / 26).
+/// R = E - s^2 M q - s Omega G q with s = sigma + j w (right-hand side of eq. 10 / 26; for
+/// sigma = 0 this is E + w^2 M q - j w Omega G q).
 #[inline(always)]
-fn rhs_point(k: &Consts, e: &[C64], gain: f64, w: f64, spin: f64, q: &[C64; 4]) -> [C64; 4] {
-    let w2 = w * w;
-    let wg = w * spin * k.ip;
-    // M q (eq. 3, sparse) and -j w Omega G q
+fn rhs_point(k: &Consts, e: &[C64], gain: f64, w: f64, sigma: f64, spin: f64, q: &[C64; 4]) -> [C64; 4] {
+    let ms2 = -C64::new(sigma * sigma - w * w, 2.0 * sigma * w); // -s^2
+    let sg = -C64::new(sigma, w) * (spin * k.ip); // -s Omega (I_p / L)
+    // M q (eq. 3, sparse) and G q
     let mq = [q[0] * k.ml2 + q[1] * k.ml1, q[2] * k.ml2 + q[3] * k.ml1, (q[1] - q[0]) * k.it, (q[2] - q[3]) * k.it];
-    let g2 = q[3] - q[2];
-    let g3 = q[1] - q[0];
     [
-        e[0] * gain + mq[0] * w2,
-        e[1] * gain + mq[1] * w2,
-        e[2] * gain + mq[2] * w2 - C64::new(-g2.im * wg, g2.re * wg),
-        e[3] * gain + mq[3] * w2 - C64::new(-g3.im * wg, g3.re * wg),
+        e[0] * gain + mq[0] * ms2,
+        e[1] * gain + mq[1] * ms2,
+        e[2] * gain + mq[2] * ms2 + (q[3] - q[2]) * sg,
+        e[3] * gain + mq[3] * ms2 + (q[1] - q[0]) * sg,
     ]
+}
+
+#[inline(always)]
+fn sigma_at(p: &IdentProblem, i: usize) -> f64 {
+    if p.sigma.is_empty() {
+        0.0
+    } else {
+        p.sigma[i]
+    }
 }
 
 #[inline(always)]
@@ -346,7 +357,7 @@ fn forces_chunk(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize
     for g0 in (0..npts).step_by(L) {
         let nl = L.min(npts - g0);
         let mut bi = [(0usize, 0usize); L];
-        let (mut w, mut spin, mut gain) = (V::zero(), V::zero(), V::zero());
+        let (mut w, mut spin, mut gain, mut sig) = (V::zero(), V::zero(), V::zero(), V::zero());
         // (batch, point) of each lane: one division per group, then step with wrap-around
         let first = start + g0;
         let (mut b, mut i) = (first / n, first % n);
@@ -355,6 +366,7 @@ fn forces_chunk(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize
             w.0[l] = p.w[i];
             spin.0[l] = p.spin[i];
             gain.0[l] = p.gain[i];
+            sig.0[l] = sigma_at(p, i);
             if l + 1 < nl {
                 i += 1;
                 if i == n {
@@ -365,8 +377,11 @@ fn forces_chunk(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize
         }
         // all lanes are consecutive points of one batch row: contiguous loads
         let contiguous = nl == L && bi[0].0 == bi[L - 1].0;
-        let w2 = w * w;
+        // -s^2 = (w^2 - sigma^2) - j 2 sigma w and -s Omega I_p/L = -(sigma + j w) Omega I_p/L
+        let a2 = w * w - sig * sig;
+        let b2 = V::splat(2.0) * sig * w;
         let wg = w * spin * V::splat(kc.ip);
+        let sgg = sig * spin * V::splat(kc.ip);
         let mut nr = [0usize; 2];
         for r in 0..p.runs {
             let mut q = [Z::zero(); 4];
@@ -406,10 +421,15 @@ fn forces_chunk(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize
                 }
             }
             // R = E + w^2 M q - j w Omega G q (eq. 10 / 26), M and G sparse (eq. 3)
-            let rv0 = e[0].scale(gain) + (q[0].scale(ml2) + q[1].scale(ml1)).scale(w2);
-            let rv1 = e[1].scale(gain) + (q[2].scale(ml2) + q[3].scale(ml1)).scale(w2);
-            let rv2 = e[2].scale(gain) + (q[1] - q[0]).scale(it * w2) - (q[3] - q[2]).jscale(wg);
-            let rv3 = e[3].scale(gain) + (q[2] - q[3]).scale(it * w2) - (q[1] - q[0]).jscale(wg);
+            let m0 = q[0].scale(ml2) + q[1].scale(ml1);
+            let m1 = q[2].scale(ml2) + q[3].scale(ml1);
+            let m2 = (q[1] - q[0]).scale(it);
+            let m3 = (q[2] - q[3]).scale(it);
+            let (g2, g3) = (q[3] - q[2], q[1] - q[0]);
+            let rv0 = e[0].scale(gain) + m0.scale(a2) - m0.jscale(b2);
+            let rv1 = e[1].scale(gain) + m1.scale(a2) - m1.jscale(b2);
+            let rv2 = e[2].scale(gain) + m2.scale(a2) - m2.jscale(b2) - g2.jscale(wg) - g2.scale(sgg);
+            let rv3 = e[3].scale(gain) + m3.scale(a2) - m3.jscale(b2) - g3.jscale(wg) - g3.scale(sgg);
             // Bearing reaction forces from the four rotor equations: rows 1 and 3 give
             // f1x + f2x = R1, -l1 f1x + l2 f2x = R3; rows 2 and 4 give f1y + f2y = R2,
             // l1 f1y - l2 f2y = R4 (eq. 3 and 10).
@@ -452,8 +472,9 @@ fn forces_chunk(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize
                 let var_half = s.res2[row] * V::splat(if dof > 0.0 { 0.5 / dof } else { f64::NAN });
                 for col in 0..2 {
                     let o = 4 * sb + 2 * row + col;
-                    kv[o] = s.z[row][col].re;
+                    // Z = K + s C = (K + sigma C) + j w C
                     cv[o] = s.z[row][col].im * iw;
+                    kv[o] = s.z[row][col].re - sig * cv[o];
                     if want_std {
                         sv[o] = (var_half * s.g[col]).sqrt();
                     }
@@ -484,8 +505,10 @@ fn forces_chunk(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize
             }
         }
         let mut csv = [V::zero(); 8];
+        let kfac = (V::splat(1.0) + sig * sig * iw * iw).sqrt(); // var(K) = var(Re Z) (1 + (sigma/w)^2)
         for o in 0..8 {
             csv[o] = sv[o] * iw;
+            sv[o] = sv[o] * kfac;
         }
         // lanes -> rows of 8 values per point (an 8 x L transpose), stored as one block
         let put = |dst: &mut [f64], src: &[V; 8]| {
@@ -608,7 +631,7 @@ pub fn identify_report(p: &IdentProblem, out: IdentOut) -> usize {
                     bad |= !(v.re.is_finite() && v.im.is_finite());
                     qq += v.norm_sqr();
                 }
-                let rv = rhs_point(&kc, excitation(p, b, r), p.gain[i], p.w[i], p.spin[i], &q);
+                let rv = rhs_point(&kc, excitation(p, b, r), p.gain[i], p.w[i], sigma_at(p, i), p.spin[i], &q);
                 // Q of eq. 8 (4 x 16 complex), columns in eq. 9 order
                 let lq = [-l1 * q[0], l2 * q[1], -l1 * q[2], l2 * q[3]];
                 let mut qm = [[C64::new(0.0, 0.0); 16]; 4];
@@ -666,8 +689,8 @@ pub fn identify_report(p: &IdentProblem, out: IdentOut) -> usize {
                 (0..16).map(|t| sol[(t, 0)]).collect()
             };
             for t in 0..8 {
-                k[REPORT_TO_BIJ[t]] = pv[t];
                 c[REPORT_TO_BIJ[t]] = pv[8 + t] / w;
+                k[REPORT_TO_BIJ[t]] = pv[t] - sigma_at(p, i) * pv[8 + t] / w;
             }
             let fit = &bm * &sol;
             let mut rr = 0.0;

@@ -118,7 +118,7 @@ type IdentTuple<'py> = (
 /// Returns (k, c, cond, resid, amp, k_std, c_std, n_nonfinite) with k, c: (B, n, 2, 2, 2),
 /// cond (B, n, 2), resid and amp (rms response amplitude) (B, n).
 #[pyfunction]
-#[pyo3(name = "identify", signature = (rotor, w, spin, q, e, gain, identical=false, method="forces", with_std=true))]
+#[pyo3(name = "identify", signature = (rotor, w, spin, q, e, gain, identical=false, method="forces", with_std=true, sigma=None))]
 #[allow(clippy::too_many_arguments)]
 fn py_identify<'py>(
     py: Python<'py>,
@@ -131,6 +131,7 @@ fn py_identify<'py>(
     identical: bool,
     method: &str,
     with_std: bool,
+    sigma: Option<PyReadonlyArrayDyn<'py, f64>>,
 ) -> PyResult<IdentTuple<'py>> {
     let rot = rotor_of(&rotor)?;
     let qs = q.shape().to_vec();
@@ -153,6 +154,16 @@ fn py_identify<'py>(
         "report" => true,
         other => return Err(PyValueError::new_err(format!("method must be 'forces' or 'report', got {other:?}"))),
     };
+    if let Some(sg) = &sigma {
+        check_shape("sigma", sg.shape(), &[n])?;
+    }
+    let sigma_sl: &[f64] = match &sigma {
+        Some(sg) => slice(sg, "sigma")?,
+        None => &[],
+    };
+    if sigma_sl.iter().any(|v| !v.is_finite()) {
+        return Err(PyValueError::new_err("sigma must be finite"));
+    }
     let ws = slice(&w, "w")?;
     if ws.iter().any(|&x| !(x.is_finite() && x != 0.0)) {
         return Err(PyValueError::new_err("w (vibration frequency) must be finite and non-zero"));
@@ -164,6 +175,7 @@ fn py_identify<'py>(
         q: slice(&q, "q")?,
         e: slice(&e, "e")?,
         gain: slice(&gain, "gain")?,
+        sigma: sigma_sl,
         batch,
         runs,
         identical,
