@@ -210,21 +210,28 @@ def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", ide
                                "given at the same speeds (interpolate the 1X vectors first)")
     qs = np.stack([r.at_bearings(rotor).q for r in runs])  # (R, n, 4)
     om = rpm * RPM
-    e = np.stack([r.imbalance.generalized(rotor) for r in runs])[None]  # (1, R, 4)
+    e = np.stack([r.imbalance.generalized(rotor) for r in runs])  # (R, 4), scaled by Omega^2 below
+    return _solve(rotor, "speed_rpm", rpm, om, om, qs, e, om ** 2, None, identical=identical, method=method,
+                  labels=labels, cond_max=cond_max, min_rel_amplitude=min_rel_amplitude, what="responses")
+
+
+def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, method, labels, cond_max,
+           min_rel_amplitude, what):
+    """One core call for the whole axis, then flags; shared by both identification methods."""
     # standard errors need redundant equations: more rows than the 2 unknowns of each system
-    redundant = len(runs) * (2 if identical else 1) > 2
-    out = _core.identify(rotor.core_params(), om, om, np.ascontiguousarray(qs[None]), np.ascontiguousarray(e),
-                         om ** 2, identical=identical, method=method, with_std=redundant)
-    k, c, cond, resid, amp, ks, cs, nbad = out
+    redundant = qs.shape[0] * (2 if identical else 1) > 2
+    k, c, cond, resid, amp, ks, cs, nbad = _core.identify(
+        rotor.core_params(), w, spin, np.ascontiguousarray(qs[None]), np.ascontiguousarray(e[None], dtype=complex),
+        gain, identical=identical, method=method, with_std=redundant, sigma=sigma)
     if nbad:
-        raise RotoridError("responses contain NaN or inf")
+        raise RotoridError(f"{what} contain NaN or inf")
     if ks is None:
         ks = np.full_like(k, np.nan)
         cs = np.full_like(c, np.nan)
     if not np.any(np.isfinite(cond)):
         raise IdentifiabilityError(_diagnose_singular(qs, labels))
-    return _finish("speed_rpm", rpm, amp[0], k[0], c[0], cond[0], resid[0], ks[0], cs[0], cond_max,
-                   min_rel_amplitude, method, labels)
+    return _finish(axis_name, axis, amp[0], k[0], c[0], cond[0], resid[0], ks[0], cs[0], cond_max, min_rel_amplitude,
+                   method, labels)
 
 
 def identify_synchronous_batch(rotor: RigidRotor, speed_rpm, q, imbalances, *, method: str = "forces",
@@ -324,18 +331,7 @@ def identify_impact(rotor: RigidRotor, tests, *, method: str = "forces", identic
     qs = np.stack([t.at_bearings(rotor).frf() for t in tests])  # (R, n, 4) per unit force
     w = 2 * np.pi * f
     spin = np.full_like(w, speed * RPM)
-    e = np.stack([t.excitation() for t in tests]).astype(complex)[None]
-    redundant = len(tests) * (2 if identical else 1) > 2
-    k, c, cond, resid, amp, ks, cs, nbad = _core.identify(
-        rotor.core_params(), w, spin, np.ascontiguousarray(qs[None]), np.ascontiguousarray(e), np.ones_like(w),
-        identical=identical, method=method, with_std=redundant,
-        sigma=np.full_like(w, tests[0].sigma) if tests[0].sigma else None)
-    if nbad:
-        raise RotoridError("impact responses contain NaN or inf")
-    if ks is None:
-        ks = np.full_like(k, np.nan)
-        cs = np.full_like(c, np.nan)
-    if not np.any(np.isfinite(cond)):
-        raise IdentifiabilityError(_diagnose_singular(qs, labels))
-    return _finish("freq_hz", f, amp[0], k[0], c[0], cond[0], resid[0], ks[0], cs[0], cond_max, min_rel_amplitude,
-                   method, labels)
+    e = np.stack([t.excitation() for t in tests])  # (R, 4), per unit force
+    sigma = np.full_like(w, tests[0].sigma) if tests[0].sigma else None
+    return _solve(rotor, "freq_hz", f, w, spin, qs, e, np.ones_like(w), sigma, identical=identical, method=method,
+                  labels=labels, cond_max=cond_max, min_rel_amplitude=min_rel_amplitude, what="impact responses")

@@ -17,7 +17,7 @@ from . import _core
 from ._validate import real_array
 from .errors import RotoridError
 from .model import BearingCoefficients, RigidRotor
-from .simulate import RPM, _core_coeffs
+from .simulate import RPM, _check_model, _core_coeffs
 
 
 @dataclass
@@ -81,10 +81,7 @@ class ModalResult:
 
 
 def _check(rotor, bearings):
-    if not isinstance(rotor, RigidRotor):
-        raise RotoridError(f"rotor must be a rotorid.RigidRotor, got {type(rotor).__name__}")
-    if not isinstance(bearings, BearingCoefficients):
-        raise RotoridError(f"bearings must be a rotorid.BearingCoefficients, got {type(bearings).__name__}")
+    _check_model(rotor, bearings)
     if bearings.axis_name == "freq_hz":
         raise RotoridError("modal analysis needs coefficients constant or tabulated over speed_rpm; "
                            "frequency-dependent coefficients make it a nonlinear eigenproblem")

@@ -17,7 +17,7 @@ import numpy as np
 
 from .model import BearingCoefficients, Imbalance, RigidRotor
 from .recording import Recording
-from .simulate import RPM, bearings_to_probes, half_sine_pulse, imbalance_response, impact_time_response
+from .simulate import RPM, half_sine_pulse, imbalance_response, impact_time_response
 
 
 @dataclass(frozen=True)

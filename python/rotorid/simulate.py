@@ -107,6 +107,13 @@ class SyncResponse:
         return pd.DataFrame(data)
 
 
+def _check_model(rotor, bearings):
+    if not isinstance(rotor, RigidRotor):
+        raise RotoridError(f"rotor must be a rotorid.RigidRotor, got {type(rotor).__name__}")
+    if not isinstance(bearings, BearingCoefficients):
+        raise RotoridError(f"bearings must be a rotorid.BearingCoefficients, got {type(bearings).__name__}")
+
+
 def _core_coeffs(bearings: BearingCoefficients, n, speed_rpm=None, freq_hz=None, broadcast=False):
     """Bearing coefficients as the core wants them: (n, 8), or (1, 8) for constant coefficients when
     the core function broadcasts (``broadcast=True``)."""
@@ -121,10 +128,7 @@ def _core_coeffs(bearings: BearingCoefficients, n, speed_rpm=None, freq_hz=None,
 def imbalance_response(rotor: RigidRotor, bearings: BearingCoefficients, imbalance: Imbalance, *,
                        speed_rpm, at: str = "bearings") -> SyncResponse:
     """Synchronous response to an imbalance set over speeds (eq. 13-14), batched in the core."""
-    if not isinstance(rotor, RigidRotor):
-        raise RotoridError(f"rotor must be a rotorid.RigidRotor, got {type(rotor).__name__}")
-    if not isinstance(bearings, BearingCoefficients):
-        raise RotoridError(f"bearings must be a rotorid.BearingCoefficients, got {type(bearings).__name__}")
+    _check_model(rotor, bearings)
     if not isinstance(imbalance, Imbalance):
         raise RotoridError(f"imbalance must be a rotorid.Imbalance, got {type(imbalance).__name__}")
     choice("at", at, {"bearings", "probes"})
@@ -261,13 +265,6 @@ class ImpactResponse:
             data[f"{nm}_amp_um_per_N"] = 1e6 * np.abs(h[:, j])
             data[f"{nm}_phase_deg"] = np.rad2deg(np.angle(h[:, j]))
         return pd.DataFrame(data)
-
-
-def _check_model(rotor, bearings):
-    if not isinstance(rotor, RigidRotor):
-        raise RotoridError(f"rotor must be a rotorid.RigidRotor, got {type(rotor).__name__}")
-    if not isinstance(bearings, BearingCoefficients):
-        raise RotoridError(f"bearings must be a rotorid.BearingCoefficients, got {type(bearings).__name__}")
 
 
 def _impact_coeffs(bearings, speed_rpm, freq_hz):
