@@ -2,12 +2,13 @@
 //!
 //! Both identification methods of the report reduce, at every point (speed or frequency), to the
 //! complex equation (eq. 10 / eq. 26)
-//!     Q(q) P = R,   R = E + w^2 M q - j w Omega G q,
+//!     Q(q) P = R,   R = E - s^2 M q - s Omega G q,   s = sigma + j w (sigma = 0 unless windowed),
 //! per run. Two solvers are provided:
 //! - `identify_forces` (default): the four rotor equations give the reaction force of each
 //!   bearing, and each bearing becomes a complex least-squares problem [x_b y_b] z = f_b with two
-//!   unknowns and two right-hand sides (x row and y row of Z_b). Solved by a streaming complex
-//!   Givens QR: one pass over the runs, no normal equations, O(1) memory per point.
+//!   unknowns and two right-hand sides (x row and y row of Z_b). Eight points are solved in
+//!   lock-step (SIMD lanes): two rows by Cramer's rule, more rows by the corrected semi-normal
+//!   equations, and any lane with cond > 1e6 again by a complex Givens QR.
 //! - `identify_report`: the report's 16-unknown real formulation (eq. 8-12, 16-18) solved with
 //!   faer's QR. Kept as the reference; it equals the default exactly for two runs.
 
