@@ -209,3 +209,26 @@ def test_exponential_window_frfs_are_identified_at_s(rotor, brg, rpm, sigma):
         assert np.abs(r2.k[well] - brg.k).max() < 1e-6 * scale
     biased = rotorid.identify_impact(rotor, plain)
     assert np.abs(biased.k[well] - brg.k).max() > 1e-4 * scale  # the decay shows up as stiffness error
+
+
+def test_report_method_survives_an_svd_that_does_not_converge():
+    """Regression: on this well-conditioned point (cond ~2.1) faer's SVD returned an error, and the
+    report method used to return NaN; the condition number now falls back to eig(B^T B)."""
+    rotor = rotorid.RigidRotor(mass_kg=332.82543277554134, it_kgm2=30.353214674294293, ip_kgm2=20.445653803076535,
+                               l1=0.6, l2=0.3853203304633832, d=(0.3, 0.1926601652316916), r=(0.25, 0.25),
+                               s=(0.6, 0.3853203304633832))
+    k = np.array([[[2683301.6925870883, 894433.8975290294], [578955.9754558348, 5493754.646917688]],
+                  [[3854688.133475896, -1541875.2533903585], [-673008.3696671854, 5146468.972792532]]])
+    c = np.array([[[2045.8339341961764, 0.0], [-463.2122148421393, 1287.1299943384224]],
+                  [[4053.801481404145, 417.0435808446778], [-520.9007292858993, 2350.9050334413323]]])
+    rpm, sigma = 332.82543277554134, 43.295053479499884
+    f = np.linspace(10, 200, 25)
+    M, G, K, C = oracle.matrices(rotor.mass_kg, rotor.it_kgm2, rotor.ip_kgm2, rotor.l1, rotor.l2, k, c)
+    tests = []
+    for d in "xy":
+        E = np.array([1, 0, 0.0, 0]) if d == "x" else np.array([0, 1, 0, 0.0])
+        q = np.array([np.linalg.solve(s ** 2 * M + s * (C + rpm * oracle.RPM * G) + K, E) for s in sigma + 2j * np.pi * f])
+        tests.append(ImpactResponse(speed_rpm=rpm, freq_hz=f, q=q, plane=0.0, direction=d, sigma=sigma))
+    res = rotorid.identify_impact(rotor, tests, method="report")
+    assert np.all(np.isfinite(res.cond)) and res.cond.max() < 5
+    np.testing.assert_allclose(res.k, np.broadcast_to(k, res.k.shape), rtol=1e-7, atol=1e-3)

@@ -349,6 +349,7 @@ fn forces_chunk(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize
     let n = p.w.len();
     let npts = resid.len();
     let shared_e = p.e.len() == p.runs * 4;
+    let windowed = !p.sigma.is_empty(); // s = sigma + j w: extra terms only when asked for
     let nsys = if p.identical { 1 } else { 2 };
     let mut nbad = 0;
     let zrow = [Z::zero(); 4];
@@ -427,10 +428,16 @@ fn forces_chunk(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize
             let m2 = (q[1] - q[0]).scale(it);
             let m3 = (q[2] - q[3]).scale(it);
             let (g2, g3) = (q[3] - q[2], q[1] - q[0]);
-            let rv0 = e[0].scale(gain) + m0.scale(a2) - m0.jscale(b2);
-            let rv1 = e[1].scale(gain) + m1.scale(a2) - m1.jscale(b2);
-            let rv2 = e[2].scale(gain) + m2.scale(a2) - m2.jscale(b2) - g2.jscale(wg) - g2.scale(sgg);
-            let rv3 = e[3].scale(gain) + m3.scale(a2) - m3.jscale(b2) - g3.jscale(wg) - g3.scale(sgg);
+            let mut rv0 = e[0].scale(gain) + m0.scale(a2);
+            let mut rv1 = e[1].scale(gain) + m1.scale(a2);
+            let mut rv2 = e[2].scale(gain) + m2.scale(a2) - g2.jscale(wg);
+            let mut rv3 = e[3].scale(gain) + m3.scale(a2) - g3.jscale(wg);
+            if windowed {
+                rv0 = rv0 - m0.jscale(b2);
+                rv1 = rv1 - m1.jscale(b2);
+                rv2 = rv2 - m2.jscale(b2) - g2.scale(sgg);
+                rv3 = rv3 - m3.jscale(b2) - g3.scale(sgg);
+            }
             // Bearing reaction forces from the four rotor equations: rows 1 and 3 give
             // f1x + f2x = R1, -l1 f1x + l2 f2x = R3; rows 2 and 4 give f1y + f2y = R2,
             // l1 f1y - l2 f2y = R4 (eq. 3 and 10).
@@ -603,6 +610,28 @@ pub fn identify_forces(p: &IdentProblem, out: IdentOut) -> usize {
     }
 }
 
+/// 2-norm condition number of a real matrix from its singular values. faer's SVD has been seen to
+/// return an error (no convergence) on a well-conditioned 16 x 16 case; fall back to the
+/// eigenvalues of B^T B (squares the condition number, adequate for a diagnostic below 1e7).
+fn real_cond(bm: &Mat<f64>) -> f64 {
+    if let Ok(sv) = bm.singular_values() {
+        let (a, z) = (sv.iter().cloned().fold(0.0, f64::max), sv.iter().cloned().fold(f64::INFINITY, f64::min));
+        return if z > 0.0 { a / z } else { f64::INFINITY };
+    }
+    let btb = bm.transpose() * bm;
+    match btb.self_adjoint_eigenvalues(faer::Side::Lower) {
+        Ok(ev) => {
+            let (a, z) = (ev.iter().cloned().fold(0.0, f64::max), ev.iter().cloned().fold(f64::INFINITY, f64::min));
+            if z > 0.0 {
+                (a / z).sqrt()
+            } else {
+                f64::INFINITY
+            }
+        }
+        Err(_) => f64::INFINITY,
+    }
+}
+
 /// Report index (eq. 9 order Kxx1, Kxx2, Kxy1, Kxy2, Kyx1, Kyx2, Kyy1, Kyy2) -> [bearing][i][j].
 pub const REPORT_TO_BIJ: [usize; 8] = [0, 4, 1, 5, 2, 6, 3, 7];
 
@@ -668,11 +697,7 @@ pub fn identify_report(p: &IdentProblem, out: IdentOut) -> usize {
                 *resid = f64::NAN;
                 return 1usize;
             }
-            let sv = bm.singular_values().unwrap_or_default();
-            let cn = match (sv.first(), sv.last()) {
-                (Some(&a), Some(&z)) if z > 0.0 => a / z,
-                _ => f64::INFINITY,
-            };
+            let cn = real_cond(&bm);
             cond[0] = cn;
             cond[1] = cn;
             let w = p.w[i];
