@@ -147,3 +147,16 @@ def test_h1_frf_and_coherence():
     frf = signals.frf_h1(forces, resp, fs)
     np.testing.assert_allclose(frf.h[:, 0], np.fft.rfft(h), rtol=1e-9, atol=1e-9)
     assert np.all(frf.coherence[:, 0] > 0.999) and np.median(frf.coherence[:, 1]) < 0.99
+
+
+def test_keyphasor_negative_going_pulses_are_detected_on_their_leading_edge():
+    fs = 10000.0
+    true = 0.01 + np.cumsum(np.full(40, 60 / 2750.0))
+    kp = -7.0 - _kp_signal(true, fs, int(0.9 * fs))  # probe over a notch: baseline -7 V, pulses to -12 V
+    k = signals.keyphasor_times(kp, fs)
+    np.testing.assert_allclose(k.times, true[: k.times.size], atol=0.02 / fs)
+    # forcing the wrong polarity picks the trailing edges instead: 4 ms late
+    late = signals.keyphasor_times(kp, fs, polarity="positive")
+    assert np.all(np.abs(late.times[:5] - (true[:5] + 4e-3)) < 1e-4)
+    with pytest.raises(RotoridError, match="polarity"):
+        signals.keyphasor_times(kp, fs, polarity="up")

@@ -53,10 +53,12 @@ class Keyphasor:
 
 
 def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteresis=None, fill_missing: bool = True,
-                    tolerance: float = 0.35) -> Keyphasor:
-    """Rising-edge times of a once-per-revolution pulse train.
+                    tolerance: float = 0.35, polarity: str = "auto") -> Keyphasor:
+    """Leading-edge times of a once-per-revolution pulse train.
 
-    A pulse counts when the signal rises above ``level + hysteresis/2`` after having been below
+    ``polarity``: "positive" pulses (leading edge rising), "negative" ones (leading edge falling,
+    e.g. a proximity probe over a notch) or "auto" (from which side of the median the pulses lie).
+    For a positive pulse train a pulse counts when the signal rises above ``level + hysteresis/2`` after having been below
     ``level - hysteresis/2`` (Schmitt trigger); its time is the linear-interpolated crossing of
     ``level``. Defaults: level halfway between the 1st and 99th percentiles, hysteresis 30 % of that
     range. Then the pulse intervals are checked against the local median period: an interval
@@ -73,6 +75,18 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
     span = hi_p - lo_p
     if not span > 0:
         raise RotoridError("no keyphasor pulses: the keyphasor channel is flat")
+    if polarity == "auto":
+        # a once-per-revolution pulse is short: the signal rests near its baseline most of the time,
+        # so the pulses point away from the median (a proximity probe over a notch gives negative ones)
+        med = np.median(kp)
+        polarity = "positive" if (med - lo_p) < (hi_p - med) else "negative"
+    elif polarity not in ("positive", "negative"):
+        raise RotoridError(f"polarity must be 'auto', 'positive' or 'negative', got {polarity!r}")
+    if polarity == "negative":
+        kp = -kp
+        lo_p, hi_p = -hi_p, -lo_p
+        if level is not None:
+            level = -float(level)
     lev = 0.5 * (lo_p + hi_p) if level is None else float(level)
     hys = 0.3 * span if hysteresis is None else float(hysteresis)
     hi, lo = lev + hys / 2, lev - hys / 2
