@@ -160,3 +160,11 @@ def test_keyphasor_negative_going_pulses_are_detected_on_their_leading_edge():
     assert np.all(np.abs(late.times[:5] - (true[:5] + 4e-3)) < 1e-4)
     with pytest.raises(RotoridError, match="polarity"):
         signals.keyphasor_times(kp, fs, polarity="up")
+
+
+def test_steady_segments_split_long_dwells_in_linear_time():
+    rng = np.random.default_rng(0)
+    rpm = np.concatenate([np.full(20000, 3000.0), np.full(20000, 3500.0)]) * (1 + 1e-4 * rng.standard_normal(40000))
+    times = np.concatenate([[0.0], np.cumsum(60 / rpm)])
+    segs = signals.steady_segments(signals.Keyphasor(times))
+    assert segs == [(0, 20000), (20002, 40000)]

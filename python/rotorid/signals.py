@@ -249,12 +249,18 @@ def steady_segments(kp: Keyphasor, *, tolerance: float = 0.005, min_revs: int = 
     rpm = kp.speed_rpm
     segs = []
     start = 0
+    ref = rpm[0] if rpm.size else 0.0
     for i in range(1, rpm.size + 1):
-        if i == rpm.size or abs(rpm[i] - np.median(rpm[start:i])) > tolerance * np.median(rpm[start:i]):
+        if i == rpm.size or abs(rpm[i] - ref) > tolerance * ref:
             a = start + settle_revs if start > 0 else start
             if i - a >= min_revs:
                 segs.append((a, i))
             start = i
+            if i < rpm.size:
+                ref = rpm[i]
+        elif i - start < 16:
+            # the segment's reference speed: median of its first 16 revolutions (O(1) per step)
+            ref = float(np.median(rpm[start:i + 1]))
     return segs
 
 
