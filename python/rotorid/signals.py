@@ -297,10 +297,16 @@ def track(rec: Recording, *, orders=(1, 2, 3), revs_per_block: int | None = None
         raise RotoridError(f"only {sps:.1f} samples per revolution at the highest speed: sample faster "
                            "(at least 8, better 30+ samples per revolution)")
     x = np.ascontiguousarray(rec.displacements())
-    res = _core.angle_resample(x, rec.fs_hz, rec.t0_s, np.ascontiguousarray(kp.times), k0, k1, int(points_per_rev))
-    # per-revolution order vectors: (4, revs, P) -> (revs, orders, 4)
-    spec = np.fft.rfft(res, axis=2) * (2.0 / points_per_rev)
-    per_rev = spec[:, :, list(orders)].transpose(1, 2, 0)  # (revs, orders, 4)
+    kpt = np.ascontiguousarray(kp.times)
+    # per-revolution order vectors (revs, orders, 4), resampled and transformed 1024 revolutions at
+    # a time so long records do not need (4, revs, P) doubles at once
+    parts = []
+    for a in range(k0, k1, 1024):
+        b = min(a + 1024, k1)
+        res = _core.angle_resample(x, rec.fs_hz, rec.t0_s, kpt, a, b, int(points_per_rev))
+        spec = np.fft.rfft(res, axis=2)[:, :, list(orders)] * (2.0 / points_per_rev)
+        parts.append(spec.transpose(1, 2, 0))
+    per_rev = np.concatenate(parts)
     rpm = kp.speed_rpm[k0:k1]
     tmid = kp.mid_times[k0:k1]
     if steady:
