@@ -138,3 +138,43 @@ def example_rig():
     k = np.array([[[2.4e6, 4.0e4], [2.4e4, 2.8e6]], [[2.9e6, -6.4e4], [4.8e4, 2.6e6]]])
     c = np.array([[[2000.0, 250.0], [800.0, 2200.0]], [[2600.0, -300.0], [500.0, 1800.0]]])
     return rig.rotor, BearingCoefficients(k, c), Imbalance((1.0e-3, 0.6e-3), (35.0, 160.0), name="remnant")
+
+
+def coastdown_recording(rotor: RigidRotor, bearings: BearingCoefficients, *, start_rpm: float, stop_rpm: float,
+                        duration_s: float, added: Imbalance | None, remnant: Imbalance | None = None,
+                        runout: Runout | None = Runout(), noise_m: float = 0.5e-6, fs_hz: float = 10000.0,
+                        seed: int = 0, theta0: float = 0.3) -> Recording:
+    """A coast-down with the speed falling linearly from ``start_rpm`` to ``stop_rpm``.
+
+    The response is quasi-steady, x(t) = Re(q(Omega(t)) e^{j theta(t)}): not exact (the transient
+    terms scale with the deceleration), so use slow coast-downs, as on a rig with a free-wheeling
+    clutch. Run-out, noise and keyphasor as in ``imbalance_recording``."""
+    rng = np.random.default_rng(seed)
+    n = int(round(duration_s * fs_hz))
+    t = np.arange(n) / fs_hz
+    rpm = start_rpm + (stop_rpm - start_rpm) * t / duration_s
+    om = rpm * RPM
+    theta = theta0 + np.cumsum(om) / fs_hz
+    grid = np.linspace(min(start_rpm, stop_rpm), max(start_rpm, stop_rpm), 400)
+    qg = np.zeros((grid.size, 4), complex)
+    for imb in (added, remnant):
+        if imb is not None:
+            qg += imbalance_response(rotor, bearings, imb, speed_rpm=grid, at="probes").q
+    q = np.stack([np.interp(rpm, grid, qg[:, j].real) + 1j * np.interp(rpm, grid, qg[:, j].imag) for j in range(4)])
+    x = (q * np.exp(1j * theta)[None, :]).real
+    ro = runout.vectors() if runout is not None else np.zeros((3, 4), complex)
+    x += _synchronous(ro, theta) + noise_m * rng.standard_normal(x.shape)
+    # keyphasor: pulses where theta crosses multiples of 2 pi, smooth edges as in the dwell case
+    kp = np.zeros(n)
+    crossings = np.interp(2 * np.pi * np.arange(np.ceil(theta[0] / (2 * np.pi)), theta[-1] / (2 * np.pi)), theta, t)
+    tau = 2.0 / fs_hz
+    for tk in crossings:
+        w = max(32.0 / fs_hz, 0.05 * 60 / np.interp(tk, t, rpm))
+        a, b = np.searchsorted(t, [tk - 10 * tau, tk + w + 10 * tau])
+        seg = t[a:b]
+        kp[a:b] += 5.0 * 0.5 * (1 + np.tanh((seg - tk) / tau)) * 0.5 * (1 + np.tanh((tk + w - seg) / tau))
+    meta = dict(kind="imbalance", probes_at="probes", speed_rpm=[float(start_rpm), float(stop_rpm)])
+    if added is not None:
+        meta["imbalance"] = {"mass_kg": list(added.mass_kg), "angle_deg": list(added.angle_deg)}
+    return Recording(fs_hz, {"x1": x[0], "x2": x[1], "y1": x[2], "y2": x[3], "kp": kp}, meta,
+                     source="simulated coast-down")
