@@ -21,6 +21,15 @@ def _plt():
     return plt
 
 
+def finish(fig, path=None):
+    """Lay out the figure; with ``path``, save it as PNG and close it (keeps memory flat in loops)."""
+    fig.tight_layout()
+    if path:
+        fig.savefig(path, dpi=110)
+        _plt().close(fig)
+    return fig
+
+
 def bode(response, *, title="", path=None, x_label="Rotor speed (rpm)", axis=None):
     """Amplitude (µm 0-pk) and phase lag (deg, as a vibration DAQ shows it) of the four responses."""
     plt = _plt()
@@ -39,11 +48,7 @@ def bode(response, *, title="", path=None, x_label="Rotor speed (rpm)", axis=Non
     for a in axes.flat:
         a.grid(True, alpha=0.3)
     fig.suptitle(title)
-    fig.tight_layout()
-    if path:
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
-    return fig
+    return finish(fig, path)
 
 
 def coefficients(ident, truth=None, *, title="", path=None, show_flagged=True, ylim_factor=3.0):
@@ -90,11 +95,7 @@ def coefficients(ident, truth=None, *, title="", path=None, show_flagged=True, y
     for ax in axes[1]:
         ax.set_xlabel(xlabel)
     fig.suptitle(title + ("\n(hollow markers: points flagged as not trustworthy)" if show_flagged and (~ident.ok).any() else ""))
-    fig.tight_layout()
-    if path:
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
-    return fig
+    return finish(fig, path)
 
 
 def campbell(modal_result, *, crit=None, path=None, title="Campbell diagram"):
@@ -115,8 +116,4 @@ def campbell(modal_result, *, crit=None, path=None, title="Campbell diagram"):
     ax.grid(True, alpha=0.3)
     ax.legend()
     ax.set_title(title)
-    fig.tight_layout()
-    if path:
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
-    return fig
+    return finish(fig, path)

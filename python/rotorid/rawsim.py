@@ -38,14 +38,16 @@ class Runout:
 
 
 def _keyphasor(theta, fs_hz, omega, volts=5.0, width_rev=0.05):
-    """Pulse train with smooth edges: rises through volts/2 exactly at theta = 0 mod 2 pi."""
+    """Pulse train with smooth edges: rises through volts/2 exactly at theta = 0 mod 2 pi.
+    ``omega`` (rad/s) may be a scalar or, for varying speed, one value per sample."""
     frac = np.mod(theta, 2 * np.pi) / (2 * np.pi)
     frac = np.where(frac > 0.5, frac - 1.0, frac)  # in [-0.5, 0.5): 0 at the pulse
     dt = frac * 2 * np.pi / omega  # time since the pulse (s)
     tau = 2.0 / fs_hz  # edge time constant: a few samples
     # a notch of 5 % of a revolution, but never narrower than 32 samples so the pulse reaches its
     # full height and the rising edge is not shifted by the falling one
-    width = min(max(width_rev * 2 * np.pi / omega, 32.0 / fs_hz), 0.4 * 2 * np.pi / omega)
+    period = 2 * np.pi / omega
+    width = np.minimum(np.maximum(width_rev * period, 32.0 / fs_hz), 0.4 * period)
     rise = 0.5 * (1 + np.tanh(dt / tau))
     fall = 0.5 * (1 + np.tanh((width - dt) / tau))
     return volts * rise * fall
@@ -164,15 +166,7 @@ def coastdown_recording(rotor: RigidRotor, bearings: BearingCoefficients, *, sta
     x = (q * np.exp(1j * theta)[None, :]).real
     ro = runout.vectors() if runout is not None else np.zeros((3, 4), complex)
     x += _synchronous(ro, theta) + noise_m * rng.standard_normal(x.shape)
-    # keyphasor: pulses where theta crosses multiples of 2 pi, smooth edges as in the dwell case
-    kp = np.zeros(n)
-    crossings = np.interp(2 * np.pi * np.arange(np.ceil(theta[0] / (2 * np.pi)), theta[-1] / (2 * np.pi)), theta, t)
-    tau = 2.0 / fs_hz
-    for tk in crossings:
-        w = max(32.0 / fs_hz, 0.05 * 60 / np.interp(tk, t, rpm))
-        a, b = np.searchsorted(t, [tk - 10 * tau, tk + w + 10 * tau])
-        seg = t[a:b]
-        kp[a:b] += 5.0 * 0.5 * (1 + np.tanh((seg - tk) / tau)) * 0.5 * (1 + np.tanh((tk + w - seg) / tau))
+    kp = _keyphasor(theta, fs_hz, om)
     meta = dict(kind="imbalance", probes_at="probes", speed_rpm=[float(start_rpm), float(stop_rpm)])
     if added is not None:
         meta["imbalance"] = {"mass_kg": list(added.mass_kg), "angle_deg": list(added.angle_deg)}

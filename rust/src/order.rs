@@ -7,6 +7,17 @@
 
 use rayon::prelude::*;
 
+/// Weights of the 4-point Lagrange (cubic) stencil at samples -1, 0, 1, 2 for a fraction f in [0, 1).
+#[inline(always)]
+pub fn lagrange4(f: f64) -> [f64; 4] {
+    [
+        -f * (f - 1.0) * (f - 2.0) * (1.0 / 6.0),
+        (f + 1.0) * (f - 1.0) * (f - 2.0) * 0.5,
+        -(f + 1.0) * f * (f - 2.0) * 0.5,
+        (f + 1.0) * f * (f - 1.0) * (1.0 / 6.0),
+    ]
+}
+
 /// 4-point Lagrange (cubic) interpolation of uniformly sampled `x` at fractional index `u`.
 #[inline(always)]
 pub fn cubic_at(x: &[f64], u: f64) -> f64 {
@@ -18,12 +29,8 @@ pub fn cubic_at(x: &[f64], u: f64) -> f64 {
     let f = u - m;
     let m = m as isize;
     let at = |i: isize| -> f64 { x[i.clamp(0, n as isize - 1) as usize] };
-    let (xm1, x0, x1, x2) = (at(m - 1), at(m), at(m + 1), at(m + 2));
-    let wm1 = -f * (f - 1.0) * (f - 2.0) / 6.0;
-    let w0 = (f + 1.0) * (f - 1.0) * (f - 2.0) / 2.0;
-    let w1 = -(f + 1.0) * f * (f - 2.0) / 2.0;
-    let w2 = (f + 1.0) * f * (f - 1.0) / 6.0;
-    wm1 * xm1 + w0 * x0 + w1 * x1 + w2 * x2
+    let w = lagrange4(f);
+    w[0] * at(m - 1) + w[1] * at(m) + w[2] * at(m + 1) + w[3] * at(m + 2)
 }
 
 /// Resample channels at P uniform angles per revolution for revolutions k0..k1 (between pulses
@@ -107,13 +114,10 @@ pub fn runout_subtract(
             let mf = u.floor();
             let f = u - mf;
             let mi = (mf as usize).min(p - 1);
-            let wm1 = -f * (f - 1.0) * (f - 2.0) * (1.0 / 6.0);
-            let w0 = (f + 1.0) * (f - 1.0) * (f - 2.0) * 0.5;
-            let w1 = -(f + 1.0) * f * (f - 2.0) * 0.5;
-            let w2 = (f + 1.0) * f * (f - 1.0) * (1.0 / 6.0);
+            let w = lagrange4(f);
             for (c, o) in outs.iter_mut().enumerate() {
                 let e = &ext[c * (p + 3) + mi..c * (p + 3) + mi + 4];
-                o[j] = x[c * n + i] - (wm1 * e[0] + w0 * e[1] + w1 * e[2] + w2 * e[3]);
+                o[j] = x[c * n + i] - (w[0] * e[0] + w[1] * e[1] + w[2] * e[2] + w[3] * e[3]);
             }
         }
     });
