@@ -97,3 +97,84 @@ class Recording:
         i1 = min(self.n_samples, int(round((stop_s - self.t0_s) * self.fs_hz)))
         return Recording(self.fs_hz, {k: v[i0:i1] for k, v in self.channels.items()}, dict(self.meta),
                          dict(self.units), self.t0_s + i0 / self.fs_hz, self.source)
+
+
+@dataclass
+class SegmentedRecording:
+    """A recording saved as separate blocks (one per speed step, file, TDMS group or array row).
+
+    Every block is a :class:`Recording` with its own start time ``t0_s``; all blocks share the
+    sample rate and the channel names. Between blocks the DAQ was not recording, so processing
+    (keyphasor, order tracking, compensation) runs per block and never bridges a gap: there is no
+    "missing pulse" across a block boundary. ``meta`` describes the whole test (kind, imbalance,
+    ...) and is what the chains read; each block keeps its own meta as well.
+    """
+
+    blocks: list
+    meta: dict = field(default_factory=dict)
+    source: str = ""
+
+    def __post_init__(self):
+        blocks = list(self.blocks)
+        if not blocks:
+            raise RotoridError("a segmented recording needs at least one block")
+        for i, b in enumerate(blocks):
+            if not isinstance(b, Recording):
+                raise RotoridError(f"block {i} of a segmented recording must be a Recording, got {type(b).__name__}")
+        fs, names = blocks[0].fs_hz, set(blocks[0].channels)
+        for i, b in enumerate(blocks[1:], 1):
+            if abs(b.fs_hz - fs) > 1e-9 * fs:
+                raise RotoridError(f"block {i} ({b.source or 'unnamed'}) is sampled at {b.fs_hz:g} Hz, block 0 at "
+                                   f"{fs:g} Hz: all blocks of a segmented recording share one sample rate")
+            if set(b.channels) != names:
+                raise RotoridError(f"block {i} ({b.source or 'unnamed'}) has channels {sorted(b.channels)}, block 0 "
+                                   f"has {sorted(names)}")
+        self.blocks = blocks
+        if not self.meta:
+            self.meta = dict(blocks[0].meta)
+        if not self.source:
+            self.source = blocks[0].source
+
+    @classmethod
+    def from_arrays(cls, fs_hz: float, channels: dict, *, t0_s=None, meta=None, units=None,
+                    source: str = "") -> "SegmentedRecording":
+        """Blocks from 2-D arrays: ``channels[name]`` of shape (n_blocks, n_samples), one row per
+        block; ``t0_s`` the start time of each block (default: back to back)."""
+        arrays = {k: np.asarray(v, dtype=float) for k, v in channels.items()}
+        if not arrays:
+            raise RotoridError("from_arrays needs at least one channel")
+        shapes = {k: a.shape for k, a in arrays.items()}
+        first = next(iter(arrays.values()))
+        if any(a.ndim != 2 for a in arrays.values()) or len(set(shapes.values())) != 1:
+            raise RotoridError(f"from_arrays needs 2-D arrays (n_blocks, n_samples) of one shape, got {shapes}")
+        nb, ns = first.shape
+        if t0_s is None:
+            t0 = np.arange(nb) * ns / float(fs_hz)
+        else:
+            t0 = np.asarray(t0_s, dtype=float)
+            if t0.shape != (nb,) or not np.all(np.isfinite(t0)):
+                raise RotoridError(f"t0_s must hold {nb} finite start times (one per block), got shape {t0.shape}")
+        blocks = [Recording(fs_hz, {k: a[i] for k, a in arrays.items()}, dict(meta or {}), dict(units or {}),
+                            float(t0[i]), f"{source} block {i}" if source else f"block {i}") for i in range(nb)]
+        return cls(blocks, dict(meta or {}), source)
+
+    @property
+    def fs_hz(self) -> float:
+        return self.blocks[0].fs_hz
+
+    @property
+    def channels(self) -> dict:
+        """Channel names (as keys) of the blocks; the data live in ``blocks[i].channels``."""
+        return self.blocks[0].channels
+
+    @property
+    def units(self) -> dict:
+        return self.blocks[0].units
+
+    @property
+    def n_samples(self) -> int:
+        return sum(b.n_samples for b in self.blocks)
+
+    def require(self, *names):
+        for b in self.blocks:
+            b.require(*names)
