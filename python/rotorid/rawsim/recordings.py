@@ -15,9 +15,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .model import BearingCoefficients, Imbalance, RigidRotor
-from .recording import Recording
-from .simulate import RPM, half_sine_pulse, imbalance_response, impact_time_response
+from ..model import BearingCoefficients, Imbalance, RigidRotor
+from ..recording import Recording
+from ..simulate import RPM, half_sine_pulse, imbalance_response, impact_time_response
 
 
 @dataclass(frozen=True)
@@ -134,7 +134,7 @@ def example_rig():
     y, different damping; stiffness 80 % of Table 4 so that 3000-6000 rpm lies mostly between the
     critical speeds, 3184/3235 and 4552 rpm) and probes away from the bearings, plus a remnant
     imbalance of 1.0 g and 0.6 g: the example data set's truth."""
-    from .model import nsf_rig
+    from ..model import nsf_rig
 
     rig = nsf_rig()
     k = np.array([[[2.4e6, 4.0e4], [2.4e4, 2.8e6]], [[2.9e6, -6.4e4], [4.8e4, 2.6e6]]])

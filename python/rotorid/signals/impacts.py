@@ -1,0 +1,166 @@
+"""Impacts on the force channel, the report's time-domain run-out filter, windows and H1 FRFs."""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .. import _core
+from ..errors import RotoridError
+from ..recording import DISPLACEMENTS, Recording
+
+
+@dataclass
+class Impact:
+    """One detected impact on the force channel."""
+
+    start: int          # first sample above threshold
+    stop: int           # first sample back below threshold
+    peak_index: int
+    peak_N: float
+    flags: tuple = ()   # "double hit", "overload"
+
+    @property
+    def ok(self):
+        return not self.flags
+
+
+def detect_impacts(force, fs_hz: float, *, threshold_N=None, min_separation_s: float = 0.2,
+                   double_hit_window_s: float = 0.02, double_hit_fraction: float = 0.1,
+                   overload_N=None) -> list:
+    """Impacts on a force channel: contiguous runs above ``threshold_N`` (default: 10 % of the
+    largest peak, at least 8 x the robust noise level). Flags: "double hit" when another pulse of at
+    least ``double_hit_fraction`` of the peak follows within ``double_hit_window_s``; "overload" when
+    the signal sits at its maximum (or at ``overload_N``) for 3 or more samples (a clipped
+    transducer or DAQ range)."""
+    f = np.asarray(force, float)
+    if f.ndim != 1 or not np.all(np.isfinite(f)):
+        raise RotoridError("force must be a finite 1-D signal")
+    noise = 1.4826 * np.median(np.abs(f - np.median(f)))
+    thr = max(0.1 * np.abs(f).max(), 8 * noise) if threshold_N is None else float(threshold_N)
+    above = np.abs(f) > thr
+    edges = np.diff(above.astype(np.int8))
+    starts = list(np.nonzero(edges == 1)[0] + 1)
+    stops = list(np.nonzero(edges == -1)[0] + 1)
+    if above[0]:
+        starts.insert(0, 0)
+    if above[-1]:
+        stops.append(f.size)
+    pulses = [(a, b, a + int(np.argmax(np.abs(f[a:b])))) for a, b in zip(starts, stops)]
+    impacts = []
+    dh = int(round(double_hit_window_s * fs_hz))
+    sep = int(round(min_separation_s * fs_hz))
+    i = 0
+    fmax = np.abs(f).max()
+    while i < len(pulses):
+        a, b, pk = pulses[i]
+        flags = []
+        j = i + 1
+        while j < len(pulses) and pulses[j][0] - b <= max(dh, sep):
+            if pulses[j][0] - b <= dh and abs(f[pulses[j][2]]) >= double_hit_fraction * abs(f[pk]):
+                if "double hit" not in flags:
+                    flags.append("double hit")
+            b = max(b, pulses[j][1])
+            j += 1
+        seg = np.abs(f[a:b])
+        lim = fmax if overload_N is None else float(overload_N)
+        at_lim = seg >= lim * (1 - 1e-9)
+        if at_lim.size and _longest_run(at_lim) >= 3:
+            flags.append("overload")
+        impacts.append(Impact(int(a), int(b), int(pk), float(f[pk]), tuple(flags)))
+        i = j
+    return impacts
+
+
+def _longest_run(mask):
+    best = cur = 0
+    for v in mask:
+        cur = cur + 1 if v else 0
+        best = max(best, cur)
+    return best
+
+
+def revolution_signature(x, fs_hz: float, kp_times, t_start: float, t_stop: float, *, t0_s: float = 0.0,
+                         points_per_rev: int = 256) -> np.ndarray:
+    """Average revolution signature (C, P) of channels x (C, N) over the whole revolutions that lie in
+    [t_start, t_stop]: each revolution resampled at P uniform angles from its own pulses."""
+    kpt = np.asarray(kp_times, float)
+    inside = np.nonzero((kpt >= t_start) & (kpt <= t_stop))[0]
+    if inside.size < 2:
+        raise RotoridError(f"no whole revolution between t = {t_start:.4f} s and {t_stop:.4f} s to build the "
+                           "run-out signature (record more revolutions before the impact)")
+    res = _core.angle_resample(np.ascontiguousarray(x, dtype=float), fs_hz, t0_s, np.ascontiguousarray(kpt),
+                               int(inside[0]), int(inside[-1]), int(points_per_rev))
+    return res.mean(axis=1)
+
+
+def runout_filter(x, fs_hz: float, kp_times, template, i0: int, i1: int, *, t0_s: float = 0.0) -> np.ndarray:
+    """The report's time-domain run-out filter: samples i0..i1 of x (C, N) minus the revolution
+    signature ``template`` (C, P) placed at each sample's rotor angle from the keyphasor pulses
+    (each revolution stretched to its own pulse interval, so slow speed drift does not smear the
+    subtraction). Runs in the Rust core."""
+    return _core.runout_subtract(np.ascontiguousarray(x, dtype=float), float(fs_hz), float(t0_s),
+                                 np.ascontiguousarray(kp_times, dtype=float),
+                                 np.ascontiguousarray(template, dtype=float), int(i0), int(i1))
+
+
+def exponential_window(n: int, fs_hz: float, tau_s: float, start: int = 0) -> np.ndarray:
+    """w(t) = exp(-(t - t_start)/tau) after ``start`` (1 before). Applied to force and response alike,
+    the FRF it produces is H(s) at s = 1/tau + j w. Identifying from it as if s were j w would bias
+    the damping; give the decay to the identification (``ImpactResponse(sigma=1/tau)``, or
+    ``impact_chain(exp_window_tau_s=tau)``) and it solves the equations at s instead."""
+    t = (np.arange(n) - start) / fs_hz
+    return np.where(t > 0, np.exp(-np.clip(t, 0, None) / tau_s), 1.0)
+
+
+def force_window(n: int, start: int, stop: int, *, taper: int = 0) -> np.ndarray:
+    """Rectangular window around the force pulse (zero elsewhere, removing force-channel noise),
+    optionally with cosine tapers of ``taper`` samples on each side."""
+    w = np.zeros(n)
+    w[max(0, start):min(n, stop)] = 1.0
+    if taper > 0:
+        ramp = 0.5 * (1 - np.cos(np.pi * np.arange(1, taper + 1) / (taper + 1)))
+        a0 = max(0, start - taper)
+        w[a0:start] = ramp[taper - (start - a0):]
+        b1 = min(n, stop + taper)
+        w[stop:b1] = ramp[::-1][: b1 - stop]
+    return w
+
+
+@dataclass
+class FRF:
+    """H1 estimate over repeated impacts: ``h`` (n, C) = sum X F* / sum |F|^2, ``coherence`` (n, C),
+    ``force`` (n,) mean force spectrum magnitude, ``sigma`` decay rate of any exponential window."""
+
+    freq_hz: np.ndarray
+    h: np.ndarray
+    coherence: np.ndarray
+    force: np.ndarray
+    n_avg: int
+    sigma: float = 0.0
+
+
+def frf_h1(forces, responses, fs_hz: float) -> FRF:
+    """H1 FRF and coherence from equally long force records (list of (N,)) and response records
+    (list of (C, N)), one pair per impact."""
+    if len(forces) != len(responses) or not forces:
+        raise RotoridError("frf_h1 needs one response record per force record (and at least one)")
+    n = len(forces[0])
+    sff = 0.0
+    sxf = 0.0
+    sxx = 0.0
+    for f, x in zip(forces, responses):
+        if len(f) != n or np.shape(x)[-1] != n:
+            raise RotoridError("all force and response records must have the same length")
+        F = np.fft.rfft(f)
+        X = np.fft.rfft(np.asarray(x), axis=-1).T  # (n_f, C)
+        sff = sff + np.abs(F) ** 2
+        sxf = sxf + X * np.conj(F)[:, None]
+        sxx = sxx + np.abs(X) ** 2
+    freq = np.fft.rfftfreq(n, 1 / fs_hz)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        h = sxf / sff[:, None]
+        coh = np.abs(sxf) ** 2 / (sff[:, None] * sxx)
+    return FRF(freq, h, coh, np.sqrt(sff / len(forces)), len(forces))

@@ -1,0 +1,555 @@
+"""Keyphasor detection: the time of every once-per-revolution event, whatever the pulse looks like.
+
+A 1X phase is only as good as the keyphasor times it is referred to: a timing error δt is a phase
+error Ω·δt on every 1X vector, common to all probes and runs at that speed, which the
+identification cannot see in its residual (a common phase error is consistent with a different
+impedance) but turns into damping errors of several per cent. The detector is therefore built so
+that its timing does not depend on the pulse shape, the duty cycle or the trigger level:
+
+1. **State levels** (IEEE Std 181 histogram method). The channel's histogram has two modes: the
+   resting state (most samples) and the pulse state. Found from the modes, not from percentiles,
+   so a pulse that fills 0.05 % of the samples is found as well as a 50 % square wave. The
+   reference level is mid-height between the two states.
+2. **Pulses** by a Schmitt trigger around the reference level (default hysteresis: 40 % of the
+   swing) on the *leading* edge: the transition from the resting to the pulse state (``edge``
+   "auto"), or the rising or falling edge as asked. A keyphasor over a notch gives
+   negative-going pulses and works as is.
+3. **Edge times**, in two steps. First the crossing of mid-height, linearly interpolated between
+   the two samples that straddle it, measured against the local resting level before each edge
+   (so a drifting offset does not move it). Then, when the pulses fall at diverse positions
+   relative to the sample clock (as they do unless the speed is commensurate with the sample
+   rate), an *equivalent-time* refinement: all edges of a steady stretch are overlaid at their
+   estimated times, which samples the edge shape ``g`` densely; each event time is then the shift
+   that best fits its own samples to ``g`` (least squares), and ``g``'s mid-height crossing
+   anchors them. This is unbiased for steep edges (trapezoids of 1-3 samples), asymmetric ones
+   (RC-rounded) and smooth ones alike, and it uses every sample of the edge, which lowers the
+   jitter in noise. Ideal steps carry no sub-sample information; their linear estimate has an
+   error uniform in ±0.5 sample that averages out over revolutions only when the pulse phases
+   vary; the result says so when they do not (``Keyphasor.note``).
+4. **Plausibility**: intervals far shorter than the running median period are extra pulses
+   (dropped), intervals that are whole multiples of it are missing pulses (filled), both
+   reported; an interval that is neither (a speed jump beyond ``tolerance``) is an error.
+5. **Reference**: ``mark_angle_deg`` (the rotor angle at which the keyphasor event occurs,
+   measured in the direction of rotation from rotorid's angle zero) and ``delay_s`` (the
+   keyphasor channel's lag behind the probes) move the event times to the instants of rotor angle
+   zero.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import RotoridError
+
+#: bins of the equivalent-time edge template per sample interval
+TEMPLATE_BINS = 16
+#: steady stretches of at most this many pulses share one edge template
+TEMPLATE_CHUNK = 256
+
+
+class KeyphasorError(RotoridError):
+    """The keyphasor channel does not give usable once-per-revolution pulses."""
+
+
+@dataclass
+class Keyphasor:
+    """Times of rotor angle zero (s), one per revolution, and how they were obtained.
+
+    ``times``: event times after the mark-angle and delay corrections. ``extra``: times of dropped
+    extra pulses; ``missing``: (time, count) of gaps filled or left. ``states``: (resting, pulse)
+    levels of the channel (V); ``level``/``hysteresis``: the trigger used (V); ``edge``: "rising"
+    or "falling" (the edge timed). ``jitter_s``: rms timing jitter per pulse (from the second
+    differences of the times, so it includes genuine speed fluctuation); ``rise_samples``: the
+    10-90 % edge duration; ``refined``: whether the equivalent-time refinement was used;
+    ``note``: anything a user should know about the timing (empty when all is well).
+    """
+
+    times: np.ndarray
+    extra: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    missing: list = field(default_factory=list)
+    level: float = float("nan")
+    hysteresis: float = float("nan")
+    states: tuple = (float("nan"), float("nan"))
+    edge: str = "rising"
+    jitter_s: float = float("nan")
+    rise_samples: float = float("nan")
+    refined: bool = False
+    note: str = ""
+    mark_angle_deg: float = 0.0
+
+    @classmethod
+    def from_times(cls, times, *, mark_angle_deg: float = 0.0, delay_s: float = 0.0, source: str = "") -> "Keyphasor":
+        """Pulse times given directly (s, one per revolution, increasing): from another system, a
+        tachometer file, or a previous analysis. The same corrections apply as for detected
+        pulses."""
+        t = np.asarray(times, dtype=float)
+        where = f" ({source})" if source else ""
+        if t.ndim != 1 or t.size < 2:
+            raise KeyphasorError(f"keyphasor times{where} must be a 1-D array of at least 2 times, got shape {t.shape}")
+        if not np.all(np.isfinite(t)):
+            raise KeyphasorError(f"keyphasor times{where} contain NaN or inf")
+        if np.any(np.diff(t) <= 0):
+            i = int(np.argmax(np.diff(t) <= 0))
+            raise KeyphasorError(f"keyphasor times{where} must increase: time {i + 1} ({t[i + 1]:.6g} s) is not after "
+                                 f"time {i} ({t[i]:.6g} s)")
+        out = cls(_to_angle_zero(t, mark_angle_deg, delay_s), mark_angle_deg=float(mark_angle_deg))
+        out.jitter_s = _jitter(out.times)
+        return out
+
+    @property
+    def period_s(self):
+        return np.diff(self.times)
+
+    @property
+    def speed_rpm(self):
+        """Speed of each revolution (between consecutive pulses), rpm."""
+        return 60.0 / np.diff(self.times)
+
+    @property
+    def mid_times(self):
+        return 0.5 * (self.times[1:] + self.times[:-1])
+
+    def summary(self) -> str:
+        """One line for logs and reports."""
+        rpm = np.median(self.speed_rpm) if self.times.size > 1 else float("nan")
+        s = (f"{self.times.size} pulses, {rpm:.1f} rpm median, {self.edge} edge, states {self.states[0]:.4g}/"
+             f"{self.states[1]:.4g} V, jitter {self.jitter_s * 1e6:.2f} µs")
+        if self.refined:
+            s += ", equivalent-time refined"
+        return s + (f"; {self.note}" if self.note else "")
+
+
+def _to_angle_zero(t, mark_angle_deg, delay_s):
+    """Event times -> times of rotor angle zero: subtract the channel delay, then go back by the
+    mark angle's share of the local period (the event happens mark_angle_deg after angle zero)."""
+    t = np.asarray(t, dtype=float) - float(delay_s)
+    if mark_angle_deg:
+        per = np.gradient(t) if t.size > 2 else np.full(t.size, t[-1] - t[0])
+        t = t - float(mark_angle_deg) / 360.0 * per
+    return t
+
+
+def _jitter(t):
+    if t.size < 5:
+        return float("nan")
+    d2 = np.diff(t, 2)
+    mad = np.median(np.abs(d2 - np.median(d2)))
+    return float(1.4826 * mad / np.sqrt(6.0))
+
+
+# ---------------------------------------------------------------------------------------------
+# state levels
+
+
+def state_levels(v, *, where: str = "") -> tuple:
+    """(resting, pulse) state levels of a two-state signal from its histogram modes.
+
+    Raises KeyphasorError for a flat channel, a channel without two distinct states (noise, an
+    analog signal) or pulses on both sides of the resting state."""
+    v = np.asarray(v, dtype=float)
+    vmin, vmax = float(v.min()), float(v.max())
+    span = vmax - vmin
+    if not span > 1e-12 * max(abs(vmin), abs(vmax), 1e-300):
+        raise KeyphasorError(f"no keyphasor pulses{where}: the channel is flat (every sample is {vmin:.6g})")
+    nb = 256
+    h, e = np.histogram(v, bins=nb, range=(vmin, vmax))
+    c = 0.5 * (e[1:] + e[:-1])
+    r = int(np.argmax(h))
+    rest = c[r]
+    far = np.abs(c - rest) > 0.35 * span
+    side = np.sign(c - rest)
+    up = far & (side > 0)
+    dn = far & (side < 0)
+    n_up, n_dn = int(h[up].sum()), int(h[dn].sum())
+    if n_up == 0 and n_dn == 0:
+        raise KeyphasorError(f"no keyphasor pulses{where}: the channel rests at {rest:.4g} and never leaves it by more "
+                             f"than a third of its range {vmin:.4g}..{vmax:.4g} (noise only?)")
+    pside = up if n_up >= n_dn else dn
+    p = int(np.flatnonzero(pside)[np.argmax(h[pside])])
+    pulse = c[p]
+    # two distinct states: the histogram must have a valley between them (an edge passes through
+    # the middle levels quickly; noise or an analog signal lingers there)
+    lo_i, hi_i = sorted((r, p))
+    mid_band = h[lo_i + (hi_i - lo_i) * 2 // 5: lo_i + (hi_i - lo_i) * 3 // 5 + 1]
+    near_pulse = h[max(p - 3, 0): p + 4]
+    if not (near_pulse.max() >= 2 and mid_band.mean() < 0.5 * near_pulse.max()):
+        raise KeyphasorError(f"no keyphasor pulses{where}: the channel shows no two distinct states (resting near "
+                             f"{rest:.4g}, no second level it dwells at; noise or an analog signal?)")
+    other = dn if pside is up else up
+    if other.any() and h[other].sum() >= 0.25 * h[pside].sum() and h[other].max() >= 0.5 * near_pulse.max():
+        o = int(np.flatnonzero(other)[np.argmax(h[other])])
+        raise KeyphasorError(f"keyphasor pulses on both polarities{where}: the channel rests at {rest:.4g} and dwells "
+                             f"at {pulse:.4g} and at {c[o]:.4g}; give edge= and level= to say which pulses to use")
+    # refine each state: the mode of a finer histogram of the samples near it, then the mean of the
+    # samples within a few noise widths of that mode (edge samples must not pull a state level)
+    swing = abs(pulse - rest)
+    near_rest = v[np.abs(v - rest) <= 0.06 * swing]
+    noise = 1.4826 * np.median(np.abs(near_rest - np.median(near_rest))) if near_rest.size else 0.0
+    rest = _fine_mode(v, rest, swing, noise)
+    pulse = _fine_mode(v, pulse, swing, noise)
+    return rest, pulse
+
+
+def _fine_mode(v, centre, swing, noise):
+    sel = v[np.abs(v - centre) <= 0.06 * swing]
+    if sel.size < 3:
+        return float(centre)
+    h, e = np.histogram(sel, bins=48)
+    m = 0.5 * (e[np.argmax(h)] + e[np.argmax(h) + 1])
+    tight = v[np.abs(v - m) <= max(3.0 * noise, 0.005 * swing)]
+    return float(np.median(tight)) if tight.size else float(m)
+
+
+# ---------------------------------------------------------------------------------------------
+# detection
+
+
+def _schmitt_rises(w, lo_thr, hi_thr):
+    """Indices where w (oriented so the timed edge rises) goes above hi_thr after being below lo_thr."""
+    st = np.where(w > hi_thr, 1, np.where(w < lo_thr, -1, 0)).astype(np.int8)
+    idx = np.arange(w.size)
+    last = np.maximum.accumulate(np.where(st != 0, idx, 0))
+    held = st[last]
+    return np.flatnonzero((held[1:] == 1) & (held[:-1] == -1)) + 1
+
+
+def _last_below(w, level, at):
+    """For each index in ``at``: the last sample index before it with w <= level."""
+    idx = np.arange(w.size)
+    below = np.maximum.accumulate(np.where(w <= level, idx, -1))
+    return below[at]
+
+
+def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteresis=None, edge: str = "auto",
+                    mark_angle_deg: float = 0.0, delay_s: float = 0.0, tolerance: float = 0.35,
+                    fill_missing: bool = True, refine: bool = True, polarity: str | None = None,
+                    source: str = "") -> Keyphasor:
+    """Times of rotor angle zero from a keyphasor channel (see the module doc for the method).
+
+    Parameters
+    ----------
+    kp : array_like
+        The keyphasor channel (V, or any unit: levels are in the same unit).
+    fs_hz : float
+        Sample rate, Hz.
+    t0_s : float
+        Time of the first sample, s.
+    level, hysteresis : float, optional
+        Trigger level and hysteresis (channel units). Default: mid-height between the two states
+        and 40 % of their difference. With ``level`` given, timing uses that level instead of the
+        local mid-height.
+    edge : {"auto", "rising", "falling"}
+        The edge to time. "auto": the leading edge, from the resting state into the pulse.
+    mark_angle_deg : float
+        Rotor angle (degrees, in the direction of rotation) at which the keyphasor event occurs.
+    delay_s : float
+        How much the keyphasor channel lags the probe channels (s).
+    tolerance : float
+        Allowed relative deviation of a pulse interval from the running median period.
+    fill_missing : bool
+        Fill gaps of whole periods by interpolation (reported either way).
+    refine : bool
+        Use the equivalent-time edge refinement where the pulse phases allow it.
+    polarity : {"auto", "positive", "negative"}, optional
+        Older name of ``edge`` ("positive" = "rising", "negative" = "falling").
+    source : str
+        Name of the file and channel, for messages.
+
+    Returns
+    -------
+    Keyphasor
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from rotorid import signals
+    >>> from rotorid.rawsim import PulseShape, event_times, pulse_train
+    >>> fs = 10000.0
+    >>> t = np.arange(20000) / fs
+    >>> true = event_times(3000.7, 2.0)
+    >>> kp = signals.keyphasor_times(pulse_train(t, true, fs, PulseShape("trapezoid", 1.0)), fs)
+    >>> bool(np.max(np.abs(kp.times - true[:kp.times.size])) < 0.01 / fs)
+    True
+    """
+    where = f" in {source}" if source else ""
+    x = np.asarray(kp, dtype=float)
+    if x.ndim != 1 or x.size < 16:
+        raise KeyphasorError(f"the keyphasor channel{where} must be a 1-D signal of at least 16 samples, got shape "
+                             f"{x.shape}")
+    if not np.all(np.isfinite(x)):
+        raise KeyphasorError(f"the keyphasor channel{where} contains NaN or inf")
+    if not (np.isfinite(fs_hz) and fs_hz > 0):
+        raise KeyphasorError(f"fs_hz must be > 0, got {fs_hz!r}")
+    if not np.isfinite(t0_s):
+        raise KeyphasorError(f"t0_s must be finite, got {t0_s!r}")
+    if polarity is not None:
+        edge = {"auto": "auto", "positive": "rising", "negative": "falling"}.get(polarity, polarity)
+    if edge not in ("auto", "rising", "falling"):
+        raise KeyphasorError(f"edge must be 'auto', 'rising' or 'falling', got {edge!r}")
+    if not (0 < tolerance < 1):
+        raise KeyphasorError(f"tolerance must be between 0 and 1, got {tolerance!r}")
+    for nm, val in (("mark_angle_deg", mark_angle_deg), ("delay_s", delay_s)):
+        if not np.isfinite(val):
+            raise KeyphasorError(f"{nm} must be finite, got {val!r}")
+    for nm, val in (("level", level), ("hysteresis", hysteresis)):
+        if val is not None and not np.isfinite(val):
+            raise KeyphasorError(f"{nm} must be a finite number or None, got {val!r}")
+    if hysteresis is not None and hysteresis < 0:
+        raise KeyphasorError(f"hysteresis must be >= 0, got {hysteresis!r}")
+
+    rest, pulse = state_levels(x, where=where)
+    duty = float(np.mean(np.abs(x - pulse) < np.abs(x - rest)))
+    ambiguous = ""
+    if edge == "auto":
+        if duty > 0.4:
+            # a square-ish wave: which state is "resting" is a matter of noise; time the rising edge
+            ambiguous = (f"the pulses fill {100 * duty:.0f} % of the record, so which edge leads is ambiguous: the "
+                         "rising edge is timed (pass edge='rising' or 'falling' to choose)")
+            rest, pulse = min(rest, pulse), max(rest, pulse)
+        edge = "rising" if pulse > rest else "falling"
+    sgn = 1.0 if edge == "rising" else -1.0
+    w = sgn * x
+    lo, hi = sorted((sgn * rest, sgn * pulse))  # states in the oriented signal: the timed edge rises lo -> hi
+    swing = hi - lo
+    lev = 0.5 * (lo + hi) if level is None else sgn * float(level)
+    hys = 0.4 * swing if hysteresis is None else float(hysteresis)
+    if not (lo < lev < hi):
+        raise KeyphasorError(f"level {level!r} is not between the channel's states {rest:.4g} and {pulse:.4g}{where}")
+    rises = _schmitt_rises(w, lev - hys / 2, lev + hys / 2)
+    if rises.size < 2:
+        n_cross = int(np.count_nonzero((w[1:] > lev) & (w[:-1] <= lev)))
+        raise KeyphasorError(f"found {rises.size} keyphasor pulse(s){where}, at least two are needed: pulses fill "
+                             f"{100 * duty:.2g} % of samples; states {rest:.4g} and {pulse:.4g}; {n_cross} crossing(s) "
+                             f"of {sgn * lev:.4g} with hysteresis {hys:.3g}")
+    # rough times: the mid-level crossing, linear between the straddling samples, local base level
+    k = np.clip(_last_below(w, lev, rises), 0, w.size - 2)
+    rise = _rise_samples(w, rises, lo, swing)
+    # the edge window: the whole edge, but clear of the pulse's other edge and of the previous pulse
+    per_samples = np.median(np.diff(rises)) if rises.size > 1 else w.size
+    width = duty * per_samples if duty <= 0.4 else 0.5 * per_samples
+    full = max(np.ceil(1.5 * rise) + 2, 3)
+    half = int(min(full, 256, max(0.4 * (per_samples - width) - 8, 3)))      # before the edge
+    post = int(min(full, 256, max(0.4 * width, 2)))                          # after it
+    base = _local_base(w, k, half, lev, lo) if level is None else np.full(k.size, lo)
+    mid = base + 0.5 * swing if level is None else np.full(k.size, lev)
+    frac = _linear_crossing(w, k, mid)
+    t_samples = k + frac
+    refined, note = False, ""
+    if refine and level is None:
+        t_samples, refined, note = _refine(w, t_samples, base, swing, half, post, rise <= 1.5)
+    note = "; ".join(x for x in (ambiguous, note) if x)
+    t = t0_s + t_samples / fs_hz
+    t, extra, missing = _plausible(t, tolerance, fill_missing, where)
+    times = _to_angle_zero(t, mark_angle_deg, delay_s)
+    if extra.size:
+        warnings.warn(f"keyphasor{where}: dropped {extra.size} extra pulse(s) at t = {np.round(extra[:5], 6)} s")
+    if missing:
+        what = "filled by interpolation" if fill_missing else "left as gaps"
+        warnings.warn(f"keyphasor{where}: {sum(c for _, c in missing)} missing pulse(s) after t = "
+                      f"{[round(m[0], 6) for m in missing[:5]]} s ({what})")
+    return Keyphasor(times, extra, missing, sgn * lev, hys, (rest, pulse), edge, _jitter(t), rise, refined, note,
+                     float(mark_angle_deg))
+
+
+def _rise_samples(w, rises, lo, swing):
+    """Median 10-90 % duration of the timed edges, in samples (a scale for the edge window)."""
+    k10 = _last_below(w, lo + 0.1 * swing, rises)
+    idx = np.arange(w.size)
+    above = w >= lo + 0.9 * swing
+    nxt = np.minimum.accumulate(np.where(above, idx, w.size)[::-1])[::-1]
+    k90 = nxt[rises]
+    ok = (k10 >= 0) & (k90 < w.size)
+    if not ok.any():
+        return 1.0
+    return float(max(np.median(k90[ok] - k10[ok] - 1), 0.5))
+
+
+def _local_base(w, k, half, lev, lo):
+    """Resting level just before each edge: median of up to 8 samples before the edge window that
+    lie below the trigger level (the global resting state where there are too few)."""
+    out = np.full(k.size, lo)
+    for i, ki in enumerate(k):
+        a = max(ki - half - 8, 0)
+        seg = w[a:max(ki - half, 0)]
+        seg = seg[seg < lev]
+        if seg.size >= 3:
+            out[i] = np.median(seg)
+    return out
+
+
+def _linear_crossing(w, k, mid):
+    x0, x1 = w[k], w[k + 1]
+    d = np.where(x1 != x0, x1 - x0, 1.0)
+    return np.clip((mid - x0) / d, 0.0, 1.0)
+
+
+def _refine(w, t, base, swing, half, post, steep):
+    """Equivalent-time correction of the edge times ``t`` (samples). Returns (t, refined?, note).
+
+    Within each steady stretch the event times follow a smooth curve t_fit(i) (a quadratic in
+    the revolution index). The linear-interpolation error of a pulse depends on where its edge
+    falls between two samples; over pulses at diverse positions its mean is a bias b0 that a
+    fit absorbs: t_fit = t_true + b0. Overlaying every edge at p = n - t_fit(i) therefore
+    samples the true edge shape densely, shifted by b0; its mid-height crossing p* = -b0 is the
+    correction, applied to every pulse of the stretch (the pulse-to-pulse variation, genuine
+    speed fluctuation included, is kept)."""
+    n = t.size
+    if n < 16:
+        return t, False, ""
+    out = t.copy()
+    per = np.diff(t)
+    starts = [0]
+    for i in range(1, n - 1):
+        ref = per[starts[-1]]
+        if i - starts[-1] >= TEMPLATE_CHUNK or abs(per[i] - ref) > 0.01 * ref:
+            starts.append(i + 1 if abs(per[i] - ref) > 0.01 * ref else i)
+    starts.append(n)
+    offs = np.arange(-half, post + 1)
+    notes, done = [], False
+    for a, b in zip(starts[:-1], starts[1:]):
+        if b - a < 16:
+            continue
+        tc = t[a:b]
+        i = np.arange(tc.size, dtype=float) - 0.5 * (tc.size - 1)
+        # the smooth time base: a quadratic in the revolution index, fitted to the times less their
+        # phase-dependent interpolation error (estimated in turn from the fit; three rounds converge)
+        e_phase = np.zeros(tc.size)
+        for _ in range(3):
+            fit = np.polyval(np.polyfit(i, tc - e_phase, 2), i)
+            e_phase = _bin_mean(np.mod(fit, 1.0), tc - fit, TEMPLATE_BINS)
+        occupied = np.unique(np.floor(np.mod(fit, 1.0) * TEMPLATE_BINS).astype(int)).size
+        if occupied < TEMPLATE_BINS // 2:
+            notes.append(occupied)
+            continue
+        kc = np.floor(fit).astype(int)
+        idx = kc[:, None] + offs[None, :]
+        valid = (idx >= 0) & (idx < w.size)
+        y = (w[np.clip(idx, 0, w.size - 1)] - base[a:b, None]) / swing
+        gx, gy = _template(idx - fit[:, None], y, valid, max(half, post))
+        if gx is None:
+            continue
+        # the constant part: the template's mid-height crossing; the part that depends on where the edge
+        # falls between samples (e_phase): the mean residual of the pulses at that position
+        if steep:
+            pv = (idx - fit[:, None])[valid]
+            near = np.abs(pv) <= 2.0
+            anchor = _boundary(pv[near], y[valid][near], 0.5)
+        else:
+            anchor = _crossing_of(gx, gy, 0.5)
+        out[a:b] = tc - e_phase + anchor
+        done = True
+    note = ""
+    if notes:
+        note = (f"in {len(notes)} steady stretch(es) the pulses fall at only {min(notes)} of {TEMPLATE_BINS} positions "
+                "within a sample interval (a speed commensurate with the sample rate): their edge times are "
+                "interpolated, and any interpolation error repeats every revolution instead of averaging out")
+    return out, done, note
+
+
+def _bin_mean(phase, r, nbins):
+    """Per pulse: the mean of r over the pulses in its phase bin (piecewise constant, so the mean of
+    r minus it over all pulses is exactly zero: the correction cannot shift the mean time)."""
+    b = np.minimum((phase * nbins).astype(int), nbins - 1)
+    cnt = np.bincount(b, minlength=nbins)
+    mean = np.bincount(b, weights=r, minlength=nbins) / np.maximum(cnt, 1)
+    return mean[b]
+
+
+def _boundary(p, y, level):
+    """The position that best separates samples below ``level`` (before) from those above (after):
+    the centre of the interval of positions with the fewest misclassified samples. Exact for steep
+    edges, where a binned template cannot resolve the step."""
+    order = np.argsort(p)
+    ps, above = p[order], y[order] >= level
+    # misclassified if the boundary is placed after sample j: above ones up to j + below ones after j
+    cum_above = np.cumsum(above)
+    below_after = np.count_nonzero(~above) - np.cumsum(~above)
+    mis = np.r_[np.count_nonzero(~above), cum_above + below_after]
+    best = np.flatnonzero(mis == mis.min())
+    cuts = np.r_[ps[0] - 1.0, 0.5 * (ps[:-1] + ps[1:]), ps[-1] + 1.0]
+    return float(np.median(cuts[best]))
+
+
+def _template(p, y, valid, half):
+    """Edge shape from overlaid samples: mean of y in bins of 1/TEMPLATE_BINS sample along p."""
+    pv, yv = p[valid], y[valid]
+    edges = np.arange(-half, half + 1e-9, 1.0 / TEMPLATE_BINS)
+    b = np.digitize(pv, edges) - 1
+    ok = (b >= 0) & (b < edges.size - 1)
+    cnt = np.bincount(b[ok], minlength=edges.size - 1)
+    s = np.bincount(b[ok], weights=yv[ok], minlength=edges.size - 1)
+    filled = cnt > 0
+    if filled.sum() < 4:
+        return None, None
+    ps = np.bincount(b[ok], weights=pv[ok], minlength=edges.size - 1)
+    return ps[filled] / cnt[filled], s[filled] / cnt[filled]
+
+
+def _crossing_of(gx, gy, level):
+    """Position where the template crosses ``level`` going up, nearest to 0."""
+    above = gy >= level
+    cand = np.flatnonzero(above[1:] & ~above[:-1])
+    if cand.size == 0:
+        return 0.0
+    i = cand[np.argmin(np.abs(gx[cand]))]
+    x0, x1, y0, y1 = gx[i], gx[i + 1], gy[i], gy[i + 1]
+    return float(x0 + (level - y0) * (x1 - x0) / (y1 - y0)) if y1 != y0 else float(x0)
+
+
+def _running_median(d, w):
+    if d.size <= w:
+        return np.full_like(d, np.median(d))
+    pad = w // 2
+    dp = np.pad(d, pad, mode="edge")
+    win = np.lib.stride_tricks.sliding_window_view(dp, w)
+    return np.median(win, axis=1)
+
+
+def _plausible(t, tolerance, fill_missing, where):
+    """Drop extra pulses, fill missing ones; an interval that is neither is a speed jump (error)."""
+    extra = []
+    for _ in range(3):
+        d = np.diff(t)
+        med = _running_median(d, 9)
+        short = d < (1 - tolerance) * med
+        if not short.any():
+            break
+        j = int(np.flatnonzero(short)[0]) + 1
+        extra.append(t[j])
+        t = np.delete(t, j)
+        if t.size < 2:
+            raise KeyphasorError(f"keyphasor{where}: fewer than two valid pulses after removing extra pulses")
+    d = np.diff(t)
+    med = _running_median(d, 9)
+    short = np.flatnonzero(d < (1 - tolerance) * med) + 1
+    if short.size:
+        extra.extend(t[short].tolist())
+        t = np.delete(t, short)
+    d = np.diff(t)
+    med = _running_median(d, 9)
+    missing = []
+    long_ = np.flatnonzero(d > (1 + tolerance) * med)
+    if long_.size:
+        ratio = d[long_] / med[long_]
+        off = np.abs(ratio - np.round(ratio))
+        bad = off > tolerance / 2
+        if bad.any():
+            j = long_[np.argmax(bad)]
+            raise KeyphasorError(
+                f"keyphasor{where}: the interval after t = {t[j]:.6g} s is {d[j] / med[j]:.2f} times the running "
+                f"median period ({60 / med[j]:.1f} rpm -> {60 / d[j]:.1f} rpm): neither a missing pulse nor a speed "
+                f"change within the tolerance of {tolerance:g}. If the record is made of separate blocks, load it "
+                "as a SegmentedRecording; for fast speed changes raise tolerance")
+        pieces = [t[: long_[0] + 1]]
+        for a, j in enumerate(long_):
+            cnt = int(round(d[j] / med[j])) - 1
+            missing.append((float(t[j]), max(cnt, 1)))
+            if fill_missing and cnt >= 1:
+                pieces.append(t[j] + d[j] * np.arange(1, cnt + 1) / (cnt + 1))
+            end = long_[a + 1] + 1 if a + 1 < long_.size else t.size
+            pieces.append(t[j + 1:end])
+        t = np.concatenate(pieces)
+    return t, np.asarray(extra), missing

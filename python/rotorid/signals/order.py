@@ -1,0 +1,255 @@
+"""Order tracking: synchronous (1X, nX) vectors from the keyphasor-referenced revolutions of a
+recording; steady-speed segments, coast-down blocks and slow-roll run-out."""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .. import _core
+from ..errors import RotoridError
+from ..recording import DISPLACEMENTS, Recording
+from .keyphasor import Keyphasor, keyphasor_times
+
+
+
+@dataclass
+class SyncTrack:
+    """Synchronous vectors of a recording, one per block of whole revolutions.
+
+    ``vectors``: complex (n_blocks, n_orders, 4) for [x1, x2, y1, y2] (m, 0-pk);
+    ``speed_rpm`` (n_blocks,) mean speed of the block; ``scatter``: complex rms deviation of the
+    per-revolution 1X vectors about the block mean (m), a measure of noise and speed drift;
+    ``orders``: the orders tracked (1 = 1X).
+    """
+
+    speed_rpm: np.ndarray
+    vectors: np.ndarray
+    orders: tuple
+    n_revs: np.ndarray
+    scatter: np.ndarray
+    t_mid: np.ndarray
+
+    def order(self, n: int = 1) -> np.ndarray:
+        if n not in self.orders:
+            raise RotoridError(f"order {n} was not tracked (orders {self.orders})")
+        return self.vectors[:, self.orders.index(n), :]
+
+    def minus(self, other: "SyncTrack | np.ndarray") -> "SyncTrack":
+        """Subtract vectors: another track interpolated to these speeds (baseline), or one fixed
+        complex array (n_orders, 4) (slow-roll run-out)."""
+        if isinstance(other, SyncTrack):
+            if tuple(other.orders) != tuple(self.orders):
+                raise RotoridError("tracks with different orders cannot be subtracted")
+            sub = other.at_speeds(self.speed_rpm)
+        else:
+            sub = np.broadcast_to(np.asarray(other, complex), self.vectors.shape[1:])[None]
+        return SyncTrack(self.speed_rpm, self.vectors - sub, self.orders, self.n_revs, self.scatter, self.t_mid)
+
+    def at_speeds(self, speed_rpm) -> np.ndarray:
+        """Vectors linearly interpolated (real and imaginary parts) to the given speeds; speeds
+        outside the tracked range raise."""
+        s = np.asarray(speed_rpm, float)
+        order = np.argsort(self.speed_rpm)
+        sp = self.speed_rpm[order]
+        lo, hi = sp[0], sp[-1]
+        tol = 1e-3 * max(hi, 1.0)
+        if np.any(s < lo - tol) or np.any(s > hi + tol):
+            raise RotoridError(f"speeds {s.min():.0f}-{s.max():.0f} rpm outside the tracked range {lo:.0f}-{hi:.0f} rpm")
+        v = self.vectors[order]
+        out = np.empty((s.size,) + v.shape[1:], complex)
+        for i in range(v.shape[1]):
+            for j in range(v.shape[2]):
+                out[:, i, j] = np.interp(s, sp, v[:, i, j].real) + 1j * np.interp(s, sp, v[:, i, j].imag)
+        return out
+
+
+def steady_segments(kp: Keyphasor, *, tolerance: float = 0.005, min_revs: int = 8, settle_revs: int = 2):
+    """Split the revolutions into runs of steady speed (each revolution within ``tolerance`` of the
+    segment's median), skipping ``settle_revs`` revolutions after each change. Returns a list of
+    (first_rev, last_rev_exclusive)."""
+    rpm = kp.speed_rpm
+    segs = []
+    start = 0
+    ref = rpm[0] if rpm.size else 0.0
+    for i in range(1, rpm.size + 1):
+        if i == rpm.size or abs(rpm[i] - ref) > tolerance * ref:
+            a = start + settle_revs if start > 0 else start
+            if i - a >= min_revs:
+                segs.append((a, i))
+            start = i
+            if i < rpm.size:
+                ref = rpm[i]
+        elif i - start < 16:
+            # the segment's reference speed: median of its first 16 revolutions (O(1) per step)
+            ref = float(np.median(rpm[start:i + 1]))
+    return segs
+
+
+#: largest resampling grid per revolution a user may ask for (memory: 4 x 1024 revolutions x P doubles)
+MAX_POINTS_PER_REV = 1 << 16
+
+
+def detect_keyphasor(rec: Recording, keyphasor=None) -> Keyphasor:
+    """Keyphasor of a recording with the given options (a dict of ``keyphasor_times`` keywords);
+    the keyphasor channel's delay from the file's channel map (``meta["channel_delays_s"]["kp"]``)
+    is applied unless the options give ``delay_s``."""
+    opts = dict(keyphasor or {})
+    times = opts.pop("times", None)
+    delays = rec.meta.get("channel_delays_s", {}) or {}
+    opts.setdefault("delay_s", float(delays.get("kp", 0.0)))
+    src = f"{rec.source or 'recording'}, channel 'kp'"
+    if times is not None:
+        t = np.asarray(times, dtype=float)
+        t = t[(t >= rec.t0_s) & (t <= rec.t0_s + rec.n_samples / rec.fs_hz)]
+        return Keyphasor.from_times(t, mark_angle_deg=opts.get("mark_angle_deg", 0.0), delay_s=opts["delay_s"],
+                                    source=src)
+    rec.require("kp")
+    try:
+        return keyphasor_times(rec.channels["kp"], rec.fs_hz, t0_s=rec.t0_s, source=src, **opts)
+    except TypeError as exc:
+        raise RotoridError(f"keyphasor options: {exc}") from None
+
+
+def track(rec, *, orders=(1, 2, 3), revs_per_block: int | None = None, steady: bool = True,
+          points_per_rev: int | None = None, kp=None, min_revs: int = 8, settle_revs: int = 2,
+          speed_tolerance: float = 0.005, keyphasor=None) -> SyncTrack:
+    """Synchronous vectors of the four displacement channels of a recording.
+
+    Parameters
+    ----------
+    rec : Recording or SegmentedRecording
+        A segmented recording is tracked block by block (no revolution bridges two blocks).
+    orders : tuple of int
+        Orders to extract (1 = 1X).
+    steady : bool
+        True (dwell recordings): one vector per steady-speed segment, averaged over all its
+        revolutions (``settle_revs`` skipped after each change, at least ``min_revs``, speeds
+        within ``speed_tolerance``). False (coast-downs and run-ups): one vector per block of
+        ``revs_per_block`` revolutions (default 4), each at its own mean speed.
+    points_per_rev : int, optional
+        Resampling grid per revolution; orders up to points_per_rev/2 - 1 are resolved exactly.
+        Default: the power of two at or above the samples per revolution at the lowest speed (at
+        least 64, at most 4096).
+    kp : Keyphasor or array_like, optional
+        Keyphasor already detected, or pulse times (s) given directly.
+    keyphasor : dict, optional
+        Options of :func:`~rotorid.signals.keyphasor_times` (level, hysteresis, edge,
+        mark_angle_deg, delay_s, tolerance, fill_missing), or ``{"times": array}``.
+
+    Displacement channels with a delay in ``rec.meta["channel_delays_s"]`` (from the channel
+    map's ``delay_s``) have their order-n vectors advanced by n Ω delay.
+
+    Examples
+    --------
+    >>> import rotorid
+    >>> from rotorid import rawsim, signals
+    >>> rotor, brg, remnant = rawsim.example_rig()
+    >>> rec = rawsim.imbalance_recording(rotor, brg, speeds_rpm=[3000], added=None, remnant=remnant, dwell_s=1.0)
+    >>> tr = signals.track(rec)
+    >>> tr.vectors.shape   # (segments, orders, 4)
+    (1, 3, 4)
+    """
+    from ..recording import SegmentedRecording
+
+    if isinstance(rec, SegmentedRecording):
+        parts = [track(b, orders=orders, revs_per_block=revs_per_block, steady=steady, points_per_rev=points_per_rev,
+                       kp=None, min_revs=min_revs, settle_revs=settle_revs, speed_tolerance=speed_tolerance,
+                       keyphasor=keyphasor) for b in rec.blocks]
+        return SyncTrack(np.concatenate([p.speed_rpm for p in parts]), np.concatenate([p.vectors for p in parts]),
+                         parts[0].orders, np.concatenate([p.n_revs for p in parts]),
+                         np.concatenate([p.scatter for p in parts]), np.concatenate([p.t_mid for p in parts]))
+    if not isinstance(rec, Recording):
+        raise RotoridError(f"rec must be a Recording or SegmentedRecording, got {type(rec).__name__}")
+    rec.require(*DISPLACEMENTS)
+    try:
+        orders = tuple(int(o) for o in orders)
+    except (TypeError, ValueError):
+        raise RotoridError(f"orders must be whole numbers >= 1, got {orders!r}") from None
+    if not orders or any(o < 1 for o in orders):
+        raise RotoridError(f"orders must be whole numbers >= 1, got {orders!r}")
+    for nm, val, lo in (("min_revs", min_revs, 2), ("settle_revs", settle_revs, 0)):
+        if int(val) != val or val < lo:
+            raise RotoridError(f"{nm} must be a whole number >= {lo}, got {val!r}")
+    if not (0 < speed_tolerance < 0.5):
+        raise RotoridError(f"speed_tolerance must be between 0 and 0.5 (relative), got {speed_tolerance!r}")
+    if kp is None:
+        kp = detect_keyphasor(rec, keyphasor)
+    elif not isinstance(kp, Keyphasor):
+        kp = Keyphasor.from_times(kp, source=rec.source)
+    if points_per_rev is None:
+        spr = rec.fs_hz * np.max(kp.period_s)
+        points_per_rev = int(max(64, 2 ** int(np.ceil(np.log2(max(spr, 2.0))))))
+        points_per_rev = min(points_per_rev, 4096)
+    elif isinstance(points_per_rev, bool) or int(points_per_rev) != points_per_rev or \
+            not (16 <= points_per_rev <= MAX_POINTS_PER_REV):
+        raise RotoridError(f"points_per_rev must be a whole number from 16 to {MAX_POINTS_PER_REV}, got {points_per_rev!r}")
+    points_per_rev = int(points_per_rev)
+    if max(orders) >= points_per_rev // 2:
+        raise RotoridError(f"orders must be below points_per_rev/2 = {points_per_rev // 2} "
+                           f"(got order {max(orders)} with points_per_rev = {points_per_rev})")
+    # revolutions entirely inside the record (the cubic stencil needs one sample either side)
+    t_first, t_last = rec.t0_s + 1 / rec.fs_hz, rec.t0_s + (rec.n_samples - 2) / rec.fs_hz
+    ok = np.nonzero((kp.times >= t_first) & (kp.times <= t_last))[0]
+    if ok.size < 2:
+        raise RotoridError(f"recording {rec.source!r} is shorter than one revolution between keyphasor pulses")
+    k0, k1 = int(ok[0]), int(ok[-1])
+    sps = rec.fs_hz / (kp.speed_rpm[k0:k1].max() / 60.0)
+    if sps < 8:
+        raise RotoridError(f"only {sps:.1f} samples per revolution at the highest speed: sample faster "
+                           "(at least 8, better 30+ samples per revolution)")
+    x = np.ascontiguousarray(rec.displacements())
+    kpt = np.ascontiguousarray(kp.times)
+    # per-revolution order vectors (revs, orders, 4), resampled and transformed 1024 revolutions at
+    # a time so long records do not need (4, revs, P) doubles at once
+    parts = []
+    for a in range(k0, k1, 1024):
+        b = min(a + 1024, k1)
+        res = _core.angle_resample(x, rec.fs_hz, rec.t0_s, kpt, a, b, int(points_per_rev))
+        spec = np.fft.rfft(res, axis=2)[:, :, list(orders)] * (2.0 / points_per_rev)
+        parts.append(spec.transpose(1, 2, 0))
+    per_rev = np.concatenate(parts)
+    rpm = kp.speed_rpm[k0:k1]
+    tmid = kp.mid_times[k0:k1]
+    delays = rec.meta.get("channel_delays_s", {}) or {}
+    d = np.array([float(delays.get(c, 0.0)) for c in DISPLACEMENTS])
+    if np.any(d):
+        # x measured(t) = x(t - d): order n lags by n Omega d
+        om = (rpm * np.pi / 30.0)[:, None, None]
+        per_rev = per_rev * np.exp(1j * np.asarray(orders)[None, :, None] * om * d[None, None, :])
+    if steady:
+        sub = Keyphasor(kp.times[k0:k1 + 1])
+        blocks = steady_segments(sub, tolerance=speed_tolerance, min_revs=int(min_revs), settle_revs=int(settle_revs))
+        if not blocks:
+            raise RotoridError(f"no steady-speed segment of at least {min_revs} revolutions in {rec.source!r} "
+                               "(use steady=False for coast-downs)")
+    else:
+        rb = 4 if revs_per_block is None else revs_per_block
+        if isinstance(rb, bool) or int(rb) != rb or rb < 1:
+            raise RotoridError(f"revs_per_block must be a whole number >= 1, got {rb!r}")
+        rb = int(rb)
+        nb = rpm.size // rb
+        if nb < 1:
+            raise RotoridError(f"recording has {rpm.size} revolutions, fewer than revs_per_block = {rb}")
+        blocks = [(i * rb, (i + 1) * rb) for i in range(nb)]
+    vec, sp, nrev, scat, tm = [], [], [], [], []
+    for a, b in blocks:
+        v = per_rev[a:b]
+        vec.append(v.mean(axis=0))
+        sp.append(rpm[a:b].mean())
+        nrev.append(b - a)
+        scat.append(np.sqrt(np.mean(np.abs(v[:, 0, :] - v[:, 0, :].mean(axis=0)) ** 2, axis=0)))
+        tm.append(tmid[a:b].mean())
+    return SyncTrack(np.array(sp), np.array(vec), orders, np.array(nrev), np.array(scat), np.array(tm))
+
+
+def slow_roll_vector(rec: Recording, *, orders=(1, 2, 3), **kw) -> np.ndarray:
+    """Run-out vectors (n_orders, 4) from a slow-roll recording: the synchronous vectors at a speed
+    low enough for the dynamic response to be negligible (mechanical and electrical run-out)."""
+    tr = track(rec, orders=orders, **kw)
+    if tr.speed_rpm.size > 1:
+        warnings.warn(f"slow-roll recording has {tr.speed_rpm.size} steady segments; using the slowest "
+                      f"({tr.speed_rpm.min():.0f} rpm)")
+    return tr.vectors[int(np.argmin(tr.speed_rpm))]
