@@ -334,6 +334,13 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
     half = int(min(full, 256, max(0.4 * (per_samples - width) - 8, 3)))      # before the edge
     post = int(min(full, 256, max(0.4 * width, 2)))                          # after it
     base = _local_base(w, k, half, lev, lo) if level is None else np.full(k.size, lo)
+    if level is None:
+        # the swing from the pulses themselves (top after the edge less the base before it): with a
+        # drifting offset the histogram modes sit at the drift's extremes and would misjudge it
+        top = _local_top(w, k, int(full), int(max(0.8 * width - full, 0)), lev)
+        ok = np.isfinite(top)
+        if ok.sum() >= 3:
+            swing = float(np.median(top[ok] - base[ok]))
     mid = base + 0.5 * swing if level is None else np.full(k.size, lev)
     frac = _linear_crossing(w, k, mid)
     t_samples = k + frac
@@ -355,16 +362,17 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
 
 
 def _rise_samples(w, rises, lo, swing):
-    """Median 10-90 % duration of the timed edges, in samples (a scale for the edge window)."""
-    k10 = _last_below(w, lo + 0.1 * swing, rises)
+    """Edge duration in samples, a scale for the edge window: twice the median 25-75 % duration (about
+    the 10-90 % duration for common edges; the 25/75 % levels are robust to an offset drift)."""
+    k10 = _last_below(w, lo + 0.25 * swing, rises)
     idx = np.arange(w.size)
-    above = w >= lo + 0.9 * swing
+    above = w >= lo + 0.75 * swing
     nxt = np.minimum.accumulate(np.where(above, idx, w.size)[::-1])[::-1]
     k90 = nxt[rises]
     ok = (k10 >= 0) & (k90 < w.size)
     if not ok.any():
         return 1.0
-    return float(max(np.median(k90[ok] - k10[ok] - 1), 0.5))
+    return float(max(2.0 * np.median(k90[ok] - k10[ok] - 1), 0.5))
 
 
 def _local_base(w, k, half, lev, lo):
@@ -375,6 +383,20 @@ def _local_base(w, k, half, lev, lo):
         a = max(ki - half - 8, 0)
         seg = w[a:max(ki - half, 0)]
         seg = seg[seg < lev]
+        if seg.size >= 3:
+            out[i] = np.median(seg)
+    return out
+
+
+def _local_top(w, k, start, length, lev):
+    """Pulse level just after each edge: median of the samples from ``start`` to ``start + length``
+    after the crossing that lie above the trigger level (NaN where fewer than 3)."""
+    out = np.full(k.size, np.nan)
+    if length < 3:
+        return out
+    for i, ki in enumerate(k):
+        seg = w[ki + start: ki + start + min(length, 16)]
+        seg = seg[seg > lev]
         if seg.size >= 3:
             out[i] = np.median(seg)
     return out
@@ -529,6 +551,19 @@ def _plausible(t, tolerance, fill_missing, where):
         extra.extend(t[short].tolist())
         t = np.delete(t, short)
     d = np.diff(t)
+    if d.size >= 9:
+        # a speed that jumps: the typical period before and after an interval differ beyond the tolerance
+        win = np.lib.stride_tricks.sliding_window_view(d, 4)
+        med4 = np.median(win, axis=1)           # med4[j]: median of d[j:j+4]
+        before, after = med4[:-5], med4[5:]     # around interval j + 4
+        jump = np.abs(after / before - 1.0) > tolerance
+        if jump.any():
+            j = int(np.argmax(jump)) + 4
+            raise KeyphasorError(
+                f"keyphasor{where}: the speed jumps at t = {t[j]:.6g} s from {60 / before[j - 4]:.1f} to "
+                f"{60 / after[j - 4]:.1f} rpm within one revolution: neither a missing pulse nor a speed change "
+                f"within the tolerance of {tolerance:g}. If the record is made of separate blocks, load it as a "
+                "SegmentedRecording; for fast speed changes raise tolerance")
     med = _running_median(d, 9)
     missing = []
     long_ = np.flatnonzero(d > (1 + tolerance) * med)
