@@ -16,12 +16,14 @@ from . import signals
 from .errors import RotoridError
 from .identify import Identification, identify_impact, identify_synchronous
 from .model import Imbalance, RigidRotor
-from .recording import DISPLACEMENTS, Recording
+from .recording import DISPLACEMENTS, Recording, SegmentedRecording
 from .simulate import ImpactResponse, SyncResponse
 
 
-def _imbalance_of(rec: Recording, override=None) -> Imbalance:
-    spec = override if override is not None else rec.meta.get("imbalance")
+def _imbalance_of(rec, override=None) -> Imbalance:
+    if isinstance(override, Imbalance):
+        return override
+    spec = override if override is not None else (getattr(rec, "meta", None) or {}).get("imbalance")
     if spec is None:
         raise RotoridError(f"recording {rec.source!r} has no added imbalance: give it in the config "
                            "(mass_g/mass_kg and angle_deg) or in the file's metadata")
@@ -40,51 +42,107 @@ class ImbalanceChainResult:
     notes: list = field(default_factory=list)
 
 
-def imbalance_chain(rotor: RigidRotor, runs, *, baseline: Recording | None = None, slow_roll: Recording | None = None,
-                    speeds_rpm=None, steady: bool = True, imbalances=None, orders=(1, 2, 3), method: str = "forces",
-                    **ident_kw) -> ImbalanceChainResult:
-    """Imbalance runs (Recordings) -> 1X vectors -> slow-roll and baseline compensation -> identification.
+def _track_of(run, label, *, orders, steady, track_kw, keyphasor):
+    """A run as a SyncTrack: tracked from a (segmented) recording, or a SyncTrack already (a DAQ
+    1X table, see rotorid.tables)."""
+    if isinstance(run, signals.SyncTrack):
+        return run
+    if isinstance(run, (Recording, SegmentedRecording)):
+        return signals.track(run, orders=orders, steady=steady, keyphasor=keyphasor, **track_kw)
+    raise RotoridError(f"{label} must be a Recording, SegmentedRecording or SyncTrack (1X table), got "
+                       f"{type(run).__name__}")
 
-    Baseline subtraction (response of the run minus the baseline run without added mass, at the same
-    speeds) isolates the response to the added imbalance and removes remnant imbalance and 1X
-    run-out together; slow-roll subtraction removes the run-out alone (use it when there is no
-    baseline run). ``speeds_rpm``: common speed grid (default: the first run's steady speeds, or
-    for coast-downs every 50 rpm over the range all runs share).
+
+def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, speeds_rpm=None, steady: bool = True,
+                    imbalances=None, orders=(1, 2, 3), method: str = "forces", keyphasor=None,
+                    speed_match_rpm: float | None = None, slow_roll_max_rpm: float | None = None,
+                    points_per_rev=None, min_revs: int = 8, settle_revs: int = 2, speed_tolerance: float = 0.005,
+                    revs_per_block: int | None = None, **ident_kw) -> ImbalanceChainResult:
+    """Imbalance runs -> 1X vectors -> slow-roll and baseline compensation -> identification.
+
+    Parameters
+    ----------
+    rotor : RigidRotor
+    runs : list
+        Recordings, SegmentedRecordings (one block per speed step) or SyncTracks (DAQ 1X tables
+        from :func:`rotorid.tables.load_1x_table`), one per imbalance run.
+    baseline, slow_roll : same kinds, optional
+        Baseline subtraction (run minus the baseline run without added mass, at the same speeds)
+        isolates the response to the added imbalance and removes remnant imbalance and 1X run-out
+        together; slow-roll subtraction removes the run-out alone (use it when there is no
+        baseline run). A slow-roll table gives its slowest row (or the mean of the rows up to
+        ``slow_roll_max_rpm``).
+    speeds_rpm : array_like, optional
+        Common speed grid. Default: the first run's speeds (steady dwells or table rows) inside
+        the range all runs share; for coast-downs every 50 rpm over that range.
+    speed_match_rpm : float, optional
+        How far (rpm) a run's measured speed may be from a grid speed; farther grid speeds are
+        dropped with a warning. Default: 2 rpm for 1X tables; for waveform tracks the runs are
+        interpolated over their whole range (dwell speeds are set by the drive, coast-downs are
+        continuous).
+    keyphasor : dict, optional
+        Keyphasor options for every recording (see :func:`rotorid.signals.keyphasor_times`).
+    points_per_rev, min_revs, settle_revs, speed_tolerance, revs_per_block
+        Order-tracking options (see :func:`rotorid.signals.track`).
+    **ident_kw
+        Passed to :func:`rotorid.identify_synchronous` (identical, cond_max, min_rel_amplitude).
     """
     runs = list(runs)
     if len(runs) == 0:
         raise RotoridError("no imbalance runs given")
     notes = []
+    track_kw = dict(points_per_rev=points_per_rev, min_revs=min_revs, settle_revs=settle_revs,
+                    speed_tolerance=speed_tolerance, revs_per_block=revs_per_block)
+    kw = dict(orders=orders, steady=steady, track_kw=track_kw, keyphasor=keyphasor)
     sr = None
     if slow_roll is not None:
-        sr = signals.slow_roll_vector(slow_roll, orders=orders)
+        if isinstance(slow_roll, signals.SyncTrack):
+            from .tables import slow_roll_vector as table_slow_roll
+
+            sr = table_slow_roll(slow_roll, max_rpm=slow_roll_max_rpm)
+        else:
+            sr = signals.slow_roll_vector(slow_roll, orders=orders, keyphasor=keyphasor, **track_kw)
         notes.append(f"slow-roll run-out 1X: {np.round(np.abs(sr[0]) * 1e6, 2)} µm")
-    tracks = [signals.track(r, orders=orders, steady=steady) for r in runs]
-    comp = [t.minus(sr) if sr is not None else t for t in tracks]
+    tracks = [_track_of(r, f"run {i}", **kw) for i, r in enumerate(runs)]
+    orders_of = tracks[0].orders
+    if any(t.orders != orders_of for t in tracks):
+        raise RotoridError("all runs must carry the same orders (waveforms and 1X tables cannot be mixed)")
+    comp = [t.minus(sr[: len(t.orders)]) if sr is not None else t for t in tracks]
     if baseline is not None:
-        bt = signals.track(baseline, orders=orders, steady=steady)
-        bt = bt.minus(sr) if sr is not None else bt
+        bt = _track_of(baseline, "baseline", **kw)
+        bt = bt.minus(sr[: len(bt.orders)]) if sr is not None else bt
         comp = [t.minus(bt) for t in comp]
         notes.append("baseline subtracted (remnant imbalance and run-out removed)")
     elif sr is None:
         notes.append("no baseline and no slow-roll: remnant imbalance and run-out stay in the vectors")
         warnings.warn("imbalance chain without baseline or slow-roll compensation: remnant imbalance and run-out "
                       "stay in the 1X vectors")
-    if speeds_rpm is None:
-        if steady:
-            grid = comp[0].speed_rpm
-        else:
-            lo = max(t.speed_rpm.min() for t in comp)
-            hi = min(t.speed_rpm.max() for t in comp)
-            grid = np.arange(np.ceil(lo / 50) * 50, hi + 1e-9, 50.0)
+    is_table = all(isinstance(r, signals.SyncTrack) for r in runs)
+    if speed_match_rpm is not None or is_table:
+        from .tables import match_speeds
+
+        tol = 2.0 if speed_match_rpm is None else float(speed_match_rpm)
+        grid, qs = match_speeds([signals.SyncTrack(t.speed_rpm, t.vectors[:, t.orders.index(1):t.orders.index(1) + 1],
+                                                   (1,), t.n_revs, t.scatter, t.t_mid) for t in comp],
+                                grid=speeds_rpm, tolerance_rpm=tol)
     else:
-        grid = np.asarray(speeds_rpm, float)
+        if speeds_rpm is None:
+            if steady:
+                grid = comp[0].speed_rpm
+            else:
+                lo = max(t.speed_rpm.min() for t in comp)
+                hi = min(t.speed_rpm.max() for t in comp)
+                grid = np.arange(np.ceil(lo / 50) * 50, hi + 1e-9, 50.0)
+        else:
+            grid = np.asarray(speeds_rpm, float)
+        qs = [t.at_speeds(grid)[:, t.orders.index(1), :] for t in comp]
     responses = []
-    for i, (r, t) in enumerate(zip(runs, comp)):
+    for i, (r, q) in enumerate(zip(runs, qs)):
         imb = _imbalance_of(r, None if imbalances is None else imbalances[i])
-        q = t.at_speeds(grid)[:, t.orders.index(1), :]
-        at = r.meta.get("probes_at", "probes")
-        responses.append(SyncResponse(grid, q, imb, at, imb.name or os.path.basename(r.source) or f"run {i}"))
+        meta = getattr(r, "meta", {}) or {}
+        at = meta.get("probes_at", "probes")
+        name = imb.name or getattr(r, "name", None) or os.path.basename(getattr(r, "source", "") or "") or f"run {i}"
+        responses.append(SyncResponse(grid, q, imb, at, name))
     ident = identify_synchronous(rotor, responses, method=method, **ident_kw)
     return ImbalanceChainResult(responses, tracks, ident, notes)
 
@@ -100,7 +158,7 @@ class ImpactChainResult:
 
 def impact_segments(rec: Recording, *, record_s: float = 0.25, pre_s: float = 0.01, revs_before: int = 8,
                     runout: bool = True, kp: signals.Keyphasor | None = None, points_per_rev: int = 256,
-                    exp_window_tau_s: float | None = None):
+                    exp_window_tau_s: float | None = None, detect=None):
     """Force and (run-out filtered) response segments of every clean impact of a recording.
 
     Returns (forces, responses, used_times, dropped): equally long records starting ``pre_s`` before
@@ -112,10 +170,12 @@ def impact_segments(rec: Recording, *, record_s: float = 0.25, pre_s: float = 0.
     fs = rec.fs_hz
     n_seg = int(round(record_s * fs))
     pre = int(round(pre_s * fs))
-    imps = signals.detect_impacts(rec.channels["force"], fs)
+    if not (record_s > 0 and 0 <= pre_s < record_s):
+        raise RotoridError(f"need record_s > 0 and 0 <= pre_s < record_s, got record_s={record_s!r}, pre_s={pre_s!r}")
+    imps = signals.detect_impacts(rec.channels["force"], fs, **(detect or {}))
     if runout:
         rec.require("kp")
-        kp = kp or signals.keyphasor_times(rec.channels["kp"], fs, t0_s=rec.t0_s)
+        kp = kp or signals.order.detect_keyphasor(rec)
     x = rec.displacements()
     forces, responses, used, dropped = [], [], [], []
     for j, imp in enumerate(imps):
@@ -157,18 +217,45 @@ def impact_segments(rec: Recording, *, record_s: float = 0.25, pre_s: float = 0.
 
 def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_s: float = 0.25, runout: bool = True,
                  identical: bool = False, method: str = "forces", tests_meta=None, exp_window_tau_s: float | None = None,
+                 pre_s: float = 0.01, zero_pad_s: float | None = None, revs_before: int = 8, points_per_rev: int = 256,
+                 keyphasor=None, speed_rpm: float | None = None, coherence_min: float = 0.9, threshold_N=None,
+                 min_separation_s: float = 0.2, double_hit_window_s: float = 0.02, overload_N=None,
                  **ident_kw) -> ImpactChainResult:
     """Impact recordings -> impact detection -> run-out filter -> H1 FRFs per test (plane, direction),
     averaged over all clean impacts -> frequency-dependent identification over ``band_hz``.
 
-    ``record_s``: length of each impact record (from 10 ms before the impact). Long enough for the
-    response to decay, no longer: past the decay a record adds only probe noise (0.25 s suits
-    modes above ~15 Hz with 10 % damping; the frequency resolution is 1/record_s).
-    ``exp_window_tau_s``: exponential window on force and response (for records that end before the
-    response has decayed); its decay 1/tau is accounted for in the identification (s = 1/tau + j w)."""
+    Parameters
+    ----------
+    record_s, pre_s : float
+        Length of each impact record and how much of it precedes the impact (s). Long enough for
+        the response to decay, no longer: past the decay a record adds only probe noise (0.25 s
+        suits modes above ~15 Hz with 10 % damping; the frequency resolution is 1/record_s).
+    zero_pad_s : float, optional
+        FFT length (s, >= record_s): zero padding interpolates the FRFs on a finer grid.
+    exp_window_tau_s : float, optional
+        Exponential window on force and response (for records that end before the response has
+        decayed); its decay 1/tau is accounted for in the identification (s = 1/tau + j w).
+    runout, revs_before, points_per_rev
+        The report's time-domain run-out filter and its signature (revolutions, resolution).
+    keyphasor : dict, optional
+        Keyphasor options (see :func:`rotorid.signals.keyphasor_times`).
+    speed_rpm : float, optional
+        Running speed when the recordings carry no keyphasor (needs ``runout=False``); with a
+        keyphasor it is measured.
+    coherence_min : float
+        Coherence below which a warning names the channel and frequency.
+    threshold_N, min_separation_s, double_hit_window_s, overload_N
+        Impact detection (see :func:`rotorid.signals.detect_impacts`).
+    """
     recordings = list(recordings)
     if not recordings:
         raise RotoridError("no impact recordings given")
+    if zero_pad_s is not None and not zero_pad_s >= record_s:
+        raise RotoridError(f"zero_pad_s must be >= record_s = {record_s:g} s, got {zero_pad_s!r}")
+    if not (0.0 <= coherence_min <= 1.0):
+        raise RotoridError(f"coherence_min must be between 0 and 1, got {coherence_min!r}")
+    detect = dict(threshold_N=threshold_N, min_separation_s=min_separation_s, double_hit_window_s=double_hit_window_s,
+                  overload_N=overload_N)
     groups = {}
     dropped = []
     speeds = []
@@ -179,12 +266,15 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
         for key in ("plane", "direction"):
             if key not in meta:
                 raise RotoridError(f"impact recording {rec.source!r} needs '{key}' (config or file metadata)")
-        kp = signals.keyphasor_times(rec.channels["kp"], rec.fs_hz, t0_s=rec.t0_s) if "kp" in rec.channels else None
+        kp = signals.order.detect_keyphasor(rec, keyphasor) if ("kp" in rec.channels or (keyphasor or {}).get("times")
+                                                               is not None) else None
         if kp is not None:
             speeds.append(float(np.median(kp.speed_rpm)))
         elif runout:
             rec.require("kp")
-        f, r, u, d = impact_segments(rec, record_s=record_s, runout=runout, kp=kp, exp_window_tau_s=exp_window_tau_s)
+        f, r, u, d = impact_segments(rec, record_s=record_s, pre_s=pre_s, runout=runout, kp=kp,
+                                     exp_window_tau_s=exp_window_tau_s, revs_before=revs_before,
+                                     points_per_rev=points_per_rev, detect=detect)
         dropped += d
         key = (float(meta["plane"]), str(meta["direction"]), meta.get("probes_at", "probes"), rec.fs_hz)
         g = groups.setdefault(key, ([], [], []))
@@ -196,19 +286,33 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
     if speeds and (max(speeds) - min(speeds)) > 0.01 * np.mean(speeds):
         raise RotoridError(f"impact recordings were taken at different speeds {np.round(speeds)} rpm; "
                            "identify each speed separately")
-    speed = float(np.mean(speeds)) if speeds else float(recordings[0].meta.get("speed_rpm", 0.0))
+    if speeds:
+        speed = float(np.mean(speeds))
+        if speed_rpm is not None and abs(speed - speed_rpm) > 0.01 * speed:
+            raise RotoridError(f"speed_rpm = {speed_rpm:g} disagrees with the keyphasor's {speed:.1f} rpm")
+    elif speed_rpm is not None:
+        speed = float(speed_rpm)
+    elif "speed_rpm" in recordings[0].meta:
+        speed = float(recordings[0].meta["speed_rpm"])
+    else:
+        raise RotoridError("the running speed of the impact tests cannot be known: the recordings have no keyphasor "
+                           "and no speed_rpm in their metadata; give speed_rpm")
     tests, frfs, used = [], [], []
     for (plane, direction, at, fs), (fl, rl, ul) in groups.items():
         if not fl:
             raise RotoridError(f"no clean impact left for the test in {direction} at plane {plane:g} m")
+        if zero_pad_s is not None:
+            npad = int(round(zero_pad_s * fs))
+            fl = [np.pad(f, (0, npad - f.size)) for f in fl]
+            rl = [np.pad(r, ((0, 0), (0, npad - r.shape[1]))) for r in rl]
         frf = signals.frf_h1(fl, rl, fs)
         sel = (frf.freq_hz >= band_hz[0]) & (frf.freq_hz <= band_hz[1])
         coh = frf.coherence[sel]
-        if np.any(coh < 0.9):
+        if np.any(coh < coherence_min):
             i, j = np.unravel_index(np.argmin(coh), coh.shape)
             warnings.warn(f"test {direction} at {plane:g} m: coherence drops to {coh[i, j]:.2f} "
                           f"({DISPLACEMENTS[j]} at {frf.freq_hz[sel][i]:.1f} Hz) in the band; "
-                          f"{int((coh < 0.9).sum())} of {coh.size} points below 0.9")
+                          f"{int((coh < coherence_min).sum())} of {coh.size} points below {coherence_min:g}")
         sigma = 0.0 if exp_window_tau_s is None else 1.0 / exp_window_tau_s
         tests.append(ImpactResponse(speed_rpm=speed, freq_hz=frf.freq_hz[sel], q=frf.h[sel], plane=plane,
                                     direction=direction, at=at, name=f"{direction}@{plane:g}m x{len(fl)}", sigma=sigma))
