@@ -11,7 +11,8 @@
 """
 
 from .keyphasor import SHAPES, PulseShape, event_times, pulse_train
+from .lab import lab_imbalance_recording
 from .recordings import Runout, coastdown_recording, example_rig, imbalance_recording, impact_recording
 
 __all__ = ["SHAPES", "PulseShape", "Runout", "coastdown_recording", "event_times", "example_rig",
-           "imbalance_recording", "impact_recording", "pulse_train"]
+           "imbalance_recording", "impact_recording", "lab_imbalance_recording", "pulse_train"]
