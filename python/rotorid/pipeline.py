@@ -104,6 +104,11 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
             sr = signals.slow_roll_vector(slow_roll, orders=orders, keyphasor=keyphasor, **track_kw)
         notes.append(f"slow-roll run-out 1X: {np.round(np.abs(sr[0]) * 1e6, 2)} µm")
     tracks = [_track_of(r, f"run {i}", **kw) for i, r in enumerate(runs)]
+    for i, t in enumerate(tracks):
+        for k in t.keyphasors:
+            notes.append(f"run {i} keyphasor: {k.summary()}")
+            if k.note:
+                warnings.warn(f"run {i} keyphasor: {k.note}")
     orders_of = tracks[0].orders
     if any(t.orders != orders_of for t in tracks):
         raise RotoridError("all runs must carry the same orders (waveforms and 1X tables cannot be mixed)")
@@ -323,137 +328,141 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
 
 
 # ---------------------------------------------------------------------------------------------
-# configuration files (TOML)
+# configuration files (TOML; the schema is declared once, in rotorid.config)
 
-CONFIG_DOC = """
-A config is a TOML file; paths are relative to it. Example (imbalance):
-
-    [rig]
-    builtin = "nsf"                  # or give [rotor] below
-    # [rotor]
-    # mass_kg = 45.3; it_kgm2 = 0.704; ip_kgm2 = 0.299; l1 = 0.189; l2 = 0.217
-    # d = [0.067, 0.102]; r = [0.114, 0.095]; s = [0.119, 0.146]
-
-    [channels]                       # lab channel name -> rotorid channel and file unit
-    "DE X" = { to = "x1", unit = "mil" }
-    "KPH"  = { to = "kp", unit = "V" }
-    # fs_hz = 10000                  # only for CSV files without a time column
-
-    [imbalance]
-    baseline = "baseline.npz"        # optional, recommended
-    slow_roll = "slow_roll.npz"      # optional
-    steady = true                    # dwell recordings; false for coast-downs
-    # speeds_rpm = [3000, 3500]      # common speed grid (default: the first run's dwells)
-    [[imbalance.runs]]
-    file = "run_S0.npz"
-    mass_g = [5.0, 5.0]              # added imbalance, unless the file's metadata has it
-    angle_deg = [0.0, 0.0]
-
-    [impact]
-    band_hz = [5, 150]
-    record_s = 0.25
-    identical = false
-    # exp_window_tau_s = 0.05        # exponential window (accounted for in the identification)
-    [[impact.tests]]
-    file = "impact_x.npz"
-    plane_m = 0.0
-    direction = "x"
-
-    [output]
-    dir = "out"
-    units = "SI"                     # or "US" (lbf/in, lbf*s/in) for the coefficient tables
-"""
+CONFIG_DOC = "The config format (every key, its type, default and unit) is documented in docs/config.md; " \
+             "examples: docs/examples/*.toml. The schema itself is rotorid.config."
 
 
 def load_config(path):
-    import tomllib
+    """The validated config (see :mod:`rotorid.config`)."""
+    from .config import load_config as _load
 
+    return _load(path)
+
+
+def _read_times(path) -> np.ndarray:
+    """Pulse times (s) from a text/CSV file (one per line, first column; a header line is skipped)
+    or a .npy array."""
+    p = str(path)
     try:
-        with open(path, "rb") as fh:
-            cfg = tomllib.load(fh)
-    except FileNotFoundError:
-        raise RotoridError(f"config file {path!r} not found") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise RotoridError(f"config file {path!r} is not valid TOML: {exc}") from None
-    cfg["_dir"] = os.path.dirname(os.path.abspath(path))
-    return cfg
+        if p.endswith(".npy"):
+            t = np.load(p, allow_pickle=False)
+        else:
+            import pandas as pd
+
+            df = pd.read_csv(p, sep=None, engine="python", header=None, comment="#")
+            col = pd.to_numeric(df.iloc[:, 0], errors="coerce")
+            t = col.dropna().to_numpy(dtype=float)
+            if col.isna().sum() > 1:
+                raise RotoridError(f"{p}: {int(col.isna().sum())} rows of the pulse-time column are not numbers")
+    except RotoridError:
+        raise
+    except Exception as exc:  # pandas / numpy parse errors
+        raise RotoridError(f"cannot read keyphasor times from {p}: {exc}") from None
+    return np.asarray(t, dtype=float).ravel()
 
 
-def rotor_from_config(cfg) -> RigidRotor:
-    from .model import nsf_rig
+def _load_entry(cfg, entry, needed):
+    """One recording of a config entry: its files (one, several as blocks, or TDMS groups as
+    blocks), its channel map, reading options and keyphasor options (carried in the recording's
+    meta as ``keyphasor_options``, which the tracker applies)."""
+    from . import io
 
-    rig = cfg.get("rig", {})
-    if "rotor" in cfg:
-        r = dict(cfg["rotor"])
-        try:
-            return RigidRotor(**r)
-        except TypeError as exc:
-            raise RotoridError(f"[rotor] in the config: {exc}") from None
-    if rig.get("builtin", "nsf") == "nsf":
-        return nsf_rig().rotor
-    raise RotoridError(f"unknown builtin rig {rig.get('builtin')!r}; use 'nsf' or give a [rotor] table")
-
-
-def _load(cfg, entry, needed, meta=None):
-    """Load one recording with the config's channel map, restricted to the channels this kind of
-    recording needs (an imbalance run has no hammer channel)."""
-    from .io import load_recording
-
-    path = entry if isinstance(entry, str) else entry["file"]
-    full = path if os.path.isabs(path) else os.path.join(cfg["_dir"], path)
-    chans = {k: v for k, v in cfg.get("channels", {}).items() if isinstance(v, dict) and v.get("to") in needed}
-    fs = cfg.get("channels", {}).get("fs_hz")
-    return load_recording(full, channel_map=chans or None, fs_hz=fs, meta=meta)
+    chans = cfg.channels_for(entry, only=needed) or None
+    kw = cfg.files_for(entry)
+    meta = dict(entry.meta())
+    kpo = cfg.keyphasor_for(entry)
+    times_file = kpo.pop("times_file", None)
+    if times_file is not None:
+        kpo["times"] = _read_times(times_file)
+    meta["keyphasor_options"] = kpo
+    paths = entry.paths(cfg)
+    if len(paths) > 1 or entry.groups is not None:
+        kw.pop("group", None)
+        src = [str(q) for q in paths] if len(paths) > 1 else str(paths[0])
+        return io.load_segmented(src, groups=entry.groups, channel_map=chans, meta=meta, **kw)
+    return io.load_recording(paths[0], channel_map=chans, meta=meta, **kw)
 
 
-def run_config(path, kind: str, *, out_dir=None, log=print):
-    """Run the imbalance or impact chain described by a TOML config; write CSV tables and plots."""
+def _load_table(cfg, entry, name=None):
+    from .tables import load_1x_table
+
+    paths = entry.paths(cfg)
+    if len(paths) != 1:
+        raise RotoridError(f"a DAQ 1X table is one file, got {len(paths)}: {[str(q) for q in paths]}")
+    return load_1x_table(paths[0], name=name, meta=entry.meta(), **cfg.imbalance.table.reader_kwargs())
+
+
+def run_config(path, kind: str, *, out_dir=None, log=print, overwrite: bool = True):
+    """Run the imbalance or impact chain described by a TOML config; write CSV tables and plots.
+
+    The config is validated completely (keys, types, units, files) before anything is read.
+    Returns (Identification, list of written files)."""
     from . import plot
 
     if kind not in ("imbalance", "impact"):
         raise RotoridError(f"kind must be 'imbalance' or 'impact', got {kind!r}")
     cfg = load_config(path)
-    if kind not in cfg:
-        raise RotoridError(f"config {path!r} has no [{kind}] section")
-    rotor = rotor_from_config(cfg)
-    sec = cfg[kind]
-    out = out_dir or os.path.join(cfg["_dir"], cfg.get("output", {}).get("dir", f"rotorid_{kind}"))
+    sec = cfg.section(kind)
+    rotor = cfg.rotor()
+    out = str(out_dir) if out_dir else str(cfg.output_dir(kind))
     os.makedirs(out, exist_ok=True)
-    us = cfg.get("output", {}).get("units", "SI").upper() == "US"
+    us = cfg.output.units.upper() == "US"
     files = []
     if kind == "imbalance":
-        runs_cfg = sec.get("runs", [])
-        if len(runs_cfg) == 0:
-            raise RotoridError("[imbalance] needs [[imbalance.runs]] entries")
-        need = set(DISPLACEMENTS) | {"kp"}
-        runs = [_load(cfg, r, need) for r in runs_cfg]
-        imbs = []
-        for r, rc in zip(runs, runs_cfg):
-            if "mass_g" in rc or "mass_kg" in rc:
-                imbs.append({k: rc[k] for k in ("mass_g", "mass_kg", "angle_deg", "name") if k in rc})
-            else:
-                imbs.append(None)
-        base = _load(cfg, sec["baseline"], need) if "baseline" in sec else None
-        slow = _load(cfg, sec["slow_roll"], need) if "slow_roll" in sec else None
-        res = imbalance_chain(rotor, runs, baseline=base, slow_roll=slow, speeds_rpm=sec.get("speeds_rpm"),
-                              steady=sec.get("steady", True), imbalances=imbs)
+        ident_kw = dict(identical=sec.identical, cond_max=sec.cond_max, min_rel_amplitude=sec.min_rel_amplitude)
+        if sec.table is not None:
+            runs = [_load_table(cfg, r, r.name) for r in sec.runs]
+            base = _load_table(cfg, sec.baseline, "baseline") if sec.baseline is not None else None
+            slow = _load_table(cfg, sec.slow_roll, "slow roll") if sec.slow_roll is not None else None
+            chain_kw = dict(speed_match_rpm=sec.speed_match_rpm, slow_roll_max_rpm=sec.table.slow_roll_max_rpm)
+        else:
+            need = set(DISPLACEMENTS) | {"kp"}
+            runs = [_load_entry(cfg, r, need) for r in sec.runs]
+            base = _load_entry(cfg, sec.baseline, need) if sec.baseline is not None else None
+            slow = _load_entry(cfg, sec.slow_roll, need) if sec.slow_roll is not None else None
+            chain_kw = dict(points_per_rev=None if sec.points_per_rev == "auto" else sec.points_per_rev,
+                            min_revs=sec.min_revs, settle_revs=sec.settle_revs, speed_tolerance=sec.speed_tolerance,
+                            revs_per_block=sec.revs_per_block)
+        imbs = [r.imbalance_meta() for r in sec.runs]
+        res = imbalance_chain(rotor, runs, baseline=base, slow_roll=slow,
+                              speeds_rpm=None if sec.speeds_rpm is None else list(sec.speeds_rpm), steady=sec.steady,
+                              imbalances=imbs, orders=tuple(sec.orders), method=sec.method, **chain_kw, **ident_kw)
         ident = res.identification
         for i, r in enumerate(res.responses):
             p = os.path.join(out, f"sync_vectors_{i}_{_safe(r.name)}.csv")
             r.to_dataframe().to_csv(p, index=False, float_format="%.6g")
             files.append(p)
+        kps = [(i, k) for i, t in enumerate(res.tracks) for k in t.keyphasors]
+        if kps:
+            import pandas as pd
+
+            p = os.path.join(out, "keyphasor.csv")
+            pd.DataFrame([dict(run=i, pulses=k.times.size, speed_rpm=float(np.median(k.speed_rpm)), edge=k.edge,
+                               rest_state=k.states[0], pulse_state=k.states[1], level=k.level,
+                               jitter_us=1e6 * k.jitter_s, refined=k.refined, extra=k.extra.size,
+                               missing=sum(c for _, c in k.missing), note=k.note) for i, k in kps]).to_csv(
+                p, index=False, float_format="%.6g")
+            files.append(p)
         for n in res.notes:
             log("  " + n)
     else:
-        tests_cfg = sec.get("tests", [])
-        if len(tests_cfg) == 0:
-            raise RotoridError("[impact] needs [[impact.tests]] entries")
-        recs = [_load(cfg, t, set(DISPLACEMENTS) | {"kp", "force"}) for t in tests_cfg]
-        meta = [{k2: t[k1] for k1, k2 in (("plane_m", "plane"), ("direction", "direction")) if k1 in t} for t in tests_cfg]
-        tau = sec.get("exp_window_tau_s")
-        res = impact_chain(rotor, recs, band_hz=tuple(sec.get("band_hz", (5.0, 150.0))),
-                           record_s=float(sec.get("record_s", 0.25)), identical=bool(sec.get("identical", False)),
-                           tests_meta=meta, exp_window_tau_s=None if tau is None else float(tau))
+        need = set(DISPLACEMENTS) | {"kp", "force"}
+        recs = [_load_entry(cfg, t, need) for t in sec.tests]
+        for r in recs:
+            if not isinstance(r, Recording):
+                raise RotoridError("impact tests are single recordings (one file each); files/groups make a segmented "
+                                   "recording, which only imbalance runs accept")
+        meta = [t.meta() for t in sec.tests]
+        res = impact_chain(rotor, recs, band_hz=tuple(sec.band_hz), record_s=sec.record_s, runout=sec.runout,
+                           identical=sec.identical, method=sec.method, tests_meta=meta,
+                           exp_window_tau_s=sec.exp_window_tau_s, pre_s=sec.pre_s, zero_pad_s=sec.zero_pad_s,
+                           revs_before=sec.revs_before, points_per_rev=sec.points_per_rev,
+                           keyphasor=None, speed_rpm=sec.speed_rpm, coherence_min=sec.coherence_min,
+                           threshold_N=sec.threshold_N, min_separation_s=sec.min_separation_s,
+                           double_hit_window_s=sec.double_hit_window_s, overload_N=sec.overload_N,
+                           cond_max=sec.cond_max, min_rel_amplitude=sec.min_rel_amplitude)
         ident = res.identification
         import pandas as pd
 
@@ -485,7 +494,7 @@ def run_config(path, kind: str, *, out_dir=None, log=print):
     df.to_csv(p, index=False, float_format="%.6g")
     files.append(p)
     p = os.path.join(out, f"coefficients_{kind}.png")
-    plot.coefficients(ident, None, path=p, title=f"Identified coefficients ({kind}), {os.path.basename(path)}")
+    plot.coefficients(ident, None, path=p, title=f"Identified coefficients ({kind}), {os.path.basename(str(path))}")
     files.append(p)
     ok = ident.ok
     log(f"identified {kind}: {ident.axis.size} points ({int(ok.sum())} ok) over {ident.axis_name} "

@@ -342,11 +342,14 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
         if ok.sum() >= 3:
             swing = float(np.median(top[ok] - base[ok]))
     mid = base + 0.5 * swing if level is None else np.full(k.size, lev)
-    frac = _linear_crossing(w, k, mid)
+    smooth = rise >= 2.5
+    frac = _cubic_crossing(w, k, mid) if smooth else _linear_crossing(w, k, mid)
     t_samples = k + frac
     refined, note = False, ""
     if refine and level is None:
         t_samples, refined, note = _refine(w, t_samples, base, swing, half, post, rise <= 1.5)
+        if smooth and not refined:
+            note = ""  # a smooth edge timed by the cubic: the residual interpolation error is small
     note = "; ".join(x for x in (ambiguous, note) if x)
     t = t0_s + t_samples / fs_hz
     t, extra, missing = _plausible(t, tolerance, fill_missing, where)
@@ -362,17 +365,17 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
 
 
 def _rise_samples(w, rises, lo, swing):
-    """Edge duration in samples, a scale for the edge window: twice the median 25-75 % duration (about
-    the 10-90 % duration for common edges; the 25/75 % levels are robust to an offset drift)."""
-    k10 = _last_below(w, lo + 0.25 * swing, rises)
-    idx = np.arange(w.size)
-    above = w >= lo + 0.75 * swing
-    nxt = np.minimum.accumulate(np.where(above, idx, w.size)[::-1])[::-1]
-    k90 = nxt[rises]
-    ok = (k10 >= 0) & (k90 < w.size)
-    if not ok.any():
-        return 1.0
-    return float(max(2.0 * np.median(k90[ok] - k10[ok] - 1), 0.5))
+    """Edge duration in samples, a scale for the edge window: twice the median time from the 25 %
+    to the 75 % level (about the 10-90 % duration of common edges; the 25/75 % levels are robust to
+    an offset drift), each crossing interpolated linearly."""
+    times = []
+    for frac in (0.25, 0.75):
+        lvl = lo + frac * swing
+        k = np.clip(_last_below(w, lvl, rises), 0, w.size - 2)
+        times.append(k + _linear_crossing(w, k, np.full(k.size, lvl)))
+    d = times[1] - times[0]
+    d = d[np.isfinite(d) & (d >= 0)]
+    return float(max(2.0 * np.median(d), 0.25)) if d.size else 1.0
 
 
 def _local_base(w, k, half, lev, lo):
@@ -399,6 +402,40 @@ def _local_top(w, k, start, length, lev):
         seg = seg[seg > lev]
         if seg.size >= 3:
             out[i] = np.median(seg)
+    return out
+
+
+def _cubic_crossing(x, k, level):
+    """Fractional position in [0, 1] after sample k where x crosses ``level`` (scalar or per k)
+    upward: root of the cubic through samples k-1..k+2 (linear where the stencil leaves the
+    record), by bisection. On smooth edges (several samples long) it removes most of the bias of
+    a linear interpolation, which would otherwise repeat every revolution at speeds commensurate
+    with the sample rate; on steep edges the cubic overshoots and the linear estimate is better."""
+    level = np.broadcast_to(np.asarray(level, dtype=float), k.shape)
+    x0, x1 = x[k], x[k + 1]
+    lin = np.clip((level - x0) / np.where(x1 != x0, x1 - x0, 1.0), 0.0, 1.0)
+    full_level = level
+    inner = (k >= 1) & (k + 2 < x.size)
+    if not inner.any():
+        return lin
+    kk = k[inner]
+    level = full_level[inner]
+    xm, a, b, xp = x[kk - 1], x[kk], x[kk + 1], x[kk + 2]
+
+    def cubic(f):
+        return (-f * (f - 1) * (f - 2) / 6 * xm + (f + 1) * (f - 1) * (f - 2) / 2 * a
+                - (f + 1) * f * (f - 2) / 2 * b + (f + 1) * f * (f - 1) / 6 * xp) - level
+
+    lo = np.zeros(kk.size)
+    hi = np.ones(kk.size)
+    ok = (cubic(lo) <= 0) & (cubic(hi) >= 0)
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        up = cubic(mid) >= 0
+        hi = np.where(up, mid, hi)
+        lo = np.where(up, lo, mid)
+    out = lin.copy()
+    out[np.nonzero(inner)[0][ok]] = (0.5 * (lo + hi))[ok]
     return out
 
 

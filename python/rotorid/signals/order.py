@@ -22,7 +22,8 @@ class SyncTrack:
     ``vectors``: complex (n_blocks, n_orders, 4) for [x1, x2, y1, y2] (m, 0-pk);
     ``speed_rpm`` (n_blocks,) mean speed of the block; ``scatter``: complex rms deviation of the
     per-revolution 1X vectors about the block mean (m), a measure of noise and speed drift;
-    ``orders``: the orders tracked (1 = 1X).
+    ``orders``: the orders tracked (1 = 1X); ``keyphasors``: the Keyphasor of each record (block)
+    tracked, with its timing jitter and notes.
     """
 
     speed_rpm: np.ndarray
@@ -31,6 +32,7 @@ class SyncTrack:
     n_revs: np.ndarray
     scatter: np.ndarray
     t_mid: np.ndarray
+    keyphasors: list = field(default_factory=list)
 
     def order(self, n: int = 1) -> np.ndarray:
         if n not in self.orders:
@@ -46,7 +48,8 @@ class SyncTrack:
             sub = other.at_speeds(self.speed_rpm)
         else:
             sub = np.broadcast_to(np.asarray(other, complex), self.vectors.shape[1:])[None]
-        return SyncTrack(self.speed_rpm, self.vectors - sub, self.orders, self.n_revs, self.scatter, self.t_mid)
+        return SyncTrack(self.speed_rpm, self.vectors - sub, self.orders, self.n_revs, self.scatter, self.t_mid,
+                         self.keyphasors)
 
     def at_speeds(self, speed_rpm) -> np.ndarray:
         """Vectors linearly interpolated (real and imaginary parts) to the given speeds; speeds
@@ -96,7 +99,8 @@ def detect_keyphasor(rec: Recording, keyphasor=None) -> Keyphasor:
     """Keyphasor of a recording with the given options (a dict of ``keyphasor_times`` keywords);
     the keyphasor channel's delay from the file's channel map (``meta["channel_delays_s"]["kp"]``)
     is applied unless the options give ``delay_s``."""
-    opts = dict(keyphasor or {})
+    opts = dict(rec.meta.get("keyphasor_options") or {})
+    opts.update({k: v for k, v in (keyphasor or {}).items() if v is not None})
     times = opts.pop("times", None)
     delays = rec.meta.get("channel_delays_s", {}) or {}
     opts.setdefault("delay_s", float(delays.get("kp", 0.0)))
@@ -160,7 +164,8 @@ def track(rec, *, orders=(1, 2, 3), revs_per_block: int | None = None, steady: b
                        keyphasor=keyphasor) for b in rec.blocks]
         return SyncTrack(np.concatenate([p.speed_rpm for p in parts]), np.concatenate([p.vectors for p in parts]),
                          parts[0].orders, np.concatenate([p.n_revs for p in parts]),
-                         np.concatenate([p.scatter for p in parts]), np.concatenate([p.t_mid for p in parts]))
+                         np.concatenate([p.scatter for p in parts]), np.concatenate([p.t_mid for p in parts]),
+                         [k for p in parts for k in p.keyphasors])
     if not isinstance(rec, Recording):
         raise RotoridError(f"rec must be a Recording or SegmentedRecording, got {type(rec).__name__}")
     rec.require(*DISPLACEMENTS)
@@ -242,7 +247,7 @@ def track(rec, *, orders=(1, 2, 3), revs_per_block: int | None = None, steady: b
         nrev.append(b - a)
         scat.append(np.sqrt(np.mean(np.abs(v[:, 0, :] - v[:, 0, :].mean(axis=0)) ** 2, axis=0)))
         tm.append(tmid[a:b].mean())
-    return SyncTrack(np.array(sp), np.array(vec), orders, np.array(nrev), np.array(scat), np.array(tm))
+    return SyncTrack(np.array(sp), np.array(vec), orders, np.array(nrev), np.array(scat), np.array(tm), [kp])
 
 
 def slow_roll_vector(rec: Recording, *, orders=(1, 2, 3), **kw) -> np.ndarray:

@@ -1,0 +1,239 @@
+"""channel_map parsing and the common assembly of a Recording from the channels a reader found."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import units as _units
+from ..errors import RotoridError
+from ..recording import KNOWN, SI_UNITS, Recording
+from ._common import QUANTITY, _Raw, _Read, _same_rate, _warn
+
+_MAP_KEYS = ("to", "unit", "scale", "offset", "delay_s")
+_MAX_DELAY_S = 1.0  # |delay_s| must stay below this: a larger "delay" is a misread of the unit
+
+
+@dataclass
+class _Use:
+    """A file channel chosen to become Recording channel ``name``."""
+
+    name: str
+    raw: _Raw
+    unit: str | None
+    unit_from: str                # "channel_map" | "file" | "assumed SI" | "kept as is"
+    scale: float = 1.0
+    offset: float = 0.0
+    delay: float = 0.0            # s by which the channel lags the true quantity
+
+
+def _number(spec, key, default, where):
+    v = spec.get(key, default)
+    if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not math.isfinite(float(v)):
+        raise RotoridError(f"{where}: {key!r} must be a finite number, got {v!r}")
+    return float(v)
+
+
+def _parse_channel_map(channel_map, path) -> dict:
+    if channel_map is None:
+        return {}
+    if not isinstance(channel_map, Mapping):
+        raise RotoridError(f"channel_map must be a dict lab channel -> {{'to': ..., 'unit': ...}}, "
+                           f"got {type(channel_map).__name__} (for {path})")
+    out, target_of = {}, {}
+    for lab, spec in channel_map.items():
+        where = f"channel_map[{lab!r}] (for {path})"
+        if not isinstance(lab, str) or not lab.strip():
+            raise RotoridError(f"channel_map keys must be non-empty channel names, got {lab!r} (for {path})")
+        if not isinstance(spec, Mapping):
+            raise RotoridError(f"{where} must be a dict like {{'to': 'x1', 'unit': 'mil'}}, got {spec!r}")
+        unknown = sorted(set(spec) - set(_MAP_KEYS))
+        if unknown:
+            raise RotoridError(f"{where} has unknown key(s) {unknown}; allowed: {list(_MAP_KEYS)}")
+        to = spec.get("to")
+        if to not in KNOWN:
+            raise RotoridError(f"{where}: 'to' must be one of {list(KNOWN)}, got {to!r}")
+        if to in target_of:
+            raise RotoridError(f"channel_map maps both {target_of[to]!r} and {lab!r} to {to!r} (for {path})")
+        target_of[to] = lab
+        unit = spec.get("unit")
+        if unit is not None:
+            if not isinstance(unit, str) or not unit.strip():
+                raise RotoridError(f"{where}: 'unit' must be a unit name like 'mil', got {unit!r}")
+            try:
+                _units.factor(unit, QUANTITY[to])
+            except RotoridError as exc:
+                raise RotoridError(f"{where}: {exc} (channel {to!r})") from None
+        scale = _number(spec, "scale", 1.0, where)
+        offset = _number(spec, "offset", 0.0, where)
+        if scale == 0:
+            raise RotoridError(f"{where}: 'scale' must not be 0")
+        v = spec.get("delay_s", 0.0)
+        ok = not isinstance(v, bool) and isinstance(v, (int, float, np.integer, np.floating))
+        if not (ok and math.isfinite(float(v)) and abs(float(v)) < _MAX_DELAY_S):
+            raise RotoridError(f"{where}: 'delay_s' must be a finite number of seconds with |delay_s| < "
+                               f"{_MAX_DELAY_S:g} (the lag of channel {to!r} behind the true quantity), got {v!r}")
+        out[lab] = _Use(to, None, unit, "channel_map", scale, offset, float(v))  # raw found later
+    return out
+
+
+def _ambiguous(read: _Read, path, what: str, keys: list) -> RotoridError:
+    advice = read.explain(keys) if read.explain else None
+    if advice and read.all_same:  # a file of runs: choosing the run is the answer
+        return RotoridError(f"{path}: {advice} ({what}: {keys})")
+    if what.startswith("channel "):
+        return RotoridError(f"{what} named in channel_map is ambiguous in {path}: it matches {keys}; "
+                            f"{advice or f'name it as {read.address}'}")
+    return RotoridError(f"{path} has {what}: {keys}; "
+                        f"{advice or f'choose one with channel_map (naming it as {read.address})'}")
+
+
+def _find(read: _Read, name: str, path) -> _Raw:
+    """The file channel ``name`` (full key, else bare name, else alias, if unique)."""
+    raws = read.raws
+    hits = ([r for r in raws if r.key == name] or [r for r in raws if r.short == name]
+            or [r for r in raws if name in r.aliases])
+    if len(hits) == 1:
+        return hits[0]
+    if hits:
+        raise _ambiguous(read, path, f"channel {name!r}", [r.key for r in hits])
+    raise RotoridError(f"channel {name!r} named in channel_map is not in {path}; the file has "
+                       f"{[r.key for r in raws]}")
+
+
+def _select(read: _Read, entries: dict, path, keep_other: bool) -> list[_Use]:
+    """Decide which file channels are used (mapped or canonically named); warn about the rest."""
+    raws = read.raws
+    uses, used = [], set()
+    for lab, use in entries.items():
+        raw = _find(read, lab, path)
+        if id(raw) in used:
+            raise RotoridError(f"channel_map names file channel {raw.key!r} twice (for {path})")
+        used.add(id(raw))
+        use.raw = raw
+        if use.unit is None:
+            use.unit, use.unit_from = (raw.unit, "file") if raw.unit else (SI_UNITS[use.name], "assumed SI")
+        uses.append(use)
+    taken = {u.name for u in uses}
+    shadowed, dropped, canonical = [], [], {}
+    for raw in raws:
+        if id(raw) in used:
+            continue
+        if raw.short in KNOWN:
+            if raw.short in taken:
+                shadowed.append(raw.key)
+            else:
+                canonical.setdefault(raw.short, []).append(raw)
+        elif keep_other:
+            uses.append(_Use(raw.key, raw, raw.unit, "kept as is"))
+        else:
+            dropped.append(raw.key)
+    for name, rs in canonical.items():
+        if len(rs) > 1:
+            raise _ambiguous(read, path, f"several channels named {name!r}", [r.key for r in rs])
+        raw = rs[0]
+        unit, how = (raw.unit, "file") if raw.unit else (SI_UNITS[name], "assumed SI")
+        uses.append(_Use(name, raw, unit, how))
+    if dropped or shadowed:
+        parts = []
+        if dropped:
+            parts.append(f"dropped {len(dropped)} channel(s) that are neither in channel_map nor named "
+                         f"canonically: {dropped}")
+        if shadowed:
+            parts.append(f"dropped {len(shadowed)} canonically named channel(s) because channel_map maps "
+                         f"another channel onto that name: {shadowed}")
+        _warn(f"{path}: " + "; ".join(parts) + f" (canonical names: {list(KNOWN)})")
+    if not uses:
+        raise RotoridError(f"{path} has no usable channel: none is named canonically ({list(KNOWN)}) or "
+                           f"mapped by channel_map; the file has {[r.key for r in raws]}")
+    return uses
+
+
+def _convert(use: _Use, path) -> np.ndarray:
+    raw = use.raw
+    a = np.array(raw.data, dtype=np.float64)  # a copy: the readers' arrays stay untouched
+    if use.name in QUANTITY:
+        try:
+            f = _units.factor(use.unit, QUANTITY[use.name])
+        except RotoridError as exc:
+            raise RotoridError(f"{path}: channel {raw.key!r} (-> {use.name}, unit from {use.unit_from}): "
+                               f"{exc}") from None
+        # value_SI = (raw * scale + offset) * factor, skipping identities so SI data stay bit-exact
+        if use.scale != 1.0:
+            a *= use.scale
+        if use.offset != 0.0:
+            a += use.offset
+        if f != 1.0:
+            a *= f
+    bad = ~np.isfinite(a)
+    if bad.any():
+        raise RotoridError(f"{path}: channel {raw.key!r} has {int(bad.sum())} NaN/inf or empty value(s) "
+                           f"(first at sample {int(np.argmax(bad))})")
+    return a
+
+
+def _assemble(path, read: _Read, channel_map, fs_hz, meta, *, source, keep_other=False,
+              provenance=True) -> tuple[Recording, bool]:
+    """The Recording, and whether the file stated its start time (False: t0 = 0 by default)."""
+    entries = _parse_channel_map(channel_map, path)
+    uses = _select(read, entries, path, keep_other)
+    for u in uses:
+        if u.raw.problem:
+            raise RotoridError(f"{path}: channel {u.raw.key!r} (-> {u.name}) cannot be used: {u.raw.problem}")
+
+    # one sample rate for all used channels: the file's, or fs_hz where the file states none
+    rates = {}
+    for u in uses:
+        if u.raw.fs is not None:
+            rates[u.raw.key] = u.raw.fs
+        elif fs_hz is not None:
+            rates[u.raw.key] = fs_hz
+        else:
+            raise RotoridError(f"{path} states no sample rate for channel {u.raw.key!r}: pass fs_hz")
+    values = list(rates.values())
+    if any(not _same_rate(values[0], v) for v in values[1:]):
+        listing = ", ".join(f"{k} {v:.9g} Hz" for k, v in rates.items())
+        raise RotoridError(f"{path}: sample rates disagree: {listing}")
+    fs = values[0]
+    file_rates = [u.raw.fs for u in uses if u.raw.fs is not None]
+    if fs_hz is not None and file_rates and not _same_rate(fs_hz, file_rates[0]):
+        _warn(f"{path}: fs_hz={fs_hz:g} ignored: the file states {file_rates[0]:.9g} Hz")
+
+    lengths = {u.raw.key: u.raw.data.size for u in uses}
+    if len(set(lengths.values())) > 1:
+        raise RotoridError(f"{path}: channel lengths disagree: {lengths}")
+    if next(iter(lengths.values())) == 0:
+        raise RotoridError(f"{path}: the channels hold no samples")
+
+    starts = {u.raw.key: u.raw.t0 for u in uses if u.raw.t0 is not None}
+    t0 = next(iter(starts.values()), 0.0)
+    if any(abs(v - t0) > 0.5 / fs for v in starts.values()):
+        raise RotoridError(f"{path}: start times disagree: {starts}")
+
+    channels, units, sources = {}, {}, {}
+    # lab files: canonical order; native files: the order they were saved in
+    if keep_other:
+        position = {id(r): i for i, r in enumerate(read.raws)}
+        uses = sorted(uses, key=lambda u: position[id(u.raw)])
+    else:
+        uses = sorted(uses, key=lambda u: (KNOWN.index(u.name) if u.name in KNOWN else len(KNOWN), u.name))
+    for u in uses:
+        channels[u.name] = _convert(u, path)
+        units[u.name] = SI_UNITS[u.name] if u.name in QUANTITY else (u.unit or "")
+        sources[u.name] = {"file_channel": u.raw.key, "unit": u.unit, "unit_from": u.unit_from,
+                           "scale": u.scale, "offset": u.offset}
+    merged = dict(read.meta)
+    if provenance:
+        merged["channel_sources"] = sources
+    delays = {u.name: u.delay for u in uses if u.delay != 0.0}
+    if delays:
+        before = merged.get("channel_delays_s")
+        merged["channel_delays_s"] = {**(before if isinstance(before, dict) else {}), **delays}
+    merged.update(meta or {})
+    try:
+        return Recording(fs, channels, merged, units, t0, source), bool(starts)
+    except RotoridError as exc:
+        raise RotoridError(f"{path}: {exc}") from None
