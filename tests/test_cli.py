@@ -29,3 +29,17 @@ def test_demo_writes_figures_and_tables(tmp_path, capsys):
 def test_console_script_help():
     r = subprocess.run([sys.executable, "-m", "rotorid.cli", "--help"], capture_output=True, text=True)
     assert r.returncode == 0 and "demo" in r.stdout
+
+
+def test_check_validates_a_config_in_one_line(tmp_path, capsys):
+    from rotorid.example import copy_example
+
+    ex = copy_example(str(tmp_path / "ex"))
+    assert cli.main(["check", f"{ex}/imbalance_1x_table.toml"]) == 0
+    assert "valid" in capsys.readouterr().out
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[rig]\nbuiltin = "nsf"\n[imbalance]\nstedy = false\n[[imbalance.runs]]\nfile = "x.tdms"\n'
+                   'mass_g = [1, 1]\nangle_degs = [0, 0]\n')
+    assert cli.main(["check", str(bad)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "did you mean 'steady'" in err and "did you mean 'angle_deg'" in err

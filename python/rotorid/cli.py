@@ -18,8 +18,10 @@ def main(argv=None):
     d.add_argument("--noise-um", type=float, default=0.0, help="added complex Gaussian noise (µm rms)")
     i = sub.add_parser("identify", help="identify bearing coefficients from raw recordings described by a TOML config")
     i.add_argument("kind", choices=["imbalance", "impact"])
-    i.add_argument("config", help="TOML config file (see rotorid.pipeline.CONFIG_DOC)")
+    i.add_argument("config", help="TOML config file (every key: docs/config.md)")
     i.add_argument("--out", default=None, help="output directory (default: [output] dir of the config)")
+    c = sub.add_parser("check", help="validate a TOML config (keys, types, units, files) without processing anything")
+    c.add_argument("config", help="TOML config file (every key: docs/config.md)")
     e = sub.add_parser("example", help="write the bundled example data set (raw recordings + configs) to a directory")
     e.add_argument("--out", default="rotorid_example")
     args = ap.parse_args(argv)
@@ -32,6 +34,19 @@ def main(argv=None):
         except RotoridError as exc:
             print(f"rotorid: error: {exc}", file=sys.stderr)
             return 2
+        return 0
+    if args.cmd == "check":
+        from .config import load_config
+        from .errors import RotoridError
+
+        try:
+            cfg = load_config(args.config)
+        except RotoridError as exc:
+            print(f"rotorid: error: {exc}", file=sys.stderr)
+            return 2
+        kinds = [k for k in ("imbalance", "impact") if getattr(cfg, k) is not None]
+        n = len(cfg.entries())
+        print(f"{args.config}: valid ({', '.join(kinds)}; {n} recording(s) or table(s), all files present)")
         return 0
     if args.cmd == "example":
         from .example import copy_example
