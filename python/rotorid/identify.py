@@ -23,6 +23,8 @@ COND_MAX = 1e4
 MIN_REL_AMPLITUDE = 0.08
 #: FRFs naturally span decades over a band (1/(m w^2) above the modes), so impacts use a lower floor
 MIN_REL_AMPLITUDE_IMPACT = 0.01
+#: default largest standard error relative to the bearing's direct coefficients for a point to be ok
+MAX_REL_STD = 0.1
 
 
 @dataclass
@@ -32,9 +34,16 @@ class Identification:
     ``k``, ``c``: (n, 2, 2, 2) = [point, bearing, i, j] in N/m and N·s/m. Diagnostics per point:
     ``cond`` (n, 2) condition number of each bearing's response matrix, ``residual`` (n,) relative
     least-squares residual (0 for exactly determined sets), ``rel_amplitude`` (n,) rms response
-    amplitude (over runs and the four coordinates) relative to its maximum over the axis, ``k_std``/``c_std`` standard errors (NaN when
-    the set is exactly determined), ``ok`` (n,) False where the point should not be trusted and
-    ``flag`` (n,) saying why ("" where ok).
+    amplitude (over runs and the four coordinates) relative to its maximum over the axis,
+    ``ok`` (n,) False where the point should not be trusted and ``flag`` (n,) saying why ("" where
+    ok; several reasons joined by "; ").
+
+    Uncertainty: ``k_std``/``c_std`` (n, 2, 2, 2) standard errors, ``std_source`` saying where they
+    come from ("measurement covariance": the responses' covariance propagated through the
+    estimator; "residual": the least-squares misfit of redundant runs; "none": NaN, unknown),
+    ``dof`` (n,) their degrees of freedom, ``cov`` (n, 16, 16) the covariance of the report
+    vector (or None), ``rel_std`` (n,) the largest standard error relative to its bearing's direct
+    coefficients. :meth:`interval` gives confidence bounds.
     """
 
     axis_name: str
@@ -50,6 +59,42 @@ class Identification:
     flag: np.ndarray
     method: str
     runs: list = field(default_factory=list)
+    std_source: str = "none"
+    dof: np.ndarray | None = None
+    cov: np.ndarray | None = None
+    rel_std: np.ndarray | None = None
+
+    def interval(self, level: float = 0.95):
+        """Confidence bounds of k and c: coefficient ± t(level, dof) × standard error.
+
+        Returns
+        -------
+        rotorid.uncertainty.Interval
+            (k_lower, k_upper, c_lower, c_upper, level); NaN where the uncertainty is unknown.
+
+        Examples
+        --------
+        >>> import numpy as np, rotorid
+        >>> rig = rotorid.nsf_rig()
+        >>> rpm = np.array([3500.0, 4000.0])
+        >>> runs = [rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=rpm) for s in "AB"]
+        >>> for r in runs:
+        ...     r.cov = np.broadcast_to(np.eye(8) * (0.1e-6) ** 2, (2, 8, 8))
+        >>> ident = rotorid.identify_synchronous(rig.rotor, runs)
+        >>> lo = ident.interval(0.95).k_lower
+        >>> bool(np.all(lo[:, 0, 0, 0] < 3.0e6))
+        True
+        """
+        from .uncertainty import Interval, t_quantile
+
+        try:
+            level = float(level)
+        except (TypeError, ValueError):
+            raise RotoridError(f"level must be a number between 0 and 1, got {level!r}") from None
+        dof = self.dof if self.dof is not None else np.full(self.axis.size, np.nan)
+        t = t_quantile(level, dof)[:, None, None, None]
+        return Interval(self.k - t * self.k_std, self.k + t * self.k_std, self.c - t * self.c_std,
+                        self.c + t * self.c_std, level)
 
     @property
     def speed_rpm(self):
@@ -85,10 +130,17 @@ class Identification:
     def to_dataframe(self):
         import pandas as pd
 
+        n = self.axis.size
         data = {self.axis_name: self.axis}
         rv = self.report_vector()
         for j, nm in enumerate(REPORT_ORDER):
             data[nm] = rv[:, j]
+        ks = np.concatenate([self.k_std.reshape(n, 8)[:, _REPORT_TO_BIJ], self.c_std.reshape(n, 8)[:, _REPORT_TO_BIJ]], 1)
+        for j, nm in enumerate(REPORT_ORDER):
+            data[f"{nm}_std"] = ks[:, j]
+        data["std_source"] = self.std_source
+        data["dof"] = self.dof if self.dof is not None else np.nan
+        data["rel_std"] = self.rel_std if self.rel_std is not None else np.nan
         data["cond1"] = self.cond[:, 0]
         data["cond2"] = self.cond[:, 1]
         data["residual"] = self.residual
@@ -161,23 +213,44 @@ def _diagnose_singular(qs, labels):
             "linearly dependent (one is a complex multiple of another, or the data repeat a run)")
 
 
-def _finish(axis_name, axis, amp, k, c, cond, resid, ks, cs, cond_max, min_rel_amplitude, method, labels):
+def _finish(axis_name, axis, amp, k, c, cond, resid, ks, cs, cond_max, min_rel_amplitude, method, labels,
+            std_source="none", dof=None, cov=None, max_rel_std=MAX_REL_STD, extra_flags=None):
     """Result object with per-point flags. ``amp``: rms response amplitude over runs and coordinates."""
+    from .uncertainty import relative_std
+
     peak = amp.max() if amp.size else 0.0
     rel = amp / peak if peak > 0 else np.zeros_like(amp)
     c1, c2 = cond[:, 0], cond[:, 1]
     finite = np.isfinite(c1) & np.isfinite(c2)  # the core returns inf (singular) or NaN (bad input)
     worst = np.maximum(c1, c2)
+    rstd = relative_std(k, c, ks, cs)
+    reasons = [(~finite, "singular"), (finite & (worst > cond_max), "ill-conditioned"),
+               (finite & (rstd > max_rel_std), "uncertain"), (rel < min_rel_amplitude, "low amplitude")]
+    if extra_flags is not None:
+        reasons += list(extra_flags)
     flag = np.full(axis.size, "", dtype=object)
-    flag[rel < min_rel_amplitude] = "low amplitude"
-    flag[worst > cond_max] = "ill-conditioned"
-    flag[~finite] = "singular"
+    for mask, why in reasons:
+        for i in np.nonzero(mask)[0]:
+            flag[i] = why if not flag[i] else (flag[i] if flag[i] == "singular" else f"{flag[i]}; {why}")
     ok = flag == ""
-    return Identification(axis_name, axis, k, c, cond, resid, rel, ks, cs, ok, flag, method, labels)
+    return Identification(axis_name, axis, k, c, cond, resid, rel, ks, cs, ok, flag, method, labels, std_source, dof,
+                          cov, rstd)
+
+
+def _check_threshold(name, value, lo, hi=np.inf):
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise RotoridError(f"{name} must be a number, got {value!r}") from None
+    if not (lo < v < hi) and not (hi == np.inf and v == np.inf):
+        raise RotoridError(f"{name} must be a number above {lo:g}{'' if hi == np.inf else f' and below {hi:g}'}, got "
+                           f"{value!r}")
+    return v
 
 
 def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", identical: bool = False,
-                         cond_max: float = COND_MAX, min_rel_amplitude: float = MIN_REL_AMPLITUDE) -> Identification:
+                         cond_max: float = COND_MAX, min_rel_amplitude: float = MIN_REL_AMPLITUDE,
+                         max_rel_std: float = MAX_REL_STD) -> Identification:
     """Synchronous K and C of both bearings at every speed from two or more imbalance runs.
 
     ``runs``: list (or dict name -> run) of SyncResponse, each with its added ``imbalance`` and the
@@ -189,6 +262,13 @@ def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", ide
     unknowns, eq. 8-18, solved by QR). Both give the same answer for two runs; for redundant runs
     "forces" weights every equation in newtons, "report" mixes force and moment rows.
     ``identical=True`` assumes the same coefficients at both bearings (8 unknowns; one run suffices).
+
+    Uncertainty: when every run carries a measurement covariance (``SyncResponse.cov``, e.g. from
+    order tracking), it is propagated through the estimator (``std_source`` "measurement
+    covariance", also with two runs); otherwise redundant runs give residual-based standard errors
+    ("residual"). A point whose largest standard error exceeds ``max_rel_std`` times its
+    bearing's direct coefficients is flagged "uncertain"; a point over ``cond_max`` "ill-conditioned",
+    below ``min_rel_amplitude`` "low amplitude".
     """
     if not isinstance(rotor, RigidRotor):
         raise RotoridError(f"rotor must be a rotorid.RigidRotor, got {type(rotor).__name__}")
@@ -208,16 +288,34 @@ def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", ide
         if r.speed_rpm.shape != rpm.shape or not np.allclose(r.speed_rpm, rpm, rtol=1e-9, atol=0):
             raise RotoridError(f"speed_rpm of {labels[i]} differs from that of {labels[0]}: all runs must be "
                                "given at the same speeds (interpolate the 1X vectors first)")
-    qs = np.stack([r.at_bearings(rotor).q for r in runs])  # (R, n, 4)
+    at_b = [r.at_bearings(rotor) for r in runs]
+    qs = np.stack([r.q for r in at_b])  # (R, n, 4)
     om = rpm * RPM
     e = np.stack([r.imbalance.generalized(rotor) for r in runs])  # (R, 4), scaled by Omega^2 below
     return _solve(rotor, "speed_rpm", rpm, om, om, qs, e, om ** 2, None, identical=identical, method=method,
-                  labels=labels, cond_max=cond_max, min_rel_amplitude=min_rel_amplitude, what="responses")
+                  labels=labels, cond_max=cond_max, min_rel_amplitude=min_rel_amplitude, what="responses",
+                  covs=_run_covs(at_b), dofs=_run_dofs(at_b), max_rel_std=max_rel_std)
+
+
+def _run_covs(runs):
+    if any(r.cov is None for r in runs):
+        return None
+    return np.stack([r.cov for r in runs])
+
+
+def _run_dofs(runs):
+    n = runs[0].q.shape[0]
+    return np.stack([r.dof if r.dof is not None else np.full(n, np.inf) for r in runs])
 
 
 def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, method, labels, cond_max,
-           min_rel_amplitude, what):
-    """One core call for the whole axis, then flags; shared by both identification methods."""
+           min_rel_amplitude, what, covs=None, dofs=None, max_rel_std=MAX_REL_STD, extra_flags=None):
+    """One core call for the whole axis, uncertainty, then flags; shared by both methods."""
+    from .uncertainty import propagate, std_from_cov
+
+    cond_max = _check_threshold("cond_max", cond_max, 1.0)
+    min_rel_amplitude = _check_threshold("min_rel_amplitude", min_rel_amplitude, -1e-300, 1.0)
+    max_rel_std = _check_threshold("max_rel_std", max_rel_std, 0.0)
     # standard errors need redundant equations: more rows than the 2 unknowns of each system
     redundant = qs.shape[0] * (2 if identical else 1) > 2
     k, c, cond, resid, amp, ks, cs, nbad = _core.identify(
@@ -230,8 +328,19 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
         cs = np.full_like(c, np.nan)
     if not np.any(np.isfinite(cond)):
         raise IdentifiabilityError(_diagnose_singular(qs, labels))
-    return _finish(axis_name, axis, amp[0], k[0], c[0], cond[0], resid[0], ks[0], cs[0], cond_max, min_rel_amplitude,
-                   method, labels)
+    ks, cs = ks[0], cs[0]
+    source, dof, cov = ("residual" if redundant else "none"), None, None
+    if redundant:
+        # residual dof per bearing system: R complex equations (2R real) for 2 complex unknowns
+        dof = np.full(axis.size, 2.0 * (qs.shape[0] * (2 if identical else 1) - 2))
+    if covs is not None and not np.all(np.isnan(covs)):
+        cov = propagate(rotor, w, spin, qs, e, gain, sigma, covs, identical=identical, method=method)
+        ks, cs = std_from_cov(cov)
+        source = "measurement covariance"
+        dof = np.min(dofs, axis=0) if dofs is not None else np.full(axis.size, np.inf)
+        dof = np.where(np.isnan(cov).any(axis=(1, 2)), np.nan, dof)
+    return _finish(axis_name, axis, amp[0], k[0], c[0], cond[0], resid[0], ks, cs, cond_max, min_rel_amplitude,
+                   method, labels, source, dof, cov, max_rel_std, extra_flags)
 
 
 def identify_synchronous_batch(rotor: RigidRotor, speed_rpm, q, imbalances, *, method: str = "forces",
@@ -290,7 +399,8 @@ def check_impact_independence(tests, labels, *, identical=False):
 
 
 def identify_impact(rotor: RigidRotor, tests, *, method: str = "forces", identical: bool = False,
-                    cond_max: float = COND_MAX, min_rel_amplitude: float = MIN_REL_AMPLITUDE_IMPACT) -> Identification:
+                    cond_max: float = COND_MAX, min_rel_amplitude: float = MIN_REL_AMPLITUDE_IMPACT,
+                    max_rel_std: float = MAX_REL_STD, extra_flags=None) -> Identification:
     """Frequency-dependent K(w) and C(w) of both bearings from impacts at one running speed (eq. 23-28).
 
     ``tests``: list (or dict) of ImpactResponse at the same ``speed_rpm`` and ``freq_hz``: FRFs, or
@@ -328,10 +438,14 @@ def identify_impact(rotor: RigidRotor, tests, *, method: str = "forces", identic
             raise RotoridError(f"sigma (exponential window decay) of {labels[i]} ({t.sigma:g} 1/s) differs from "
                                f"{labels[0]} ({tests[0].sigma:g} 1/s): window all tests alike")
     check_impact_independence(tests, labels, identical=identical)
-    qs = np.stack([t.at_bearings(rotor).frf() for t in tests])  # (R, n, 4) per unit force
+    at_b = [t.at_bearings(rotor) for t in tests]
+    qs = np.stack([t.frf() for t in at_b])  # (R, n, 4) per unit force
+    covs = None if any(t.cov is None for t in at_b) else np.stack([t.cov for t in at_b])
+    dofs = np.stack([t.dof if t.dof is not None else np.full(f.size, np.inf) for t in at_b])
     w = 2 * np.pi * f
     spin = np.full_like(w, speed * RPM)
     e = np.stack([t.excitation() for t in tests])  # (R, 4), per unit force
     sigma = np.full_like(w, tests[0].sigma) if tests[0].sigma else None
     return _solve(rotor, "freq_hz", f, w, spin, qs, e, np.ones_like(w), sigma, identical=identical, method=method,
-                  labels=labels, cond_max=cond_max, min_rel_amplitude=min_rel_amplitude, what="impact responses")
+                  labels=labels, cond_max=cond_max, min_rel_amplitude=min_rel_amplitude, what="impact responses",
+                  covs=covs, dofs=dofs, max_rel_std=max_rel_std, extra_flags=extra_flags)

@@ -94,14 +94,15 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
     track_kw = dict(points_per_rev=points_per_rev, min_revs=min_revs, settle_revs=settle_revs,
                     speed_tolerance=speed_tolerance, revs_per_block=revs_per_block)
     kw = dict(orders=orders, steady=steady, track_kw=track_kw, keyphasor=keyphasor)
-    sr = None
+    sr, sr_cov = None, None
     if slow_roll is not None:
         if isinstance(slow_roll, signals.SyncTrack):
             from .tables import slow_roll_vector as table_slow_roll
 
             sr = table_slow_roll(slow_roll, max_rpm=slow_roll_max_rpm)
         else:
-            sr = signals.slow_roll_vector(slow_roll, orders=orders, keyphasor=keyphasor, **track_kw)
+            sr, sr_cov = signals.slow_roll_vector(slow_roll, orders=orders, keyphasor=keyphasor, return_cov=True,
+                                                  **track_kw)
         notes.append(f"slow-roll run-out 1X: {np.round(np.abs(sr[0]) * 1e6, 2)} µm")
     tracks = [_track_of(r, f"run {i}", **kw) for i, r in enumerate(runs)]
     for i, t in enumerate(tracks):
@@ -112,7 +113,9 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
     orders_of = tracks[0].orders
     if any(t.orders != orders_of for t in tracks):
         raise RotoridError("all runs must carry the same orders (waveforms and 1X tables cannot be mixed)")
-    comp = [t.minus(sr[: len(t.orders)]) if sr is not None else t for t in tracks]
+    # with a baseline the slow roll cancels (run - sr - (baseline - sr)): its covariance does not count
+    sr_cov_used = None if baseline is not None else sr_cov
+    comp = [t.minus(sr[: len(t.orders)], sr_cov_used) if sr is not None else t for t in tracks]
     if baseline is not None:
         bt = _track_of(baseline, "baseline", **kw)
         bt = bt.minus(sr[: len(bt.orders)]) if sr is not None else bt
@@ -142,12 +145,13 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
             grid = np.asarray(speeds_rpm, float)
         qs = [t.at_speeds(grid)[:, t.orders.index(1), :] for t in comp]
     responses = []
-    for i, (r, q) in enumerate(zip(runs, qs)):
+    for i, (r, q, t) in enumerate(zip(runs, qs, comp)):
+        cov, dof = t.cov_at_speeds(grid)
         imb = _imbalance_of(r, None if imbalances is None else imbalances[i])
         meta = getattr(r, "meta", {}) or {}
         at = meta.get("probes_at", "probes")
         name = imb.name or getattr(r, "name", None) or os.path.basename(getattr(r, "source", "") or "") or f"run {i}"
-        responses.append(SyncResponse(grid, q, imb, at, name))
+        responses.append(SyncResponse(grid, q, imb, at, name, cov, np.where(np.isnan(dof), np.inf, dof)))
     ident = identify_synchronous(rotor, responses, method=method, **ident_kw)
     return ImbalanceChainResult(responses, tracks, ident, notes)
 

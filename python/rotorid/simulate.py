@@ -38,6 +38,40 @@ def _apply_planes(T, q):
     return out
 
 
+def _cov_transform(T, cov):
+    """Covariance (..., 8, 8) of [Re q, Im q] after the plane transform T applied to (x1, x2) and
+    (y1, y2) of q."""
+    if cov is None:
+        return None
+    A4 = np.zeros((4, 4))
+    A4[0:2, 0:2] = T
+    A4[2:4, 2:4] = T
+    A8 = np.zeros((8, 8))
+    A8[:4, :4] = A4
+    A8[4:, 4:] = A4
+    return A8 @ np.asarray(cov) @ A8.T
+
+
+def check_cov(name, cov, n):
+    """A measurement covariance (n, 8, 8): finite (or NaN where unknown), symmetric, positive
+    semi-definite."""
+    if cov is None:
+        return None
+    c = real_array(name, np.nan_to_num(np.asarray(cov, dtype=float), nan=0.0), shape=(n, 8, 8))
+    raw = np.asarray(cov, dtype=float)
+    unknown = np.isnan(raw).any(axis=(1, 2))
+    if np.any(np.abs(c - np.swapaxes(c, 1, 2)) > 1e-9 * (np.abs(c).max() + 1e-300)):
+        raise RotoridError(f"{name} must be symmetric (a covariance matrix per point)")
+    ev = np.linalg.eigvalsh(0.5 * (c + np.swapaxes(c, 1, 2)))
+    tol = 1e-9 * np.maximum(np.abs(ev).max(axis=1), 1e-300)
+    bad = np.nonzero(ev.min(axis=1) < -tol)[0]
+    if bad.size:
+        raise RotoridError(f"{name} is not positive semi-definite at point {int(bad[0])} (smallest eigenvalue "
+                           f"{ev[bad[0]].min():.3g}): not a covariance")
+    raw = np.where(unknown[:, None, None], np.nan, c)
+    return raw
+
+
 def probes_to_bearings(rotor: RigidRotor, q_probes):
     """Report eq. 19 applied to [x_p1, x_p2, y_p1, y_p2] (last axis)."""
     return _apply_planes(probes_to_bearings_matrix(rotor), q_probes)
@@ -54,7 +88,9 @@ class SyncResponse:
 
     ``q``: complex (n, 4), order [x1, x2, y1, y2], 0-peak amplitude, x(t) = Re(q e^{jΩt}) in metres.
     ``imbalance``: the (added) imbalance that produced it. ``at``: where q was measured,
-    "bearings" or "probes" (the rotor's s1, s2).
+    "bearings" or "probes" (the rotor's s1, s2). ``cov`` (n, 8, 8), optional: the measurement
+    covariance of each point's [Re q, Im q] (m², NaN where unknown), ``dof`` (n,) its degrees of
+    freedom (inf when known exactly): the identification propagates them to the coefficients.
     """
 
     speed_rpm: np.ndarray
@@ -62,6 +98,8 @@ class SyncResponse:
     imbalance: Imbalance | None = None
     at: str = "bearings"
     name: str | None = field(default=None)
+    cov: np.ndarray | None = None
+    dof: np.ndarray | None = None
 
     def __post_init__(self):
         self.speed_rpm = speeds_rpm("speed_rpm", self.speed_rpm)
@@ -76,16 +114,24 @@ class SyncResponse:
             raise RotoridError(f"imbalance must be a rotorid.Imbalance, got {type(self.imbalance).__name__}")
         if self.name is None and self.imbalance is not None:
             self.name = self.imbalance.name
+        n = self.speed_rpm.size
+        self.cov = check_cov("cov", self.cov, n)
+        if self.dof is not None:
+            self.dof = np.broadcast_to(np.asarray(self.dof, dtype=float), (n,)).copy()
+            if np.any(self.dof <= 0):
+                raise RotoridError("dof (degrees of freedom of cov) must be > 0")
 
     def at_bearings(self, rotor: RigidRotor) -> "SyncResponse":
         if self.at == "bearings":
             return self
-        return SyncResponse(self.speed_rpm, probes_to_bearings(rotor, self.q), self.imbalance, "bearings", self.name)
+        return SyncResponse(self.speed_rpm, probes_to_bearings(rotor, self.q), self.imbalance, "bearings", self.name,
+                            _cov_transform(probes_to_bearings_matrix(rotor), self.cov), self.dof)
 
     def at_probes(self, rotor: RigidRotor) -> "SyncResponse":
         if self.at == "probes":
             return self
-        return SyncResponse(self.speed_rpm, bearings_to_probes(rotor, self.q), self.imbalance, "probes", self.name)
+        return SyncResponse(self.speed_rpm, bearings_to_probes(rotor, self.q), self.imbalance, "probes", self.name,
+                            _cov_transform(bearings_to_probes_matrix(rotor), self.cov), self.dof)
 
     @property
     def amplitude(self):
@@ -204,6 +250,8 @@ class ImpactResponse:
     the impact from the CG (m, positive toward bearing 2); ``direction``: "x" or "y".
     ``sigma`` (1/s): when force and response were both multiplied by an exponential window
     exp(-sigma t), the spectra are those of s = sigma + j w, and the identification accounts for it.
+    ``cov`` (n, 8, 8), optional: covariance of the FRF's [Re, Im] per frequency ((m/N)², e.g.
+    from the scatter of single impacts), ``dof`` (n,) its degrees of freedom.
     """
 
     speed_rpm: float
@@ -215,6 +263,8 @@ class ImpactResponse:
     at: str = "bearings"
     name: str | None = None
     sigma: float = 0.0
+    cov: np.ndarray | None = None
+    dof: np.ndarray | None = None
 
     def __post_init__(self):
         self.sigma = float(real_array("sigma", self.sigma, ndim=0, nonneg=True))
@@ -236,6 +286,14 @@ class ImpactResponse:
         self.plane = float(real_array("plane", self.plane, ndim=0))
         choice("direction", self.direction, {"x", "y"})
         choice("at", self.at, {"bearings", "probes"})
+        if self.cov is not None and self.force is not None:
+            raise RotoridError("cov is the covariance of an FRF (response per unit force): give q as the FRF "
+                               "(force=None) together with cov")
+        self.cov = check_cov("cov", self.cov, n)
+        if self.dof is not None:
+            self.dof = np.broadcast_to(np.asarray(self.dof, dtype=float), (n,)).copy()
+            if np.any(self.dof <= 0):
+                raise RotoridError("dof (degrees of freedom of cov) must be > 0")
 
     def frf(self) -> np.ndarray:
         """Response per unit force (m/N), (n, 4)."""
@@ -248,13 +306,15 @@ class ImpactResponse:
         if self.at == "bearings":
             return self
         return ImpactResponse(self.speed_rpm, self.freq_hz, probes_to_bearings(rotor, self.q), self.force, self.plane,
-                              self.direction, "bearings", self.name, self.sigma)
+                              self.direction, "bearings", self.name, self.sigma,
+                              _cov_transform(probes_to_bearings_matrix(rotor), self.cov), self.dof)
 
     def at_probes(self, rotor: RigidRotor) -> "ImpactResponse":
         if self.at == "probes":
             return self
         return ImpactResponse(self.speed_rpm, self.freq_hz, bearings_to_probes(rotor, self.q), self.force, self.plane,
-                              self.direction, "probes", self.name, self.sigma)
+                              self.direction, "probes", self.name, self.sigma,
+                              _cov_transform(bearings_to_probes_matrix(rotor), self.cov), self.dof)
 
     def to_dataframe(self):
         import pandas as pd

@@ -78,13 +78,13 @@ class TableTrack(SyncTrack):
     source: str | None = None
     meta: dict = field(default_factory=dict)
 
-    def minus(self, other) -> "TableTrack":
-        base = SyncTrack.minus(self, other)
+    def minus(self, other, other_cov=None) -> "TableTrack":
+        base = SyncTrack.minus(self, other, other_cov)
         what = getattr(other, "name", None) or ("a track" if isinstance(other, SyncTrack) else "a fixed run-out vector")
         meta = dict(self.meta)
         meta["compensated"] = list(meta.get("compensated", [])) + [f"minus {what}"]
         return TableTrack(base.speed_rpm, base.vectors, base.orders, base.n_revs, base.scatter, base.t_mid,
-                          name=self.name, source=self.source, meta=meta)
+                          base.keyphasors, base.cov, base.dof, name=self.name, source=self.source, meta=meta)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -519,7 +519,8 @@ def _to_numbers(cols: dict, first_row: int, where: str) -> tuple:
 
 
 def load_1x_table(path, *, columns, speed_column="auto", amplitude="pk-pk", unit="mil", phase="lag",
-                  phase_unit="deg", sheet=None, skip_rows="auto", name=None, meta=None) -> TableTrack:
+                  phase_unit="deg", sheet=None, skip_rows="auto", name=None, meta=None, amplitude_std=None,
+                  phase_std_deg=None) -> TableTrack:
     """Read a DAQ's 1X table (amplitude and phase per speed) into a SyncTrack.
 
     Parameters
@@ -706,8 +707,36 @@ def load_1x_table(path, *, columns, speed_column="auto", amplitude="pk-pk", unit
         info["sheet"] = sheet
     m = dict(meta or {})
     m.setdefault("table", info)
+    cov, dof = None, None
+    if amplitude_std is not None or phase_std_deg is not None:
+        sa = float(amplitude_std or 0.0) * f_len * (0.5 if amp_kind == "pk-pk" else 1.0)
+        sp = np.deg2rad(float(phase_std_deg or 0.0))
+        if not (np.isfinite(sa) and np.isfinite(sp) and sa >= 0 and sp >= 0) or (sa == 0 and sp == 0):
+            raise RotoridError(f"{where}: amplitude_std and phase_std_deg must be finite and >= 0 (one > 0), got "
+                               f"{amplitude_std!r}, {phase_std_deg!r}")
+        cov = polar_covariance(q, sa, sp)
+        dof = np.full(n, np.inf)
     return TableTrack(speed.astype(float), q[:, None, :], (1,), np.full(n, np.nan), np.full((n, 4), np.nan),
-                      np.full(n, np.nan), name=name if name is not None else path.stem, source=str(path), meta=m)
+                      np.full(n, np.nan), [], cov, dof, name=name if name is not None else path.stem,
+                      source=str(path), meta=m)
+
+
+def polar_covariance(q, amplitude_std_m: float, phase_std_rad: float) -> np.ndarray:
+    """Covariance (n, 8, 8) of 1X vectors q (n, 4) whose amplitude and phase carry independent
+    errors of the given standard deviations (a DAQ's stated accuracy), as the real 8-vector
+    [Re x1..y2, Im x1..y2]: per channel, variance sa² along the vector and (|q| sp)² across it."""
+    q = np.asarray(q, complex)
+    n = q.shape[0]
+    cov = np.zeros((n, 8, 8))
+    u = q / np.where(np.abs(q) > 0, np.abs(q), 1.0)
+    u = np.where(np.abs(q) > 0, u, 1.0)
+    for j in range(4):
+        ur, ui = u[:, j].real, u[:, j].imag
+        va, vt = amplitude_std_m ** 2, (np.abs(q[:, j]) * phase_std_rad) ** 2
+        cov[:, j, j] = va * ur * ur + vt * ui * ui
+        cov[:, j + 4, j + 4] = va * ui * ui + vt * ur * ur
+        cov[:, j, j + 4] = cov[:, j + 4, j] = (va - vt) * ur * ui
+    return cov
 
 
 def _preamble(path: Path, n_lines: int) -> list:

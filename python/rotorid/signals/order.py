@@ -24,6 +24,11 @@ class SyncTrack:
     per-revolution 1X vectors about the block mean (m), a measure of noise and speed drift;
     ``orders``: the orders tracked (1 = 1X); ``keyphasors``: the Keyphasor of each record (block)
     tracked, with its timing jitter and notes.
+
+    ``cov`` (n_blocks, 8, 8): covariance of each block's 1X vector as the real 8-vector
+    [Re x1, Re x2, Re y1, Re y2, Im x1, Im x2, Im y1, Im y2] (m²), estimated from the data
+    themselves (batch means of the per-revolution vectors, so correlated noise between nearby
+    revolutions is accounted for); ``dof`` (n_blocks,) its degrees of freedom. NaN where unknown.
     """
 
     speed_rpm: np.ndarray
@@ -33,27 +38,38 @@ class SyncTrack:
     scatter: np.ndarray
     t_mid: np.ndarray
     keyphasors: list = field(default_factory=list)
+    cov: np.ndarray | None = None
+    dof: np.ndarray | None = None
+
+    def __post_init__(self):
+        n = np.shape(self.speed_rpm)[0]
+        if self.cov is None:
+            self.cov = np.full((n, 8, 8), np.nan)
+        if self.dof is None:
+            self.dof = np.full(n, np.nan)
 
     def order(self, n: int = 1) -> np.ndarray:
         if n not in self.orders:
             raise RotoridError(f"order {n} was not tracked (orders {self.orders})")
         return self.vectors[:, self.orders.index(n), :]
 
-    def minus(self, other: "SyncTrack | np.ndarray") -> "SyncTrack":
+    def minus(self, other: "SyncTrack | np.ndarray", other_cov=None) -> "SyncTrack":
         """Subtract vectors: another track interpolated to these speeds (baseline), or one fixed
-        complex array (n_orders, 4) (slow-roll run-out)."""
+        complex array (n_orders, 4) (slow-roll run-out) with its 1X covariance ``other_cov``
+        (8, 8) if known. Covariances add (the two are independent measurements)."""
         if isinstance(other, SyncTrack):
             if tuple(other.orders) != tuple(self.orders):
                 raise RotoridError("tracks with different orders cannot be subtracted")
             sub = other.at_speeds(self.speed_rpm)
+            ocov, odof = other.cov_at_speeds(self.speed_rpm)
         else:
             sub = np.broadcast_to(np.asarray(other, complex), self.vectors.shape[1:])[None]
+            ocov = np.zeros((1, 8, 8)) if other_cov is None else np.asarray(other_cov, float)[None]
+            odof = np.full(1, np.inf)
         return SyncTrack(self.speed_rpm, self.vectors - sub, self.orders, self.n_revs, self.scatter, self.t_mid,
-                         self.keyphasors)
+                         self.keyphasors, self.cov + ocov, np.minimum(self.dof, odof))
 
-    def at_speeds(self, speed_rpm) -> np.ndarray:
-        """Vectors linearly interpolated (real and imaginary parts) to the given speeds; speeds
-        outside the tracked range raise."""
+    def _weights(self, speed_rpm):
         s = np.asarray(speed_rpm, float)
         order = np.argsort(self.speed_rpm)
         sp = self.speed_rpm[order]
@@ -61,12 +77,40 @@ class SyncTrack:
         tol = 1e-3 * max(hi, 1.0)
         if np.any(s < lo - tol) or np.any(s > hi + tol):
             raise RotoridError(f"speeds {s.min():.0f}-{s.max():.0f} rpm outside the tracked range {lo:.0f}-{hi:.0f} rpm")
+        if sp.size == 1:
+            return order, np.zeros(s.size, int), np.zeros(s.size, int), np.ones(s.size)
+        i = np.clip(np.searchsorted(sp, s) - 1, 0, sp.size - 2)
+        w = np.clip((s - sp[i]) / (sp[i + 1] - sp[i]), 0.0, 1.0)
+        return order, i, i + 1, 1.0 - w
+
+    def at_speeds(self, speed_rpm) -> np.ndarray:
+        """Vectors linearly interpolated (real and imaginary parts) to the given speeds; speeds
+        outside the tracked range raise."""
+        order, i, j, w = self._weights(speed_rpm)
         v = self.vectors[order]
-        out = np.empty((s.size,) + v.shape[1:], complex)
-        for i in range(v.shape[1]):
-            for j in range(v.shape[2]):
-                out[:, i, j] = np.interp(s, sp, v[:, i, j].real) + 1j * np.interp(s, sp, v[:, i, j].imag)
-        return out
+        return v[i] * w[:, None, None] + v[j] * (1.0 - w)[:, None, None]
+
+    def cov_at_speeds(self, speed_rpm):
+        """(cov, dof) of the 1X vectors interpolated to the given speeds (squared weights)."""
+        order, i, j, w = self._weights(speed_rpm)
+        c, d = self.cov[order], self.dof[order]
+        return (c[i] * (w ** 2)[:, None, None] + c[j] * ((1.0 - w) ** 2)[:, None, None],
+                np.where(w == 1.0, d[i], np.where(w == 0.0, d[j], np.minimum(d[i], d[j]))))
+
+
+def mean_covariance(v, *, max_batches: int = 16):
+    """Covariance of the mean of per-revolution complex vectors ``v`` (revs, 4) as the real
+    8-vector [Re, Im], from batch means: the revolutions are cut into up to ``max_batches``
+    consecutive batches, so noise correlated over fewer revolutions than a batch is accounted
+    for. Returns (cov (8, 8), dof)."""
+    n = v.shape[0]
+    nb = min(n, max_batches)
+    if nb < 2:
+        return np.full((8, 8), np.nan), np.nan
+    size = n // nb
+    b = v[: nb * size].reshape(nb, size, 4).mean(axis=1)
+    r = np.concatenate([b.real, b.imag], axis=1)
+    return np.cov(r, rowvar=False, ddof=1) / nb, float(nb - 1)
 
 
 def steady_segments(kp: Keyphasor, *, tolerance: float = 0.005, min_revs: int = 8, settle_revs: int = 2):
@@ -165,7 +209,8 @@ def track(rec, *, orders=(1, 2, 3), revs_per_block: int | None = None, steady: b
         return SyncTrack(np.concatenate([p.speed_rpm for p in parts]), np.concatenate([p.vectors for p in parts]),
                          parts[0].orders, np.concatenate([p.n_revs for p in parts]),
                          np.concatenate([p.scatter for p in parts]), np.concatenate([p.t_mid for p in parts]),
-                         [k for p in parts for k in p.keyphasors])
+                         [k for p in parts for k in p.keyphasors], np.concatenate([p.cov for p in parts]),
+                         np.concatenate([p.dof for p in parts]))
     if not isinstance(rec, Recording):
         raise RotoridError(f"rec must be a Recording or SegmentedRecording, got {type(rec).__name__}")
     rec.require(*DISPLACEMENTS)
@@ -239,22 +284,32 @@ def track(rec, *, orders=(1, 2, 3), revs_per_block: int | None = None, steady: b
         if nb < 1:
             raise RotoridError(f"recording has {rpm.size} revolutions, fewer than revs_per_block = {rb}")
         blocks = [(i * rb, (i + 1) * rb) for i in range(nb)]
-    vec, sp, nrev, scat, tm = [], [], [], [], []
+    vec, sp, nrev, scat, tm, cov, dof = [], [], [], [], [], [], []
+    i1 = orders.index(1) if 1 in orders else None
     for a, b in blocks:
         v = per_rev[a:b]
         vec.append(v.mean(axis=0))
+        if i1 is not None:
+            c, d = mean_covariance(v[:, i1, :])
+        else:
+            c, d = np.full((8, 8), np.nan), np.nan
+        cov.append(c)
+        dof.append(d)
         sp.append(rpm[a:b].mean())
         nrev.append(b - a)
         scat.append(np.sqrt(np.mean(np.abs(v[:, 0, :] - v[:, 0, :].mean(axis=0)) ** 2, axis=0)))
         tm.append(tmid[a:b].mean())
-    return SyncTrack(np.array(sp), np.array(vec), orders, np.array(nrev), np.array(scat), np.array(tm), [kp])
+    return SyncTrack(np.array(sp), np.array(vec), orders, np.array(nrev), np.array(scat), np.array(tm), [kp],
+                     np.array(cov), np.array(dof))
 
 
-def slow_roll_vector(rec: Recording, *, orders=(1, 2, 3), **kw) -> np.ndarray:
+def slow_roll_vector(rec: Recording, *, orders=(1, 2, 3), return_cov: bool = False, **kw):
     """Run-out vectors (n_orders, 4) from a slow-roll recording: the synchronous vectors at a speed
-    low enough for the dynamic response to be negligible (mechanical and electrical run-out)."""
+    low enough for the dynamic response to be negligible (mechanical and electrical run-out).
+    With ``return_cov`` also the (8, 8) covariance of its 1X vector."""
     tr = track(rec, orders=orders, **kw)
     if tr.speed_rpm.size > 1:
         warnings.warn(f"slow-roll recording has {tr.speed_rpm.size} steady segments; using the slowest "
                       f"({tr.speed_rpm.min():.0f} rpm)")
-    return tr.vectors[int(np.argmin(tr.speed_rpm))]
+    i = int(np.argmin(tr.speed_rpm))
+    return (tr.vectors[i], tr.cov[i]) if return_cov else tr.vectors[i]

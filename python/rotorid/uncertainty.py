@@ -1,0 +1,116 @@
+"""Uncertainty of identified coefficients: measurement covariance propagated through the estimator.
+
+The identification maps the measured responses q (runs x 4 complex per point) to the 16 real
+coefficients p. Both sides of the equations hold measured responses (the regressor Q(q) as well as
+the inertia term), so this is an errors-in-variables problem; to first order the coefficient
+covariance is
+
+    Cov(p) = J Σ Jᵀ,   J = ∂p/∂[Re q, Im q]  (16 x 8R),   Σ = blockdiag(Σ_1, ..., Σ_R),
+
+with Σ_r the 8 x 8 covariance of run r's [Re q, Im q] at that point (from the data: order tracking
+batch means, single-impact scatter, a DAQ's stated accuracy). J is taken by central differences
+of the estimator itself, all 16R perturbed copies of every point in one batched core call, so it
+is exact for whichever solver ("forces" or "report", two runs or many) produced p. The
+linearization holds while the relative response errors times the condition number stay small;
+beyond that the points are flagged (relative standard error above ``max_rel_std``).
+
+Intervals use Student's t with the degrees of freedom of the covariance estimates (the smallest
+over the runs at that point; a covariance known exactly has infinite dof).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from . import _core
+from .errors import RotoridError
+from .model import _REPORT_TO_BIJ
+
+#: relative perturbation of the responses for the finite-difference Jacobian
+_H_REL = 1e-6
+
+
+class Interval(NamedTuple):
+    """Lower and upper bounds of k and c (each (n, 2, 2, 2)) at a confidence level."""
+
+    k_lower: np.ndarray
+    k_upper: np.ndarray
+    c_lower: np.ndarray
+    c_upper: np.ndarray
+    level: float
+
+
+def report_vector(k, c):
+    """(..., 16) in report eq. 9 order from k, c (..., 2, 2, 2)."""
+    lead = k.shape[:-3]
+    return np.concatenate([k.reshape(lead + (8,))[..., _REPORT_TO_BIJ], c.reshape(lead + (8,))[..., _REPORT_TO_BIJ]],
+                          axis=-1)
+
+
+def propagate(rotor, w, spin, qs, e, gain, sigma, covs, *, identical, method):
+    """Covariance (n, 16, 16) of the report vector from run covariances ``covs`` (R, n, 8, 8) of
+    the responses ``qs`` (R, n, 4) at the bearings. NaN at points where a run's covariance is
+    unknown or the estimator is singular."""
+    R, n, _ = qs.shape
+    scale = np.sqrt(np.mean(np.abs(qs) ** 2, axis=(0, 2)))
+    h = _H_REL * np.where(scale > 0, scale, 1.0)
+    nb = 16 * R
+    qb = np.empty((nb, R, n, 4), dtype=complex)
+    qb[:] = qs[None]
+    col = 0
+    for r in range(R):
+        for comp in range(8):
+            d = h * (1j if comp >= 4 else 1.0)
+            qb[2 * col, r, :, comp % 4] += d
+            qb[2 * col + 1, r, :, comp % 4] -= d
+            col += 1
+    k, c, *_ = _core.identify(rotor.core_params(), w, spin, qb, np.ascontiguousarray(e[None], dtype=complex), gain,
+                              identical=identical, method=method, with_std=False, sigma=sigma)
+    rv = report_vector(k, c)                                  # (nb, n, 16)
+    J = (rv[0::2] - rv[1::2]) / (2.0 * h[None, :, None])      # (8R, n, 16)
+    J = np.transpose(J, (1, 2, 0))                            # (n, 16, 8R)
+    S = np.zeros((n, 8 * R, 8 * R))
+    for r in range(R):
+        S[:, 8 * r:8 * r + 8, 8 * r:8 * r + 8] = np.nan_to_num(covs[r], nan=0.0)
+    cov = J @ S @ np.transpose(J, (0, 2, 1))
+    unknown = np.any(np.isnan(covs), axis=(0, 2, 3)) | ~np.all(np.isfinite(J), axis=(1, 2))
+    cov[unknown] = np.nan
+    return cov
+
+
+def t_quantile(level: float, dof):
+    """Two-sided quantile of Student's t for a confidence ``level`` (normal where dof is inf)."""
+    if not (0.0 < level < 1.0):
+        raise RotoridError(f"level must be between 0 and 1 (e.g. 0.95), got {level!r}")
+    from scipy import stats
+
+    dof = np.asarray(dof, dtype=float)
+    q = (1.0 + level) / 2.0
+    out = np.where(np.isfinite(dof), stats.t.ppf(q, np.where(np.isfinite(dof) & (dof > 0), dof, 1.0)),
+                   stats.norm.ppf(q))
+    return np.where(dof > 0, out, np.nan)
+
+
+def std_from_cov(cov):
+    """(k_std, c_std) (n, 2, 2, 2) from the report-order covariance (n, 16, 16)."""
+    n = cov.shape[0]
+    sd = np.sqrt(np.clip(np.diagonal(cov, axis1=1, axis2=2), 0.0, None))
+    k = np.empty((n, 8))
+    c = np.empty((n, 8))
+    k[:, _REPORT_TO_BIJ] = sd[:, :8]
+    c[:, _REPORT_TO_BIJ] = sd[:, 8:]
+    return k.reshape(n, 2, 2, 2), c.reshape(n, 2, 2, 2)
+
+
+def relative_std(k, c, k_std, c_std):
+    """Largest standard error per point relative to its bearing's direct coefficients,
+    sqrt(|Kxx Kyy|) for stiffnesses and sqrt(|Cxx Cyy|) for dampings (so cross-coupled terms that
+    are small are judged on the bearing's scale, not their own)."""
+    sk = np.sqrt(np.abs(k[:, :, 0, 0] * k[:, :, 1, 1]))[:, :, None, None]
+    sc = np.sqrt(np.abs(c[:, :, 0, 0] * c[:, :, 1, 1]))[:, :, None, None]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rk = (k_std / sk).reshape(k.shape[0], -1).max(axis=1)
+        rc = (c_std / sc).reshape(c.shape[0], -1).max(axis=1)
+    return np.maximum(rk, rc)
