@@ -323,11 +323,20 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
                           f"({DISPLACEMENTS[j]} at {frf.freq_hz[sel][i]:.1f} Hz) in the band; "
                           f"{int((coh < coherence_min).sum())} of {coh.size} points below {coherence_min:g}")
         sigma = 0.0 if exp_window_tau_s is None else 1.0 / exp_window_tau_s
+        cov = None if frf.cov is None else frf.cov[sel]
         tests.append(ImpactResponse(speed_rpm=speed, freq_hz=frf.freq_hz[sel], q=frf.h[sel], plane=plane,
-                                    direction=direction, at=at, name=f"{direction}@{plane:g}m x{len(fl)}", sigma=sigma))
+                                    direction=direction, at=at, name=f"{direction}@{plane:g}m x{len(fl)}", sigma=sigma,
+                                    cov=cov, dof=None if cov is None else np.full(cov.shape[0], frf.dof)))
         frfs.append(frf)
         used.append(ul)
-    ident = identify_impact(rotor, tests, identical=identical, method=method, **ident_kw)
+    # low coherence at a frequency (any test, any channel) flags the point: its FRFs are unreliable
+    low_coh = np.zeros(tests[0].freq_hz.size, bool)
+    for t, frf in zip(tests, frfs):
+        sel = (frf.freq_hz >= band_hz[0]) & (frf.freq_hz <= band_hz[1])
+        if sel.sum() == low_coh.size:
+            low_coh |= frf.coherence[sel].min(axis=1) < coherence_min
+    ident = identify_impact(rotor, tests, identical=identical, method=method,
+                            extra_flags=[(low_coh, f"coherence < {coherence_min:g}")], **ident_kw)
     return ImpactChainResult(tests, frfs, used, dropped, ident)
 
 

@@ -140,11 +140,18 @@ class FRF:
     force: np.ndarray
     n_avg: int
     sigma: float = 0.0
+    cov: np.ndarray | None = None
+    dof: float = float("nan")
 
 
 def frf_h1(forces, responses, fs_hz: float) -> FRF:
     """H1 FRF and coherence from equally long force records (list of (N,)) and response records
-    (list of (C, N)), one pair per impact."""
+    (list of (C, N)), one pair per impact.
+
+    With n >= 2 impacts and C = 4 channels, also the covariance of H1's [Re, Im] per frequency
+    from the scatter of the single impacts: with X_i = H F_i + N_i, H1 - H = Σ N_i F_i* / Σ|F_i|²,
+    estimated from the residuals R_i = X_i - H1 F_i as n/(n-1) Σ_i outer(R_i F_i* / Σ|F|²)
+    (real 8-vector form), with n - 1 degrees of freedom."""
     if len(forces) != len(responses) or not forces:
         raise RotoridError("frf_h1 needs one response record per force record (and at least one)")
     n = len(forces[0])
@@ -163,4 +170,17 @@ def frf_h1(forces, responses, fs_hz: float) -> FRF:
     with np.errstate(divide="ignore", invalid="ignore"):
         h = sxf / sff[:, None]
         coh = np.abs(sxf) ** 2 / (sff[:, None] * sxx)
-    return FRF(freq, h, coh, np.sqrt(sff / len(forces)), len(forces))
+    m = len(forces)
+    cov, dof = None, float("nan")
+    if m >= 2 and h.shape[1] == 4:
+        cov = np.zeros((freq.size, 8, 8))
+        for f, x in zip(forces, responses):
+            F = np.fft.rfft(f)
+            X = np.fft.rfft(np.asarray(x), axis=-1).T
+            with np.errstate(divide="ignore", invalid="ignore"):
+                e = (X - h * F[:, None]) * np.conj(F)[:, None] / sff[:, None]
+            r = np.concatenate([e.real, e.imag], axis=1)
+            cov += r[:, :, None] * r[:, None, :]
+        cov *= m / (m - 1.0)
+        dof = float(m - 1)
+    return FRF(freq, h, coh, np.sqrt(sff / m), m, cov=cov, dof=dof)
