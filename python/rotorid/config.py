@@ -748,6 +748,8 @@ class OneXTable(_Model):
     sheet: Optional[Sheet] = None
     skip_rows: SkipRows = "auto"
     slow_roll_max_rpm: Optional[Positive] = None
+    amplitude_std: Optional[NonNeg] = None
+    phase_std_deg: Optional[NonNeg] = None
 
     def reader_kwargs(self) -> dict:
         """Keyword arguments of ``rotorid.tables.load_1x_table`` (all but the path).
@@ -762,7 +764,7 @@ class OneXTable(_Model):
         """
         return {"columns": self.columns.model_dump(), "speed_column": self.speed_column, "amplitude": self.amplitude,
                 "unit": self.unit, "phase": self.phase, "phase_unit": self.phase_unit, "sheet": self.sheet,
-                "skip_rows": self.skip_rows}
+                "skip_rows": self.skip_rows, "amplitude_std": self.amplitude_std, "phase_std_deg": self.phase_std_deg}
 
 
 class ImbalanceSection(_Model):
@@ -784,6 +786,8 @@ class ImbalanceSection(_Model):
     speed_match_rpm: NonNeg = 2.0
     cond_max: _number(gt=1) = 1e4
     min_rel_amplitude: _number(ge=0, lt=1) = 0.08
+    max_rel_std: _number(gt=0) = 0.1
+    estimator: _choice("ls", "bias-corrected") = "ls"
     table: Optional[OneXTable] = None
 
     @model_validator(mode="after")
@@ -827,6 +831,8 @@ class ImpactSection(_Model):
     speed_rpm: Optional[Positive] = None
     cond_max: _number(gt=1) = 1e4
     min_rel_amplitude: _number(ge=0, lt=1) = 0.01
+    max_rel_std: _number(gt=0) = 0.1
+    estimator: _choice("ls", "bias-corrected") = "ls"
 
     @model_validator(mode="after")
     def _record(self):

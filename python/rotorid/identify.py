@@ -250,7 +250,7 @@ def _check_threshold(name, value, lo, hi=np.inf):
 
 def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", identical: bool = False,
                          cond_max: float = COND_MAX, min_rel_amplitude: float = MIN_REL_AMPLITUDE,
-                         max_rel_std: float = MAX_REL_STD) -> Identification:
+                         max_rel_std: float = MAX_REL_STD, estimator: str = "ls") -> Identification:
     """Synchronous K and C of both bearings at every speed from two or more imbalance runs.
 
     ``runs``: list (or dict name -> run) of SyncResponse, each with its added ``imbalance`` and the
@@ -269,6 +269,11 @@ def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", ide
     ("residual"). A point whose largest standard error exceeds ``max_rel_std`` times its
     bearing's direct coefficients is flagged "uncertain"; a point over ``cond_max`` "ill-conditioned",
     below ``min_rel_amplitude`` "low amplitude".
+
+    ``estimator``: "ls" (least squares, as the report) or "bias-corrected": least squares less its
+    second-order errors-in-variables bias, estimated from the measurement covariance (sigma points
+    through the estimator; see :mod:`rotorid.uncertainty`). It removes the attenuation bias that
+    noisy responses cause at poorly conditioned speeds, at a small cost in variance.
     """
     if not isinstance(rotor, RigidRotor):
         raise RotoridError(f"rotor must be a rotorid.RigidRotor, got {type(rotor).__name__}")
@@ -294,7 +299,7 @@ def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", ide
     e = np.stack([r.imbalance.generalized(rotor) for r in runs])  # (R, 4), scaled by Omega^2 below
     return _solve(rotor, "speed_rpm", rpm, om, om, qs, e, om ** 2, None, identical=identical, method=method,
                   labels=labels, cond_max=cond_max, min_rel_amplitude=min_rel_amplitude, what="responses",
-                  covs=_run_covs(at_b), dofs=_run_dofs(at_b), max_rel_std=max_rel_std)
+                  covs=_run_covs(at_b), dofs=_run_dofs(at_b), max_rel_std=max_rel_std, estimator=estimator)
 
 
 def _run_covs(runs):
@@ -309,7 +314,8 @@ def _run_dofs(runs):
 
 
 def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, method, labels, cond_max,
-           min_rel_amplitude, what, covs=None, dofs=None, max_rel_std=MAX_REL_STD, extra_flags=None):
+           min_rel_amplitude, what, covs=None, dofs=None, max_rel_std=MAX_REL_STD, extra_flags=None,
+           estimator="ls"):
     """One core call for the whole axis, uncertainty, then flags; shared by both methods."""
     from .uncertainty import propagate, std_from_cov
 
@@ -333,8 +339,23 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
     if redundant:
         # residual dof per bearing system: R complex equations (2R real) for 2 complex unknowns
         dof = np.full(axis.size, 2.0 * (qs.shape[0] * (2 if identical else 1) - 2))
+    choice("estimator", estimator, {"ls", "bias-corrected"})
+    if estimator == "bias-corrected" and (covs is None or np.all(np.isnan(covs))):
+        raise RotoridError("estimator='bias-corrected' needs the measurement covariance of every run or test (cov=)")
     if covs is not None and not np.all(np.isnan(covs)):
-        cov = propagate(rotor, w, spin, qs, e, gain, sigma, covs, identical=identical, method=method)
+        if estimator == "bias-corrected":
+            from .model import _REPORT_TO_BIJ
+
+            cov, b = propagate(rotor, w, spin, qs, e, gain, sigma, covs, identical=identical, method=method, bias=True)
+            n = axis.size
+            bk = np.zeros((n, 8))
+            bc = np.zeros((n, 8))
+            bk[:, _REPORT_TO_BIJ] = np.nan_to_num(b[:, :8])
+            bc[:, _REPORT_TO_BIJ] = np.nan_to_num(b[:, 8:])
+            k = k - bk.reshape(1, n, 2, 2, 2)
+            c = c - bc.reshape(1, n, 2, 2, 2)
+        else:
+            cov = propagate(rotor, w, spin, qs, e, gain, sigma, covs, identical=identical, method=method)
         ks, cs = std_from_cov(cov)
         source = "measurement covariance"
         dof = np.min(dofs, axis=0) if dofs is not None else np.full(axis.size, np.inf)
@@ -400,7 +421,7 @@ def check_impact_independence(tests, labels, *, identical=False):
 
 def identify_impact(rotor: RigidRotor, tests, *, method: str = "forces", identical: bool = False,
                     cond_max: float = COND_MAX, min_rel_amplitude: float = MIN_REL_AMPLITUDE_IMPACT,
-                    max_rel_std: float = MAX_REL_STD, extra_flags=None) -> Identification:
+                    max_rel_std: float = MAX_REL_STD, extra_flags=None, estimator: str = "ls") -> Identification:
     """Frequency-dependent K(w) and C(w) of both bearings from impacts at one running speed (eq. 23-28).
 
     ``tests``: list (or dict) of ImpactResponse at the same ``speed_rpm`` and ``freq_hz``: FRFs, or
@@ -448,4 +469,4 @@ def identify_impact(rotor: RigidRotor, tests, *, method: str = "forces", identic
     sigma = np.full_like(w, tests[0].sigma) if tests[0].sigma else None
     return _solve(rotor, "freq_hz", f, w, spin, qs, e, np.ones_like(w), sigma, identical=identical, method=method,
                   labels=labels, cond_max=cond_max, min_rel_amplitude=min_rel_amplitude, what="impact responses",
-                  covs=covs, dofs=dofs, max_rel_std=max_rel_std, extra_flags=extra_flags)
+                  covs=covs, dofs=dofs, max_rel_std=max_rel_std, extra_flags=extra_flags, estimator=estimator)

@@ -424,7 +424,8 @@ def run_config(path, kind: str, *, out_dir=None, log=print, overwrite: bool = Tr
     us = cfg.output.units.upper() == "US"
     files = []
     if kind == "imbalance":
-        ident_kw = dict(identical=sec.identical, cond_max=sec.cond_max, min_rel_amplitude=sec.min_rel_amplitude)
+        ident_kw = dict(identical=sec.identical, cond_max=sec.cond_max, min_rel_amplitude=sec.min_rel_amplitude,
+                        max_rel_std=sec.max_rel_std, estimator=sec.estimator)
         if sec.table is not None:
             runs = [_load_table(cfg, r, r.name) for r in sec.runs]
             base = _load_table(cfg, sec.baseline, "baseline") if sec.baseline is not None else None
@@ -475,7 +476,8 @@ def run_config(path, kind: str, *, out_dir=None, log=print, overwrite: bool = Tr
                            keyphasor=None, speed_rpm=sec.speed_rpm, coherence_min=sec.coherence_min,
                            threshold_N=sec.threshold_N, min_separation_s=sec.min_separation_s,
                            double_hit_window_s=sec.double_hit_window_s, overload_N=sec.overload_N,
-                           cond_max=sec.cond_max, min_rel_amplitude=sec.min_rel_amplitude)
+                           cond_max=sec.cond_max, min_rel_amplitude=sec.min_rel_amplitude, max_rel_std=sec.max_rel_std,
+                           estimator=sec.estimator)
         ident = res.identification
         import pandas as pd
 

@@ -49,10 +49,21 @@ def report_vector(k, c):
                           axis=-1)
 
 
-def propagate(rotor, w, spin, qs, e, gain, sigma, covs, *, identical, method):
+def _eval(rotor, w, spin, qb, e, gain, sigma, identical, method):
+    k, c, *_ = _core.identify(rotor.core_params(), w, spin, np.ascontiguousarray(qb), np.ascontiguousarray(e[None],
+                              dtype=complex), gain, identical=identical, method=method, with_std=False, sigma=sigma)
+    return report_vector(k, c)
+
+
+def propagate(rotor, w, spin, qs, e, gain, sigma, covs, *, identical, method, bias=False):
     """Covariance (n, 16, 16) of the report vector from run covariances ``covs`` (R, n, 8, 8) of
     the responses ``qs`` (R, n, 4) at the bearings. NaN at points where a run's covariance is
-    unknown or the estimator is singular."""
+    unknown or the estimator is singular.
+
+    With ``bias=True`` also the estimator's second-order bias (n, 16): the noise turns a nonlinear
+    estimator's mean away from the truth (least squares with noisy regressors shrinks toward zero,
+    the classic errors-in-variables attenuation), by b = ½ Σ_k [p(q + l_k) + p(q - l_k) - 2 p(q)]
+    over the sigma points l_k (the columns of Σ^½, one run at a time). Returns (cov, bias)."""
     R, n, _ = qs.shape
     scale = np.sqrt(np.mean(np.abs(qs) ** 2, axis=(0, 2)))
     h = _H_REL * np.where(scale > 0, scale, 1.0)
@@ -66,18 +77,33 @@ def propagate(rotor, w, spin, qs, e, gain, sigma, covs, *, identical, method):
             qb[2 * col, r, :, comp % 4] += d
             qb[2 * col + 1, r, :, comp % 4] -= d
             col += 1
-    k, c, *_ = _core.identify(rotor.core_params(), w, spin, qb, np.ascontiguousarray(e[None], dtype=complex), gain,
-                              identical=identical, method=method, with_std=False, sigma=sigma)
-    rv = report_vector(k, c)                                  # (nb, n, 16)
-    J = (rv[0::2] - rv[1::2]) / (2.0 * h[None, :, None])      # (8R, n, 16)
-    J = np.transpose(J, (1, 2, 0))                            # (n, 16, 8R)
+    rv = _eval(rotor, w, spin, qb, e, gain, sigma, identical, method)   # (nb, n, 16)
+    J = (rv[0::2] - rv[1::2]) / (2.0 * h[None, :, None])                # (8R, n, 16)
+    J = np.transpose(J, (1, 2, 0))                                       # (n, 16, 8R)
     S = np.zeros((n, 8 * R, 8 * R))
     for r in range(R):
         S[:, 8 * r:8 * r + 8, 8 * r:8 * r + 8] = np.nan_to_num(covs[r], nan=0.0)
     cov = J @ S @ np.transpose(J, (0, 2, 1))
     unknown = np.any(np.isnan(covs), axis=(0, 2, 3)) | ~np.all(np.isfinite(J), axis=(1, 2))
     cov[unknown] = np.nan
-    return cov
+    if not bias:
+        return cov
+    # sigma points: +-l_k with l_k the scaled eigenvectors of each run's covariance
+    p0 = _eval(rotor, w, spin, qs[None], e, gain, sigma, identical, method)[0]
+    qb[:] = qs[None]
+    col = 0
+    for r in range(R):
+        ev, V = np.linalg.eigh(np.nan_to_num(covs[r], nan=0.0))
+        L = V * np.sqrt(np.clip(ev, 0.0, None))[:, None, :]              # (n, 8, 8): columns l_k
+        for kk in range(8):
+            lk = L[:, :4, kk] + 1j * L[:, 4:, kk]                        # (n, 4) complex
+            qb[2 * col, r] += lk
+            qb[2 * col + 1, r] -= lk
+            col += 1
+    rs = _eval(rotor, w, spin, qb, e, gain, sigma, identical, method)
+    b = 0.5 * np.sum(rs[0::2] + rs[1::2] - 2.0 * p0[None], axis=0)
+    b[unknown] = np.nan
+    return cov, b
 
 
 def t_quantile(level: float, dof):
