@@ -55,8 +55,9 @@ def coefficients(ident, truth=None, *, title="", path=None, show_flagged=True, y
     """Four panels: direct K, cross-coupled K, direct C, cross-coupled C, both bearings.
 
     Points flagged by the identification (ok == False) are drawn as hollow markers; ``truth``
-    (BearingCoefficients) is drawn as lines. The y range is clipped to ``ylim_factor`` times the
-    truth range so that wild low-speed values do not hide the rest.
+    (BearingCoefficients) is drawn as lines. Error bars: the 95 % confidence intervals
+    (``ident.interval(0.95)``) where the uncertainty is known. The y range is clipped to
+    ``ylim_factor`` times the truth range so that wild low-speed values do not hide the rest.
     """
     plt = _plt()
     x = ident.axis
@@ -67,6 +68,9 @@ def coefficients(ident, truth=None, *, title="", path=None, show_flagged=True, y
               ("C", [(0, 1), (1, 0)], "Cross-coupled damping (kN·s/m)", 1e-3, ident.c)]
     fig, axes = plt.subplots(2, 2, figsize=(13, 8.5), sharex=True)
     markers = ["o", "s", "^", "v"]
+    iv = ident.interval(0.95)
+    half_k = 0.5 * (iv.k_upper - iv.k_lower)
+    half_c = 0.5 * (iv.c_upper - iv.c_lower)
     for ax, (sym, pairs, label, scale, arr) in zip(axes.flat, groups):
         tvals = []
         m = 0
@@ -74,9 +78,15 @@ def coefficients(ident, truth=None, *, title="", path=None, show_flagged=True, y
             for (i, j) in pairs:
                 name = f"{sym}{'xy'[i]}{'xy'[j]}{b + 1}"
                 y = arr[:, b, i, j] * scale
-                line = ax.plot(x[ident.ok], y[ident.ok], markers[m], ms=3.5, label=name)[0]
-                if show_flagged and (~ident.ok).any():
-                    ax.plot(x[~ident.ok], y[~ident.ok], markers[m], ms=3.5, mfc="none", color=line.get_color(), alpha=0.6)
+                err = (half_k if sym == "K" else half_c)[:, b, i, j] * scale
+                ok = ident.ok
+                line = ax.plot(x[ok], y[ok], markers[m], ms=3.5, label=name)[0]
+                has = np.isfinite(err)
+                if (ok & has).any():
+                    ax.errorbar(x[ok & has], y[ok & has], yerr=err[ok & has], fmt="none", ecolor=line.get_color(),
+                                elinewidth=0.8, capsize=1.5, alpha=0.7)
+                if show_flagged and (~ok).any():
+                    ax.plot(x[~ok], y[~ok], markers[m], ms=3.5, mfc="none", color=line.get_color(), alpha=0.6)
                 if truth is not None:
                     kk, cc = truth.at(**{ident.axis_name: x}) if not truth.is_constant else truth.at()
                     tv = (kk if sym == "K" else cc)
@@ -94,7 +104,12 @@ def coefficients(ident, truth=None, *, title="", path=None, show_flagged=True, y
         ax.legend(fontsize=8, ncol=2)
     for ax in axes[1]:
         ax.set_xlabel(xlabel)
-    fig.suptitle(title + ("\n(hollow markers: points flagged as not trustworthy)" if show_flagged and (~ident.ok).any() else ""))
+    notes = []
+    if np.isfinite(half_k).any():
+        notes.append(f"error bars: 95 % intervals ({ident.std_source})")
+    if show_flagged and (~ident.ok).any():
+        notes.append("hollow markers: points flagged as not trustworthy")
+    fig.suptitle(title + ("\n(" + "; ".join(notes) + ")" if notes else ""))
     return finish(fig, path)
 
 
