@@ -357,6 +357,11 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
         else:
             cov = propagate(rotor, w, spin, qs, e, gain, sigma, covs, identical=identical, method=method)
         ks, cs = std_from_cov(cov)
+        ks[np.isnan(cov).any(axis=(1, 2))] = np.nan
+        cs[np.isnan(cov).any(axis=(1, 2))] = np.nan
+        unknown = np.isnan(cov).any(axis=(1, 2))
+        if unknown.any():
+            extra_flags = list(extra_flags or []) + [(unknown, "uncertainty unknown")]
         source = "measurement covariance"
         dof = np.min(dofs, axis=0) if dofs is not None else np.full(axis.size, np.inf)
         dof = np.where(np.isnan(cov).any(axis=(1, 2)), np.nan, dof)

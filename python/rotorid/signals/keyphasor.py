@@ -48,6 +48,8 @@ from ..errors import RotoridError
 TEMPLATE_BINS = 16
 #: steady stretches of at most this many pulses share one edge template
 TEMPLATE_CHUNK = 256
+#: half-width (pulses) of the local quadratic that gives the smooth time base of the refinement
+LOCAL_FIT = 8
 
 
 class KeyphasorError(RotoridError):
@@ -337,10 +339,12 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
     if level is None:
         # the swing from the pulses themselves (top after the edge less the base before it): with a
         # drifting offset the histogram modes sit at the drift's extremes and would misjudge it
-        top = _local_top(w, k, int(full), int(max(0.8 * width - full, 0)), lev)
+        top = _local_top(w, k, base, swing, width)
         ok = np.isfinite(top)
         if ok.sum() >= 3:
             swing = float(np.median(top[ok] - base[ok]))
+        # with the local base the mid-height moves with any offset drift: find the straddling pair again
+        k = _last_below_each(w, rises, base + 0.5 * swing, int(full) + 2, k)
     mid = base + 0.5 * swing if level is None else np.full(k.size, lev)
     smooth = rise >= 2.5
     frac = _cubic_crossing(w, k, mid) if smooth else _linear_crossing(w, k, mid)
@@ -362,6 +366,18 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
                       f"{[round(m[0], 6) for m in missing[:5]]} s ({what})")
     return Keyphasor(times, extra, missing, sgn * lev, hys, (rest, pulse), edge, _jitter(t), rise, refined, note,
                      float(mark_angle_deg))
+
+
+def _last_below_each(w, rises, levels, reach, fallback):
+    """For each trigger index: the last sample at or before it (looking back at most ``reach``)
+    with w <= that pulse's own level; ``fallback`` where none is found."""
+    offs = np.arange(reach + 1)
+    idx = rises[:, None] - offs[None, :]
+    valid = idx >= 0
+    below = valid & (w[np.clip(idx, 0, w.size - 1)] <= levels[:, None])
+    first = np.argmax(below, axis=1)
+    found = below[np.arange(rises.size), first]
+    return np.clip(np.where(found, rises - first, fallback), 0, w.size - 2)
 
 
 def _rise_samples(w, rises, lo, swing):
@@ -391,18 +407,16 @@ def _local_base(w, k, half, lev, lo):
     return out
 
 
-def _local_top(w, k, start, length, lev):
-    """Pulse level just after each edge: median of the samples from ``start`` to ``start + length``
-    after the crossing that lie above the trigger level (NaN where fewer than 3)."""
-    out = np.full(k.size, np.nan)
-    if length < 3:
-        return out
-    for i, ki in enumerate(k):
-        seg = w[ki + start: ki + start + min(length, 16)]
-        seg = seg[seg > lev]
-        if seg.size >= 3:
-            out[i] = np.median(seg)
-    return out
+def _local_top(w, k, base, swing, width):
+    """Pulse level of each pulse: the median of the samples in the middle half of the pulse (farthest
+    from both edges, so edge shape and ringing matter least); NaN where that is not above 80 % of
+    the swing from the pulse's own base (a pulse too short to settle)."""
+    a = int(np.floor(0.25 * width)) + 1
+    b = max(int(np.ceil(0.75 * width)), a) + 1
+    offs = np.arange(a, b)
+    idx = np.clip(k[:, None] + offs[None, :], 0, w.size - 1)
+    top = np.median(w[idx], axis=1)
+    return np.where(top > base + 0.8 * swing, top, np.nan)
 
 
 def _cubic_crossing(x, k, level):
@@ -467,22 +481,24 @@ def _refine(w, t, base, swing, half, post, steep):
             starts.append(i + 1 if abs(per[i] - ref) > 0.01 * ref else i)
     starts.append(n)
     offs = np.arange(-half, post + 1)
-    notes, done = [], False
+    notes, notes_rejected, done = [], [], False
     for a, b in zip(starts[:-1], starts[1:]):
         if b - a < 16:
             continue
         tc = t[a:b]
-        i = np.arange(tc.size, dtype=float) - 0.5 * (tc.size - 1)
-        # the smooth time base: a quadratic in the revolution index, fitted to the times less their
-        # phase-dependent interpolation error (estimated in turn from the fit; three rounds converge)
+        # the smooth time base: a local quadratic in the revolution index (over +-LOCAL_FIT pulses,
+        # so a real speed wobble is followed), fitted to the times less their phase-dependent
+        # interpolation error (estimated in turn from the fit; three rounds converge)
         e_phase = np.zeros(tc.size)
         for _ in range(3):
-            fit = np.polyval(np.polyfit(i, tc - e_phase, 2), i)
+            fit = _local_quadratic(tc - e_phase, LOCAL_FIT)
             e_phase = _bin_mean(np.mod(fit, 1.0), tc - fit, TEMPLATE_BINS)
         occupied = np.unique(np.floor(np.mod(fit, 1.0) * TEMPLATE_BINS).astype(int)).size
         if occupied < TEMPLATE_BINS // 2:
             notes.append(occupied)
             continue
+        if not _phase_dependent(np.mod(fit, 1.0), tc - fit, TEMPLATE_BINS):
+            continue  # the interpolated times show no error that depends on the edge position: keep them
         kc = np.floor(fit).astype(int)
         idx = kc[:, None] + offs[None, :]
         valid = (idx >= 0) & (idx < w.size)
@@ -498,14 +514,66 @@ def _refine(w, t, base, swing, half, post, steep):
             anchor = _boundary(pv[near], y[valid][near], 0.5)
         else:
             anchor = _crossing_of(gx, gy, 0.5)
-        out[a:b] = tc - e_phase + anchor
+        new = tc - e_phase + anchor
+        # the correction may not add scatter: if the refined times are rougher than the rough ones
+        # (the time base could not follow the speed), keep the interpolated times
+        if tc.size >= 8 and _jitter(new) > 1.5 * _jitter(tc) + 1e-3:
+            notes_rejected.append(a)
+            continue
+        out[a:b] = new
         done = True
     note = ""
+    if notes_rejected:
+        note = (f"the equivalent-time correction was rejected in {len(notes_rejected)} stretch(es) (it would have "
+                "added scatter: the speed varies faster than the time base can follow); edge times are interpolated")
     if notes:
-        note = (f"in {len(notes)} steady stretch(es) the pulses fall at only {min(notes)} of {TEMPLATE_BINS} positions "
+        note = (note + "; " if note else "") + (f"in {len(notes)} steady stretch(es) the pulses fall at only {min(notes)} of {TEMPLATE_BINS} positions "
                 "within a sample interval (a speed commensurate with the sample rate): their edge times are "
                 "interpolated, and any interpolation error repeats every revolution instead of averaging out")
     return out, done, note
+
+
+def _local_quadratic(t, m):
+    """Savitzky-Golay smoothing of the sequence t: at each index the value of the least-squares
+    quadratic through the 2m+1 neighbours (the first/last window's quadratic at the ends)."""
+    n = t.size
+    w = 2 * m + 1
+    if n <= w:
+        i = np.arange(n, dtype=float)
+        return np.polyval(np.polyfit(i - i.mean(), t, 2), i - i.mean())
+    j = np.arange(-m, m + 1, dtype=float)
+    A = np.vander(j, 3, increasing=True)                 # 1, j, j^2
+    coef = np.linalg.pinv(A)[0]                           # value at j = 0
+    out = np.empty(n)
+    # the linear trend is removed first, so the convolution works on small numbers (times are large)
+    base = np.linspace(t[0], t[-1], n)
+    d = t - base
+    out[m:n - m] = np.convolve(d, coef[::-1], mode="valid") + base[m:n - m]
+    for sl, jj in ((slice(0, m), np.arange(0, m)), (slice(n - m, n), np.arange(w - m, w))):
+        seg = d[:w] if sl.start == 0 else d[n - w:]
+        p = np.polyfit(np.arange(w, dtype=float), seg, 2)
+        out[sl] = np.polyval(p, jj.astype(float)) + base[sl]
+    return out
+
+
+def _phase_dependent(phase, r, nbins, f_crit=4.0) -> bool:
+    """Whether the residuals r depend on the sub-sample position (one-way analysis of variance over
+    the phase bins: between-bin mean square over within-bin mean square above ``f_crit``). A
+    linear edge of two samples or more is timed exactly by interpolation and shows none; a speed
+    wobble the time base cannot follow shows up as scatter, not as a dependence on position."""
+    b = np.minimum((phase * nbins).astype(int), nbins - 1)
+    cnt = np.bincount(b, minlength=nbins)
+    occ = cnt > 0
+    k = int(occ.sum())
+    n = r.size
+    if k < 2 or n - k < 2:
+        return False
+    mean_b = np.bincount(b, weights=r, minlength=nbins)[occ] / cnt[occ]
+    ss_between = float(np.sum(cnt[occ] * (mean_b - r.mean()) ** 2))
+    ss_within = float(np.sum((r - (np.bincount(b, weights=r, minlength=nbins) / np.maximum(cnt, 1))[b]) ** 2))
+    if ss_between < 1e-10 * n:  # (1e-5 samples)^2 per pulse: nothing to correct
+        return False
+    return ss_between / (k - 1) > f_crit * max(ss_within / (n - k), 1e-300)
 
 
 def _bin_mean(phase, r, nbins):
