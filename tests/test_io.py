@@ -275,11 +275,24 @@ def test_csv_non_uniform_time_column_raises(tmp_path):
     rio.save_csv(make_rec(), path)
     lines = path.read_text().splitlines()
     cells = lines[501].split(",")
-    cells[0] = repr(float(cells[0]) + 1e-7)  # sample 500 late by 0.2 % of a step
+    cells[0] = repr(float(cells[0]) + 5e-5)  # sample 500 late by 10 % of a step (a clock jump)
     lines[501] = ",".join(cells)
     path.write_text("\n".join(lines) + "\n")
-    with pytest.raises(RotoridError, match="non-uniform time column.*step 499"):
+    with pytest.raises(RotoridError, match="non-uniform time column.*sample 500"):
         rio.load_recording(path)
+
+
+def test_csv_time_column_rounded_as_daqs_print_it(tmp_path):
+    # times printed to 9 significant digits (and in ms with 6 decimals) deviate from the grid by up to
+    # 0.3 % of a step: rounding, not a non-uniform axis
+    rec = make_rec()
+    for fmt, unit, scale in (("%.9g", "s", 1.0), ("%.6f", "ms", 1e3)):
+        path = tmp_path / f"rounded_{unit}.csv"
+        t = 12.3456 + np.arange(rec.n_samples) / rec.fs_hz
+        body = "\n".join(f"{fmt % (ti * scale)},{v:.17g}" for ti, v in zip(t, rec.channels["x1"]))
+        path.write_text(f"time [{unit}],x1 [m]\n{body}\n")
+        got = rio.load_recording(path)
+        assert abs(got.fs_hz / rec.fs_hz - 1) < 1e-6 and abs(got.t0_s - 12.3456) < 1e-6
 
 
 def test_csv_without_time_column_needs_fs(tmp_path):

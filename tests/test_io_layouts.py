@@ -307,7 +307,7 @@ def test_tdms_non_uniform_time_channel(tmp_path):
     t = T.copy()
     t[7] += 2e-4
     write_tdms(path, [("DAQ", "t", t, {}), ("DAQ", "x1", X_MIL, {"unit_string": "mil"})])
-    with pytest.raises(RotoridError, match=r"jitter\.tdms: .*'DAQ/t': non-uniform time channel: step 6"):
+    with pytest.raises(RotoridError, match=r"jitter\.tdms: .*'DAQ/t': non-uniform time channel: sample 7"):
         rio.load_recording(path)
 
 

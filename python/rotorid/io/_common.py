@@ -35,7 +35,10 @@ QUANTITY = {**{c: "length" for c in DISPLACEMENTS}, "force": "force", "kp": "vol
             **{c: "acceleration" for c in ("px1", "py1", "px2", "py2")}}
 
 _RATE_RTOL = 1e-6   # two sample rates closer than this (relative) are the same rate
-_TIME_RTOL = 1e-6   # allowed deviation of time-axis steps from their median (relative)
+#: allowed deviation of a time-axis value from the uniform grid, as a fraction of the step: a DAQ
+#: prints times rounded (9 significant digits, %.6f in ms, ...), and a timing error of 1 % of a
+#: sample scatters 1X phases by far less than the noise; larger deviations are a non-uniform axis
+_TIME_RTOL = 0.01
 _TIMESTAMP_TICK = 1e-6  # absolute timestamps are commonly stored to the microsecond
 #: time-axis units -> seconds
 _TIME_UNITS = {"s": 1.0, "sec": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6, "μs": 1e-6}
@@ -144,10 +147,10 @@ def _time_factor(unit: str | None, where: str) -> float:
 def _time_base(where: str, t: np.ndarray, *, tick: float = 0.0, kind: str = "column") -> tuple[float, float]:
     """Sample rate and start time of a time axis in seconds; its steps must be uniform.
 
-    ``where`` names the axis for messages. Steps may deviate from the median step by less than
-    1e-6 of it; ``tick`` (> 0 for absolute timestamps stored to a resolution) allows that much more,
-    measured from the mean step. The rate is (n-1)/span: with uniform steps the same rate as
-    1/median(diff), with far less rounding error.
+    ``where`` names the axis for messages. Every time may lie off the least-squares uniform grid by
+    at most 1 % of a step (the rounding of printed times; more is a missing sample, a restart or a
+    clock jump), and rate and start come from that grid; ``tick`` (> 0 for absolute timestamps
+    stored to a resolution) checks the steps against the mean step instead.
     """
     if t.size < 2:
         raise RotoridError(f"{where}: at least 2 samples are needed to give a sample rate")
@@ -166,13 +169,18 @@ def _time_base(where: str, t: np.ndarray, *, tick: float = 0.0, kind: str = "col
             raise RotoridError(f"{where}: non-uniform time {kind}: step {i} (between samples {i} and {i + 1}) is "
                                f"{dt[i]:.9g} s, the mean step is {ref:.9g} s (allowed deviation {allowed:.3g} s)")
         return (t.size - 1) / (t[-1] - t[0]), float(t[0])
-    dev = np.abs(dt - step) / step
-    if dev.max() >= _TIME_RTOL:
-        i = int(np.argmax(dev >= _TIME_RTOL))
-        raise RotoridError(f"{where}: non-uniform time {kind}: step {i} (between samples {i} and {i + 1}) is "
-                           f"{dt[i]:.9g} s, the median step is {step:.9g} s (relative deviation {dev[i]:.2g}, "
-                           f"allowed < {_TIME_RTOL:g})")
-    return (t.size - 1) / (t[-1] - t[0]), float(t[0])
+    # the uniform grid that best fits the printed times (least squares), and how far each time is from it
+    i = np.arange(t.size, dtype=float)
+    ic = i - i.mean()
+    slope = float(np.dot(ic, t - t.mean()) / np.dot(ic, ic))
+    resid = t - (t.mean() + slope * ic)
+    dev = np.abs(resid) / slope
+    if dev.max() > _TIME_RTOL:
+        j = int(np.argmax(dev))
+        raise RotoridError(f"{where}: non-uniform time {kind}: sample {j} is {resid[j]:.3g} s ({dev[j]:.2g} of a step) "
+                           f"off the uniform grid of step {slope:.9g} s (allowed {_TIME_RTOL:g} of a step: a missing "
+                           "sample, a restart or a clock jump?)")
+    return 1.0 / slope, float(t.mean() - slope * i.mean())
 
 
 @dataclass

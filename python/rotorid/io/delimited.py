@@ -23,8 +23,8 @@ Layout
   Without a header the columns are named ``column 1``, ``column 2``...
 * a column named ``t``, ``time``, ``zeit``, ``time_s``, ``time_ms`` or ``time_us`` (any case,
   e.g. ``Time (s)``, ``Time [ms]``; units s, ms, us, µs) is the time axis, or the one
-  ``time_column=`` names (``time_column=False``: none). Its steps must be uniform (deviation
-  from the median step < 1e-6 relative) and give fs = (n-1)/(t[-1]-t[0]) and t0 = t[0].
+  ``time_column=`` names (``time_column=False``: none). Its times must lie on a uniform grid
+  within 1 % of a step (printed rounding is fine); fs and t0 come from the least-squares grid.
 """
 
 from __future__ import annotations
