@@ -736,7 +736,8 @@ def test_keyphasor_for():
     cfg = parse_config(rich_cfg())
     runs = cfg.imbalance.runs
     assert cfg.keyphasor_for(runs[0]) == {"level": 1.0, "hysteresis": None, "edge": "rising", "mark_angle_deg": 0.0,
-                                          "tolerance": 0.3, "fill_missing": False, "times_file": None}
+                                          "tolerance": 0.3, "fill_missing": False, "refine": True,
+                                          "max_speed_step": None, "times_file": None}
     assert cfg.keyphasor_for(runs[1])["level"] == 2.5
     assert cfg.keyphasor_for()["fill_missing"] is True
     c2 = imbalance_cfg()

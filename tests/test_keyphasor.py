@@ -175,7 +175,7 @@ def test_a_speed_jump_beyond_the_tolerance_is_an_error_naming_it():
     t = np.arange(60000) / FS
     ev = np.r_[event_times(3000.0, 3.0), 3.0 + event_times(1900.0, 3.0, mark_time_s=0.031)]
     v = pulse_train(t, ev, FS, PulseShape("trapezoid", 2.0))
-    with pytest.raises(RotoridError, match="neither a missing pulse"):
+    with pytest.raises(RotoridError, match="the speed jumps .* from 3000.0 to"):
         signals.keyphasor_times(v, FS, source="step.csv, channel 'kp'")
 
 
@@ -223,3 +223,21 @@ def test_shape_family_generator_defines_events_at_mid_height():
         mid = 0.5 * (shape.low_v + shape.high_v)
         assert (v[0] - mid) * (v[1] - mid) <= 0, shape
     assert fine
+
+
+def test_pulses_on_both_polarities_can_be_chosen_with_edge_and_level():
+    t = np.arange(40000) / FS
+    ev_up = event_times(3000.0, 4.0)
+    up = pulse_train(t, ev_up, FS, PulseShape("trapezoid", 2.0))
+    dn = pulse_train(t, event_times(3000.0, 4.0, mark_time_s=0.009), FS, PulseShape("trapezoid", 2.0, high_v=-5.0))
+    kp = signals.keyphasor_times(up + dn, FS, edge="rising", level=2.5)
+    np.testing.assert_allclose(kp.times, ev_up[: kp.times.size], atol=1e-3 / FS)
+
+
+def test_a_fifty_percent_speed_step_is_refused_by_default():
+    t = np.arange(60000) / FS
+    ev = np.r_[event_times(3000.0, 3.0), 3.0 + event_times(4500.0, 3.0, mark_time_s=0.011)]
+    v = pulse_train(t, ev, FS, PulseShape("trapezoid", 2.0))
+    with pytest.raises(RotoridError, match="3000.0 to 4500.0 rpm"):
+        signals.keyphasor_times(v, FS)
+    assert signals.keyphasor_times(v, FS, max_speed_step=0.6).times.size == ev.size

@@ -6,7 +6,14 @@ import argparse
 import sys
 
 
+def _one_line_warning(message, category, filename, lineno, file=None, line=None):
+    return f"rotorid: warning: {message}\n"
+
+
 def main(argv=None):
+    import warnings
+
+    warnings.formatwarning = _one_line_warning
     ap = argparse.ArgumentParser(prog="rotorid", description="Bearing coefficient identification for rigid rotors")
     sub = ap.add_subparsers(dest="cmd", required=True)
     d = sub.add_parser("demo", help="run the report's numerical experiments on the built-in NSF rig")

@@ -549,6 +549,8 @@ class KeyphasorOptions(_Model):
     mark_angle_deg: Finite = 0.0
     tolerance: Tolerance = 0.35
     fill_missing: bool = True
+    refine: bool = True
+    max_speed_step: Optional[_number(gt=0)] = None
     times_file: Optional[PathStr] = None
 
 
@@ -561,6 +563,8 @@ class KeyphasorOverride(_Model):
     mark_angle_deg: Optional[Finite] = None
     tolerance: Optional[Tolerance] = None
     fill_missing: Optional[bool] = None
+    refine: Optional[bool] = None
+    max_speed_step: Optional[_number(gt=0)] = None
     times_file: Optional[PathStr] = None
 
 
@@ -1081,7 +1085,7 @@ class Config(_Model):
         ...                     "imbalance": {"runs": [{"file": "run.tdms", "keyphasor": {"edge": "falling"}}]}})
         >>> cfg.keyphasor_for(cfg.imbalance.runs[0])  # doctest: +NORMALIZE_WHITESPACE
         {'level': 2.5, 'hysteresis': None, 'edge': 'falling', 'mark_angle_deg': 0.0, 'tolerance': 0.35,
-         'fill_missing': True, 'times_file': None}
+         'fill_missing': True, 'refine': True, 'max_speed_step': None, 'times_file': None}
         """
         kp = self.keyphasor.model_dump()
         if entry is not None and entry.keyphasor is not None:

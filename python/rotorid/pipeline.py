@@ -42,6 +42,14 @@ class ImbalanceChainResult:
     notes: list = field(default_factory=list)
 
 
+def _labelled(fn, label, what):
+    """Run fn; a RotoridError names the run it concerns."""
+    try:
+        return fn()
+    except RotoridError as exc:
+        raise RotoridError(f"{label} ({what}): {exc}") from None
+
+
 def _track_of(run, label, *, orders, steady, track_kw, keyphasor):
     """A run as a SyncTrack: tracked from a (segmented) recording, or a SyncTrack already (a DAQ
     1X table, see rotorid.tables)."""
@@ -119,7 +127,7 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
     if baseline is not None:
         bt = _track_of(baseline, "baseline", **kw)
         bt = bt.minus(sr[: len(bt.orders)]) if sr is not None else bt
-        comp = [t.minus(bt) for t in comp]
+        comp = [_labelled(lambda t=t: t.minus(bt), f"run {i}", "baseline subtraction") for i, t in enumerate(comp)]
         notes.append("baseline subtracted (remnant imbalance and run-out removed)")
     elif sr is None:
         notes.append("no baseline and no slow-roll: remnant imbalance and run-out stay in the vectors")
@@ -143,10 +151,11 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
                 grid = np.arange(np.ceil(lo / 50) * 50, hi + 1e-9, 50.0)
         else:
             grid = np.asarray(speeds_rpm, float)
-        qs = [t.at_speeds(grid)[:, t.orders.index(1), :] for t in comp]
+        qs = [_labelled(lambda t=t: t.at_speeds(grid)[:, t.orders.index(1), :], f"run {i}", "the common speed grid")
+              for i, t in enumerate(comp)]
     responses = []
     for i, (r, q, t) in enumerate(zip(runs, qs, comp)):
-        cov, dof = t.cov_at_speeds(grid)
+        cov, dof = _labelled(lambda t=t: t.cov_at_speeds(grid), f"run {i}", "the common speed grid")
         imb = _imbalance_of(r, None if imbalances is None else imbalances[i])
         meta = getattr(r, "meta", {}) or {}
         at = meta.get("probes_at", "probes")

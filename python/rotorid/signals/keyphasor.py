@@ -146,11 +146,12 @@ def _jitter(t):
 # state levels
 
 
-def state_levels(v, *, where: str = "") -> tuple:
+def state_levels(v, *, where: str = "", pulse_side: str | None = None) -> tuple:
     """(resting, pulse) state levels of a two-state signal from its histogram modes.
 
     Raises KeyphasorError for a flat channel, a channel without two distinct states (noise, an
-    analog signal) or pulses on both sides of the resting state."""
+    analog signal) or pulses on both sides of the resting state, unless ``pulse_side`` ("up" or
+    "down") says which pulses to use."""
     v = np.asarray(v, dtype=float)
     vmin, vmax = float(v.min()), float(v.max())
     span = vmax - vmin
@@ -169,7 +170,13 @@ def state_levels(v, *, where: str = "") -> tuple:
     if n_up == 0 and n_dn == 0:
         raise KeyphasorError(f"no keyphasor pulses{where}: the channel rests at {rest:.4g} and never leaves it by more "
                              f"than a third of its range {vmin:.4g}..{vmax:.4g} (noise only?)")
-    pside = up if n_up >= n_dn else dn
+    if pulse_side is not None:
+        pside = up if pulse_side == "up" else dn
+        if not pside.any() or h[pside].sum() == 0:
+            raise KeyphasorError(f"no keyphasor pulses{where} {'above' if pulse_side == 'up' else 'below'} the resting "
+                                 f"level {rest:.4g}")
+    else:
+        pside = up if n_up >= n_dn else dn
     p = int(np.flatnonzero(pside)[np.argmax(h[pside])])
     pulse = c[p]
     # two distinct states: the histogram must have a valley between them (an edge passes through
@@ -181,10 +188,12 @@ def state_levels(v, *, where: str = "") -> tuple:
         raise KeyphasorError(f"no keyphasor pulses{where}: the channel shows no two distinct states (resting near "
                              f"{rest:.4g}, no second level it dwells at; noise or an analog signal?)")
     other = dn if pside is up else up
-    if other.any() and h[other].sum() >= 0.25 * h[pside].sum() and h[other].max() >= 0.5 * near_pulse.max():
+    if pulse_side is None and other.any() and h[other].sum() >= 0.25 * h[pside].sum() and \
+            h[other].max() >= 0.5 * near_pulse.max():
         o = int(np.flatnonzero(other)[np.argmax(h[other])])
         raise KeyphasorError(f"keyphasor pulses on both polarities{where}: the channel rests at {rest:.4g} and dwells "
-                             f"at {pulse:.4g} and at {c[o]:.4g}; give edge= and level= to say which pulses to use")
+                             f"at {pulse:.4g} and at {c[o]:.4g}; say which pulses to use with edge = \"rising\" "
+                             f"(pulses above the rest) or \"falling\" (below) and a level between the rest and them")
     # refine each state: the mode of a finer histogram of the samples near it, then the mean of the
     # samples within a few noise widths of that mode (edge samples must not pull a state level)
     swing = abs(pulse - rest)
@@ -228,7 +237,7 @@ def _last_below(w, level, at):
 def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteresis=None, edge: str = "auto",
                     mark_angle_deg: float = 0.0, delay_s: float = 0.0, tolerance: float = 0.35,
                     fill_missing: bool = True, refine: bool = True, polarity: str | None = None,
-                    source: str = "") -> Keyphasor:
+                    max_speed_step: float | None = None, source: str = "") -> Keyphasor:
     """Times of rotor angle zero from a keyphasor channel (see the module doc for the method).
 
     Parameters
@@ -250,7 +259,13 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
     delay_s : float
         How much the keyphasor channel lags the probe channels (s).
     tolerance : float
-        Allowed relative deviation of a pulse interval from the running median period.
+        Allowed relative deviation of a pulse interval from the running median period (beyond it:
+        extra or missing pulses).
+    max_speed_step : float, optional
+        Largest relative change of the typical speed from the four revolutions before an interval
+        to the four after it (default: ``tolerance``); a larger step is an error (a record joined
+        from separate blocks, a wrong channel). Records of dwells joined without their run-up
+        between them need it raised, or better, loading as blocks.
     fill_missing : bool
         Fill gaps of whole periods by interpolation (reported either way).
     refine : bool
@@ -293,6 +308,10 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
         raise KeyphasorError(f"edge must be 'auto', 'rising' or 'falling', got {edge!r}")
     if not (0 < tolerance < 1):
         raise KeyphasorError(f"tolerance must be between 0 and 1, got {tolerance!r}")
+    if max_speed_step is None:
+        max_speed_step = tolerance
+    if not (0 < max_speed_step):
+        raise KeyphasorError(f"max_speed_step must be > 0, got {max_speed_step!r}")
     for nm, val in (("mark_angle_deg", mark_angle_deg), ("delay_s", delay_s)):
         if not np.isfinite(val):
             raise KeyphasorError(f"{nm} must be finite, got {val!r}")
@@ -302,9 +321,15 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
     if hysteresis is not None and hysteresis < 0:
         raise KeyphasorError(f"hysteresis must be >= 0, got {hysteresis!r}")
 
-    rest, pulse = state_levels(x, where=where)
+    side = None
+    if level is not None and edge in ("rising", "falling"):
+        # with a level and an edge the user has said which pulses count (e.g. a channel with pulses of
+        # both polarities): the resting state lies on the far side of the level from the pulses
+        med = float(np.median(x))
+        side = "up" if float(level) > med else "down"
+    rest, pulse = state_levels(x, where=where, pulse_side=side)
     duty = float(np.mean(np.abs(x - pulse) < np.abs(x - rest)))
-    ambiguous = ""
+    ambiguous, unsettled = "", ""
     if edge == "auto":
         if duty > 0.4:
             # a square-ish wave: which state is "resting" is a matter of noise; time the rising edge
@@ -343,10 +368,15 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
         ok = np.isfinite(top)
         if ok.sum() >= 3:
             swing = float(np.median(top[ok] - base[ok]))
+        if ok.mean() < 0.5:
+            unsettled = ("most pulses are too short to settle at their upper state: mid-height is taken between the "
+                         "histogram states, and the timing depends on the pulse shape")
         # with the local base the mid-height moves with any offset drift: find the straddling pair again
         k = _last_below_each(w, rises, base + 0.5 * swing, int(full) + 2, k)
     mid = base + 0.5 * swing if level is None else np.full(k.size, lev)
     smooth = rise >= 2.5
+    if level is not None:
+        unsettled = ""
     frac = _cubic_crossing(w, k, mid) if smooth else _linear_crossing(w, k, mid)
     t_samples = k + frac
     refined, note = False, ""
@@ -354,9 +384,9 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
         t_samples, refined, note = _refine(w, t_samples, base, swing, half, post, rise <= 1.5)
         if smooth and not refined:
             note = ""  # a smooth edge timed by the cubic: the residual interpolation error is small
-    note = "; ".join(x for x in (ambiguous, note) if x)
+    note = "; ".join(x for x in (ambiguous, unsettled, note) if x)
     t = t0_s + t_samples / fs_hz
-    t, extra, missing = _plausible(t, tolerance, fill_missing, where)
+    t, extra, missing = _plausible(t, tolerance, fill_missing, where, max_speed_step)
     times = _to_angle_zero(t, mark_angle_deg, delay_s)
     if extra.size:
         warnings.warn(f"keyphasor{where}: dropped {extra.size} extra pulse(s) at t = {np.round(extra[:5], 6)} s")
@@ -635,7 +665,7 @@ def _running_median(d, w):
     return np.median(win, axis=1)
 
 
-def _plausible(t, tolerance, fill_missing, where):
+def _plausible(t, tolerance, fill_missing, where, max_speed_step=0.1):
     """Drop extra pulses, fill missing ones; an interval that is neither is a speed jump (error)."""
     extra = []
     for _ in range(3):
@@ -661,14 +691,14 @@ def _plausible(t, tolerance, fill_missing, where):
         win = np.lib.stride_tricks.sliding_window_view(d, 4)
         med4 = np.median(win, axis=1)           # med4[j]: median of d[j:j+4]
         before, after = med4[:-5], med4[5:]     # around interval j + 4
-        jump = np.abs(after / before - 1.0) > tolerance
+        jump = np.abs(before / after - 1.0) > max_speed_step  # speed ratio (periods inverted)
         if jump.any():
             j = int(np.argmax(jump)) + 4
             raise KeyphasorError(
                 f"keyphasor{where}: the speed jumps at t = {t[j]:.6g} s from {60 / before[j - 4]:.1f} to "
-                f"{60 / after[j - 4]:.1f} rpm within one revolution: neither a missing pulse nor a speed change "
-                f"within the tolerance of {tolerance:g}. If the record is made of separate blocks, load it as a "
-                "SegmentedRecording; for fast speed changes raise tolerance")
+                f"{60 / after[j - 4]:.1f} rpm within a few revolutions (more than max_speed_step = {max_speed_step:g}). "
+                "If the record is made of separate blocks, load it as a SegmentedRecording; for a genuinely fast "
+                "speed change raise max_speed_step")
     med = _running_median(d, 9)
     missing = []
     long_ = np.flatnonzero(d > (1 + tolerance) * med)

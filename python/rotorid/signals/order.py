@@ -148,7 +148,9 @@ def detect_keyphasor(rec: Recording, keyphasor=None) -> Keyphasor:
     times = opts.pop("times", None)
     delays = rec.meta.get("channel_delays_s", {}) or {}
     opts.setdefault("delay_s", float(delays.get("kp", 0.0)))
-    src = f"{rec.source or 'recording'}, channel 'kp'"
+    lab = ((rec.meta.get("channel_sources") or {}).get("kp") or {}).get("file_channel")
+    src = f"{rec.source or 'recording'}, channel {lab!r} (kp)" if lab and lab != "kp" else \
+        f"{rec.source or 'recording'}, channel 'kp'"
     if times is not None:
         t = np.asarray(times, dtype=float)
         t = t[(t >= rec.t0_s) & (t <= rec.t0_s + rec.n_samples / rec.fs_hz)]
