@@ -1,0 +1,177 @@
+"""K-C-M fit of frequency-dependent impact results: Z(w) = K - w^2 M + j w C per coefficient.
+
+Impacts identify an impedance at every frequency; a support whose coefficients do not depend on
+frequency (or a narrow band of one that does) is summarized by stiffness K, damping C and an
+apparent mass M. With the identified k(w) = Re Z and c(w) = Im Z / w and their standard errors,
+
+    k(w_n) = K - w_n^2 M        weighted least squares in (K, M), weights 1 / k_std^2
+    c(w_n) = C                   weighted mean, weights 1 / c_std^2
+
+per coefficient (xx, xy, yx, yy of each bearing). When the scatter about the fit exceeds the
+standard errors (reduced chi-square above 1, model error or underestimated errors) the intervals
+are widened by sqrt(chi-square) (Birge ratio); the quantiles are Student's t with n - 2 (K, M)
+and n - 1 (C) degrees of freedom.
+
+The apparent masses are a diagnostic: the rotor's own inertia is in the model, so a direct mass
+that is significant and large (the sum over both bearings a sizeable fraction of the rotor mass)
+points at a rotor model (mass, inertia, probe positions) that does not fit the data, or at real
+inertia in the support (a squeeze film's added mass, a pedestal). A significantly negative direct
+mass is unphysical for a support and says the same.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import RotoridError
+
+
+@dataclass
+class KCMFit:
+    """Result of :func:`fit_kcm`: arrays (2, 2, 2) = [bearing, i, j] in SI (N/m, N·s/m, kg)."""
+
+    band_hz: tuple
+    n_points: int
+    K: np.ndarray
+    M: np.ndarray
+    C: np.ndarray
+    K_std: np.ndarray
+    M_std: np.ndarray
+    C_std: np.ndarray
+    r2: np.ndarray
+    chi2_k: np.ndarray
+    chi2_c: np.ndarray
+    weighted: bool
+    mass_check: str
+
+    def interval(self, level: float = 0.95) -> dict:
+        """{"K": (lower, upper), "M": ..., "C": ...} at the confidence ``level``."""
+        from .uncertainty import t_quantile
+
+        tk = float(t_quantile(level, self.n_points - 2))
+        tc = float(t_quantile(level, self.n_points - 1))
+        return {"K": (self.K - tk * self.K_std, self.K + tk * self.K_std),
+                "M": (self.M - tk * self.M_std, self.M + tk * self.M_std),
+                "C": (self.C - tc * self.C_std, self.C + tc * self.C_std)}
+
+    def to_dataframe(self):
+        """One row per coefficient: bearing, ij, K, K_std, M, M_std, C, C_std, R² of k(w), chi²."""
+        import pandas as pd
+
+        rows = []
+        for b in range(2):
+            for i in range(2):
+                for j in range(2):
+                    ij = "xy"[i] + "xy"[j]
+                    rows.append(dict(coefficient=f"{ij}{b + 1}", K=self.K[b, i, j], K_std=self.K_std[b, i, j],
+                                     M=self.M[b, i, j], M_std=self.M_std[b, i, j], C=self.C[b, i, j],
+                                     C_std=self.C_std[b, i, j], r2_k=self.r2[b, i, j],
+                                     chi2_k=self.chi2_k[b, i, j], chi2_c=self.chi2_c[b, i, j]))
+        return pd.DataFrame(rows)
+
+
+def fit_kcm(ident, *, band_hz=None, rotor=None, only_ok: bool = True) -> KCMFit:
+    """Fit K, C and an apparent mass M to each coefficient of an impact identification.
+
+    Parameters
+    ----------
+    ident : Identification
+        Over ``freq_hz`` (from :func:`rotorid.identify_impact` or the impact chain).
+    band_hz : (float, float), optional
+        Frequencies to fit (default: all).
+    rotor : RigidRotor, optional
+        For the plausibility check of the direct masses against the rotor mass.
+    only_ok : bool
+        Use only the points flagged ok.
+
+    Returns
+    -------
+    KCMFit
+
+    Examples
+    --------
+    >>> import numpy as np, rotorid
+    >>> rig = rotorid.nsf_rig()
+    >>> f = np.arange(10.0, 120.0, 2.0)
+    >>> tests = [rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=1000, freq_hz=f, direction=d) for d in "xy"]
+    >>> fit = rotorid.fit_kcm(rotorid.identify_impact(rig.rotor, tests), rotor=rig.rotor)
+    >>> float(round(fit.K[0, 0, 0] / 1e6, 3)), float(round(fit.C[0, 0, 0], 1)), bool(abs(fit.M[0, 0, 0]) < 1e-6)
+    (3.0, 2000.0, True)
+    """
+    if getattr(ident, "axis_name", None) != "freq_hz":
+        raise RotoridError("fit_kcm needs an identification over freq_hz (impact results)")
+    f = ident.axis
+    sel = np.ones(f.size, bool)
+    if band_hz is not None:
+        try:
+            lo, hi = (float(v) for v in band_hz)
+        except (TypeError, ValueError):
+            raise RotoridError(f"band_hz must be (low, high) in Hz, got {band_hz!r}") from None
+        if not (0 <= lo < hi):
+            raise RotoridError(f"band_hz must be (low, high) with 0 <= low < high, got {band_hz!r}")
+        sel &= (f >= lo) & (f <= hi)
+    if only_ok:
+        sel &= ident.ok
+    sel &= np.all(np.isfinite(ident.k.reshape(f.size, -1)), axis=1)
+    n = int(sel.sum())
+    if n < 3:
+        raise RotoridError(f"the K-C-M band holds {n} usable point(s) (ok and finite); at least 3 are needed for "
+                           "K and M with one degree of freedom to spare: widen band_hz or check the flags")
+    w = 2 * np.pi * f[sel]
+    k = ident.k[sel].reshape(n, 8)
+    c = ident.c[sel].reshape(n, 8)
+    ks = ident.k_std[sel].reshape(n, 8)
+    cs = ident.c_std[sel].reshape(n, 8)
+    weighted = bool(np.all(np.isfinite(ks)) and np.all(ks > 0) and np.all(np.isfinite(cs)) and np.all(cs > 0))
+    if not weighted:
+        ks = np.ones_like(k)
+        cs = np.ones_like(c)
+    A = np.stack([np.ones(n), -w ** 2], axis=1)
+    K = np.empty(8)
+    M = np.empty(8)
+    C = np.empty(8)
+    Ks, Ms, Cs, r2, chik, chic = (np.empty(8) for _ in range(6))
+    for j in range(8):
+        wt = 1.0 / ks[:, j] ** 2
+        AtW = A.T * wt
+        cov = np.linalg.inv(AtW @ A)
+        p = cov @ (AtW @ k[:, j])
+        res = k[:, j] - A @ p
+        chi = float(np.sum(wt * res ** 2) / (n - 2))
+        scale = max(chi, 1.0) if weighted else chi
+        K[j], M[j] = p
+        Ks[j], Ms[j] = np.sqrt(np.diag(cov) * scale)
+        kbar = np.sum(wt * k[:, j]) / np.sum(wt)
+        ss_tot = float(np.sum(wt * (k[:, j] - kbar) ** 2))
+        r2[j] = 1.0 - float(np.sum(wt * res ** 2)) / ss_tot if ss_tot > 0 else 1.0
+        chik[j] = chi
+        wc = 1.0 / cs[:, j] ** 2
+        C[j] = np.sum(wc * c[:, j]) / np.sum(wc)
+        chic[j] = float(np.sum(wc * (c[:, j] - C[j]) ** 2) / (n - 1))
+        Cs[j] = np.sqrt((max(chic[j], 1.0) if weighted else chic[j]) / np.sum(wc))
+    shape = (2, 2, 2)
+    out = KCMFit((float(f[sel].min()), float(f[sel].max())), n, K.reshape(shape), M.reshape(shape), C.reshape(shape),
+                 Ks.reshape(shape), Ms.reshape(shape), Cs.reshape(shape), r2.reshape(shape), chik.reshape(shape),
+                 chic.reshape(shape), weighted, "")
+    out.mass_check = _mass_check(out, rotor)
+    return out
+
+
+def _mass_check(fit, rotor) -> str:
+    """Plausibility of the apparent direct masses (empty when nothing stands out)."""
+    notes = []
+    for i, ax in enumerate("xy"):
+        m = fit.M[:, i, i]
+        s = fit.M_std[:, i, i]
+        total, total_s = float(m.sum()), float(np.sqrt(np.sum(s ** 2)))
+        significant = abs(total) > 3 * total_s
+        for b in range(2):
+            if m[b] < -3 * s[b]:
+                notes.append(f"M{ax}{ax}{b + 1} = {m[b]:.3g} kg is significantly negative (unphysical for a support)")
+        if rotor is not None and significant and abs(total) > 0.05 * rotor.mass_kg:
+            notes.append(f"the direct {ax} masses add up to {total:.3g} ± {total_s:.2g} kg, "
+                         f"{100 * total / rotor.mass_kg:.0f} % of the rotor mass: the rotor model (mass, inertia, probe "
+                         "positions) may not fit the data, or the supports carry real inertia")
+    return "; ".join(notes)
