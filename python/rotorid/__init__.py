@@ -5,6 +5,7 @@ from . import io, pipeline, rawsim, signals  # noqa: F401  (submodules of the ra
 from .errors import IdentifiabilityError, RotoridError
 from .identify import Identification, identify_impact, identify_synchronous, identify_synchronous_batch
 from .kcm import KCMFit, fit_kcm
+from .phasecal import PhaseCalibration, calibrate_phase
 from .modal import ModalResult, critical_speeds, modal_analysis
 from .io import load_recording, save_recording
 from .model import REPORT_ORDER, BearingCoefficients, Imbalance, RigidRotor, Rig, nsf_rig
@@ -29,6 +30,6 @@ __all__ = [
     "ProbeResolution", "REPORT_ORDER", "RigidRotor", "Rig", "RotoridError", "SyncResponse",
     "bearings_to_probes", "critical_speeds", "identify_synchronous", "identify_synchronous_batch",
     "imbalance_response", "modal_analysis", "nsf_rig", "probes_to_bearings",
-    "Recording", "load_recording", "save_recording", "io", "pipeline", "rawsim", "signals", "KCMFit", "fit_kcm",
+    "Recording", "load_recording", "save_recording", "io", "pipeline", "rawsim", "signals", "KCMFit", "fit_kcm", "PhaseCalibration", "calibrate_phase",
 ]
 __version__ = "0.1.0"

@@ -1,0 +1,180 @@
+"""Phase-reference calibration: a keyphasor angle offset and a channel delay as nuisance parameters.
+
+A phase error common to every 1X vector at a speed (keyphasor mark not at the angle assumed,
+probe channels lagging the keyphasor through anti-alias filters or cabling) leaves a zero
+least-squares residual: the data then agree exactly with a different impedance, so nothing in a
+single speed can reveal it. Across speeds it can: the error phi(Omega) = theta - Omega tau (an angle
+offset theta and a delay tau) would have to make the coefficients vary with speed in one particular
+way. Assuming the coefficients constant over speed (or smooth: a polynomial in speed of degree
+``degree``), the measured vectors are corrected by exp(-j phi(Omega)) and (theta, tau) chosen to make
+the identified coefficients most consistent with that model, weighted by their covariance:
+
+    min over (theta, tau) of  sum_speeds || L^-1 (p(Omega; theta, tau) - model(Omega)) ||^2
+
+(p the 16 coefficients, L = diag of their standard errors at the speed, the model refitted for
+every (theta, tau)). The uncertainty of (theta, tau) comes from the Jacobian at the optimum,
+widened by the Birge ratio when the misfit exceeds the covariance. With constant coefficients
+assumed, a real speed dependence of the coefficients is partly absorbed into theta and tau: use
+``degree`` >= 1 for supports whose coefficients vary, and read the result as a diagnostic.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import RotoridError
+from .simulate import RPM, SyncResponse
+
+
+@dataclass
+class PhaseCalibration:
+    """Estimated phase-reference errors: the responses were measured as q e^{j(theta - Omega tau)}."""
+
+    offset_deg: float
+    offset_std_deg: float
+    delay_s: float
+    delay_std_s: float
+    chi2: float
+    n_speeds: int
+    significant: bool
+    message: str
+
+    def apply(self, runs):
+        """The runs corrected (each SyncResponse's q multiplied by e^{-j(theta - Omega tau)})."""
+        return [_rotated(r, -np.deg2rad(self.offset_deg), -self.delay_s) for r in runs]
+
+
+def _rotated(run: SyncResponse, theta, tau) -> SyncResponse:
+    """q e^{j(theta - Omega tau)}: the covariance rotates with it."""
+    om = run.speed_rpm * RPM
+    ph = theta - om * tau
+    rot = np.exp(1j * ph)
+    cov = None
+    if run.cov is not None:
+        c, s = np.cos(ph), np.sin(ph)
+        R = np.zeros((om.size, 8, 8))
+        for j in range(4):
+            R[:, j, j] = c
+            R[:, j, j + 4] = -s
+            R[:, j + 4, j] = s
+            R[:, j + 4, j + 4] = c
+        cov = R @ run.cov @ np.transpose(R, (0, 2, 1))
+    return SyncResponse(run.speed_rpm, run.q * rot[:, None], run.imbalance, run.at, run.name, cov, run.dof)
+
+
+def calibrate_phase(rotor, runs, *, delay: bool = True, offset: bool = True, degree: int = 0,
+                    significance: float = 3.0, **ident_kw) -> PhaseCalibration:
+    """Estimate a keyphasor angle offset and a probe-channel delay from imbalance runs.
+
+    Parameters
+    ----------
+    rotor : RigidRotor
+    runs : list of SyncResponse
+        The runs as for :func:`rotorid.identify_synchronous`, at three or more speeds, best with
+        their measurement covariance (``cov``; from the imbalance chain).
+    delay, offset : bool
+        Which of the two to estimate (the other is held at 0).
+    degree : int
+        Polynomial degree in speed of the coefficient model (0: constant coefficients).
+    significance : float
+        An estimate this many standard errors from zero is reported as significant (a warning).
+    **ident_kw
+        Passed to :func:`rotorid.identify_synchronous` (method, identical, thresholds).
+
+    Returns
+    -------
+    PhaseCalibration
+        ``apply(runs)`` gives the corrected runs.
+
+    Examples
+    --------
+    >>> import numpy as np, rotorid
+    >>> rig = rotorid.nsf_rig()
+    >>> rpm = np.arange(3200.0, 6001.0, 200.0)
+    >>> runs = [rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=rpm) for s in "ABCD"]
+    >>> for r in runs:   # measured with a keyphasor 0.5 deg off and probes lagging by 10 us
+    ...     r.q = r.q * np.exp(1j * (np.deg2rad(0.5) - r.speed_rpm * np.pi / 30 * 10e-6))[:, None]
+    >>> cal = rotorid.calibrate_phase(rig.rotor, runs)
+    >>> round(cal.offset_deg, 3), round(cal.delay_s * 1e6, 2)
+    (0.5, 10.0)
+    """
+    from scipy.optimize import least_squares
+
+    from .identify import identify_synchronous
+    from .uncertainty import report_vector
+
+    runs = list(runs)
+    if not (offset or delay):
+        raise RotoridError("calibrate_phase: estimate the offset, the delay or both")
+    if int(degree) != degree or degree < 0:
+        raise RotoridError(f"degree must be a whole number >= 0, got {degree!r}")
+    base = identify_synchronous(rotor, runs, **ident_kw)
+    sel = base.ok & np.all(np.isfinite(base.k.reshape(base.axis.size, -1)), axis=1)
+    n = int(sel.sum())
+    if n < degree + 3:
+        raise RotoridError(f"calibrate_phase needs at least {degree + 3} trustworthy speeds (ok points) to separate a "
+                           f"phase offset and a delay from the coefficients, got {n}")
+    om = base.axis[sel] * RPM
+    # whitening: the coefficient covariance at each speed, else the bearing's scale
+    if base.cov is not None and np.all(np.isfinite(base.cov[sel])):
+        # each coefficient by its own standard error (the full 16 x 16 covariance is nearly singular
+        # in some directions, where second-order effects would then dominate the misfit)
+        sd = np.sqrt(np.clip(np.diagonal(base.cov[sel], axis1=1, axis2=2), 1e-300, None))
+        whiten = [np.diag(1.0 / x) for x in sd]
+        weighted = True
+    else:
+        rv = np.abs(base.report_vector()[sel])
+        scale = np.concatenate([np.repeat(np.median(rv[:, [0, 1, 6, 7]]), 8), np.repeat(np.median(rv[:, 8:][:, [0, 1, 6, 7]]), 8)])
+        whiten = [np.diag(1.0 / scale)] * n
+        weighted = False
+    V = np.vander((om - om.mean()) / max(np.ptp(om), 1e-300), degree + 1)   # polynomial model in speed
+    idx = np.nonzero(sel)[0]
+
+    def params(x):
+        it = iter(x)
+        th = next(it) if offset else 0.0
+        tau = next(it) * 1e-6 if delay else 0.0
+        return th, tau
+
+    def resid(x):
+        th, tau = params(x)
+        corrected = [_rotated(r, -th, -tau) for r in runs]  # q e^{-j(theta - Omega tau)}
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            ident = identify_synchronous(rotor, corrected, **{**ident_kw, "max_rel_std": np.inf})
+        p = report_vector(ident.k, ident.c)[idx]                         # (n, 16)
+        # each coefficient's polynomial in speed by least squares, then the whitened misfit
+        out = []
+        for j in range(16):
+            y = p[:, j]
+            coef, *_ = np.linalg.lstsq(V, y, rcond=None)
+            out.append(y - V @ coef)
+        r = np.stack(out, axis=1)
+        return np.concatenate([W @ ri for W, ri in zip(whiten, r)])
+
+    x0 = np.zeros(int(offset) + int(delay))
+    sol = least_squares(resid, x0, method="lm", x_scale=np.r_[[np.deg2rad(0.1)] * int(offset), [1.0] * int(delay)])
+    J = sol.jac
+    dof = max(sol.fun.size - 16 * (degree + 1) - x0.size, 1)
+    chi2 = float(np.sum(sol.fun ** 2) / dof)
+    try:
+        cov = np.linalg.inv(J.T @ J) * (max(chi2, 1.0) if weighted else chi2)
+    except np.linalg.LinAlgError:
+        raise RotoridError("calibrate_phase: the offset and the delay cannot be separated over these speeds "
+                           "(widen the speed range or estimate only one of them)") from None
+    sd = np.sqrt(np.diag(cov))
+    th, tau = params(sol.x)
+    it = iter(sd)
+    th_sd = float(next(it)) if offset else 0.0
+    tau_sd = float(next(it)) * 1e-6 if delay else 0.0
+    sig = (offset and abs(th) > significance * th_sd) or (delay and abs(tau) > significance * tau_sd)
+    msg = (f"phase reference: offset {np.rad2deg(th):.3f} ± {np.rad2deg(th_sd):.3f} deg, delay {tau * 1e6:.2f} ± "
+           f"{tau_sd * 1e6:.2f} µs over {n} speeds (chi² {chi2:.2f})")
+    if sig:
+        msg += "; significant: correct the keyphasor mark angle / channel delays, or apply this calibration"
+        warnings.warn(msg)
+    return PhaseCalibration(float(np.rad2deg(th)), float(np.rad2deg(th_sd)), float(tau), tau_sd, chi2, n, bool(sig),
+                            msg)
