@@ -792,6 +792,7 @@ class ImbalanceSection(_Model):
     min_rel_amplitude: _number(ge=0, lt=1) = 0.08
     max_rel_std: _number(gt=0) = 0.1
     estimator: _choice("ls", "bias-corrected") = "ls"
+    phase_calibration: _choice("off", "report", "apply") = "report"
     table: Optional[OneXTable] = None
 
     @model_validator(mode="after")
@@ -837,6 +838,7 @@ class ImpactSection(_Model):
     min_rel_amplitude: _number(ge=0, lt=1) = 0.01
     max_rel_std: _number(gt=0) = 0.1
     estimator: _choice("ls", "bias-corrected") = "ls"
+    kcm_band_hz: Optional[Band] = None
 
     @model_validator(mode="after")
     def _record(self):

@@ -453,6 +453,18 @@ def run_config(path, kind: str, *, out_dir=None, log=print, overwrite: bool = Tr
                               speeds_rpm=None if sec.speeds_rpm is None else list(sec.speeds_rpm), steady=sec.steady,
                               imbalances=imbs, orders=tuple(sec.orders), method=sec.method, **chain_kw, **ident_kw)
         ident = res.identification
+        if sec.phase_calibration != "off":
+            from .phasecal import calibrate_phase
+
+            try:
+                cal = calibrate_phase(rotor, res.responses, **ident_kw)
+            except RotoridError as exc:
+                log(f"  phase reference not calibrated: {exc}")
+            else:
+                log("  " + cal.message)
+                if sec.phase_calibration == "apply":
+                    ident = identify_synchronous(rotor, cal.apply(res.responses), method=sec.method, **ident_kw)
+                    log("  phase calibration applied to the 1X vectors")
         for i, r in enumerate(res.responses):
             p = os.path.join(out, f"sync_vectors_{i}_{_safe(r.name)}.csv")
             r.to_dataframe().to_csv(p, index=False, float_format="%.6g")
@@ -503,6 +515,15 @@ def run_config(path, kind: str, *, out_dir=None, log=print, overwrite: bool = Tr
             pd.DataFrame(res.dropped, columns=["source", "time_s", "reason"]).to_csv(p, index=False)
             files.append(p)
         log(f"  {sum(len(u) for u in res.used)} impacts used, {len(res.dropped)} dropped")
+        if sec.kcm_band_hz is not None:
+            from .kcm import fit_kcm
+
+            fit = fit_kcm(ident, band_hz=sec.kcm_band_hz, rotor=rotor)
+            p = os.path.join(out, "kcm_fit.csv")
+            fit.to_dataframe().to_csv(p, index=False, float_format="%.6g")
+            files.append(p)
+            log(f"  K-C-M fit over {fit.band_hz[0]:g}-{fit.band_hz[1]:g} Hz ({fit.n_points} points)"
+                + (f"; {fit.mass_check}" if fit.mass_check else ""))
     df = ident.to_dataframe()
     if us:
         from .units import from_si
