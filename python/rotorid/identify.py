@@ -43,7 +43,10 @@ class Identification:
     estimator; "residual": the least-squares misfit of redundant runs; "none": NaN, unknown),
     ``dof`` (n,) their degrees of freedom, ``cov`` (n, 16, 16) the covariance of the report
     vector (or None), ``rel_std`` (n,) the largest standard error relative to its bearing's direct
-    coefficients. :meth:`interval` gives confidence bounds.
+    coefficients, ``k_std_residual``/``c_std_residual`` the residual-based standard errors of
+    redundant runs whatever was used (NaN without redundancy; much larger than ``k_std`` means the
+    runs disagree more than their measurement errors explain). :meth:`interval` gives confidence
+    bounds.
     """
 
     axis_name: str
@@ -63,6 +66,8 @@ class Identification:
     dof: np.ndarray | None = None
     cov: np.ndarray | None = None
     rel_std: np.ndarray | None = None
+    k_std_residual: np.ndarray | None = None
+    c_std_residual: np.ndarray | None = None
 
     def interval(self, level: float = 0.95):
         """Confidence bounds of k and c: coefficient ± t(level, dof) × standard error.
@@ -138,6 +143,11 @@ class Identification:
         ks = np.concatenate([self.k_std.reshape(n, 8)[:, _REPORT_TO_BIJ], self.c_std.reshape(n, 8)[:, _REPORT_TO_BIJ]], 1)
         for j, nm in enumerate(REPORT_ORDER):
             data[f"{nm}_std"] = ks[:, j]
+        if self.k_std_residual is not None and np.any(np.isfinite(self.k_std_residual)):
+            kr = np.concatenate([self.k_std_residual.reshape(n, 8)[:, _REPORT_TO_BIJ],
+                                 self.c_std_residual.reshape(n, 8)[:, _REPORT_TO_BIJ]], 1)
+            for j, nm in enumerate(REPORT_ORDER):
+                data[f"{nm}_std_residual"] = kr[:, j]
         data["std_source"] = self.std_source
         data["dof"] = self.dof if self.dof is not None else np.nan
         data["rel_std"] = self.rel_std if self.rel_std is not None else np.nan
@@ -214,7 +224,7 @@ def _diagnose_singular(qs, labels):
 
 
 def _finish(axis_name, axis, amp, k, c, cond, resid, ks, cs, cond_max, min_rel_amplitude, method, labels,
-            std_source="none", dof=None, cov=None, max_rel_std=MAX_REL_STD, extra_flags=None):
+            std_source="none", dof=None, cov=None, max_rel_std=MAX_REL_STD, extra_flags=None, ks_res=None, cs_res=None):
     """Result object with per-point flags. ``amp``: rms response amplitude over runs and coordinates."""
     from .uncertainty import relative_std
 
@@ -234,7 +244,7 @@ def _finish(axis_name, axis, amp, k, c, cond, resid, ks, cs, cond_max, min_rel_a
             flag[i] = why if not flag[i] else (flag[i] if flag[i] == "singular" else f"{flag[i]}; {why}")
     ok = flag == ""
     return Identification(axis_name, axis, k, c, cond, resid, rel, ks, cs, ok, flag, method, labels, std_source, dof,
-                          cov, rstd)
+                          cov, rstd, ks_res, cs_res)
 
 
 def _check_threshold(name, value, lo, hi=np.inf):
@@ -335,6 +345,7 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
     if not np.any(np.isfinite(cond)):
         raise IdentifiabilityError(_diagnose_singular(qs, labels))
     ks, cs = ks[0], cs[0]
+    ks_res, cs_res = ks, cs
     source, dof, cov = ("residual" if redundant else "none"), None, None
     if redundant:
         # residual dof per bearing system: R complex equations (2R real) for 2 complex unknowns
@@ -366,7 +377,7 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
         dof = np.min(dofs, axis=0) if dofs is not None else np.full(axis.size, np.inf)
         dof = np.where(np.isnan(cov).any(axis=(1, 2)), np.nan, dof)
     return _finish(axis_name, axis, amp[0], k[0], c[0], cond[0], resid[0], ks, cs, cond_max, min_rel_amplitude,
-                   method, labels, source, dof, cov, max_rel_std, extra_flags)
+                   method, labels, source, dof, cov, max_rel_std, extra_flags, ks_res, cs_res)
 
 
 def identify_synchronous_batch(rotor: RigidRotor, speed_rpm, q, imbalances, *, method: str = "forces",
