@@ -1,0 +1,19 @@
+"""The examples in the docstrings of the public functions run and give what they say."""
+
+import doctest
+import importlib
+import warnings
+
+import pytest
+
+MODULES = ["rotorid.signals.keyphasor", "rotorid.signals.order", "rotorid.identify", "rotorid.kcm",
+           "rotorid.phasecal", "rotorid.config", "rotorid.tables", "rotorid.io"]
+
+
+@pytest.mark.parametrize("name", MODULES)
+def test_docstring_examples(name):
+    mod = importlib.import_module(name)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = doctest.testmod(mod, optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
+    assert res.failed == 0, f"{res.failed} of {res.attempted} examples failed in {name}"
