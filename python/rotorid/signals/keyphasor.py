@@ -287,10 +287,10 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
     >>> fs = 10000.0
     >>> t = np.arange(20000) / fs
     >>> true = event_times(3000.7, 2.0)
-    >>> kp = signals.keyphasor_times(pulse_train(t, true, fs, PulseShape("trapezoid", 1.0)), fs)
+    >>> kp = signals.keyphasor_times(pulse_train(t, true, fs, PulseShape("trapezoid", 2.0, duty=0.01)), fs)
     >>> err = (kp.times - true[:kp.times.size]) * fs   # samples
-    >>> bool(abs(err.mean()) < 0.005 and np.abs(err).max() < 0.05)
-    True
+    >>> bool(np.abs(err).max() < 0.001), round(kp.level, 3)   # 2-sample edges; triggered at mid-height
+    (True, 2.5)
     """
     where = f" in {source}" if source else ""
     x = np.asarray(kp, dtype=float)
