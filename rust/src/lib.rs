@@ -15,6 +15,7 @@ use numpy::{PyArray1, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedA
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::sync::{Arc, Mutex, OnceLock};
 
 /// mimalloc keeps freed output buffers mapped, so repeated calls do not page-fault fresh memory
 /// for every result array (glibc maps and unmaps blocks above its mmap threshold each time).
@@ -32,8 +33,8 @@ fn check_shape(name: &str, got: &[usize], want: &[usize]) -> PyResult<()> {
     Ok(())
 }
 
-fn guarded<T, F: FnOnce() -> T>(f: F) -> PyResult<T> {
-    catch_unwind(AssertUnwindSafe(f)).map_err(|e| {
+fn guarded<T: Send, F: FnOnce() -> T + Send>(f: F) -> PyResult<T> {
+    catch_unwind(AssertUnwindSafe(|| in_process_pool(f))).map_err(|e| {
         let msg = e
             .downcast_ref::<String>()
             .cloned()
@@ -41,6 +42,40 @@ fn guarded<T, F: FnOnce() -> T>(f: F) -> PyResult<T> {
             .unwrap_or_else(|| "unknown".into());
         PyRuntimeError::new_err(format!("rotorid core failed internally (please report): {msg}"))
     })
+}
+
+/// The process that loaded the module. rayon's global pool belongs to it: after `fork()` the
+/// child inherits the pool's state but none of its threads, and its first parallel call would
+/// wait forever (Python's multiprocessing forks by default on Linux).
+static LOADED_BY: OnceLock<u32> = OnceLock::new();
+/// A thread pool of a forked child, built on its first parallel call.
+static CHILD_POOL: Mutex<Option<(u32, Arc<rayon::ThreadPool>)>> = Mutex::new(None);
+
+/// Run `f` on rayon's global pool in the process that loaded the module, and on a pool of the
+/// current process in a forked child (built once per child).
+fn in_process_pool<T: Send, F: FnOnce() -> T + Send>(f: F) -> T {
+    let me = std::process::id();
+    if *LOADED_BY.get_or_init(|| me) == me {
+        return f();
+    }
+    let pool = {
+        let mut slot = CHILD_POOL.lock().unwrap_or_else(|p| p.into_inner());
+        match slot.as_ref() {
+            Some((pid, pool)) if *pid == me => pool.clone(),
+            _ => {
+                let threads = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
+                let pool = Arc::new(
+                    rayon::ThreadPoolBuilder::new()
+                        .num_threads(threads)
+                        .build()
+                        .expect("a thread pool for the forked process"),
+                );
+                *slot = Some((me, pool.clone()));
+                pool
+            }
+        }
+    };
+    pool.install(f)
 }
 
 fn rotor_of(p: &PyReadonlyArrayDyn<'_, f64>) -> PyResult<Rotor> {
@@ -359,6 +394,7 @@ fn runout_subtract<'py>(
 
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    LOADED_BY.get_or_init(std::process::id);
     m.add_function(wrap_pyfunction!(forced_response, m)?)?;
     m.add_function(wrap_pyfunction!(py_identify, m)?)?;
     m.add_function(wrap_pyfunction!(py_modal, m)?)?;
