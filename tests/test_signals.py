@@ -181,3 +181,14 @@ def test_coastdown_tracking_follows_the_response_through_the_critical_speeds():
     err = np.abs(tr.order(1) - truth).max(axis=1) / np.abs(truth).max()
     # 0.07 % measured: averaging 8 revolutions while the speed falls 100 rpm/s (halves with the rate)
     assert err.max() < 0.003, err.max()
+
+
+def test_resampling_grids_beyond_the_bound_are_refused_before_allocation():
+    rotor, brg, remnant = rawsim.example_rig()
+    rec = rawsim.imbalance_recording(rotor, brg, speeds_rpm=[3000.0], added=None, remnant=remnant, dwell_s=0.5)
+    for p in (2 ** 26, 2 ** 62 + 1, 8, 100.5, True):
+        with pytest.raises(RotoridError, match="points_per_rev"):
+            signals.track(rec, points_per_rev=p)
+    with pytest.raises(RotoridError, match="points_per_rev"):
+        signals.revolution_signature(np.zeros((4, 1000)), 1000.0, np.arange(0.0, 1.0, 0.1), 0.0, 0.9,
+                                     points_per_rev=2 ** 40)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
 
@@ -23,21 +24,25 @@ def main(argv=None):
                    help="1X amplitude resolution of the measurement model (µm; default 0.0254 = 0.001 mil)")
     d.add_argument("--phase-resolution-deg", type=float, default=None, help="1X phase resolution (deg)")
     d.add_argument("--noise-um", type=float, default=0.0, help="added complex Gaussian noise (µm rms)")
+    d.add_argument("--overwrite", action="store_true", help="replace the results of an earlier demo in the folder")
     i = sub.add_parser("identify", help="identify bearing coefficients from raw recordings described by a TOML config")
     i.add_argument("kind", choices=["imbalance", "impact"])
     i.add_argument("config", help="TOML config file (every key: docs/config.md)")
     i.add_argument("--out", default=None, help="output directory (default: [output] dir of the config)")
+    i.add_argument("--overwrite", action="store_true", help="replace the results of an earlier run in the folder "
+                   "(stale ones are removed); without it such a folder is refused")
     c = sub.add_parser("check", help="validate a TOML config (keys, types, units, files) without processing anything")
     c.add_argument("config", help="TOML config file (every key: docs/config.md)")
     e = sub.add_parser("example", help="write the bundled example data set (raw recordings + configs) to a directory")
     e.add_argument("--out", default="rotorid_example")
+    e.add_argument("--overwrite", action="store_true", help="replace files of the example already in the folder")
     args = ap.parse_args(argv)
     if args.cmd == "identify":
         from .errors import RotoridError
         from .pipeline import run_config
 
         try:
-            run_config(args.config, args.kind, out_dir=args.out)
+            run_config(args.config, args.kind, out_dir=args.out, overwrite=args.overwrite)
         except RotoridError as exc:
             print(f"rotorid: error: {exc}", file=sys.stderr)
             return 2
@@ -55,24 +60,49 @@ def main(argv=None):
         n = len(cfg.entries())
         print(f"{args.config}: valid ({', '.join(kinds)}; {n} recording(s) or table(s), all files present)")
         return 0
-    if args.cmd == "example":
-        from .example import copy_example
+    from .errors import RotoridError
 
-        path = copy_example(args.out)
-        print(f"example data set written to {path}/ (try: rotorid identify imbalance {path}/imbalance.toml)")
-        return 0
-    if args.cmd == "demo":
-        from . import demo
-        from .simulate import ProbeResolution
+    try:
+        if args.cmd == "example":
+            from .example import copy_example
 
-        base = ProbeResolution()
-        res = ProbeResolution(
-            amplitude_m=base.amplitude_m if args.amplitude_resolution_um is None else args.amplitude_resolution_um * 1e-6,
-            phase_deg=base.phase_deg if args.phase_resolution_deg is None else args.phase_resolution_deg,
-            noise_m=args.noise_um * 1e-6)
-        out = demo.synchronous(args.out, step_rpm=args.step_rpm, resolution=res)
-        imp = demo.impact(args.out)
-        print(f"wrote {len(out['files']) + len(imp['files'])} files to {args.out}/")
+            path = copy_example(args.out, overwrite=args.overwrite)
+            print(f"example data set written to {path}/ (try: rotorid identify imbalance {path}/imbalance.toml)")
+            return 0
+        if args.cmd == "demo":
+            return _demo(args)
+    except RotoridError as exc:
+        print(f"rotorid: error: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
+def _demo(args):
+    from . import demo
+    from .errors import RotoridError
+    from .outputs import ResultsFolder
+    from .simulate import ProbeResolution
+
+    for name, v, ok in (("--step-rpm", args.step_rpm, args.step_rpm > 0), ("--noise-um", args.noise_um, args.noise_um >= 0),
+                        ("--amplitude-resolution-um", args.amplitude_resolution_um,
+                         args.amplitude_resolution_um is None or args.amplitude_resolution_um >= 0),
+                        ("--phase-resolution-deg", args.phase_resolution_deg,
+                         args.phase_resolution_deg is None or args.phase_resolution_deg >= 0)):
+        if not ok or (v is not None and v != v):
+            raise RotoridError(f"{name} must be {'> 0' if name == '--step-rpm' else '>= 0'}, got {v:g}")
+    folder = ResultsFolder(args.out, patterns=["table5_*", "campbell.*", "figure*"], overwrite=args.overwrite,
+                           command="rotorid demo")
+    base = ProbeResolution()
+    res = ProbeResolution(
+        amplitude_m=base.amplitude_m if args.amplitude_resolution_um is None else args.amplitude_resolution_um * 1e-6,
+        phase_deg=base.phase_deg if args.phase_resolution_deg is None else args.phase_resolution_deg,
+        noise_m=args.noise_um * 1e-6)
+    out = demo.synchronous(args.out, step_rpm=args.step_rpm, resolution=res)
+    imp = demo.impact(args.out)
+    for f in out["files"] + imp["files"]:
+        folder.record(os.path.basename(f))
+    folder.finish()
+    print(f"wrote {len(out['files']) + len(imp['files'])} files to {args.out}/")
     return 0
 
 

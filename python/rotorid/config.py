@@ -782,7 +782,7 @@ class ImbalanceSection(_Model):
     orders: _number_list(integer=True, ge=1, unique=True, must_contain=1) = (1, 2, 3)
     method: Method = "forces"
     identical: bool = False
-    points_per_rev: _number(integer=True, ge=16, auto=True) = "auto"
+    points_per_rev: _number(integer=True, ge=16, le=65536, auto=True) = "auto"
     min_revs: _number(integer=True, ge=2) = 8
     settle_revs: _number(integer=True, ge=0) = 2
     speed_tolerance: _number(gt=0, lt=0.5) = 0.005
@@ -826,7 +826,7 @@ class ImpactSection(_Model):
     method: Method = "forces"
     runout: bool = True
     revs_before: _number(integer=True, ge=1) = 8
-    points_per_rev: _number(integer=True, ge=16) = 256
+    points_per_rev: _number(integer=True, ge=16, le=65536) = 256
     exp_window_tau_s: Optional[Positive] = None
     threshold_N: Optional[Positive] = None
     min_separation_s: Positive = 0.2

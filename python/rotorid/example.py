@@ -42,10 +42,25 @@ def path() -> str:
     return HERE
 
 
-def copy_example(out: str) -> str:
+def copy_example(out: str, *, overwrite: bool = False) -> str:
+    """Copy the bundled example data set to ``out``; files already there are replaced only with
+    ``overwrite``."""
+    from .errors import RotoridError
+
     if not os.path.isdir(HERE):
-        raise FileNotFoundError(f"the bundled example data set is missing from {HERE}")
-    shutil.copytree(HERE, out, dirs_exist_ok=True)
+        raise RotoridError(f"the bundled example data set is missing from {HERE}")
+    if os.path.exists(out) and not os.path.isdir(out):
+        raise RotoridError(f"{out} is a file; choose another --out")
+    if not overwrite and os.path.isdir(out):
+        clash = [os.path.relpath(os.path.join(d, f), HERE) for d, _, fs in os.walk(HERE) for f in fs
+                 if os.path.exists(os.path.join(out, os.path.relpath(os.path.join(d, f), HERE)))]
+        if clash:
+            raise RotoridError(f"{out} already holds {len(clash)} file(s) of the example ({', '.join(sorted(clash)[:3])}"
+                               f"{' ...' if len(clash) > 3 else ''}); pass --overwrite to replace them")
+    try:
+        shutil.copytree(HERE, out, dirs_exist_ok=True)
+    except OSError as exc:
+        raise RotoridError(f"cannot write the example to {out}: {exc}") from None
     return out
 
 

@@ -416,11 +416,19 @@ def _load_table(cfg, entry, name=None):
     return load_1x_table(paths[0], name=name, meta=entry.meta(), **cfg.imbalance.table.reader_kwargs())
 
 
-def run_config(path, kind: str, *, out_dir=None, log=print, overwrite: bool = True):
+RESULT_PATTERNS = {"imbalance": ["sync_vectors_*.csv", "keyphasor.csv", "coefficients_imbalance.*"],
+                   "impact": ["frf_*.csv", "dropped_impacts.csv", "kcm_fit.csv", "coefficients_impact.*"]}
+
+
+def run_config(path, kind: str, *, out_dir=None, log=print, overwrite: bool = False):
     """Run the imbalance or impact chain described by a TOML config; write CSV tables and plots.
 
-    The config is validated completely (keys, types, units, files) before anything is read.
-    Returns (Identification, list of written files)."""
+    The config is validated completely (keys, types, units, files) before anything is read, and
+    the output folder is checked: results of an earlier run are replaced only with
+    ``overwrite=True`` (stale ones removed, see :mod:`rotorid.outputs`). Returns
+    (Identification, list of written files)."""
+    from .outputs import ResultsFolder
+
     from . import plot
 
     if kind not in ("imbalance", "impact"):
@@ -428,10 +436,16 @@ def run_config(path, kind: str, *, out_dir=None, log=print, overwrite: bool = Tr
     cfg = load_config(path)
     sec = cfg.section(kind)
     rotor = cfg.rotor()
-    out = str(out_dir) if out_dir else str(cfg.output_dir(kind))
-    os.makedirs(out, exist_ok=True)
+    folder = ResultsFolder(str(out_dir) if out_dir else str(cfg.output_dir(kind)), patterns=RESULT_PATTERNS[kind],
+                           overwrite=overwrite, command=f"rotorid identify {kind} {path}")
+    out = folder.path
     us = cfg.output.units.upper() == "US"
     files = []
+
+    def write_csv(df, name, **kw):
+        with folder.atomic(name) as tmp:
+            df.to_csv(tmp, index=False, **kw)
+        files.append(os.path.join(out, name))
     if kind == "imbalance":
         ident_kw = dict(identical=sec.identical, cond_max=sec.cond_max, min_rel_amplitude=sec.min_rel_amplitude,
                         max_rel_std=sec.max_rel_std, estimator=sec.estimator)
@@ -466,20 +480,16 @@ def run_config(path, kind: str, *, out_dir=None, log=print, overwrite: bool = Tr
                     ident = identify_synchronous(rotor, cal.apply(res.responses), method=sec.method, **ident_kw)
                     log("  phase calibration applied to the 1X vectors")
         for i, r in enumerate(res.responses):
-            p = os.path.join(out, f"sync_vectors_{i}_{_safe(r.name)}.csv")
-            r.to_dataframe().to_csv(p, index=False, float_format="%.6g")
-            files.append(p)
+            write_csv(r.to_dataframe(), f"sync_vectors_{i}_{_safe(r.name)}.csv", float_format="%.6g")
         kps = [(i, k) for i, t in enumerate(res.tracks) for k in t.keyphasors]
         if kps:
             import pandas as pd
 
-            p = os.path.join(out, "keyphasor.csv")
-            pd.DataFrame([dict(run=i, pulses=k.times.size, speed_rpm=float(np.median(k.speed_rpm)), edge=k.edge,
-                               rest_state=k.states[0], pulse_state=k.states[1], level=k.level,
-                               jitter_us=1e6 * k.jitter_s, refined=k.refined, extra=k.extra.size,
-                               missing=sum(c for _, c in k.missing), note=k.note) for i, k in kps]).to_csv(
-                p, index=False, float_format="%.6g")
-            files.append(p)
+            write_csv(pd.DataFrame([dict(run=i, pulses=k.times.size, speed_rpm=float(np.median(k.speed_rpm)),
+                                         edge=k.edge, rest_state=k.states[0], pulse_state=k.states[1], level=k.level,
+                                         jitter_us=1e6 * k.jitter_s, refined=k.refined, extra=k.extra.size,
+                                         missing=sum(c for _, c in k.missing), note=k.note) for i, k in kps]),
+                      "keyphasor.csv", float_format="%.6g")
         for n in res.notes:
             log("  " + n)
     else:
@@ -507,21 +517,15 @@ def run_config(path, kind: str, *, out_dir=None, log=print, overwrite: bool = Tr
             sel = (frf.freq_hz >= t.freq_hz[0] - 1e-9) & (frf.freq_hz <= t.freq_hz[-1] + 1e-9)
             for j, nm in enumerate(DISPLACEMENTS):
                 df[f"{nm}_coherence"] = frf.coherence[sel, j]
-            p = os.path.join(out, f"frf_{_safe(t.name)}.csv")
-            df.to_csv(p, index=False, float_format="%.6g")
-            files.append(p)
+            write_csv(df, f"frf_{_safe(t.name)}.csv", float_format="%.6g")
         if res.dropped:
-            p = os.path.join(out, "dropped_impacts.csv")
-            pd.DataFrame(res.dropped, columns=["source", "time_s", "reason"]).to_csv(p, index=False)
-            files.append(p)
+            write_csv(pd.DataFrame(res.dropped, columns=["source", "time_s", "reason"]), "dropped_impacts.csv")
         log(f"  {sum(len(u) for u in res.used)} impacts used, {len(res.dropped)} dropped")
         if sec.kcm_band_hz is not None:
             from .kcm import fit_kcm
 
             fit = fit_kcm(ident, band_hz=sec.kcm_band_hz, rotor=rotor)
-            p = os.path.join(out, "kcm_fit.csv")
-            fit.to_dataframe().to_csv(p, index=False, float_format="%.6g")
-            files.append(p)
+            write_csv(fit.to_dataframe(), "kcm_fit.csv", float_format="%.6g")
             log(f"  K-C-M fit over {fit.band_hz[0]:g}-{fit.band_hz[1]:g} Hz ({fit.n_points} points)"
                 + (f"; {fit.mass_check}" if fit.mass_check else ""))
     df = ident.to_dataframe()
@@ -535,12 +539,13 @@ def run_config(path, kind: str, *, out_dir=None, log=print, overwrite: bool = Tr
                 df[col] = from_si(df[col], "lbf*s/in")
         df = df.rename(columns={c: c + ("_lbf_per_in" if c[0] == "K" else "_lbf_s_per_in") for c in df.columns
                                 if c[:1] in "KC" and c[1:3] in ("xx", "xy", "yx", "yy")})
-    p = os.path.join(out, f"coefficients_{kind}.csv")
-    df.to_csv(p, index=False, float_format="%.6g")
-    files.append(p)
-    p = os.path.join(out, f"coefficients_{kind}.png")
-    plot.coefficients(ident, None, path=p, title=f"Identified coefficients ({kind}), {os.path.basename(str(path))}")
-    files.append(p)
+    write_csv(df, f"coefficients_{kind}.csv", float_format="%.6g")
+    with folder.atomic(f"coefficients_{kind}.png") as tmp:
+        plot.coefficients(ident, None, path=tmp, title=f"Identified coefficients ({kind}), {os.path.basename(str(path))}")
+    files.append(os.path.join(out, f"coefficients_{kind}.png"))
+    stale = folder.finish()
+    if stale:
+        log(f"  removed {len(stale)} stale file(s) of the earlier run: {', '.join(stale[:5])}")
     ok = ident.ok
     log(f"identified {kind}: {ident.axis.size} points ({int(ok.sum())} ok) over {ident.axis_name} "
         f"{ident.axis.min():.4g}-{ident.axis.max():.4g}")

@@ -87,6 +87,12 @@ def revolution_signature(x, fs_hz: float, kp_times, t_start: float, t_stop: floa
     """Average revolution signature (C, P) of channels x (C, N) over the whole revolutions that lie in
     [t_start, t_stop]: each revolution resampled at P uniform angles from its own pulses."""
     kpt = np.asarray(kp_times, float)
+    from .order import MAX_POINTS_PER_REV
+
+    if isinstance(points_per_rev, bool) or int(points_per_rev) != points_per_rev or \
+            not (16 <= points_per_rev <= MAX_POINTS_PER_REV):
+        raise RotoridError(f"points_per_rev must be a whole number from 16 to {MAX_POINTS_PER_REV}, got "
+                           f"{points_per_rev!r}")
     inside = np.nonzero((kpt >= t_start) & (kpt <= t_stop))[0]
     if inside.size < 2:
         raise RotoridError(f"no whole revolution between t = {t_start:.4f} s and {t_stop:.4f} s to build the "

@@ -135,8 +135,10 @@ def steady_segments(kp: Keyphasor, *, tolerance: float = 0.005, min_revs: int = 
     return segs
 
 
-#: largest resampling grid per revolution a user may ask for (memory: 4 x 1024 revolutions x P doubles)
+#: largest resampling grid per revolution a user may ask for
 MAX_POINTS_PER_REV = 1 << 16
+#: resampled doubles held at once while tracking (revolutions are processed in chunks of this size)
+CHUNK_DOUBLES = 1 << 23
 
 
 def detect_keyphasor(rec: Recording, keyphasor=None) -> Keyphasor:
@@ -254,11 +256,12 @@ def track(rec, *, orders=(1, 2, 3), revs_per_block: int | None = None, steady: b
                            "(at least 8, better 30+ samples per revolution)")
     x = np.ascontiguousarray(rec.displacements())
     kpt = np.ascontiguousarray(kp.times)
-    # per-revolution order vectors (revs, orders, 4), resampled and transformed 1024 revolutions at
-    # a time so long records do not need (4, revs, P) doubles at once
+    # per-revolution order vectors (revs, orders, 4), resampled and transformed a chunk of revolutions
+    # at a time (at most CHUNK_DOUBLES doubles, 64 MB) so long records and fine grids stay bounded
     parts = []
-    for a in range(k0, k1, 1024):
-        b = min(a + 1024, k1)
+    chunk = max(1, min(1024, CHUNK_DOUBLES // (4 * points_per_rev)))
+    for a in range(k0, k1, chunk):
+        b = min(a + chunk, k1)
         res = _core.angle_resample(x, rec.fs_hz, rec.t0_s, kpt, a, b, int(points_per_rev))
         spec = np.fft.rfft(res, axis=2)[:, :, list(orders)] * (2.0 / points_per_rev)
         parts.append(spec.transpose(1, 2, 0))
