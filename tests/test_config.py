@@ -243,7 +243,7 @@ def test_string_boolean_in_keyphasor_override():
     ("speeds_rpm", 3000, "[imbalance] speeds_rpm must be a non-empty array of numbers > 0, got 3000"),
     ("orders", [2, 3], "[imbalance] orders must contain 1, got [2, 3]"),
     ("orders", [1, 1.5], "[imbalance] orders[1] must be an integer >= 1, got 1.5"),
-    ("points_per_rev", 8, "[imbalance] points_per_rev must be 'auto' or an integer >= 16, got 8"),
+    ("points_per_rev", 8, "[imbalance] points_per_rev must be 'auto' or an integer >= 16 and <= 65536, got 8"),
     ("points_per_rev", "Auto", "got the string 'Auto' (did you mean 'auto'?)"),
     ("method", "Forces", "[imbalance] method must be one of 'forces', 'report', got 'Forces' (did you mean 'forces'?)"),
     ("runs", "run.tdms", "[imbalance] runs must be an array of tables ([[imbalance.runs]]), got the string"),
