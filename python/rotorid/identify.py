@@ -68,6 +68,9 @@ class Identification:
     rel_std: np.ndarray | None = None
     k_std_residual: np.ndarray | None = None
     c_std_residual: np.ndarray | None = None
+    k_bias: np.ndarray | None = None
+    c_bias: np.ndarray | None = None
+    estimator: str = "ls"
 
     def interval(self, level: float = 0.95):
         """Confidence bounds of k and c: coefficient ± t(level, dof) × standard error.
@@ -98,8 +101,13 @@ class Identification:
             raise RotoridError(f"level must be a number between 0 and 1, got {level!r}") from None
         dof = self.dof if self.dof is not None else np.full(self.axis.size, np.nan)
         t = t_quantile(level, dof)[:, None, None, None]
-        return Interval(self.k - t * self.k_std, self.k + t * self.k_std, self.c - t * self.c_std,
-                        self.c + t * self.c_std, level)
+        hk, hc = t * self.k_std, t * self.c_std
+        if self.k_bias is not None and self.estimator == "ls":
+            # the estimator's own second-order bias (errors in variables), not corrected: the
+            # interval is widened by it, so it covers where the linearization alone would not
+            hk = hk + np.abs(self.k_bias)
+            hc = hc + np.abs(self.c_bias)
+        return Interval(self.k - hk, self.k + hk, self.c - hc, self.c + hc, level)
 
     @property
     def speed_rpm(self):
@@ -224,7 +232,8 @@ def _diagnose_singular(qs, labels):
 
 
 def _finish(axis_name, axis, amp, k, c, cond, resid, ks, cs, cond_max, min_rel_amplitude, method, labels,
-            std_source="none", dof=None, cov=None, max_rel_std=MAX_REL_STD, extra_flags=None, ks_res=None, cs_res=None):
+            std_source="none", dof=None, cov=None, max_rel_std=MAX_REL_STD, extra_flags=None, ks_res=None, cs_res=None,
+            bias_k=None, bias_c=None, estimator="ls"):
     """Result object with per-point flags. ``amp``: rms response amplitude over runs and coordinates."""
     from .uncertainty import relative_std
 
@@ -244,7 +253,7 @@ def _finish(axis_name, axis, amp, k, c, cond, resid, ks, cs, cond_max, min_rel_a
             flag[i] = why if not flag[i] else (flag[i] if flag[i] == "singular" else f"{flag[i]}; {why}")
     ok = flag == ""
     return Identification(axis_name, axis, k, c, cond, resid, rel, ks, cs, ok, flag, method, labels, std_source, dof,
-                          cov, rstd, ks_res, cs_res)
+                          cov, rstd, ks_res, cs_res, bias_k, bias_c, estimator)
 
 
 def _check_threshold(name, value, lo, hi=np.inf):
@@ -346,6 +355,7 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
         raise IdentifiabilityError(_diagnose_singular(qs, labels))
     ks, cs = ks[0], cs[0]
     ks_res, cs_res = ks, cs
+    bias_k = bias_c = None
     source, dof, cov = ("residual" if redundant else "none"), None, None
     if redundant:
         # residual dof per bearing system: R complex equations (2R real) for 2 complex unknowns
@@ -354,19 +364,18 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
     if estimator == "bias-corrected" and (covs is None or np.all(np.isnan(covs))):
         raise RotoridError("estimator='bias-corrected' needs the measurement covariance of every run or test (cov=)")
     if covs is not None and not np.all(np.isnan(covs)):
-        if estimator == "bias-corrected":
-            from .model import _REPORT_TO_BIJ
+        from .model import _REPORT_TO_BIJ
 
-            cov, b = propagate(rotor, w, spin, qs, e, gain, sigma, covs, identical=identical, method=method, bias=True)
-            n = axis.size
-            bk = np.zeros((n, 8))
-            bc = np.zeros((n, 8))
-            bk[:, _REPORT_TO_BIJ] = np.nan_to_num(b[:, :8])
-            bc[:, _REPORT_TO_BIJ] = np.nan_to_num(b[:, 8:])
-            k = k - bk.reshape(1, n, 2, 2, 2)
-            c = c - bc.reshape(1, n, 2, 2, 2)
-        else:
-            cov = propagate(rotor, w, spin, qs, e, gain, sigma, covs, identical=identical, method=method)
+        cov, b = propagate(rotor, w, spin, qs, e, gain, sigma, covs, identical=identical, method=method, bias=True)
+        n = axis.size
+        bk = np.zeros((n, 8))
+        bc = np.zeros((n, 8))
+        bk[:, _REPORT_TO_BIJ] = np.nan_to_num(b[:, :8])
+        bc[:, _REPORT_TO_BIJ] = np.nan_to_num(b[:, 8:])
+        bias_k, bias_c = bk.reshape(n, 2, 2, 2), bc.reshape(n, 2, 2, 2)
+        if estimator == "bias-corrected":
+            k = k - bias_k[None]
+            c = c - bias_c[None]
         ks, cs = std_from_cov(cov)
         ks[np.isnan(cov).any(axis=(1, 2))] = np.nan
         cs[np.isnan(cov).any(axis=(1, 2))] = np.nan
@@ -377,7 +386,8 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
         dof = np.min(dofs, axis=0) if dofs is not None else np.full(axis.size, np.inf)
         dof = np.where(np.isnan(cov).any(axis=(1, 2)), np.nan, dof)
     return _finish(axis_name, axis, amp[0], k[0], c[0], cond[0], resid[0], ks, cs, cond_max, min_rel_amplitude,
-                   method, labels, source, dof, cov, max_rel_std, extra_flags, ks_res, cs_res)
+                   method, labels, source, dof, cov, max_rel_std, extra_flags, ks_res, cs_res, bias_k, bias_c,
+                   estimator)
 
 
 def identify_synchronous_batch(rotor: RigidRotor, speed_rpm, q, imbalances, *, method: str = "forces",
