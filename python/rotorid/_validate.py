@@ -8,6 +8,11 @@ from .errors import RotoridError
 
 
 def real_array(name, value, *, ndim=None, shape=None, positive=False, nonneg=False, nonzero=False):
+    if isinstance(value, (str, bytes)):
+        raise RotoridError(f"{name} must be numeric real values, got the string {value!r}")
+    if np.iscomplexobj(value):
+        raise RotoridError(f"{name} must be real, got complex values (the imaginary part would be dropped); "
+                           "complex data belong in the response arguments")
     try:
         a = np.asarray(value, dtype=float)
     except (TypeError, ValueError) as exc:
@@ -18,7 +23,9 @@ def real_array(name, value, *, ndim=None, shape=None, positive=False, nonneg=Fal
 def complex_array(name, value, *, ndim=None, shape=None):
     try:
         a = np.asarray(value)
-        if not (np.issubdtype(a.dtype, np.number) or a.dtype == bool):
+        if a.dtype == bool:
+            raise TypeError("booleans are not numbers here")
+        if not np.issubdtype(a.dtype, np.number):
             raise TypeError(f"dtype {a.dtype}")
         a = a.astype(complex)
     except (TypeError, ValueError) as exc:
@@ -27,6 +34,8 @@ def complex_array(name, value, *, ndim=None, shape=None):
 
 
 def _check(name, a, ndim, shape, positive, nonneg, nonzero):
+    if a.dtype == bool:
+        raise RotoridError(f"{name} must be numbers, got booleans")
     if ndim is not None and a.ndim != ndim:
         raise RotoridError(f"{name} must have {ndim} dimension(s), got shape {a.shape}")
     if shape is not None:
@@ -71,3 +80,24 @@ def choice(name, value, options):
     if value not in options:
         raise RotoridError(f"{name} must be one of {sorted(options)}, got {value!r}")
     return value
+
+
+def number(name, value, *, positive=False, nonneg=False, allow_none=False):
+    """A real, finite scalar: refuses strings, booleans, complex numbers, arrays and None (unless
+    ``allow_none``), naming the argument."""
+    if value is None and allow_none:
+        return None
+    ok_type = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+    if not ok_type:
+        if isinstance(value, np.ndarray) and value.shape == () and value.dtype.kind in "iuf":
+            value = value.item()
+        else:
+            raise RotoridError(f"{name} must be a real number, got {value!r}")
+    v = float(value)
+    if not np.isfinite(v):
+        raise RotoridError(f"{name} must be finite, got {value!r}")
+    if positive and not v > 0:
+        raise RotoridError(f"{name} must be > 0, got {value!r}")
+    if nonneg and v < 0:
+        raise RotoridError(f"{name} must be >= 0, got {value!r}")
+    return v

@@ -418,6 +418,14 @@ def identify_synchronous_batch(rotor: RigidRotor, speed_rpm, q, imbalances, *, m
         e = complex_array("imbalances", imbalances, ndim=3)
     if e.shape[1:] != (q.shape[1], 4) or e.shape[0] not in (1, q.shape[0]):
         raise RotoridError(f"imbalances give excitation shape {e.shape}, expected (1 or {q.shape[0]}, {q.shape[1]}, 4)")
+    if not identical and e.shape[1] >= 2:
+        # the runs' force and moment excitations must be independent in every trial
+        sv = np.linalg.svd(e[:, :, [0, 2]], compute_uv=False)          # (trials, 2): F and moment columns
+        dep = sv[:, -1] <= 1e-9 * np.maximum(sv[:, 0], 1e-300)
+        if dep.any():
+            raise IdentifiabilityError(f"imbalances of trial {int(np.argmax(dep))} (and {int(dep.sum()) - 1} more) are "
+                                       "linearly dependent across the runs (complex multiples of one another): those "
+                                       "trials cannot identify the coefficients")
     om = rpm * RPM
     k, c, cond, resid, amp, ks, cs, _ = _core.identify(rotor.core_params(), om, om, np.ascontiguousarray(q),
                                                       np.ascontiguousarray(e), om ** 2, identical=identical,

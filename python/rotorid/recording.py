@@ -44,17 +44,22 @@ class Recording:
     source: str = ""
 
     def __post_init__(self):
-        if not (np.isfinite(self.fs_hz) and self.fs_hz > 0):
-            raise RotoridError(f"fs_hz must be > 0, got {self.fs_hz!r}")
-        self.fs_hz = float(self.fs_hz)
+        from ._validate import number
+
+        self.fs_hz = number("fs_hz", self.fs_hz, positive=True)
+        self.t0_s = number("t0_s", self.t0_s)
         if not self.channels:
             raise RotoridError("a recording needs at least one channel")
         n = None
         chans = {}
         for name, data in self.channels.items():
+            if np.iscomplexobj(data):
+                raise RotoridError(f"channel {name!r} holds complex values: a recording holds real samples")
             a = np.asarray(data, dtype=float)
             if a.ndim != 1:
                 raise RotoridError(f"channel {name!r} must be 1-D, got shape {a.shape}")
+            if a.size == 0:
+                raise RotoridError(f"channel {name!r} is empty")
             if n is None:
                 n = a.size
             elif a.size != n:

@@ -31,7 +31,9 @@ def probes_to_bearings_matrix(rotor: RigidRotor) -> np.ndarray:
 
 
 def _apply_planes(T, q):
-    q = np.asarray(q)
+    q = complex_array("q", q)
+    if q.ndim < 1 or q.shape[-1] != 4:
+        raise RotoridError(f"q must have the four responses [x1, x2, y1, y2] on its last axis, got shape {q.shape}")
     out = np.empty(np.broadcast_shapes(q.shape), dtype=np.result_type(q, complex))
     out[..., 0:2] = q[..., 0:2] @ T.T
     out[..., 2:4] = q[..., 2:4] @ T.T
@@ -430,5 +432,11 @@ def impact_time_response(rotor: RigidRotor, bearings: BearingCoefficients, *, sp
 
 def half_sine_pulse(peak_N: float, duration_s: float, fs_hz: float, n_samples: int, t0_s: float = 0.0) -> np.ndarray:
     """A half-sine force pulse (a typical hammer or impactor load) sampled at fs_hz."""
-    t = np.arange(int(n_samples)) / float(fs_hz) - t0_s
+    peak_N = float(real_array("peak_N", peak_N, ndim=0))
+    duration_s = float(real_array("duration_s", duration_s, ndim=0, positive=True))
+    fs_hz = float(real_array("fs_hz", fs_hz, ndim=0, positive=True))
+    t0_s = float(real_array("t0_s", t0_s, ndim=0))
+    if isinstance(n_samples, bool) or int(n_samples) != n_samples or not (1 <= n_samples <= 1 << 31):
+        raise RotoridError(f"n_samples must be a whole number from 1 to 2**31, got {n_samples!r}")
+    t = np.arange(int(n_samples)) / fs_hz - t0_s
     return np.where((t >= 0) & (t <= duration_s), peak_N * np.sin(np.pi * np.clip(t, 0, duration_s) / duration_s), 0.0)

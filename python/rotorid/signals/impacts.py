@@ -12,6 +12,18 @@ from ..errors import RotoridError
 from ..recording import DISPLACEMENTS, Recording
 
 
+def _fs(fs_hz, name="fs_hz"):
+    from .._validate import number
+
+    return number(name, fs_hz, positive=True)
+
+
+def _positive(name, value, allow_zero=False):
+    from .._validate import number
+
+    return number(name, value, nonneg=allow_zero, positive=not allow_zero)
+
+
 @dataclass
 class Impact:
     """One detected impact on the force channel."""
@@ -36,8 +48,19 @@ def detect_impacts(force, fs_hz: float, *, threshold_N=None, min_separation_s: f
     the signal sits at its maximum (or at ``overload_N``) for 3 or more samples (a clipped
     transducer or DAQ range)."""
     f = np.asarray(force, float)
-    if f.ndim != 1 or not np.all(np.isfinite(f)):
-        raise RotoridError("force must be a finite 1-D signal")
+    if f.ndim != 1 or f.size == 0 or not np.all(np.isfinite(f)):
+        raise RotoridError("force must be a finite, non-empty 1-D signal")
+    fs_hz = _fs(fs_hz)
+    for nm, v in (("min_separation_s", min_separation_s), ("double_hit_window_s", double_hit_window_s)):
+        _positive(nm, v)
+    if not (0 < _positive("double_hit_fraction", double_hit_fraction) <= 1):
+        raise RotoridError(f"double_hit_fraction must be in (0, 1], got {double_hit_fraction!r}")
+    for nm, v in (("threshold_N", threshold_N), ("overload_N", overload_N)):
+        if v is not None:
+            _positive(nm, v)
+    if not np.any(f):
+        raise RotoridError("the force channel is all zeros: no impact to detect (wrong channel, or the hammer's "
+                           "cable unplugged?)")
     noise = 1.4826 * np.median(np.abs(f - np.median(f)))
     thr = max(0.1 * np.abs(f).max(), 8 * noise) if threshold_N is None else float(threshold_N)
     above = np.abs(f) > thr
@@ -117,7 +140,9 @@ def exponential_window(n: int, fs_hz: float, tau_s: float, start: int = 0) -> np
     the FRF it produces is H(s) at s = 1/tau + j w. Identifying from it as if s were j w would bias
     the damping; give the decay to the identification (``ImpactResponse(sigma=1/tau)``, or
     ``impact_chain(exp_window_tau_s=tau)``) and it solves the equations at s instead."""
-    t = (np.arange(n) - start) / fs_hz
+    fs_hz = _fs(fs_hz)
+    tau_s = _positive("tau_s (exponential window)", tau_s)
+    t = (np.arange(int(n)) - start) / fs_hz
     return np.where(t > 0, np.exp(-np.clip(t, 0, None) / tau_s), 1.0)
 
 
@@ -160,6 +185,7 @@ def frf_h1(forces, responses, fs_hz: float) -> FRF:
     (real 8-vector form), with n - 1 degrees of freedom."""
     if len(forces) != len(responses) or not forces:
         raise RotoridError("frf_h1 needs one response record per force record (and at least one)")
+    fs_hz = _fs(fs_hz)
     n = len(forces[0])
     sff = 0.0
     sxf = 0.0

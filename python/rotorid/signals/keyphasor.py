@@ -293,35 +293,38 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
     (True, 2.5)
     """
     where = f" in {source}" if source else ""
-    x = np.asarray(kp, dtype=float)
+    if np.iscomplexobj(kp):
+        raise KeyphasorError(f"the keyphasor channel{where} holds complex values; it is a real signal")
+    try:
+        x = np.asarray(kp, dtype=float)
+    except (TypeError, ValueError):
+        raise KeyphasorError(f"the keyphasor channel{where} must hold numbers") from None
     if x.ndim != 1 or x.size < 16:
         raise KeyphasorError(f"the keyphasor channel{where} must be a 1-D signal of at least 16 samples, got shape "
                              f"{x.shape}")
     if not np.all(np.isfinite(x)):
         raise KeyphasorError(f"the keyphasor channel{where} contains NaN or inf")
-    if not (np.isfinite(fs_hz) and fs_hz > 0):
-        raise KeyphasorError(f"fs_hz must be > 0, got {fs_hz!r}")
-    if not np.isfinite(t0_s):
-        raise KeyphasorError(f"t0_s must be finite, got {t0_s!r}")
+    from .._validate import number
+
+    try:
+        fs_hz = number("fs_hz", fs_hz, positive=True)
+        t0_s = number("t0_s", t0_s)
+        tolerance = number("tolerance", tolerance)
+        mark_angle_deg = number("mark_angle_deg", mark_angle_deg)
+        delay_s = number("delay_s", delay_s)
+        level = number("level", level, allow_none=True)
+        hysteresis = number("hysteresis", hysteresis, allow_none=True, nonneg=True)
+        max_speed_step = number("max_speed_step", max_speed_step, allow_none=True, positive=True)
+    except RotoridError as exc:
+        raise KeyphasorError(str(exc)) from None
     if polarity is not None:
         edge = {"auto": "auto", "positive": "rising", "negative": "falling"}.get(polarity, polarity)
-    if edge not in ("auto", "rising", "falling"):
+    if not isinstance(edge, str) or edge not in ("auto", "rising", "falling"):
         raise KeyphasorError(f"edge must be 'auto', 'rising' or 'falling', got {edge!r}")
     if not (0 < tolerance < 1):
         raise KeyphasorError(f"tolerance must be between 0 and 1, got {tolerance!r}")
     if max_speed_step is None:
         max_speed_step = tolerance
-    if not (0 < max_speed_step):
-        raise KeyphasorError(f"max_speed_step must be > 0, got {max_speed_step!r}")
-    for nm, val in (("mark_angle_deg", mark_angle_deg), ("delay_s", delay_s)):
-        if not np.isfinite(val):
-            raise KeyphasorError(f"{nm} must be finite, got {val!r}")
-    for nm, val in (("level", level), ("hysteresis", hysteresis)):
-        if val is not None and not np.isfinite(val):
-            raise KeyphasorError(f"{nm} must be a finite number or None, got {val!r}")
-    if hysteresis is not None and hysteresis < 0:
-        raise KeyphasorError(f"hysteresis must be >= 0, got {hysteresis!r}")
-
     side = None
     if level is not None and edge in ("rising", "falling"):
         # with a level and an edge the user has said which pulses count (e.g. a channel with pulses of

@@ -219,9 +219,13 @@ def track(rec, *, orders=(1, 2, 3), revs_per_block: int | None = None, steady: b
         raise RotoridError(f"rec must be a Recording or SegmentedRecording, got {type(rec).__name__}")
     rec.require(*DISPLACEMENTS)
     try:
-        orders = tuple(int(o) for o in orders)
+        raw = tuple(orders)
+        orders = tuple(int(o) for o in raw)
     except (TypeError, ValueError):
         raise RotoridError(f"orders must be whole numbers >= 1, got {orders!r}") from None
+    if any(isinstance(o, bool) or o != r for o, r in zip(orders, raw)):
+        raise RotoridError(f"orders must be whole numbers >= 1 (an order is a multiple of the running speed), got "
+                           f"{list(raw)!r}")
     if not orders or any(o < 1 for o in orders):
         raise RotoridError(f"orders must be whole numbers >= 1, got {orders!r}")
     for nm, val, lo in (("min_revs", min_revs, 2), ("settle_revs", settle_revs, 0)):

@@ -1,0 +1,108 @@
+"""Bad input gets one clear RotoridError naming the argument, never a silent wrong number or a
+traceback from deep inside (issue: never a silent wrong number)."""
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import rotorid
+from rotorid import RotoridError, signals
+from rotorid.recording import Recording
+
+RIG = rotorid.nsf_rig()
+
+
+def test_complex_values_are_not_cast_to_real():
+    with pytest.raises(RotoridError, match="complex"):
+        rotorid.RigidRotor(mass_kg=45.3 + 1j, it_kgm2=0.7, ip_kgm2=0.3, l1=0.2, l2=0.2)
+    k = RIG.bearings.k + 1j * 2 * np.pi * 50 * RIG.bearings.c  # K + j w C, the damping would be dropped
+    with pytest.raises(RotoridError, match="complex"):
+        rotorid.BearingCoefficients(k, RIG.bearings.c)
+    with pytest.raises(RotoridError, match="complex"):
+        rotorid.imbalance_response(RIG.rotor, RIG.bearings, RIG.imbalances["A"], speed_rpm=[3000 + 1j])
+    with pytest.raises(RotoridError, match="complex"):
+        Recording(1000.0, {"x1": np.ones(10) * (1 + 1j)})
+
+
+def test_strings_and_booleans_are_not_numbers():
+    with pytest.raises(RotoridError, match="string"):
+        rotorid.imbalance_response(RIG.rotor, RIG.bearings, RIG.imbalances["A"], speed_rpm="3000")
+    with pytest.raises(RotoridError):
+        Recording(True, {"x1": np.ones(10)})
+    with pytest.raises(RotoridError):
+        Recording("1e3", {"x1": np.ones(10)})
+
+
+def test_probe_transform_needs_four_responses():
+    with pytest.raises(RotoridError, match="four responses"):
+        rotorid.probes_to_bearings(RIG.rotor, np.ones((3, 5)))
+
+
+@pytest.mark.parametrize("t0", [np.nan, np.inf, "x"])
+def test_recording_start_time_must_be_finite(t0):
+    with pytest.raises(RotoridError, match="t0_s"):
+        Recording(1000.0, {"x1": np.ones(10)}, t0_s=t0)
+
+
+def test_empty_channels_and_bad_rates_are_refused():
+    with pytest.raises(RotoridError, match="empty"):
+        Recording(1000.0, {"x1": np.zeros(0)})
+    for fs in (0.0, -1.0, np.nan, "fast"):
+        with pytest.raises(RotoridError, match="fs_hz"):
+            Recording(fs, {"x1": np.ones(10)})
+        with pytest.raises(RotoridError, match="fs_hz"):
+            signals.detect_impacts(np.r_[np.zeros(50), 100.0, np.zeros(50)], fs)
+        with pytest.raises(RotoridError, match="fs_hz"):
+            signals.exponential_window(100, fs, 0.1)
+
+
+def test_signal_processing_arguments_are_checked():
+    with pytest.raises(RotoridError, match="tau_s"):
+        signals.exponential_window(100, 1000.0, 0.0)
+    with pytest.raises(RotoridError, match="all zeros"):
+        signals.detect_impacts(np.zeros(100), 1000.0)
+    with pytest.raises(RotoridError, match="threshold_N"):
+        signals.detect_impacts(np.r_[np.zeros(50), 100.0, np.zeros(50)], 1000.0, threshold_N=-1.0)
+    rotor, brg, remnant = rotorid.rawsim.example_rig()
+    rec = rotorid.rawsim.imbalance_recording(rotor, brg, speeds_rpm=[3000.0], added=None, remnant=remnant, dwell_s=0.5)
+    with pytest.raises(RotoridError, match="whole numbers"):
+        signals.track(rec, orders=(1, 1.5))
+    for kw in (dict(peak_N=100.0, duration_s=0.0, fs_hz=1000.0, n_samples=10),
+               dict(peak_N=100.0, duration_s=1e-3, fs_hz=np.nan, n_samples=10),
+               dict(peak_N=100.0, duration_s=1e-3, fs_hz=1000.0, n_samples=-3)):
+        with pytest.raises(RotoridError):
+            rotorid.half_sine_pulse(**kw)
+
+
+def test_batch_with_dependent_imbalances_in_a_trial_is_refused():
+    rpm = np.array([4000.0, 5000.0])
+    q = np.stack([rotorid.imbalance_response(RIG.rotor, RIG.bearings, RIG.imbalances[s], speed_rpm=rpm).q
+                  for s in "AB"])[None].repeat(3, axis=0)
+    e = np.stack([RIG.imbalances[s].generalized(RIG.rotor) for s in "AB"])[None].repeat(3, axis=0)
+    e[1, 1] = 2j * e[1, 0]  # trial 1: run B's imbalance a complex multiple of run A's
+    with pytest.raises(rotorid.IdentifiabilityError, match="trial 1"):
+        rotorid.identify_synchronous_batch(RIG.rotor, rpm, q, e)
+
+
+# ---------------------------------------------------------------------------------------------
+# property: whatever the arguments, a RotoridError or a result, never another exception
+
+bad_numbers = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.integers(-10, 10 ** 9), st.just("x"),
+                        st.just(None), st.just(True), st.complex_numbers(max_magnitude=1e6), st.just([1.0, 2.0]))
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(fs=bad_numbers, t0=bad_numbers, tau=bad_numbers, level=bad_numbers, tol=bad_numbers)
+def test_public_signal_functions_fail_only_with_rotorid_errors(fs, t0, tau, level, tol):
+    kp = np.r_[np.zeros(40), 5.0 * np.ones(5)] .repeat(1)
+    kp = np.tile(kp, 20)
+    calls = [lambda: Recording(fs, {"x1": np.ones(16)}, t0_s=t0),
+             lambda: signals.exponential_window(64, fs, tau),
+             lambda: signals.keyphasor_times(kp, fs, t0_s=t0, level=level, tolerance=tol),
+             lambda: signals.detect_impacts(np.r_[np.zeros(50), 100.0, np.zeros(50)], fs, threshold_N=level)]
+    for call in calls:
+        try:
+            call()
+        except RotoridError:
+            pass
