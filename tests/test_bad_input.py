@@ -106,3 +106,15 @@ def test_public_signal_functions_fail_only_with_rotorid_errors(fs, t0, tau, leve
             call()
         except RotoridError:
             pass
+
+
+def test_an_undamped_rotor_at_its_natural_frequency_is_singular_not_a_huge_number():
+    undamped = rotorid.BearingCoefficients(RIG.bearings.k, np.zeros((2, 2, 2)))
+    m = rotorid.modal_analysis(RIG.rotor, undamped, speed_rpm=[1e-9])
+    for fn in np.sort(np.abs(m.freq_hz.ravel()))[:4]:
+        with pytest.raises(RotoridError, match="singular"):
+            rotorid.impact_frf(RIG.rotor, undamped, speed_rpm=0, freq_hz=[fn])
+    # a lightly damped resonance is a large, finite, trustworthy response
+    light = rotorid.BearingCoefficients(RIG.bearings.k, RIG.bearings.c * 1e-4)
+    r = rotorid.impact_frf(RIG.rotor, light, speed_rpm=0, freq_hz=np.sort(np.abs(m.freq_hz.ravel()))[:1])
+    assert np.all(np.isfinite(r.q))

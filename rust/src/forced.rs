@@ -17,6 +17,10 @@ pub fn solve4(h: &mut [[C64; 4]; 4], rhs: &mut [C64]) -> bool {
         }
     }
     let tiny = scale * 1e-15;
+    // the pivots' spread bounds the condition number from below: at an undamped resonance the last
+    // pivot is rounding noise (1e-16 of the others), which must not pass as a huge response; a spread
+    // beyond 1e10 (a damping ratio below ~1e-10) is treated as singular
+    let (mut pmin, mut pmax) = (f64::INFINITY, 0.0f64);
     for k in 0..4 {
         // pivot
         let mut p = k;
@@ -28,7 +32,9 @@ pub fn solve4(h: &mut [[C64; 4]; 4], rhs: &mut [C64]) -> bool {
                 p = i;
             }
         }
-        if !(best > tiny) {
+        pmin = pmin.min(best);
+        pmax = pmax.max(best);
+        if !(best > tiny) || pmin < 1e-10 * pmax {
             for v in rhs.iter_mut() {
                 *v = C64::new(f64::NAN, f64::NAN);
             }
