@@ -118,3 +118,20 @@ def test_an_undamped_rotor_at_its_natural_frequency_is_singular_not_a_huge_numbe
     light = rotorid.BearingCoefficients(RIG.bearings.k, RIG.bearings.c * 1e-4)
     r = rotorid.impact_frf(RIG.rotor, light, speed_rpm=0, freq_hz=np.sort(np.abs(m.freq_hz.ravel()))[:1])
     assert np.all(np.isfinite(r.q))
+
+
+def test_identical_bearings_assumed_on_different_bearings_is_flagged():
+    rotor, brg, _ = rotorid.rawsim.example_rig()
+    rpm = np.arange(3000, 6001, 500.0)
+    for bearings, expect in ((brg, True), (RIG.bearings, False)):
+        runs = [rotorid.imbalance_response(rotor, bearings, RIG.imbalances[s], speed_rpm=rpm, at="probes")
+                for s in "AB"]
+        i = rotorid.identify_synchronous(rotor, runs, identical=True)
+        # without a covariance: residuals above 1 % of the forces (here 6 of 7 speeds; all are "uncertain")
+        assert sum("identical bearings rejected" in f for f in i.flag) >= (6 if expect else 0)
+        assert not expect or not i.ok.any()
+        # with a measurement covariance, the test is against the measurement errors
+        for r in runs:
+            r.cov = np.broadcast_to(np.eye(8) * (1e-8) ** 2, (rpm.size, 8, 8))
+        i = rotorid.identify_synchronous(rotor, runs, identical=True)
+        assert all(("identical bearings rejected" in f) == expect for f in i.flag), i.flag
