@@ -5,10 +5,23 @@ use crate::model::{assemble, Rotor, C64};
 use rayon::prelude::*;
 
 /// Solve a 4x4 complex system in place by LU with partial pivoting, for `nrhs` right-hand sides
-/// stored consecutively in `rhs` (each of length 4). Returns false if the matrix is singular;
-/// the right-hand sides are then set to NaN.
+/// stored consecutively in `rhs` (each of length 4). Returns false if the matrix is singular
+/// (a zero pivot, or for a forced response a pivot spread beyond 1e10); the right-hand sides are
+/// then set to NaN.
 #[inline(always)]
 pub fn solve4(h: &mut [[C64; 4]; 4], rhs: &mut [C64]) -> bool {
+    solve4_impl(h, rhs, 1e-10)
+}
+
+/// As [`solve4`] but accepting nearly singular matrices (inverse iteration solves with a shifted
+/// matrix that is singular to rounding on purpose); only an exactly zero pivot fails.
+#[inline(always)]
+pub fn solve4_near_singular(h: &mut [[C64; 4]; 4], rhs: &mut [C64]) -> bool {
+    solve4_impl(h, rhs, 0.0)
+}
+
+#[inline(always)]
+fn solve4_impl(h: &mut [[C64; 4]; 4], rhs: &mut [C64], max_spread: f64) -> bool {
     let nrhs = rhs.len() / 4;
     let mut scale = 0.0f64;
     for row in h.iter() {
@@ -34,7 +47,7 @@ pub fn solve4(h: &mut [[C64; 4]; 4], rhs: &mut [C64]) -> bool {
         }
         pmin = pmin.min(best);
         pmax = pmax.max(best);
-        if !(best > tiny) || pmin < 1e-10 * pmax {
+        if !(best > tiny) || pmin < max_spread * pmax {
             for v in rhs.iter_mut() {
                 *v = C64::new(f64::NAN, f64::NAN);
             }

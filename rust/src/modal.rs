@@ -1,6 +1,6 @@
 //! Batched eigen-analysis of the rotor-bearing system (state-space form of eq. 1 without forcing).
 
-use crate::forced::solve4;
+use crate::forced::solve4_near_singular;
 use crate::model::{assemble, Rotor, C64};
 use faer::Mat;
 use rayon::prelude::*;
@@ -160,7 +160,7 @@ pub fn modal(rotor: &Rotor, kb: &[f64], cb: &[f64], spin: &[f64], lam: &mut [C64
                         }
                     }
                     let mut y = v;
-                    if !solve4(&mut dm, &mut y) {
+                    if !solve4_near_singular(&mut dm, &mut y) {
                         break;
                     }
                     let nrm = y.iter().map(|z| z.norm_sqr()).sum::<f64>().sqrt();
