@@ -244,12 +244,7 @@ def _number_list(*, integer=False, min_length=1, unique=False, must_contain=None
     def check(v):
         if not isinstance(v, list) or len(v) < min_length:
             raise _err(f"must be a non-empty array of {kind}{' ' + btext if btext else ''}, got {_describe(v)}")
-        out = []
-        for i, e in enumerate(v):
-            try:
-                out.append(elem(e))
-            except PydanticCustomError as exc:
-                raise _err(exc.context["msg"], i) from None
+        out = _each(v, elem)
         if unique and len(set(out)) != len(out):
             dup = next(x for x in out if out.count(x) > 1)
             raise _err(f"must not repeat a value, got {_fmt(dup)} twice")
@@ -337,16 +332,21 @@ def _check_path(v):
     return v
 
 
-def _check_paths(v):
-    if not isinstance(v, list) or not v:
-        raise _err(f"must be a non-empty array of file paths, got {_describe(v)}")
+def _each(v, check) -> list:
+    """Each element checked; a problem names the element's index."""
     out = []
     for i, e in enumerate(v):
         try:
-            out.append(_check_path(e))
+            out.append(check(e))
         except PydanticCustomError as exc:
             raise _err(exc.context["msg"], i) from None
-    return tuple(out)
+    return out
+
+
+def _check_paths(v):
+    if not isinstance(v, list) or not v:
+        raise _err(f"must be a non-empty array of file paths, got {_describe(v)}")
+    return tuple(_each(v, _check_path))
 
 
 def _check_groups(v):

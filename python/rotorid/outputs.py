@@ -90,16 +90,8 @@ class ResultsFolder:
     @contextlib.contextmanager
     def atomic(self, name: str):
         """Yield a temporary path; it becomes ``name`` in the folder only if the block succeeds."""
-        final = self.file(name)
-        stem, ext = os.path.splitext(name)
-        tmp = os.path.join(self.path, f".{stem}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp{ext}")
-        try:
+        with _replacing(self.file(name)) as tmp:
             yield tmp
-            os.replace(tmp, final)
-        except BaseException:
-            with contextlib.suppress(OSError):
-                os.remove(tmp)
-            raise
         if name not in self.written:
             self.written.append(name)
 
@@ -120,18 +112,22 @@ class ResultsFolder:
 
         manifest = {"command": self.command, "time": datetime.datetime.now().isoformat(timespec="seconds"),
                     "rotorid": __version__, "files": self.written}
-        with self.atomic_manifest() as tmp, open(tmp, "w", encoding="utf-8") as fh:
+        with _replacing(os.path.join(self.path, MANIFEST)) as tmp, open(tmp, "w", encoding="utf-8") as fh:
             json.dump(manifest, fh, indent=1)
         return stale
 
-    @contextlib.contextmanager
-    def atomic_manifest(self):
-        final = os.path.join(self.path, MANIFEST)
-        tmp = final + f".{os.getpid()}.tmp"
-        try:
-            yield tmp
-            os.replace(tmp, final)
-        except BaseException:
-            with contextlib.suppress(OSError):
-                os.remove(tmp)
-            raise
+
+@contextlib.contextmanager
+def _replacing(final: str):
+    """A temporary path beside ``final`` (same extension, so writers that go by it work) that
+    replaces ``final`` only if the block succeeds."""
+    folder, name = os.path.split(final)
+    stem, ext = os.path.splitext(name)
+    tmp = os.path.join(folder, f".{stem}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp{ext}")
+    try:
+        yield tmp
+        os.replace(tmp, final)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.remove(tmp)
+        raise

@@ -95,33 +95,27 @@ def _norm(s) -> str:
     return str(s).strip().lower().replace(" ", "").replace("_", "-")
 
 
+def _kind(value, name, kinds, hint) -> str:
+    """The canonical spelling of ``value`` among ``kinds`` ({canonical: aliases}); else an error."""
+    v = _norm(value)
+    for canon, aliases in kinds.items():
+        if v in aliases:
+            return canon
+    raise RotoridError(f"{name} must be {hint}, got {value!r}")
+
+
 def _amplitude_kind(amplitude) -> str:
-    a = _norm(amplitude)
-    if a in _PKPK:
-        return "pk-pk"
-    if a in _ZPK:
-        return "0-pk"
-    raise RotoridError(f"amplitude must be 'pk-pk' (also 'pp', 'peak-to-peak') or '0-pk' (also '0-p', 'peak'), "
-                       f"got {amplitude!r}")
+    return _kind(amplitude, "amplitude", {"pk-pk": _PKPK, "0-pk": _ZPK},
+                 "'pk-pk' (also 'pp', 'peak-to-peak') or '0-pk' (also '0-p', 'peak')")
 
 
 def _phase_kind(phase) -> str:
-    p = _norm(phase)
-    if p in _LAG:
-        return "lag"
-    if p in _LEAD:
-        return "lead"
-    raise RotoridError(f"phase must be 'lag' (DAQ convention, X = A e^(-j lag)) or 'lead'/'arg' "
-                       f"(X = A e^(+j phase)), got {phase!r}")
+    return _kind(phase, "phase", {"lag": _LAG, "lead": _LEAD},
+                 "'lag' (DAQ convention, X = A e^(-j lag)) or 'lead'/'arg' (X = A e^(+j phase))")
 
 
 def _angle_kind(phase_unit) -> str:
-    p = _norm(phase_unit)
-    if p in _DEG:
-        return "deg"
-    if p in _RAD:
-        return "rad"
-    raise RotoridError(f"phase_unit must be 'deg' or 'rad', got {phase_unit!r}")
+    return _kind(phase_unit, "phase_unit", {"deg": _DEG, "rad": _RAD}, "'deg' or 'rad'")
 
 
 def _length_factor(unit) -> float:
