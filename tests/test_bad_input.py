@@ -135,3 +135,16 @@ def test_identical_bearings_assumed_on_different_bearings_is_flagged():
             r.cov = np.broadcast_to(np.eye(8) * (1e-8) ** 2, (rpm.size, 8, 8))
         i = rotorid.identify_synchronous(rotor, runs, identical=True)
         assert all(("identical bearings rejected" in f) == expect for f in i.flag), i.flag
+
+
+def test_messages_name_the_real_cause():
+    import dataclasses
+
+    flat = dataclasses.replace(RIG.rotor, d=(0.05, -0.05))  # both planes at z = -0.05 m
+    runs = [rotorid.imbalance_response(RIG.rotor, RIG.bearings, RIG.imbalances[s], speed_rpm=[4000.0, 5000.0])
+            for s in "AB"]
+    with pytest.raises(rotorid.IdentifiabilityError, match="imbalance planes coincide"):
+        rotorid.identify_synchronous(flat, runs)
+    runs[1] = rotorid.SyncResponse(runs[1].speed_rpm, np.zeros((2, 4)), runs[1].imbalance)
+    with pytest.raises(rotorid.IdentifiabilityError, match="zero response"):
+        rotorid.identify_synchronous(RIG.rotor, runs)

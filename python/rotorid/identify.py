@@ -200,6 +200,12 @@ def check_imbalance_independence(rotor: RigidRotor, imbalances, labels, *, ident
     if identical:
         return
     sv = np.linalg.svd(U, compute_uv=False)
+    d1, d2 = rotor.d
+    if abs(d1 + d2) <= 1e-9 * max(abs(d1) + abs(d2), rotor.span):
+        raise IdentifiabilityError(
+            f"the rotor's two imbalance planes coincide (d1 = {d1:g} m from the CG toward bearing 1 is the same axial "
+            f"position as d2 = {d2:g} m toward bearing 2): masses in one plane excite a force and a moment in a fixed "
+            "ratio, so no set of runs is independent. Check d in the rotor definition")
     if sv[-1] <= 1e-9 * sv[0]:
         planes = np.abs(U) > 1e-12 * scale[:, None]
         if np.all(~planes[:, 1]) or np.all(~planes[:, 0]):
@@ -220,6 +226,10 @@ def check_imbalance_independence(rotor: RigidRotor, imbalances, labels, *, ident
 
 def _diagnose_singular(qs, labels):
     """Explain why the response matrices are singular at every point."""
+    dead = [lab for lab, q in zip(labels, qs) if not np.any(q)]
+    if dead:
+        return (f"{', '.join(dead)} show zero response at every point (a dead channel, an empty or unplugged "
+                "recording, or a wrong channel map): nothing to identify from")
     x = qs[..., [0, 1]]
     y = qs[..., [2, 3]]
     circ = np.abs(y + 1j * x) / np.maximum(np.abs(x) + np.abs(y), 1e-300)  # 0 for forward circular orbits
