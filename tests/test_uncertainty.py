@@ -148,3 +148,15 @@ def test_unknown_uncertainty_is_nan_with_a_flag_never_zero():
     i = rotorid.identify_synchronous(RIG.rotor, runs)
     assert np.all(np.isfinite(i.k_std[0])) and np.all(np.isnan(i.k_std[1]))
     assert i.ok[0] and not i.ok[1] and "uncertainty unknown" in i.flag[1]
+
+
+def test_grid_speeds_between_dwells_are_dropped_not_interpolated():
+    rotor, brg, remnant = rawsim.example_rig()
+    speeds = np.arange(3000, 6001, 500.0)
+    sets = {"S0": ((5, 5), (0, 0)), "C0": ((5, 5), (0, 180)), "S90": ((5, 5), (90, 90)), "C90": ((5, 5), (90, 270))}
+    runs = [rawsim.lab_imbalance_recording(rotor, brg, speeds_rpm=speeds, added=rotorid.Imbalance(
+        tuple(m * 1e-3 for m in v[0]), v[1], name=k), remnant=remnant, seed=i, dwell_s=1.0)
+        for i, (k, v) in enumerate(sets.items())]
+    with pytest.warns(UserWarning, match="dropped 2 of 3 grid speed"):
+        res = pipeline.imbalance_chain(rotor, runs, speeds_rpm=[3250.0, 4000.0, 4750.0], baseline=None)
+    assert res.identification.speed_rpm.tolist() == [4000.0]

@@ -42,6 +42,28 @@ class ImbalanceChainResult:
     notes: list = field(default_factory=list)
 
 
+def _near_only(track, speeds, tol, label, what):
+    """The track without its blocks that lie farther than ``tol`` rpm from every one of ``speeds``
+    (with a warning that says how many and why)."""
+    d = np.min(np.abs(track.speed_rpm[:, None] - np.asarray(speeds)[None, :]), axis=1)
+    far = d > tol
+    if not far.any():
+        return track
+    if far.all():
+        raise RotoridError(f"{label}: none of its speeds ({track.speed_rpm.min():.0f}-{track.speed_rpm.max():.0f} rpm) "
+                           f"lies within {tol:g} rpm of a speed of {what}; raise speed_match_rpm if they are the same")
+    warnings.warn(f"{label}: {int(far.sum())} of {far.size} speed(s) ({', '.join(f'{v:.1f}' for v in track.speed_rpm[far][:5])} "
+                  f"rpm) dropped: farther than {tol:g} rpm (speed_match_rpm) from every speed of {what}")
+    keep = ~far
+    kps = track.keyphasors
+    out = signals.SyncTrack(track.speed_rpm[keep], track.vectors[keep], track.orders, track.n_revs[keep],
+                            track.scatter[keep], track.t_mid[keep], kps, track.cov[keep], track.dof[keep])
+    if hasattr(track, "meta"):  # a TableTrack keeps its name and metadata
+        out = type(track)(out.speed_rpm, out.vectors, out.orders, out.n_revs, out.scatter, out.t_mid, kps, out.cov,
+                          out.dof, name=track.name, source=track.source, meta=track.meta)
+    return out
+
+
 def _labelled(fn, label, what):
     """Run fn; a RotoridError names the run it concerns."""
     try:
@@ -84,10 +106,10 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
         Common speed grid. Default: the first run's speeds (steady dwells or table rows) inside
         the range all runs share; for coast-downs every 50 rpm over that range.
     speed_match_rpm : float, optional
-        How far (rpm) a run's measured speed may be from a grid speed; farther grid speeds are
-        dropped with a warning. Default: 2 rpm for 1X tables; for waveform tracks the runs are
-        interpolated over their whole range (dwell speeds are set by the drive, coast-downs are
-        continuous).
+        How far (rpm) a run's measured speed (a dwell, a table row) and the baseline's may be from
+        a grid speed; farther grid speeds are dropped with a warning (interpolating 1X vectors
+        across the gap between dwells would invent data that no uncertainty accounts for).
+        Default 2 rpm. Coast-downs (``steady=False``) are interpolated over their common range.
     keyphasor : dict, optional
         Keyphasor options for every recording (see :func:`rotorid.signals.keyphasor_times`).
     points_per_rev, min_revs, settle_revs, speed_tolerance, revs_per_block
@@ -124,9 +146,13 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
     # with a baseline the slow roll cancels (run - sr - (baseline - sr)): its covariance does not count
     sr_cov_used = None if baseline is not None else sr_cov
     comp = [t.minus(sr[: len(t.orders)], sr_cov_used) if sr is not None else t for t in tracks]
+    tol = 2.0 if speed_match_rpm is None else float(speed_match_rpm)
     if baseline is not None:
         bt = _track_of(baseline, "baseline", **kw)
         bt = bt.minus(sr[: len(bt.orders)]) if sr is not None else bt
+        if steady or isinstance(baseline, signals.SyncTrack):
+            # the baseline is interpolated to each run's speeds: only where it was measured close by
+            comp = [_near_only(t, bt.speed_rpm, tol, f"run {i}", "the baseline") for i, t in enumerate(comp)]
         comp = [_labelled(lambda t=t: t.minus(bt), f"run {i}", "baseline subtraction") for i, t in enumerate(comp)]
         notes.append("baseline subtracted (remnant imbalance and run-out removed)")
     elif sr is None:
@@ -134,10 +160,11 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
         warnings.warn("imbalance chain without baseline or slow-roll compensation: remnant imbalance and run-out "
                       "stay in the 1X vectors")
     is_table = all(isinstance(r, signals.SyncTrack) for r in runs)
-    if speed_match_rpm is not None or is_table:
+    if speed_match_rpm is not None or is_table or steady:
+        # dwells and table rows: a common grid only where every run was measured within the tolerance
+        # (interpolating 1X vectors across the gap between two dwells would invent data)
         from .tables import match_speeds
 
-        tol = 2.0 if speed_match_rpm is None else float(speed_match_rpm)
         grid, qs = match_speeds([signals.SyncTrack(t.speed_rpm, t.vectors[:, t.orders.index(1):t.orders.index(1) + 1],
                                                    (1,), t.n_revs, t.scatter, t.t_mid) for t in comp],
                                 grid=speeds_rpm, tolerance_rpm=tol)
@@ -461,7 +488,7 @@ def run_config(path, kind: str, *, out_dir=None, log=print, overwrite: bool = Fa
             slow = _load_entry(cfg, sec.slow_roll, need) if sec.slow_roll is not None else None
             chain_kw = dict(points_per_rev=None if sec.points_per_rev == "auto" else sec.points_per_rev,
                             min_revs=sec.min_revs, settle_revs=sec.settle_revs, speed_tolerance=sec.speed_tolerance,
-                            revs_per_block=sec.revs_per_block)
+                            revs_per_block=sec.revs_per_block, speed_match_rpm=sec.speed_match_rpm)
         imbs = [r.imbalance_meta() for r in sec.runs]
         res = imbalance_chain(rotor, runs, baseline=base, slow_roll=slow,
                               speeds_rpm=None if sec.speeds_rpm is None else list(sec.speeds_rpm), steady=sec.steady,
