@@ -160,3 +160,18 @@ def test_grid_speeds_between_dwells_are_dropped_not_interpolated():
     with pytest.warns(UserWarning, match="dropped 2 of 3 grid speed"):
         res = pipeline.imbalance_chain(rotor, runs, speeds_rpm=[3250.0, 4000.0, 4750.0], baseline=None)
     assert res.identification.speed_rpm.tolist() == [4000.0]
+
+
+def test_covariances_set_after_construction_are_checked_too():
+    rpm = np.array([4000.0, 4500.0])
+    runs = [rotorid.imbalance_response(RIG.rotor, RIG.bearings, RIG.imbalances[s], speed_rpm=rpm) for s in "AB"]
+    for bad, msg in ((np.broadcast_to(-np.eye(8), (2, 8, 8)), "positive semi-definite"), (np.eye(8), "shape"),
+                     ("abc", "real array"), (np.broadcast_to(np.eye(8) * np.inf, (2, 8, 8)), "inf"),
+                     (np.broadcast_to(np.eye(8) * 1j, (2, 8, 8)), "real array")):
+        runs[0].cov = bad
+        runs[1].cov = np.broadcast_to(np.eye(8) * 1e-16, (2, 8, 8))
+        with pytest.raises(RotoridError, match=msg):
+            rotorid.identify_synchronous(RIG.rotor, runs)
+    with pytest.raises(RotoridError, match="level"):
+        rotorid.identify_synchronous(RIG.rotor, [rotorid.imbalance_response(
+            RIG.rotor, RIG.bearings, RIG.imbalances[s], speed_rpm=rpm) for s in "AB"]).interval("0.95")

@@ -95,10 +95,9 @@ class Identification:
         """
         from .uncertainty import Interval, t_quantile
 
-        try:
-            level = float(level)
-        except (TypeError, ValueError):
-            raise RotoridError(f"level must be a number between 0 and 1, got {level!r}") from None
+        from ._validate import number
+
+        level = number("level", level)
         dof = self.dof if self.dof is not None else np.full(self.axis.size, np.nan)
         t = t_quantile(level, dof)[:, None, None, None]
         hk, hc = t * self.k_std, t * self.c_std
@@ -267,10 +266,11 @@ def _finish(axis_name, axis, amp, k, c, cond, resid, ks, cs, cond_max, min_rel_a
 
 
 def _check_threshold(name, value, lo, hi=np.inf):
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise RotoridError(f"{name} must be a number, got {value!r}") from None
+    from ._validate import number
+
+    if value == np.inf and hi == np.inf:
+        return np.inf
+    v = number(name, value)
     if not (lo < v < hi) and not (hi == np.inf and v == np.inf):
         raise RotoridError(f"{name} must be a number above {lo:g}{'' if hi == np.inf else f' and below {hi:g}'}, got "
                            f"{value!r}")
@@ -328,18 +328,32 @@ def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", ide
     e = np.stack([r.imbalance.generalized(rotor) for r in runs])  # (R, 4), scaled by Omega^2 below
     return _solve(rotor, "speed_rpm", rpm, om, om, qs, e, om ** 2, None, identical=identical, method=method,
                   labels=labels, cond_max=cond_max, min_rel_amplitude=min_rel_amplitude, what="responses",
-                  covs=_run_covs(at_b), dofs=_run_dofs(at_b), max_rel_std=max_rel_std, estimator=estimator)
+                  covs=_run_covs(at_b, labels), dofs=_run_dofs(at_b), max_rel_std=max_rel_std, estimator=estimator)
 
 
-def _run_covs(runs):
-    if any(r.cov is None for r in runs):
+def _run_covs(runs, labels=None):
+    """The runs' covariances, checked again (``run.cov = ...`` after construction skips the check);
+    None unless every run has one (a warning says so when only some do)."""
+    from .simulate import check_cov
+
+    n = runs[0].q.shape[0]
+    have = [r.cov is not None for r in runs]
+    if not all(have):
+        if any(have):
+            import warnings
+
+            warnings.warn(f"only {sum(have)} of {len(runs)} runs/tests carry a measurement covariance: the standard "
+                          "errors fall back to the residual of redundant runs (or are unknown)")
         return None
-    return np.stack([r.cov for r in runs])
+    labels = labels or [f"run {i}" for i in range(len(runs))]
+    return np.stack([check_cov(f"cov of {lab}", r.cov, n) for r, lab in zip(runs, labels)])
 
 
 def _run_dofs(runs):
+    from .simulate import check_dof
+
     n = runs[0].q.shape[0]
-    return np.stack([r.dof if r.dof is not None else np.full(n, np.inf) for r in runs])
+    return np.stack([check_dof("dof", r.dof, n) if r.dof is not None else np.full(n, np.inf) for r in runs])
 
 
 def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, method, labels, cond_max,
@@ -518,8 +532,8 @@ def identify_impact(rotor: RigidRotor, tests, *, method: str = "forces", identic
     check_impact_independence(tests, labels, identical=identical)
     at_b = [t.at_bearings(rotor) for t in tests]
     qs = np.stack([t.frf() for t in at_b])  # (R, n, 4) per unit force
-    covs = None if any(t.cov is None for t in at_b) else np.stack([t.cov for t in at_b])
-    dofs = np.stack([t.dof if t.dof is not None else np.full(f.size, np.inf) for t in at_b])
+    covs = _run_covs(at_b, labels)
+    dofs = _run_dofs(at_b)
     w = 2 * np.pi * f
     spin = np.full_like(w, speed * RPM)
     e = np.stack([t.excitation() for t in tests])  # (R, 4), per unit force

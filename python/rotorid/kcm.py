@@ -48,8 +48,10 @@ class KCMFit:
 
     def interval(self, level: float = 0.95) -> dict:
         """{"K": (lower, upper), "M": ..., "C": ...} at the confidence ``level``."""
+        from ._validate import number
         from .uncertainty import t_quantile
 
+        level = number("level", level)
         tk = float(t_quantile(level, self.n_points - 2))
         tc = float(t_quantile(level, self.n_points - 1))
         return {"K": (self.K - tk * self.K_std, self.K + tk * self.K_std),
@@ -100,8 +102,12 @@ def fit_kcm(ident, *, band_hz=None, rotor=None, only_ok: bool = True) -> KCMFit:
     >>> float(round(fit.K[0, 0, 0] / 1e6, 3)), float(round(fit.C[0, 0, 0], 1)), bool(abs(fit.M[0, 0, 0]) < 1e-6)
     (3.0, 2000.0, True)
     """
+    from .model import RigidRotor
+
     if getattr(ident, "axis_name", None) != "freq_hz":
         raise RotoridError("fit_kcm needs an identification over freq_hz (impact results)")
+    if rotor is not None and not isinstance(rotor, RigidRotor):
+        raise RotoridError(f"rotor must be a rotorid.RigidRotor (or None), got {type(rotor).__name__}")
     f = ident.axis
     sel = np.ones(f.size, bool)
     if band_hz is not None:

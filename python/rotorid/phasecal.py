@@ -106,7 +106,13 @@ def calibrate_phase(rotor, runs, *, delay: bool = True, offset: bool = True, deg
     from .identify import identify_synchronous
     from .uncertainty import report_vector
 
+    from ._validate import number
+
     runs = list(runs)
+    for nm, v in (("delay", delay), ("offset", offset)):
+        if not isinstance(v, (bool, np.bool_)):
+            raise RotoridError(f"{nm} must be True or False, got {v!r}")
+    significance = number("significance", significance, positive=True)
     if not (offset or delay):
         raise RotoridError("calibrate_phase: estimate the offset, the delay or both")
     if int(degree) != degree or degree < 0:

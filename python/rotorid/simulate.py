@@ -55,13 +55,23 @@ def _cov_transform(T, cov):
 
 
 def check_cov(name, cov, n):
-    """A measurement covariance (n, 8, 8): finite (or NaN where unknown), symmetric, positive
+    """A measurement covariance (n, 8, 8): real, finite (NaN where unknown), symmetric, positive
     semi-definite."""
     if cov is None:
         return None
-    c = real_array(name, np.nan_to_num(np.asarray(cov, dtype=float), nan=0.0), shape=(n, 8, 8))
-    raw = np.asarray(cov, dtype=float)
+    if isinstance(cov, (str, bytes)) or np.iscomplexobj(cov):
+        raise RotoridError(f"{name} must be a real array (n, 8, 8) of covariances, got {type(cov).__name__}")
+    try:
+        raw = np.array(cov, dtype=float)
+    except (TypeError, ValueError):
+        raise RotoridError(f"{name} must be a real array (n, 8, 8) of covariances") from None
+    if raw.shape != (n, 8, 8):
+        raise RotoridError(f"{name} has shape {raw.shape}, expected ({n}, 8, 8): one 8 x 8 covariance of "
+                           "[Re q, Im q] per point")
+    if np.isinf(raw).any():
+        raise RotoridError(f"{name} contains inf (use NaN for a point whose covariance is unknown)")
     unknown = np.isnan(raw).any(axis=(1, 2))
+    c = np.where(unknown[:, None, None], 0.0, raw)
     if np.any(np.abs(c - np.swapaxes(c, 1, 2)) > 1e-9 * (np.abs(c).max() + 1e-300)):
         raise RotoridError(f"{name} must be symmetric (a covariance matrix per point)")
     ev = np.linalg.eigvalsh(0.5 * (c + np.swapaxes(c, 1, 2)))
@@ -70,8 +80,22 @@ def check_cov(name, cov, n):
     if bad.size:
         raise RotoridError(f"{name} is not positive semi-definite at point {int(bad[0])} (smallest eigenvalue "
                            f"{ev[bad[0]].min():.3g}): not a covariance")
-    raw = np.where(unknown[:, None, None], np.nan, c)
-    return raw
+    return np.where(unknown[:, None, None], np.nan, c)
+
+
+def check_dof(name, dof, n):
+    """Degrees of freedom (n,) of a covariance: numbers > 0 (inf: known exactly)."""
+    if dof is None:
+        return None
+    if isinstance(dof, (str, bytes)) or np.iscomplexobj(dof):
+        raise RotoridError(f"{name} must be numbers > 0, got {dof!r}")
+    try:
+        d = np.broadcast_to(np.asarray(dof, dtype=float), (n,)).copy()
+    except (TypeError, ValueError):
+        raise RotoridError(f"{name} must be a number or {n} numbers > 0, got shape {np.shape(dof)}") from None
+    if np.any(~(d > 0)):
+        raise RotoridError(f"{name} (degrees of freedom of cov) must be > 0")
+    return d
 
 
 def probes_to_bearings(rotor: RigidRotor, q_probes):
@@ -118,10 +142,7 @@ class SyncResponse:
             self.name = self.imbalance.name
         n = self.speed_rpm.size
         self.cov = check_cov("cov", self.cov, n)
-        if self.dof is not None:
-            self.dof = np.broadcast_to(np.asarray(self.dof, dtype=float), (n,)).copy()
-            if np.any(self.dof <= 0):
-                raise RotoridError("dof (degrees of freedom of cov) must be > 0")
+        self.dof = check_dof("dof", self.dof, n)
 
     def at_bearings(self, rotor: RigidRotor) -> "SyncResponse":
         if self.at == "bearings":
@@ -292,10 +313,7 @@ class ImpactResponse:
             raise RotoridError("cov is the covariance of an FRF (response per unit force): give q as the FRF "
                                "(force=None) together with cov")
         self.cov = check_cov("cov", self.cov, n)
-        if self.dof is not None:
-            self.dof = np.broadcast_to(np.asarray(self.dof, dtype=float), (n,)).copy()
-            if np.any(self.dof <= 0):
-                raise RotoridError("dof (degrees of freedom of cov) must be > 0")
+        self.dof = check_dof("dof", self.dof, n)
 
     def frf(self) -> np.ndarray:
         """Response per unit force (m/N), (n, 4)."""
