@@ -279,7 +279,8 @@ def _check_threshold(name, value, lo, hi=np.inf):
 
 def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", identical: bool = False,
                          cond_max: float = COND_MAX, min_rel_amplitude: float = MIN_REL_AMPLITUDE,
-                         max_rel_std: float = MAX_REL_STD, estimator: str = "ls") -> Identification:
+                         max_rel_std: float = MAX_REL_STD, estimator: str = "ls",
+                         shared_cov=None) -> Identification:
     """Synchronous K and C of both bearings at every speed from two or more imbalance runs.
 
     ``runs``: list (or dict name -> run) of SyncResponse, each with its added ``imbalance`` and the
@@ -298,6 +299,10 @@ def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", ide
     ("residual"). A point whose largest standard error exceeds ``max_rel_std`` times its
     bearing's direct coefficients is flagged "uncertain"; a point over ``cond_max`` "ill-conditioned",
     below ``min_rel_amplitude`` "low amplitude".
+
+    ``shared_cov`` (n, 8, 8), optional: a covariance shared by every pair of runs, where the runs
+    (at the same place as ``q``) had the same baseline run subtracted: its error is common to all
+    of them, which propagation must not treat as independent.
 
     ``estimator``: "ls" (least squares, as the report) or "bias-corrected": least squares less its
     second-order errors-in-variables bias, estimated from the measurement covariance (sigma points
@@ -328,7 +333,20 @@ def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", ide
     e = np.stack([r.imbalance.generalized(rotor) for r in runs])  # (R, 4), scaled by Omega^2 below
     return _solve(rotor, "speed_rpm", rpm, om, om, qs, e, om ** 2, None, identical=identical, method=method,
                   labels=labels, cond_max=cond_max, min_rel_amplitude=min_rel_amplitude, what="responses",
-                  covs=_run_covs(at_b, labels), dofs=_run_dofs(at_b), max_rel_std=max_rel_std, estimator=estimator)
+                  covs=_run_covs(at_b, labels), dofs=_run_dofs(at_b), max_rel_std=max_rel_std, estimator=estimator,
+                  shared_cov=_shared(rotor, runs, shared_cov))
+
+
+def _shared(rotor, runs, shared_cov):
+    """The shared covariance at the bearings (checked), or None."""
+    from .simulate import _cov_transform, check_cov, probes_to_bearings_matrix
+
+    if shared_cov is None:
+        return None
+    c = check_cov("shared_cov", shared_cov, runs[0].q.shape[0])
+    if any(r.at != runs[0].at for r in runs):
+        raise RotoridError("shared_cov needs all runs measured at the same place (probes or bearings)")
+    return _cov_transform(probes_to_bearings_matrix(rotor), c) if runs[0].at == "probes" else c
 
 
 def _run_covs(runs, labels=None):
@@ -358,7 +376,7 @@ def _run_dofs(runs):
 
 def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, method, labels, cond_max,
            min_rel_amplitude, what, covs=None, dofs=None, max_rel_std=MAX_REL_STD, extra_flags=None,
-           estimator="ls"):
+           estimator="ls", shared_cov=None):
     """One core call for the whole axis, uncertainty, then flags; shared by both methods."""
     from .uncertainty import propagate, std_from_cov
 
@@ -390,7 +408,8 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
     if covs is not None and not np.all(np.isnan(covs)):
         from .model import _REPORT_TO_BIJ
 
-        cov, b = propagate(rotor, w, spin, qs, e, gain, sigma, covs, identical=identical, method=method, bias=True)
+        cov, b = propagate(rotor, w, spin, qs, e, gain, sigma, covs, identical=identical, method=method, bias=True,
+                           shared=shared_cov)
         n = axis.size
         bk = np.zeros((n, 8))
         bc = np.zeros((n, 8))

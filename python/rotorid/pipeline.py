@@ -188,6 +188,11 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
         at = meta.get("probes_at", "probes")
         name = imb.name or getattr(r, "name", None) or os.path.basename(getattr(r, "source", "") or "") or f"run {i}"
         responses.append(SyncResponse(grid, q, imb, at, name, cov, np.where(np.isnan(dof), np.inf, dof)))
+    if baseline is not None and "shared_cov" not in ident_kw:
+        # every run had the same baseline subtracted: its error is common to all runs
+        shared, _ = _labelled(lambda: bt.cov_at_speeds(grid), "baseline", "the common speed grid")
+        if np.all(np.isfinite(shared)):
+            ident_kw = dict(ident_kw, shared_cov=shared)
     ident = identify_synchronous(rotor, responses, method=method, **ident_kw)
     return ImbalanceChainResult(responses, tracks, ident, notes)
 

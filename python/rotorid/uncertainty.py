@@ -55,7 +55,7 @@ def _eval(rotor, w, spin, qb, e, gain, sigma, identical, method):
     return report_vector(k, c)
 
 
-def propagate(rotor, w, spin, qs, e, gain, sigma, covs, *, identical, method, bias=False):
+def propagate(rotor, w, spin, qs, e, gain, sigma, covs, *, identical, method, bias=False, shared=None):
     """Covariance (n, 16, 16) of the report vector from run covariances ``covs`` (R, n, 8, 8) of
     the responses ``qs`` (R, n, 4) at the bearings. NaN at points where a run's covariance is
     unknown or the estimator is singular.
@@ -63,7 +63,10 @@ def propagate(rotor, w, spin, qs, e, gain, sigma, covs, *, identical, method, bi
     With ``bias=True`` also the estimator's second-order bias (n, 16): the noise turns a nonlinear
     estimator's mean away from the truth (least squares with noisy regressors shrinks toward zero,
     the classic errors-in-variables attenuation), by b = ½ Σ_k [p(q + l_k) + p(q - l_k) - 2 p(q)]
-    over the sigma points l_k (the columns of Σ^½, one run at a time). Returns (cov, bias)."""
+    over the sigma points l_k (the columns of Σ^½, one run at a time). Returns (cov, bias).
+
+    ``shared`` (n, 8, 8): a covariance common to every pair of runs (all runs less the same
+    baseline run): the off-diagonal blocks of Σ."""
     R, n, _ = qs.shape
     scale = np.sqrt(np.mean(np.abs(qs) ** 2, axis=(0, 2)))
     h = _H_REL * np.where(scale > 0, scale, 1.0)
@@ -83,6 +86,10 @@ def propagate(rotor, w, spin, qs, e, gain, sigma, covs, *, identical, method, bi
     S = np.zeros((n, 8 * R, 8 * R))
     for r in range(R):
         S[:, 8 * r:8 * r + 8, 8 * r:8 * r + 8] = np.nan_to_num(covs[r], nan=0.0)
+        if shared is not None:
+            for t in range(R):
+                if t != r:
+                    S[:, 8 * r:8 * r + 8, 8 * t:8 * t + 8] = np.nan_to_num(shared, nan=0.0)
     cov = J @ S @ np.transpose(J, (0, 2, 1))
     unknown = np.any(np.isnan(covs), axis=(0, 2, 3)) | ~np.all(np.isfinite(J), axis=(1, 2))
     cov[unknown] = np.nan
