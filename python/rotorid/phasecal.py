@@ -167,7 +167,17 @@ def calibrate_phase(rotor, runs, *, delay: bool = True, offset: bool = True, deg
     dof = max(sol.fun.size - 16 * (degree + 1) - x0.size, 1)
     chi2 = float(np.sum(sol.fun ** 2) / dof)
     try:
-        cov = np.linalg.inv(J.T @ J) * (max(chi2, 1.0) if weighted else chi2)
+        Hinv = np.linalg.inv(J.T @ J)
+        if weighted:
+            # sandwich: the 16 coefficients of a speed are strongly correlated, which the per-coefficient
+            # weighting ignores; their full covariance gives the spread of the estimate
+            Ms = np.zeros((x0.size, x0.size))
+            for s_, (W, C) in enumerate(zip(whiten, base.cov[sel])):
+                Js = J[16 * s_:16 * s_ + 16]
+                Ms += Js.T @ (W @ C @ W.T) @ Js
+            cov = Hinv @ Ms @ Hinv
+        else:
+            cov = Hinv * chi2
     except np.linalg.LinAlgError:
         raise RotoridError("calibrate_phase: the offset and the delay cannot be separated over these speeds "
                            "(widen the speed range or estimate only one of them)") from None
