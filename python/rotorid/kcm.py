@@ -10,7 +10,9 @@ apparent mass M. With the identified k(w) = Re Z and c(w) = Im Z / w and their s
 per coefficient (xx, xy, yx, yy of each bearing). When the scatter about the fit exceeds the
 standard errors (reduced chi-square above 1, model error or underestimated errors) the intervals
 are widened by sqrt(chi-square) (Birge ratio); the quantiles are Student's t with n - 2 (K, M)
-and n - 1 (C) degrees of freedom.
+and n - 1 (C) degrees of freedom. Neighbouring frequencies are not independent (windows, zero
+padding): the standard errors are the larger of the model-based ones and a Newey-West (HAC)
+estimate from the residuals' autocorrelation.
 
 The apparent masses are a diagnostic: the rotor's own inertia is in the model, so a direct mass
 that is significant and large (the sum over both bearings a sizeable fraction of the rotor mass)
@@ -45,6 +47,8 @@ class KCMFit:
     chi2_c: np.ndarray
     weighted: bool
     mass_check: str
+    std_method: str = "model and HAC"
+    dof: float | None = None
 
     def interval(self, level: float = 0.95) -> dict:
         """{"K": (lower, upper), "M": ..., "C": ...} at the confidence ``level``."""
@@ -52,8 +56,8 @@ class KCMFit:
         from .uncertainty import t_quantile
 
         level = number("level", level)
-        tk = float(t_quantile(level, self.n_points - 2))
-        tc = float(t_quantile(level, self.n_points - 1))
+        tk = float(t_quantile(level, self.dof if self.dof is not None else self.n_points - 2))
+        tc = float(t_quantile(level, self.dof if self.dof is not None else self.n_points - 1))
         return {"K": (self.K - tk * self.K_std, self.K + tk * self.K_std),
                 "M": (self.M - tk * self.M_std, self.M + tk * self.M_std),
                 "C": (self.C - tc * self.C_std, self.C + tc * self.C_std)}
@@ -135,34 +139,88 @@ def fit_kcm(ident, *, band_hz=None, rotor=None, only_ok: bool = True) -> KCMFit:
         ks = np.ones_like(k)
         cs = np.ones_like(c)
     A = np.stack([np.ones(n), -w ** 2], axis=1)
+    A1 = np.ones((n, 1))
     K = np.empty(8)
     M = np.empty(8)
     C = np.empty(8)
     Ks, Ms, Cs, r2, chik, chic = (np.empty(8) for _ in range(6))
     for j in range(8):
-        wt = 1.0 / ks[:, j] ** 2
-        AtW = A.T * wt
-        cov = np.linalg.inv(AtW @ A)
-        p = cov @ (AtW @ k[:, j])
-        res = k[:, j] - A @ p
-        chi = float(np.sum(wt * res ** 2) / (n - 2))
-        scale = max(chi, 1.0) if weighted else chi
+        p, cov_m, cov_h, res, wt, chi = _wls(A, k[:, j], 1.0 / ks[:, j] ** 2, weighted)
         K[j], M[j] = p
-        Ks[j], Ms[j] = np.sqrt(np.diag(cov) * scale)
+        Ks[j], Ms[j] = np.sqrt(np.maximum(np.diag(cov_m), np.diag(cov_h)))
         kbar = np.sum(wt * k[:, j]) / np.sum(wt)
         ss_tot = float(np.sum(wt * (k[:, j] - kbar) ** 2))
         r2[j] = 1.0 - float(np.sum(wt * res ** 2)) / ss_tot if ss_tot > 0 else 1.0
         chik[j] = chi
-        wc = 1.0 / cs[:, j] ** 2
-        C[j] = np.sum(wc * c[:, j]) / np.sum(wc)
-        chic[j] = float(np.sum(wc * (c[:, j] - C[j]) ** 2) / (n - 1))
-        Cs[j] = np.sqrt((max(chic[j], 1.0) if weighted else chic[j]) / np.sum(wc))
+        pc, cov_mc, cov_hc, _, _, chic[j] = _wls(A1, c[:, j], 1.0 / cs[:, j] ** 2, weighted)
+        C[j] = pc[0]
+        Cs[j] = np.sqrt(max(cov_mc[0, 0], cov_hc[0, 0]))
     shape = (2, 2, 2)
     out = KCMFit((float(f[sel].min()), float(f[sel].max())), n, K.reshape(shape), M.reshape(shape), C.reshape(shape),
                  Ks.reshape(shape), Ms.reshape(shape), Cs.reshape(shape), r2.reshape(shape), chik.reshape(shape),
                  chic.reshape(shape), weighted, "")
     out.mass_check = _mass_check(out, rotor)
     return out
+
+
+def with_jackknife(fit: KCMFit, replicates, groups, rotor=None) -> KCMFit:
+    """The fit with standard errors from a stratified delete-one jackknife over impacts.
+
+    ``replicates``: KCMFit of the same band with one impact left out, ``groups``: the test (group)
+    each replicate left an impact of. Resampling whole impacts carries every correlation between
+    frequencies (windows, zero padding, the common force spectrum) into the standard errors,
+    which a fit of independent points cannot; dof = smallest group size - 1."""
+    groups = np.asarray(groups)
+    var = {name: np.zeros((2, 2, 2)) for name in ("K", "M", "C")}
+    sizes = []
+    for g in np.unique(groups):
+        reps = [r for r, gg in zip(replicates, groups) if gg == g]
+        n = len(reps)
+        sizes.append(n)
+        for name in var:
+            vals = np.stack([getattr(r, name) for r in reps])
+            var[name] += (n - 1.0) / n * np.sum((vals - vals.mean(axis=0)) ** 2, axis=0)
+    out = KCMFit(fit.band_hz, fit.n_points, fit.K, fit.M, fit.C, np.sqrt(var["K"]), np.sqrt(var["M"]),
+                 np.sqrt(var["C"]), fit.r2, fit.chi2_k, fit.chi2_c, fit.weighted, "",
+                 f"delete-one jackknife over {sum(sizes)} impacts", float(max(min(sizes) - 1, 1)))
+    out.mass_check = _mass_check(out, rotor)
+    return out
+
+
+def _wls(A, y, wt, weighted):
+    """Weighted least squares y ~ A p: (p, model covariance (Birge-widened), HAC covariance,
+    residuals, weights, reduced chi-square). The HAC (Newey-West) covariance accounts for
+    residuals correlated between neighbouring frequencies (windows, zero padding, smoothing), which
+    a covariance of independent points cannot see."""
+    n, m = A.shape
+    AtW = A.T * wt
+    Hinv = np.linalg.inv(AtW @ A)
+    p = Hinv @ (AtW @ y)
+    res = y - A @ p
+    chi = float(np.sum(wt * res ** 2) / max(n - m, 1))
+    cov_m = Hinv * (max(chi, 1.0) if weighted else chi)
+    scores = A * (wt * res)[:, None]                     # (n, m)
+    lag = _hac_lag(res * np.sqrt(wt), n)
+    meat = scores.T @ scores
+    for l in range(1, lag + 1):
+        g = scores[l:].T @ scores[:-l]
+        meat += (1.0 - l / (lag + 1.0)) * (g + g.T)
+    cov_h = Hinv @ meat @ Hinv * n / max(n - m, 1)
+    return p, cov_m, cov_h, res, wt, chi
+
+
+def _hac_lag(r, n) -> int:
+    """Bandwidth of the Newey-West estimator: the usual 4 (n/100)^(2/9), or farther while the
+    residuals' autocorrelation stays above 0.2 (oversampled spectra), at most n/4."""
+    lag = int(np.floor(4 * (n / 100.0) ** (2.0 / 9.0)))
+    r = r - r.mean()
+    den = float(np.dot(r, r))
+    if den > 0:
+        for l in range(1, max(n // 4, 1)):
+            if float(np.dot(r[l:], r[:-l])) / den < 0.2:
+                break
+            lag = max(lag, l)
+    return max(min(lag, n // 4), 0)
 
 
 def _mass_check(fit, rotor) -> str:

@@ -204,6 +204,7 @@ class ImpactChainResult:
     used: list               # per group: list of (source, impact time s)
     dropped: list            # (source, time s, reason)
     identification: Identification
+    kcm: object = None       # KCMFit over kcm_band_hz (jackknife over impacts), when asked
 
 
 def impact_segments(rec: Recording, *, record_s: float = 0.25, pre_s: float = 0.01, revs_before: int = 8,
@@ -270,7 +271,7 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
                  pre_s: float = 0.01, zero_pad_s: float | None = None, revs_before: int = 8, points_per_rev: int = 256,
                  keyphasor=None, speed_rpm: float | None = None, coherence_min: float = 0.9, threshold_N=None,
                  min_separation_s: float = 0.2, double_hit_window_s: float = 0.02, overload_N=None,
-                 **ident_kw) -> ImpactChainResult:
+                 kcm_band_hz=None, **ident_kw) -> ImpactChainResult:
     """Impact recordings -> impact detection -> run-out filter -> H1 FRFs per test (plane, direction),
     averaged over all clean impacts -> frequency-dependent identification over ``band_hz``.
 
@@ -296,6 +297,9 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
         Coherence below which a warning names the channel and frequency.
     threshold_N, min_separation_s, double_hit_window_s, overload_N
         Impact detection (see :func:`rotorid.signals.detect_impacts`).
+    kcm_band_hz : (float, float), optional
+        Also fit K, C and an apparent mass over this band (:func:`rotorid.fit_kcm`), with standard
+        errors from a delete-one jackknife over the impacts (``result.kcm``).
     """
     recordings = list(recordings)
     if not recordings:
@@ -376,9 +380,39 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
         sel = (frf.freq_hz >= band_hz[0]) & (frf.freq_hz <= band_hz[1])
         if sel.sum() == low_coh.size:
             low_coh |= frf.coherence[sel].min(axis=1) < coherence_min
-    ident = identify_impact(rotor, tests, identical=identical, method=method,
-                            extra_flags=[(low_coh, f"coherence < {coherence_min:g}")], **ident_kw)
-    return ImpactChainResult(tests, frfs, used, dropped, ident)
+    flags = [(low_coh, f"coherence < {coherence_min:g}")]
+    ident = identify_impact(rotor, tests, identical=identical, method=method, extra_flags=flags, **ident_kw)
+    kcm = None
+    if kcm_band_hz is not None:
+        from .kcm import fit_kcm, with_jackknife
+
+        kcm = fit_kcm(ident, band_hz=kcm_band_hz, rotor=rotor)
+        group_data = [(fl, rl, fs) for (_, _, _, fs), (fl, rl, _) in groups.items()]
+        if all(len(g[0]) >= 2 for g in group_data):
+            reps, labels = [], []
+            for gi, (fl, rl, fs) in enumerate(group_data):
+                for i in range(len(fl)):
+                    frf = signals.frf_h1(fl[:i] + fl[i + 1:], rl[:i] + rl[i + 1:], fs) if zero_pad_s is None else \
+                        signals.frf_h1([np.pad(f, (0, int(round(zero_pad_s * fs)) - f.size)) for k, f in enumerate(fl)
+                                        if k != i],
+                                       [np.pad(r, ((0, 0), (0, int(round(zero_pad_s * fs)) - r.shape[1])))
+                                        for k, r in enumerate(rl) if k != i], fs)
+                    sel = (frf.freq_hz >= band_hz[0]) & (frf.freq_hz <= band_hz[1])
+                    t0 = tests[gi]
+                    rep_tests = list(tests)
+                    rep_tests[gi] = ImpactResponse(speed_rpm=t0.speed_rpm, freq_hz=frf.freq_hz[sel], q=frf.h[sel],
+                                                   plane=t0.plane, direction=t0.direction, at=t0.at, sigma=t0.sigma,
+                                                   cov=None if frf.cov is None else frf.cov[sel],
+                                                   dof=None if frf.cov is None else np.full(sel.sum(), frf.dof))
+                    with warnings.catch_warnings():
+                        warnings.simplefilter("ignore")
+                        rid = identify_impact(rotor, rep_tests, identical=identical, method=method, extra_flags=flags,
+                                              **ident_kw)
+                        rid.ok = ident.ok  # the same points as the full fit
+                        reps.append(fit_kcm(rid, band_hz=kcm_band_hz, rotor=rotor))
+                    labels.append(gi)
+            kcm = with_jackknife(kcm, reps, labels, rotor)
+    return ImpactChainResult(tests, frfs, used, dropped, ident, kcm)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -540,7 +574,7 @@ def run_config(path, kind: str, *, out_dir=None, log=print, overwrite: bool = Fa
                            threshold_N=sec.threshold_N, min_separation_s=sec.min_separation_s,
                            double_hit_window_s=sec.double_hit_window_s, overload_N=sec.overload_N,
                            cond_max=sec.cond_max, min_rel_amplitude=sec.min_rel_amplitude, max_rel_std=sec.max_rel_std,
-                           estimator=sec.estimator)
+                           estimator=sec.estimator, kcm_band_hz=sec.kcm_band_hz)
         ident = res.identification
         import pandas as pd
 
@@ -553,10 +587,8 @@ def run_config(path, kind: str, *, out_dir=None, log=print, overwrite: bool = Fa
         if res.dropped:
             write_csv(pd.DataFrame(res.dropped, columns=["source", "time_s", "reason"]), "dropped_impacts.csv")
         log(f"  {sum(len(u) for u in res.used)} impacts used, {len(res.dropped)} dropped")
-        if sec.kcm_band_hz is not None:
-            from .kcm import fit_kcm
-
-            fit = fit_kcm(ident, band_hz=sec.kcm_band_hz, rotor=rotor)
+        if res.kcm is not None:
+            fit = res.kcm
             write_csv(fit.to_dataframe(), "kcm_fit.csv", float_format="%.6g")
             log(f"  K-C-M fit over {fit.band_hz[0]:g}-{fit.band_hz[1]:g} Hz ({fit.n_points} points)"
                 + (f"; {fit.mass_check}" if fit.mass_check else ""))
