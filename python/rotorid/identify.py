@@ -155,6 +155,13 @@ class Identification:
                                  self.c_std_residual.reshape(n, 8)[:, _REPORT_TO_BIJ]], 1)
             for j, nm in enumerate(REPORT_ORDER):
                 data[f"{nm}_std_residual"] = kr[:, j]
+        if np.any(np.isfinite(self.k_std)):
+            iv = self.interval(0.95)
+            lo = np.concatenate([iv.k_lower.reshape(n, 8)[:, _REPORT_TO_BIJ], iv.c_lower.reshape(n, 8)[:, _REPORT_TO_BIJ]], 1)
+            hi = np.concatenate([iv.k_upper.reshape(n, 8)[:, _REPORT_TO_BIJ], iv.c_upper.reshape(n, 8)[:, _REPORT_TO_BIJ]], 1)
+            for j, nm in enumerate(REPORT_ORDER):
+                data[f"{nm}_lo95"] = lo[:, j]
+                data[f"{nm}_hi95"] = hi[:, j]
         data["std_source"] = self.std_source
         data["dof"] = self.dof if self.dof is not None else np.nan
         data["rel_std"] = self.rel_std if self.rel_std is not None else np.nan

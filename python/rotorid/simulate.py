@@ -83,6 +83,18 @@ def check_cov(name, cov, n):
     return np.where(unknown[:, None, None], np.nan, c)
 
 
+def polar_std(x, cov, j):
+    """Standard deviations of the amplitude (m) and phase (rad) of channel j's vectors x (n,) from
+    the (n, 8, 8) covariance of [Re q, Im q]: along and across each vector."""
+    u = x / np.where(np.abs(x) > 0, np.abs(x), 1.0)
+    c = np.asarray(cov)
+    crr, cii, cri = c[:, j, j], c[:, j + 4, j + 4], c[:, j, j + 4]
+    along = crr * u.real ** 2 + cii * u.imag ** 2 + 2 * cri * u.real * u.imag
+    across = crr * u.imag ** 2 + cii * u.real ** 2 - 2 * cri * u.real * u.imag
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.sqrt(np.clip(along, 0, None)), np.sqrt(np.clip(across, 0, None)) / np.abs(x)
+
+
 def check_dof(name, dof, n):
     """Degrees of freedom (n,) of a covariance: numbers > 0 (inf: known exactly)."""
     if dof is None:
@@ -173,6 +185,10 @@ class SyncResponse:
         for j, nm in enumerate(DOFS):
             data[f"{nm}_amp_um"] = 1e6 * np.abs(self.q[:, j])
             data[f"{nm}_phase_deg"] = np.rad2deg(np.angle(self.q[:, j]))
+            if self.cov is not None:
+                sa, sp = polar_std(self.q[:, j], self.cov, j)
+                data[f"{nm}_amp_std_um"] = 1e6 * sa
+                data[f"{nm}_phase_std_deg"] = np.rad2deg(sp)
         return pd.DataFrame(data)
 
 
