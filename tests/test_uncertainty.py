@@ -199,3 +199,36 @@ def test_a_shared_baseline_is_accounted_for():
         hits.append(np.r_[((iv.k_lower <= k) & (k <= iv.k_upper)).ravel(), ((iv.c_lower <= c) & (c <= iv.c_upper)).ravel()])
         zs.append(np.r_[((i.k - k) / i.k_std).ravel(), ((i.c - c) / i.c_std).ravel()])
     assert 0.93 <= np.mean(hits) <= 0.97 and 0.6 <= np.median(np.abs(zs)) <= 0.75
+
+
+def test_slow_probe_drift_does_not_pass_for_1x():
+    # a ramp plus a 0.3 Hz wander of 2 µm on every probe (thermal growth, a settling probe): it does
+    # not close on itself over a revolution and used to leak into 1X as a near-steady error the
+    # batch means could not see (coverage 0.81, median |z| 1.05); each revolution's drift ramp is now
+    # removed from the revolution means
+    rotor, brg, remnant = rawsim.example_rig()
+    speeds = np.arange(3000, 6001, 500.0)
+    hits, zs = [], []
+    for seed in range(8):
+        rng = np.random.default_rng(1000 + seed)
+        sets = {"S0": ((5, 5), (0, 0)), "C0": ((5, 5), (0, 180)), "S90": ((5, 5), (90, 90)), "C90": ((5, 5), (90, 270))}
+        runs = [rawsim.lab_imbalance_recording(rotor, brg, speeds_rpm=speeds, added=rotorid.Imbalance(
+            tuple(m * 1e-3 for m in v[0]), v[1], name=k), remnant=remnant, seed=100 * seed + i, dwell_s=2.0)
+            for i, (k, v) in enumerate(sets.items())]
+        base = rawsim.lab_imbalance_recording(rotor, brg, speeds_rpm=speeds, added=None, remnant=remnant,
+                                              seed=100 * seed + 9, dwell_s=2.0)
+        for r in runs + [base]:
+            for b in r.blocks:
+                t = np.arange(b.n_samples) / b.fs_hz
+                for ch in ("x1", "x2", "y1", "y2"):
+                    b.channels[ch] = b.channels[ch] + 2e-6 * (rng.uniform(-1, 1) * t / t[-1]
+                                                              + np.sin(2 * np.pi * 0.3 * t + rng.uniform(0, 6.3)))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            i = pipeline.imbalance_chain(rotor, runs, baseline=base).identification
+        iv = i.interval(0.95)
+        hits.append(np.r_[((iv.k_lower <= brg.k) & (brg.k <= iv.k_upper)).ravel(),
+                          ((iv.c_lower <= brg.c) & (brg.c <= iv.c_upper)).ravel()])
+        zs.append(np.r_[((i.k - brg.k) / i.k_std).ravel(), ((i.c - brg.c) / i.c_std).ravel()])
+    cover, med = np.mean(hits), np.median(np.abs(zs))
+    assert 0.92 <= cover and med <= 0.8, (cover, med)  # measured 0.96 and 0.66 over 12 trials

@@ -264,9 +264,20 @@ def track(rec, *, orders=(1, 2, 3), revs_per_block: int | None = None, steady: b
     # at a time (at most CHUNK_DOUBLES doubles, 64 MB) so long records and fine grids stay bounded
     parts = []
     chunk = max(1, min(1024, CHUNK_DOUBLES // (4 * points_per_rev)))
+    ramp = np.arange(points_per_rev) / points_per_rev - 0.5
     for a in range(k0, k1, chunk):
         b = min(a + chunk, k1)
-        res = _core.angle_resample(x, rec.fs_hz, rec.t0_s, kpt, a, b, int(points_per_rev))
+        # one revolution more on each side where there is one, for the drift estimate below
+        a_ext, b_ext = max(a - 1, k0), min(b + 1, k1)
+        res = _core.angle_resample(x, rec.fs_hz, rec.t0_s, kpt, a_ext, b_ext, int(points_per_rev))
+        # a slow drift that is not synchronous (thermal growth, a settling probe) does not close on
+        # itself over a revolution; its ramp would leak into every order and, changing slowly, pass
+        # for a steady 1X. Its slope comes from the revolution means (which no order affects, and
+        # which average every sample's noise away): the change of the mean per revolution
+        m = res.mean(axis=2)
+        step = np.gradient(m, axis=1) if m.shape[1] > 1 else np.zeros_like(m)
+        res = res - step[:, :, None] * ramp[None, None, :]
+        res = res[:, a - a_ext: a - a_ext + (b - a)]
         spec = np.fft.rfft(res, axis=2)[:, :, list(orders)] * (2.0 / points_per_rev)
         parts.append(spec.transpose(1, 2, 0))
     per_rev = np.concatenate(parts)
