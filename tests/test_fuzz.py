@@ -1,0 +1,79 @@
+"""Short fuzz runs kept in CI: the file readers, the public API and the CLI answer bad input with a
+RotoridError (CLI: one line, exit 2), never another exception, a crash or a hang."""
+
+import os
+import tempfile
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import rotorid
+from rotorid import RotoridError, cli
+from rotorid.io import load_recording, save_csv, save_recording
+
+FUZZ = settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow,
+                                                                        HealthCheck.function_scoped_fixture])
+
+
+def _valid_files(d):
+    rec = rotorid.Recording(1000.0, {"x1": np.sin(np.arange(200) / 5.0) * 1e-5, "kp": (np.arange(200) % 20 < 2) * 5.0})
+    save_recording(rec, os.path.join(d, "a.npz"))
+    save_csv(rec, os.path.join(d, "a.csv"))
+    return {ext: open(os.path.join(d, f"a.{ext}"), "rb").read() for ext in ("npz", "csv")}
+
+
+_VALID = _valid_files(tempfile.mkdtemp())
+
+
+@FUZZ
+@given(ext=st.sampled_from(["npz", "csv", "txt", "tdms", "uff"]), data=st.binary(max_size=600),
+       cut=st.integers(0, 4000), flip=st.integers(0, 4000))
+def test_readers_fail_only_with_rotorid_errors(tmp_path, ext, data, cut, flip):
+    base = _VALID.get(ext, b"")
+    if base and len(data) % 2:  # mutate a valid file: truncate and flip a byte
+        b = bytearray(base[: max(cut, 1)])
+        if b:
+            b[flip % len(b)] ^= 0xFF
+        data = bytes(b)
+    p = tmp_path / f"f.{ext}"
+    p.write_bytes(data)
+    try:
+        load_recording(p, fs_hz=1000.0 if ext in ("csv", "txt") else None)
+    except RotoridError:
+        pass
+
+
+@FUZZ
+@given(argv=st.lists(st.sampled_from(["demo", "identify", "imbalance", "impact", "example", "check", "--out",
+                                      "--overwrite", "--step-rpm", "-1", "0", "nan", "x.toml", "/proc/x",
+                                      "--noise-um", "1e309", ""]), max_size=5))
+def test_cli_never_tracebacks(tmp_path, capsys, monkeypatch, argv):
+    monkeypatch.chdir(tmp_path)
+    argv = [a for a in argv if a != "demo"]  # the demo itself is slow; its bad options are tested elsewhere
+    try:
+        code = cli.main(argv)
+    except SystemExit as exc:  # argparse usage errors
+        code = exc.code
+    assert code in (0, 1, 2)
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+
+
+numbers = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.integers(-5, 10 ** 6), st.just("x"),
+                    st.just(None), st.just(True), st.complex_numbers(max_magnitude=10.0))
+
+
+@FUZZ
+@given(m=numbers, l1=numbers, d=st.lists(numbers, max_size=3), rpm=st.lists(numbers, max_size=3), plane=numbers)
+def test_model_and_simulation_fail_only_with_rotorid_errors(m, l1, d, rpm, plane):
+    rig = rotorid.nsf_rig()
+    for call in (lambda: rotorid.RigidRotor(mass_kg=m, it_kgm2=0.7, ip_kgm2=0.3, l1=l1, l2=0.2, d=d),
+                 lambda: rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances["A"], speed_rpm=rpm),
+                 lambda: rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=1000, freq_hz=rpm, plane=plane),
+                 lambda: rotorid.Imbalance(mass_kg=d, angle_deg=(0.0, plane))):
+        try:
+            call()
+        except RotoridError:
+            pass
