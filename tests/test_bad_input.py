@@ -148,3 +148,12 @@ def test_messages_name_the_real_cause():
     runs[1] = rotorid.SyncResponse(runs[1].speed_rpm, np.zeros((2, 4)), runs[1].imbalance)
     with pytest.raises(rotorid.IdentifiabilityError, match="zero response"):
         rotorid.identify_synchronous(RIG.rotor, runs)
+
+
+def test_core_argument_errors_are_rotorid_errors():
+    x = np.zeros((4, 100))
+    for kw in (dict(i0=-5, i1=10), dict(i0=50, i1=10), dict(i0=0, i1=1000)):
+        with pytest.raises(RotoridError, match="i0"):
+            signals.runout_filter(x, 1000.0, np.arange(0, 0.1, 0.01), np.zeros((4, 16)), **kw)
+    with pytest.raises(RotoridError, match="same channels"):
+        signals.runout_filter(x, 1000.0, np.arange(0, 0.1, 0.01), np.zeros((3, 16)), 0, 10)

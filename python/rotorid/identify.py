@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import _core
+from ._corecall import core as _core
 from ._validate import choice, complex_array, real_array
 from .errors import IdentifiabilityError, RotoridError
 from .model import _REPORT_TO_BIJ, REPORT_ORDER, BearingCoefficients, Imbalance, RigidRotor

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import _core
+from ._corecall import core as _core
 from ._validate import real_array
 from .errors import RotoridError
 from .model import BearingCoefficients, RigidRotor

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import _core
+from ._corecall import core as _core
 from ._validate import choice, complex_array, real_array, speeds_rpm
 from .errors import RotoridError
 from .model import BearingCoefficients, Imbalance, RigidRotor

@@ -24,7 +24,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import _core
+from ._corecall import core as _core
 from .errors import RotoridError
 from .model import _REPORT_TO_BIJ
 

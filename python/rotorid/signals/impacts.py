@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .. import _core
+from .._corecall import core as _core
 from ..errors import RotoridError
 from ..recording import DISPLACEMENTS, Recording
 
@@ -130,6 +130,17 @@ def runout_filter(x, fs_hz: float, kp_times, template, i0: int, i1: int, *, t0_s
     signature ``template`` (C, P) placed at each sample's rotor angle from the keyphasor pulses
     (each revolution stretched to its own pulse interval, so slow speed drift does not smear the
     subtraction). Runs in the Rust core."""
+    x = np.asarray(x, dtype=float)
+    template = np.asarray(template, dtype=float)
+    if x.ndim != 2 or template.ndim != 2 or template.shape[0] != x.shape[0] or template.shape[1] < 4:
+        raise RotoridError(f"runout_filter needs x (channels, samples) and a template (channels, points >= 4) with the "
+                           f"same channels, got {x.shape} and {template.shape}")
+    for nm, v in (("i0", i0), ("i1", i1)):
+        if isinstance(v, bool) or int(v) != v:
+            raise RotoridError(f"{nm} must be a sample index, got {v!r}")
+    if not (0 <= i0 < i1 <= x.shape[1]):
+        raise RotoridError(f"need 0 <= i0 < i1 <= {x.shape[1]} (the samples to filter), got i0 = {i0}, i1 = {i1}")
+    fs_hz = _fs(fs_hz)
     return _core.runout_subtract(np.ascontiguousarray(x, dtype=float), float(fs_hz), float(t0_s),
                                  np.ascontiguousarray(kp_times, dtype=float),
                                  np.ascontiguousarray(template, dtype=float), int(i0), int(i1))

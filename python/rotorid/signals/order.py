@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .. import _core
+from .._corecall import core as _core
 from ..errors import RotoridError
 from ..recording import DISPLACEMENTS, Recording
 from .keyphasor import Keyphasor, keyphasor_times

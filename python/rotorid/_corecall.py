@@ -1,0 +1,33 @@
+"""The compiled core, seen through one error boundary.
+
+The core checks its arguments again (shapes, contiguity, index ranges) and raises ValueError,
+OverflowError or TypeError where they do not fit; the public API should have caught all of that
+first, so such an error reaching a user is rotorid's own bad input path, and it is reported as a
+RotoridError naming the core function. A RuntimeError (a caught panic: a bug) passes unchanged.
+"""
+
+from __future__ import annotations
+
+import functools
+
+from . import _core as _raw
+from .errors import RotoridError
+
+
+def _guard(fn):
+    @functools.wraps(fn)
+    def call(*args, **kwargs):
+        try:
+            return fn(*args, **kwargs)
+        except (ValueError, OverflowError, TypeError) as exc:
+            raise RotoridError(f"invalid arguments to the core ({fn.__name__}): {exc}") from None
+    return call
+
+
+class _Core:
+    def __getattr__(self, name):
+        attr = getattr(_raw, name)
+        return _guard(attr) if callable(attr) else attr
+
+
+core = _Core()
