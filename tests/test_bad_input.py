@@ -157,3 +157,18 @@ def test_core_argument_errors_are_rotorid_errors():
             signals.runout_filter(x, 1000.0, np.arange(0, 0.1, 0.01), np.zeros((4, 16)), **kw)
     with pytest.raises(RotoridError, match="same channels"):
         signals.runout_filter(x, 1000.0, np.arange(0, 0.1, 0.01), np.zeros((3, 16)), 0, 10)
+
+
+def test_more_messages_that_name_the_cause(tmp_path):
+    rpm = np.array([4000.0, 5000.0])
+    runs = [rotorid.imbalance_response(RIG.rotor, RIG.bearings, RIG.imbalances[s], speed_rpm=rpm) for s in "AB"]
+    with pytest.raises(RotoridError, match="True or False"):
+        rotorid.identify_synchronous(RIG.rotor, runs, identical="yes")
+    huge = [rotorid.SyncResponse(rpm, r.q * 1e300, r.imbalance) for r in runs]
+    with pytest.raises(RotoridError, match="overflows"):
+        rotorid.identify_synchronous(RIG.rotor, huge)
+    with pytest.raises(RotoridError, match="directory"):
+        rotorid.load_recording(tmp_path, fmt="csv")
+    from rotorid.pipeline import _safe
+
+    assert len(_safe("x" * 300)) == 60 and _safe("") == "unnamed"

@@ -272,6 +272,12 @@ def _finish(axis_name, axis, amp, k, c, cond, resid, ks, cs, cond_max, min_rel_a
                           cov, rstd, ks_res, cs_res, bias_k, bias_c, estimator)
 
 
+def _check_bool(name, value):
+    if not isinstance(value, (bool, np.bool_)):
+        raise RotoridError(f"{name} must be True or False, got {value!r}")
+    return bool(value)
+
+
 def _check_threshold(name, value, lo, hi=np.inf):
     from ._validate import number
 
@@ -319,6 +325,7 @@ def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", ide
     if not isinstance(rotor, RigidRotor):
         raise RotoridError(f"rotor must be a rotorid.RigidRotor, got {type(rotor).__name__}")
     choice("method", method, {"forces", "report"})
+    _check_bool("identical", identical)
     runs = _as_runs(runs)
     labels = []
     for i, r in enumerate(runs):
@@ -396,6 +403,10 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
         rotor.core_params(), w, spin, np.ascontiguousarray(qs[None]), np.ascontiguousarray(e[None], dtype=complex),
         gain, identical=identical, method=method, with_std=redundant, sigma=sigma)
     if nbad:
+        big = float(np.nanmax(np.abs(qs))) if np.isfinite(qs).all() else None
+        if big is not None:
+            raise RotoridError(f"{what} reach {big:.3g} (m or m/N): the computation overflows; no rotor responds that "
+                               "much (a unit error?)")
         raise RotoridError(f"{what} contain NaN or inf")
     if ks is None:
         ks = np.full_like(k, np.nan)
@@ -467,6 +478,8 @@ def identify_synchronous_batch(rotor: RigidRotor, speed_rpm, q, imbalances, *, m
         raise RotoridError(f"rotor must be a rotorid.RigidRotor, got {type(rotor).__name__}")
     choice("method", method, {"forces", "report"})
     choice("at", at, {"bearings", "probes"})
+    _check_bool("identical", identical)
+    _check_bool("with_std", with_std)
     rpm = real_array("speed_rpm", speed_rpm, ndim=1, positive=True)
     q = complex_array("q", q, ndim=4)
     if q.shape[2:] != (rpm.size, 4):
@@ -533,6 +546,7 @@ def identify_impact(rotor: RigidRotor, tests, *, method: str = "forces", identic
     if not isinstance(rotor, RigidRotor):
         raise RotoridError(f"rotor must be a rotorid.RigidRotor, got {type(rotor).__name__}")
     choice("method", method, {"forces", "report"})
+    _check_bool("identical", identical)
     tests = list(tests.values()) if isinstance(tests, dict) else tests
     if not isinstance(tests, (list, tuple)):
         raise RotoridError(f"tests must be a list or dict of ImpactResponse, got {type(tests).__name__}")

@@ -620,8 +620,10 @@ def run_config(path, kind: str, *, out_dir=None, log=print, overwrite: bool = Fa
     return ident, files
 
 
-def _safe(name):
-    return "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in str(name))
+def _safe(name, limit: int = 60):
+    """A file-name-safe form of a run or test name, at most ``limit`` characters."""
+    out = "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in str(name))
+    return out[:limit] or "unnamed"
 
 
 from .model import REPORT_ORDER as REPORT_NAMES  # noqa: E402

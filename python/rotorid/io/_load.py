@@ -68,7 +68,7 @@ def _read(path, fmt, opts):
 
     p = Path(path)
     if not p.is_file():
-        raise RotoridError(f"cannot read {path}: no such file")
+        raise RotoridError(f"cannot read {path}: " + ("it is a directory" if Path(path).is_dir() else "no such file"))
     if fmt == "native":
         return _read_native(p)
     if fmt == "csv":
@@ -234,7 +234,7 @@ def _segmented_groups(path, groups, channel_map, fs_hz, meta, fmt, layout):
     opts = _check_options(path, fmt, dict(layout))
     fs_hz = _check_common(path, fs_hz, meta)
     if not Path(path).is_file():
-        raise RotoridError(f"cannot read {path}: no such file")
+        raise RotoridError(f"cannot read {path}: " + ("it is a directory" if Path(path).is_dir() else "no such file"))
     content = _read_tdms_file(Path(path))
     names = [g for g, _ in content]
     if groups == "*":

@@ -78,7 +78,7 @@ def list_groups(path) -> list[str]:
     ['Run 1']
     """
     if not Path(path).is_file():
-        raise RotoridError(f"cannot read {path}: no such file")
+        raise RotoridError(f"cannot read {path}: " + ("it is a directory" if Path(path).is_dir() else "no such file"))
     nptdms = _nptdms()
     try:
         return [g.name for g in nptdms.TdmsFile.read_metadata(os.fspath(path)).groups()]
