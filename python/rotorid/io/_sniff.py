@@ -121,6 +121,8 @@ def _header_cells(line, sep):
     """The cells of a header line: csv quoting for one-character separators; for whitespace,
     unit tokens like '[s]' or '(mm)' are joined to the name before them."""
     if sep != _WS:
+        # a stray carriage return inside a line (a damaged file) is not a line break of csv's
+        line = line.replace("\r", " ").replace("\n", " ")
         return [c.strip() for c in next(csv.reader([line], delimiter=sep, skipinitialspace=True), [])]
     cells = []
     for tok in line.split():

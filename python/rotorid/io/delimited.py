@@ -81,7 +81,7 @@ class _Lines:
                     continue
                 row += 1
                 if row in want:
-                    line = line.rstrip("\r\n")
+                    line = line.rstrip("\r\n").replace("\r", " ").replace("\n", " ")
                     n = len(line.split()) if self.lay.sep == _WS else \
                         len(next(csv.reader([line], delimiter=self.lay.sep), []))
                     out[row] = (number, n)
