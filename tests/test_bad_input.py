@@ -172,3 +172,14 @@ def test_more_messages_that_name_the_cause(tmp_path):
     from rotorid.pipeline import _safe
 
     assert len(_safe("x" * 300)) == 60 and _safe("") == "unnamed"
+
+
+def test_an_output_too_large_for_memory_is_a_memory_error_not_an_abort():
+    from rotorid import _core
+
+    x = np.zeros((4, 1000))
+    kp = np.arange(0.0, 1.0, 0.01)
+    with pytest.raises(MemoryError, match="angle_resample"):
+        _core.angle_resample(x, 1000.0, 0.0, kp, 0, 90, 2 ** 28)   # 773 GB
+    with pytest.raises(MemoryError):
+        _core.angle_resample(x, 1000.0, 0.0, kp, 0, 90, 2 ** 62)   # the size overflows

@@ -12,7 +12,7 @@ pub mod timesim;
 
 use model::{Rotor, C64};
 use numpy::{PyArray1, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
-use pyo3::exceptions::{PyRuntimeError, PyValueError};
+use pyo3::exceptions::{PyMemoryError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::{Arc, Mutex, OnceLock};
@@ -96,6 +96,34 @@ fn out_buf(n: usize) -> Vec<f64> {
     v
 }
 
+/// Refuse an output of `elems` elements of `elem_bytes` each before allocating it: a product that
+/// overflows, or more than 80 % of the memory the system reports available, is a Python
+/// MemoryError naming the function (an allocation failure would abort the interpreter, and with
+/// overcommit a too-large buffer is only found out by the out-of-memory killer).
+fn check_alloc(what: &str, elems: Option<usize>, elem_bytes: usize) -> PyResult<()> {
+    let bytes = elems.and_then(|e| e.checked_mul(elem_bytes)).ok_or_else(|| {
+        PyMemoryError::new_err(format!("{what}: the requested output does not fit in memory (size overflows)"))
+    })?;
+    if let Some(avail) = available_bytes() {
+        if bytes as f64 > 0.8 * avail as f64 {
+            return Err(PyMemoryError::new_err(format!(
+                "{what}: the output would need {:.2} GB, {:.2} GB of memory are available; process fewer points at once",
+                bytes as f64 / 1e9,
+                avail as f64 / 1e9
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// MemAvailable from /proc/meminfo (Linux); None elsewhere.
+fn available_bytes() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
 fn to_py<'py, T: numpy::Element>(py: Python<'py>, v: Vec<T>, shape: &[usize]) -> PyResult<Bound<'py, PyArrayDyn<T>>> {
     PyArray1::from_vec(py, v).reshape(shape.to_vec())
 }
@@ -125,6 +153,7 @@ fn forced_response<'py>(
         return Err(PyValueError::new_err(format!("force has shape {fs:?}, expected (n or 1, nrhs, 4)")));
     }
     let nrhs = fs[1];
+    check_alloc("forced_response", n.checked_mul(nrhs).and_then(|v| v.checked_mul(4)), 16)?;
     let (ks, cs, ss, ws, fsl) = (slice(&k, "k")?, slice(&c, "c")?, slice(&spin, "spin")?, slice(&w, "w")?, slice(&force, "force")?);
     let (out, nsing) = py.detach(|| {
         guarded(|| {
@@ -215,8 +244,9 @@ fn py_identify<'py>(
         runs,
         identical,
     };
-    let npts = batch * n;
+    let npts = batch.checked_mul(n).ok_or_else(|| PyMemoryError::new_err("identify: batch x points overflows"))?;
     let want_std = with_std && !report;
+    check_alloc("identify", npts.checked_mul(if want_std { 36 } else { 20 }), 8)?;
     let res = py.detach(|| {
         guarded(|| {
             let mut k = out_buf(npts * 8);
@@ -261,6 +291,7 @@ fn py_modal<'py>(
     check_shape("k", k.shape(), &[n, 8])?;
     check_shape("c", c.shape(), &[n, 8])?;
     let (ks, cs, ss) = (slice(&k, "k")?, slice(&c, "c")?, slice(&spin, "spin")?);
+    check_alloc("modal", n.checked_mul(20), 16)?;
     let (lam, sh, nf) = py.detach(|| {
         guarded(|| {
             let mut lam = vec![C64::new(0.0, 0.0); n * 4];
@@ -297,6 +328,7 @@ fn lti_run<'py>(
     check_shape("g1", g1.shape(), &[n, m])?;
     check_shape("x0", x0.shape(), &[n])?;
     let (p, a, b, uu, x) = (slice(&phi, "phi")?, slice(&g0, "g0")?, slice(&g1, "g1")?, slice(&u, "u")?, slice(&x0, "x0")?);
+    check_alloc("lti_run", steps.checked_mul(n), 8)?;
     let out = py.detach(|| {
         guarded(|| {
             let mut out = vec![0.0; steps * n];
@@ -342,6 +374,7 @@ fn angle_resample<'py>(
     }
     let xsl = slice(&x, "x")?;
     let nch = xs[0];
+    check_alloc("angle_resample", nch.checked_mul(k1 - k0).and_then(|v| v.checked_mul(p)), 8)?;
     let out = py.detach(|| {
         guarded(|| {
             let mut out = vec![0.0; nch * (k1 - k0) * p];
@@ -382,6 +415,7 @@ fn runout_subtract<'py>(
     check_kp(kps)?;
     let (xsl, tsl) = (slice(&x, "x")?, slice(&template, "template")?);
     let p = ts[1];
+    check_alloc("runout_subtract", nch.checked_mul(i1 - i0), 8)?;
     let out = py.detach(|| {
         guarded(|| {
             let mut out = vec![0.0; nch * (i1 - i0)];
