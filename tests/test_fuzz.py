@@ -77,3 +77,24 @@ def test_model_and_simulation_fail_only_with_rotorid_errors(m, l1, d, rpm, plane
             call()
         except RotoridError:
             pass
+
+
+@FUZZ
+@given(rpm=st.lists(numbers, max_size=3), grid=numbers, max_rpm=numbers, level=numbers, method=st.sampled_from(
+    ["forces", "report", "x", None]), identical=st.sampled_from([True, False, "yes", None, 1]))
+def test_identification_and_modal_fail_only_with_rotorid_errors(rpm, grid, max_rpm, level, method, identical):
+    rig = rotorid.nsf_rig()
+    ok_rpm = np.array([4000.0, 5000.0])
+    runs = [rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=ok_rpm) for s in "AB"]
+    tests = [rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=1000, freq_hz=[20.0, 40.0], direction=d) for d in "xy"]
+    calls = (lambda: rotorid.modal_analysis(rig.rotor, rig.bearings, speed_rpm=rpm),
+             lambda: rotorid.critical_speeds(rig.rotor, rig.bearings, max_rpm=max_rpm, n_grid=grid),
+             lambda: rotorid.identify_synchronous(rig.rotor, runs, method=method, identical=identical,
+                                                  cond_max=max_rpm, min_rel_amplitude=level),
+             lambda: rotorid.identify_impact(rig.rotor, tests, method=method, identical=identical, max_rel_std=level),
+             lambda: rotorid.identify_synchronous(rig.rotor, runs).interval(level))
+    for call in calls:
+        try:
+            call()
+        except RotoridError:
+            pass

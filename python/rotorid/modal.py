@@ -115,7 +115,13 @@ def critical_speeds(rotor: RigidRotor, bearings: BearingCoefficients, *, max_rpm
     import pandas as pd
 
     _check(rotor, bearings)
-    max_rpm = float(real_array("max_rpm", max_rpm, positive=True))
+    from ._validate import number
+
+    max_rpm = number("max_rpm", max_rpm, positive=True)
+    order = number("order", order, positive=True)
+    if isinstance(n_grid, bool) or not isinstance(n_grid, (int, np.integer)) or not (8 <= n_grid <= 1_000_000):
+        raise RotoridError(f"n_grid must be a whole number from 8 to 1,000,000 (the speeds scanned for crossings), "
+                           f"got {n_grid!r}")
     lo = 1e-3 * max_rpm
     if not bearings.is_constant:
         lo = max(lo, bearings.axis[0])
