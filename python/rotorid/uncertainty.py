@@ -141,9 +141,11 @@ def relative_std(k, c, k_std, c_std):
     """Largest standard error per point relative to its bearing's direct coefficients,
     sqrt(|Kxx Kyy|) for stiffnesses and sqrt(|Cxx Cyy|) for dampings (so cross-coupled terms that
     are small are judged on the bearing's scale, not their own)."""
-    sk = np.sqrt(np.abs(k[:, :, 0, 0] * k[:, :, 1, 1]))[:, :, None, None]
-    sc = np.sqrt(np.abs(c[:, :, 0, 0] * c[:, :, 1, 1]))[:, :, None, None]
+    n = k.shape[0]
+    out = np.full(n, -np.inf)
     with np.errstate(divide="ignore", invalid="ignore"):
-        rk = (k_std / sk).reshape(k.shape[0], -1).max(axis=1)
-        rc = (c_std / sc).reshape(c.shape[0], -1).max(axis=1)
-    return np.maximum(rk, rc)
+        for v, sd in ((k, k_std), (c, c_std)):
+            scale = np.sqrt(np.abs(v[:, :, 0, 0] * v[:, :, 1, 1]))          # (n, 2)
+            worst = sd.reshape(n, 2, 4).max(axis=2)                          # (n, 2)
+            out = np.maximum(out, (worst / scale).max(axis=1))
+    return out
