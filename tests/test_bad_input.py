@@ -183,3 +183,46 @@ def test_an_output_too_large_for_memory_is_a_memory_error_not_an_abort():
         _core.angle_resample(x, 1000.0, 0.0, kp, 0, 90, 2 ** 28)   # 773 GB
     with pytest.raises(MemoryError):
         _core.angle_resample(x, 1000.0, 0.0, kp, 0, 90, 2 ** 62)   # the size overflows
+
+
+def test_sweep_findings_are_rotorid_errors(tmp_path):
+    from rotorid import io as rio
+    from rotorid import tables
+    from rotorid.recording import SegmentedRecording
+
+    bad = [
+        lambda: signals.frf_h1(np.ones((3, 2048)) * 0, np.ones((3, 4, 2048)), 1e4),
+        lambda: signals.frf_h1([np.ones(64) + 1j], [np.ones((4, 64))], 1e4),
+        lambda: signals.frf_h1([np.zeros(0)], [np.zeros((4, 0))], 1e4),
+        lambda: signals.frf_h1(["ab"], ["cd"], 1e4),
+        lambda: signals.frf_h1([np.zeros(2048)], [np.ones((4, 2048))], 1e4),
+        lambda: signals.frf_h1([np.ones(2048)], [np.ones(2048)], 1e4),
+        lambda: signals.force_window(100, 10.5, 50),
+        lambda: signals.force_window(100, 50, 10),
+        lambda: signals.force_window(100, 10, 50, taper=-1),
+        lambda: signals.exponential_window("100", 1e4, 0.1),
+        lambda: signals.exponential_window(True, 1e4, 0.1),
+        lambda: signals.exponential_window(100, 1e4, 0.1, start=200),
+        lambda: signals.keyphasor_times(np.tile(np.r_[np.zeros(40), 5 * np.ones(5)], 20), 1e4, fill_missing="no"),
+        lambda: Recording(1e4, [1, 2]),
+        lambda: Recording(1e4, {"x1": "abc"}),
+        lambda: Recording(1e4, {"x1": np.ones(10, bool)}),
+        lambda: Recording(1e4, {1: np.ones(10)}),
+        lambda: Recording(1e4, {"x1": np.ones(10)}, meta=[1]),
+        lambda: SegmentedRecording.from_arrays(1e4, {"x1": [np.ones(10), np.ones(5)]}),
+        lambda: SegmentedRecording.from_arrays(1e4, [1]),
+        lambda: rio.save_recording(Recording(1e4, {"x1": np.ones(10)}), tmp_path),
+        lambda: rio.save_recording(Recording(1e4, {"x1": np.ones(10)}), tmp_path / "out.csv"),
+        lambda: rio.save_csv(Recording(1e4, {"x1": np.ones(10)}), tmp_path / "no" / "a.csv"),
+        lambda: rio.load_recording(None),
+        lambda: rotorid.ProbeResolution(noise_m="0"),
+        lambda: rotorid.ProbeResolution(amplitude_m=-1.0),
+        lambda: rotorid.RigidRotor(True, 0.704, 0.299, 0.189, 0.217),
+        lambda: rotorid.Imbalance(mass_kg=(True, False)),
+        lambda: rotorid.BearingCoefficients(RIG.bearings.k.astype(bool), RIG.bearings.c),
+        lambda: rotorid.imbalance_response(RIG.rotor, RIG.bearings, RIG.imbalances["A"], speed_rpm=True),
+        lambda: tables.match_speeds([], tolerance_rpm="2"),
+    ]
+    for i, call in enumerate(bad):
+        with pytest.raises(RotoridError):
+            call()

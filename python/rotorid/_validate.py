@@ -14,10 +14,38 @@ def real_array(name, value, *, ndim=None, shape=None, positive=False, nonneg=Fal
         raise RotoridError(f"{name} must be real, got complex values (the imaginary part would be dropped); "
                            "complex data belong in the response arguments")
     try:
-        a = np.asarray(value, dtype=float)
+        raw = np.asarray(value)
+    except (TypeError, ValueError) as exc:
+        raise RotoridError(f"{name} must be numeric real values ({exc})") from None
+    if raw.dtype == bool:
+        raise RotoridError(f"{name} must be numbers, got booleans ({value!r})")
+    if raw.dtype.kind in "USO" and raw.dtype.kind != "O" or raw.dtype.kind == "O" and any(
+            isinstance(v, (str, bytes, bool, np.bool_)) for v in raw.ravel().tolist()):
+        raise RotoridError(f"{name} must be numeric real values, got {value!r}")
+    try:
+        a = raw.astype(float)
     except (TypeError, ValueError) as exc:
         raise RotoridError(f"{name} must be numeric real values ({exc})") from None
     return _check(name, a, ndim, shape, positive, nonneg, nonzero)
+
+
+def flag(name, value):
+    """A boolean argument: True or False only (no strings, no numbers)."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise RotoridError(f"{name} must be True or False, got {value!r}")
+    return bool(value)
+
+
+def index(name, value, lo=0, hi=None):
+    """A whole number in [lo, hi]."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) and not (
+            isinstance(value, (float, np.floating)) and float(value).is_integer()):
+        raise RotoridError(f"{name} must be a whole number, got {value!r}")
+    v = int(value)
+    if v < lo or (hi is not None and v > hi):
+        raise RotoridError(f"{name} must be between {lo} and {hi}, got {v}" if hi is not None else
+                           f"{name} must be >= {lo}, got {v}")
+    return v
 
 
 def complex_array(name, value, *, ndim=None, shape=None):

@@ -262,7 +262,13 @@ def _finish(axis_name, axis, amp, k, c, cond, resid, ks, cs, cond_max, min_rel_a
     reasons = [(~finite, "singular"), (finite & (worst > cond_max), "ill-conditioned"),
                (finite & (rstd > max_rel_std), "uncertain"), (rel < min_rel_amplitude, "low amplitude")]
     if extra_flags is not None:
-        reasons += list(extra_flags)
+        try:
+            extra = [(np.asarray(m, dtype=bool), str(why)) for m, why in extra_flags if isinstance(why, str)]
+        except (TypeError, ValueError):
+            raise RotoridError("extra_flags must be a list of (mask over the points, reason) pairs") from None
+        if len(extra) != len(list(extra_flags)) or any(m.shape != (axis.size,) for m, _ in extra):
+            raise RotoridError(f"extra_flags must be a list of (mask of {axis.size} points, reason) pairs")
+        reasons += extra
     flag = np.full(axis.size, "", dtype=object)
     for mask, why in reasons:
         for i in np.nonzero(mask)[0]:
@@ -421,9 +427,9 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
         # residual dof per bearing system: R complex equations (2R real) for 2 complex unknowns
         dof = np.full(axis.size, 2.0 * (qs.shape[0] * (2 if identical else 1) - 2))
     choice("estimator", estimator, {"ls", "bias-corrected"})
-    if estimator == "bias-corrected" and (covs is None or np.all(np.isnan(covs))):
+    if estimator == "bias-corrected" and covs is None:
         raise RotoridError("estimator='bias-corrected' needs the measurement covariance of every run or test (cov=)")
-    if covs is not None and not np.all(np.isnan(covs)):
+    if covs is not None:
         from .model import _REPORT_TO_BIJ
 
         cov, b = propagate(rotor, w, spin, qs, e, gain, sigma, covs, identical=identical, method=method, bias=True,

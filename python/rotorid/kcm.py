@@ -110,6 +110,9 @@ def fit_kcm(ident, *, band_hz=None, rotor=None, only_ok: bool = True) -> KCMFit:
 
     if getattr(ident, "axis_name", None) != "freq_hz":
         raise RotoridError("fit_kcm needs an identification over freq_hz (impact results)")
+    from ._validate import flag
+
+    only_ok = flag("only_ok", only_ok)
     if rotor is not None and not isinstance(rotor, RigidRotor):
         raise RotoridError(f"rotor must be a rotorid.RigidRotor (or None), got {type(rotor).__name__}")
     f = ident.axis

@@ -117,6 +117,10 @@ def calibrate_phase(rotor, runs, *, delay: bool = True, offset: bool = True, deg
         raise RotoridError("calibrate_phase: estimate the offset, the delay or both")
     if int(degree) != degree or degree < 0:
         raise RotoridError(f"degree must be a whole number >= 0, got {degree!r}")
+    unknown = sorted(set(ident_kw) - {"method", "identical", "cond_max", "min_rel_amplitude", "max_rel_std",
+                                      "estimator", "shared_cov"})
+    if unknown:
+        raise RotoridError(f"calibrate_phase got unknown argument(s) {unknown}")
     base = identify_synchronous(rotor, runs, **ident_kw)
     sel = base.ok & np.all(np.isfinite(base.k.reshape(base.axis.size, -1)), axis=1)
     n = int(sel.sum())

@@ -48,14 +48,19 @@ class Recording:
 
         self.fs_hz = number("fs_hz", self.fs_hz, positive=True)
         self.t0_s = number("t0_s", self.t0_s)
-        if not self.channels:
-            raise RotoridError("a recording needs at least one channel")
+        if not isinstance(self.channels, dict) or not self.channels:
+            raise RotoridError("channels must be a non-empty dict {name: 1-D array of samples}, got "
+                               f"{type(self.channels).__name__}")
+        if not isinstance(self.meta, dict):
+            raise RotoridError(f"meta must be a dict, got {type(self.meta).__name__}")
         n = None
         chans = {}
         for name, data in self.channels.items():
-            if np.iscomplexobj(data):
-                raise RotoridError(f"channel {name!r} holds complex values: a recording holds real samples")
-            a = np.asarray(data, dtype=float)
+            if not isinstance(name, str) or not name:
+                raise RotoridError(f"channel names must be non-empty strings, got {name!r}")
+            from ._validate import real_array
+
+            a = real_array(f"channel {name!r}", data)
             if a.ndim != 1:
                 raise RotoridError(f"channel {name!r} must be 1-D, got shape {a.shape}")
             if a.size == 0:
@@ -145,7 +150,19 @@ class SegmentedRecording:
                     source: str = "") -> "SegmentedRecording":
         """Blocks from 2-D arrays: ``channels[name]`` of shape (n_blocks, n_samples), one row per
         block; ``t0_s`` the start time of each block (default: back to back)."""
-        arrays = {k: np.asarray(v, dtype=float) for k, v in channels.items()}
+        from ._validate import real_array
+
+        if not isinstance(channels, dict):
+            raise RotoridError(f"channels must be a dict {{name: 2-D array (blocks, samples)}}, got "
+                               f"{type(channels).__name__}")
+        arrays = {}
+        for k, v in channels.items():
+            try:
+                arrays[k] = real_array(f"channel {k!r}", v)
+            except RotoridError:
+                raise
+            except Exception as exc:  # ragged nested lists
+                raise RotoridError(f"channel {k!r} must be a 2-D array (blocks, samples): {exc}") from None
         if not arrays:
             raise RotoridError("from_arrays needs at least one channel")
         shapes = {k: a.shape for k, a in arrays.items()}

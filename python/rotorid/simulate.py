@@ -246,6 +246,12 @@ class ProbeResolution:
     phase_deg: float = 0.01
     noise_m: float = 0.0
 
+    def __post_init__(self):
+        from ._validate import number
+
+        for nm in ("amplitude_m", "phase_deg", "noise_m"):
+            object.__setattr__(self, nm, number(nm, getattr(self, nm), nonneg=True))
+
     def apply(self, q, rng=None):
         q = np.asarray(q, complex)
         if self.noise_m > 0:

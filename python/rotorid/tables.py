@@ -703,8 +703,10 @@ def load_1x_table(path, *, columns, speed_column="auto", amplitude="pk-pk", unit
     m.setdefault("table", info)
     cov, dof = None, None
     if amplitude_std is not None or phase_std_deg is not None:
-        sa = float(amplitude_std or 0.0) * f_len * (0.5 if amp_kind == "pk-pk" else 1.0)
-        sp = np.deg2rad(float(phase_std_deg or 0.0))
+        from ._validate import number
+
+        sa = number("amplitude_std", amplitude_std or 0.0, nonneg=True) * f_len * (0.5 if amp_kind == "pk-pk" else 1.0)
+        sp = np.deg2rad(number("phase_std_deg", phase_std_deg or 0.0, nonneg=True))
         if not (np.isfinite(sa) and np.isfinite(sp) and sa >= 0 and sp >= 0) or (sa == 0 and sp == 0):
             raise RotoridError(f"{where}: amplitude_std and phase_std_deg must be finite and >= 0 (one > 0), got "
                                f"{amplitude_std!r}, {phase_std_deg!r}")
@@ -822,9 +824,9 @@ def match_speeds(tracks, *, grid=None, tolerance_rpm=2.0):
         keys = [None] * len(tracks)
     if not tracks:
         raise RotoridError("match_speeds: no tracks given")
-    tol = float(tolerance_rpm)
-    if not (math.isfinite(tol) and tol > 0):
-        raise RotoridError(f"tolerance_rpm must be a number > 0, got {tolerance_rpm!r}")
+    from ._validate import number
+
+    tol = number("tolerance_rpm", tolerance_rpm, positive=True)
     labels, sps, vs = [], [], []
     for i, (t, k) in enumerate(zip(tracks, keys)):
         if not isinstance(t, SyncTrack):
@@ -860,7 +862,9 @@ def match_speeds(tracks, *, grid=None, tolerance_rpm=2.0):
                           f"range all runs share ({lo:.1f}-{hi:.1f} rpm) and are not in the grid", stacklevel=2)
         g = g0[inside]
     else:
-        g = np.atleast_1d(np.asarray(grid, float))
+        from ._validate import real_array
+
+        g = np.atleast_1d(real_array("grid", grid))
         if g.ndim != 1 or g.size == 0 or not np.all(np.isfinite(g)) or np.any(g <= 0):
             raise RotoridError("grid must be a non-empty 1-D array of speeds > 0 rpm")
         g = np.sort(g)

@@ -210,13 +210,24 @@ class _Read:
 
 @contextlib.contextmanager
 def _atomic_write(path):
-    """Yield a temporary path next to ``path``; it replaces ``path`` only if the block succeeds."""
+    """Yield a temporary path next to ``path``; it replaces ``path`` only if the block succeeds.
+    A path that cannot be written (a folder, a missing folder, no permission) is a RotoridError."""
+    if not isinstance(path, (str, os.PathLike)):
+        raise RotoridError(f"path must be a file path, got {path!r}")
     path = Path(path)
+    if path.is_dir():
+        raise RotoridError(f"cannot write {path}: it is a directory")
+    if not path.parent.is_dir():
+        raise RotoridError(f"cannot write {path}: the folder {path.parent} does not exist")
     # a fresh name rather than mkstemp, so the file gets the usual permissions when created
     tmp = path.with_name(f".{path.name}.{os.getpid()}.{uuid.uuid4().hex[:8]}.tmp")
     try:
         yield str(tmp)
         os.replace(tmp, path)
+    except OSError as exc:
+        with contextlib.suppress(OSError):
+            os.remove(tmp)
+        raise RotoridError(f"cannot write {path}: {exc.strerror or exc}") from None
     except BaseException:
         with contextlib.suppress(OSError):
             os.remove(tmp)

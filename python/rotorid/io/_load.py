@@ -18,6 +18,8 @@ _OPTIONS = {"group": ("tdms",), "skip_rows": ("csv",), "sep": ("csv",), "decimal
 
 
 def _format(path, fmt) -> str:
+    if not isinstance(path, (str, os.PathLike)):
+        raise RotoridError(f"path must be a file path, got {path!r}")
     if fmt is None:
         p = Path(path)
         fmt = _EXTENSIONS.get(p.suffix.lower())

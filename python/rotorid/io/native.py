@@ -40,6 +40,9 @@ def save_recording(rec: Recording, path) -> None:
                   meta_json=np.array(meta_json), units_json=np.array(json.dumps(rec.units)),
                   source=np.array(json.dumps(rec.source)))
     # through an open file, so that numpy does not append ".npz" to a path that lacks it
+    if Path(str(path)).suffix.lower() in (".csv", ".txt", ".asc", ".tdms", ".uff", ".unv"):
+        raise RotoridError(f"cannot write {path}: save_recording writes rotorid's native NPZ, and this name says "
+                           f"{Path(str(path)).suffix}; use save_csv, save_tdms or save_uff58, or a .npz name")
     with _atomic_write(path) as tmp, open(tmp, "wb") as fh:
         np.savez_compressed(fh, **arrays)
 

@@ -153,13 +153,23 @@ def exponential_window(n: int, fs_hz: float, tau_s: float, start: int = 0) -> np
     ``impact_chain(exp_window_tau_s=tau)``) and it solves the equations at s instead."""
     fs_hz = _fs(fs_hz)
     tau_s = _positive("tau_s (exponential window)", tau_s)
-    t = (np.arange(int(n)) - start) / fs_hz
+    from .._validate import index
+
+    n = index("n", n, 1)
+    start = index("start", start, 0, n)
+    t = (np.arange(n) - start) / fs_hz
     return np.where(t > 0, np.exp(-np.clip(t, 0, None) / tau_s), 1.0)
 
 
 def force_window(n: int, start: int, stop: int, *, taper: int = 0) -> np.ndarray:
     """Rectangular window around the force pulse (zero elsewhere, removing force-channel noise),
     optionally with cosine tapers of ``taper`` samples on each side."""
+    from .._validate import index
+
+    n = index("n", n, 1)
+    start = index("start", start, 0, n - 1)
+    stop = index("stop", stop, start + 1, n)
+    taper = index("taper", taper, 0, n)
     w = np.zeros(n)
     w[max(0, start):min(n, stop)] = 1.0
     if taper > 0:
@@ -194,10 +204,20 @@ def frf_h1(forces, responses, fs_hz: float) -> FRF:
     from the scatter of the single impacts: with X_i = H F_i + N_i, H1 - H = Σ N_i F_i* / Σ|F_i|²,
     estimated from the residuals R_i = X_i - H1 F_i as n/(n-1) Σ_i outer(R_i F_i* / Σ|F|²)
     (real 8-vector form), with n - 1 degrees of freedom."""
+    forces, responses = list(forces), list(responses)
     if len(forces) != len(responses) or not forces:
         raise RotoridError("frf_h1 needs one response record per force record (and at least one)")
     fs_hz = _fs(fs_hz)
-    n = len(forces[0])
+    from .._validate import real_array
+
+    forces = [real_array(f"forces[{i}]", f, ndim=1) for i, f in enumerate(forces)]
+    responses = [real_array(f"responses[{i}]", x, ndim=2) for i, x in enumerate(responses)]
+    n = forces[0].size
+    if n < 16:
+        raise RotoridError(f"force records must hold at least 16 samples, got {n}")
+    for i, f in enumerate(forces):
+        if not np.any(f):
+            raise RotoridError(f"forces[{i}] is all zeros: no excitation, no FRF")
     sff = 0.0
     sxf = 0.0
     sxx = 0.0

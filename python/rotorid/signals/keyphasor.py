@@ -315,6 +315,10 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
         level = number("level", level, allow_none=True)
         hysteresis = number("hysteresis", hysteresis, allow_none=True, nonneg=True)
         max_speed_step = number("max_speed_step", max_speed_step, allow_none=True, positive=True)
+        from .._validate import flag
+
+        fill_missing = flag("fill_missing", fill_missing)
+        refine = flag("refine", refine)
     except RotoridError as exc:
         raise KeyphasorError(str(exc)) from None
     if polarity is not None:
