@@ -117,9 +117,24 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
     **ident_kw
         Passed to :func:`rotorid.identify_synchronous` (identical, cond_max, min_rel_amplitude).
     """
+    from ._validate import flag, number, real_array
+
+    if isinstance(runs, (str, bytes)) or not hasattr(runs, "__iter__"):
+        raise RotoridError(f"runs must be a list of recordings or 1X tables, got {type(runs).__name__}")
     runs = list(runs)
     if len(runs) == 0:
         raise RotoridError("no imbalance runs given")
+    steady = flag("steady", steady)
+    if speed_match_rpm is not None:
+        speed_match_rpm = number("speed_match_rpm", speed_match_rpm, positive=True)
+    if slow_roll_max_rpm is not None:
+        slow_roll_max_rpm = number("slow_roll_max_rpm", slow_roll_max_rpm, positive=True)
+    if speeds_rpm is not None:
+        speeds_rpm = np.atleast_1d(real_array("speeds_rpm", speeds_rpm, positive=True))
+        if speeds_rpm.ndim != 1 or speeds_rpm.size == 0:
+            raise RotoridError(f"speeds_rpm must be a non-empty 1-D list of speeds, got shape {speeds_rpm.shape}")
+    if imbalances is not None and len(imbalances) != len(runs):
+        raise RotoridError(f"imbalances gives {len(imbalances)} entries for {len(runs)} runs")
     notes = []
     track_kw = dict(points_per_rev=points_per_rev, min_revs=min_revs, settle_revs=settle_revs,
                     speed_tolerance=speed_tolerance, revs_per_block=revs_per_block)
@@ -301,9 +316,30 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
         Also fit K, C and an apparent mass over this band (:func:`rotorid.fit_kcm`), with standard
         errors from a delete-one jackknife over the impacts (``result.kcm``).
     """
+    from ._validate import flag, number
+
+    if isinstance(recordings, (str, bytes)) or not hasattr(recordings, "__iter__"):
+        raise RotoridError(f"recordings must be a list of impact recordings, got {type(recordings).__name__}")
     recordings = list(recordings)
     if not recordings:
         raise RotoridError("no impact recordings given")
+    try:
+        lo, hi = (number("band_hz", v, nonneg=True) for v in band_hz)
+    except (TypeError, ValueError):
+        raise RotoridError(f"band_hz must be (low, high) in Hz, got {band_hz!r}") from None
+    if not lo < hi:
+        raise RotoridError(f"band_hz must be (low, high) with low < high, got {band_hz!r}")
+    band_hz = (lo, hi)
+    record_s = number("record_s", record_s, positive=True)
+    pre_s = number("pre_s", pre_s, nonneg=True)
+    runout = flag("runout", runout)
+    coherence_min = number("coherence_min", coherence_min)
+    if exp_window_tau_s is not None:
+        exp_window_tau_s = number("exp_window_tau_s", exp_window_tau_s, positive=True)
+    if zero_pad_s is not None:
+        zero_pad_s = number("zero_pad_s", zero_pad_s, positive=True)
+    if speed_rpm is not None:
+        speed_rpm = number("speed_rpm", speed_rpm, positive=True)
     if zero_pad_s is not None and not zero_pad_s >= record_s:
         raise RotoridError(f"zero_pad_s must be >= record_s = {record_s:g} s, got {zero_pad_s!r}")
     if not (0.0 <= coherence_min <= 1.0):

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import RotoridError
 from ..model import BearingCoefficients, Imbalance, RigidRotor
 from ..recording import Recording
 from ..simulate import RPM, half_sine_pulse, imbalance_response, impact_time_response
@@ -69,8 +70,17 @@ def imbalance_recording(rotor: RigidRotor, bearings: BearingCoefficients, *, spe
     """A run of steady dwells of ``dwell_s`` seconds at ``speeds_rpm`` with the ``added`` imbalance
     (None for a baseline run) on top of the ``remnant`` imbalance. Channels x1, x2, y1, y2 (probes,
     m), kp (V)."""
+    from .._validate import number, speeds_rpm as _speeds
+
     rng = np.random.default_rng(seed)
-    speeds = np.atleast_1d(np.asarray(speeds_rpm, float))
+    speeds = _speeds("speeds_rpm", speeds_rpm)
+    fs_hz = number("fs_hz", fs_hz, positive=True)
+    dwell_s = number("dwell_s", dwell_s, positive=True)
+    noise_m = number("noise_m", noise_m, nonneg=True)
+    if speeds.size * dwell_s * fs_hz > 2e8:
+        raise RotoridError(f"{speeds.size} dwells of {dwell_s:g} s at {fs_hz:g} Hz are more than 2e8 samples")
+    if dwell_s * fs_hz < 16:
+        raise RotoridError(f"a dwell of {dwell_s:g} s at {fs_hz:g} Hz holds fewer than 16 samples")
     ro = runout.vectors() if runout is not None else np.zeros((3, 4), complex)
     chunks, kps = [], []
     theta_start = theta0

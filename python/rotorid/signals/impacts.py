@@ -109,8 +109,14 @@ def revolution_signature(x, fs_hz: float, kp_times, t_start: float, t_stop: floa
                          points_per_rev: int = 256) -> np.ndarray:
     """Average revolution signature (C, P) of channels x (C, N) over the whole revolutions that lie in
     [t_start, t_stop]: each revolution resampled at P uniform angles from its own pulses."""
-    kpt = np.asarray(kp_times, float)
+    from .._validate import number, real_array
     from .order import MAX_POINTS_PER_REV
+
+    kpt = real_array("kp_times", kp_times, ndim=1)
+    fs_hz = _fs(fs_hz)
+    t_start = number("t_start", t_start)
+    t_stop = number("t_stop", t_stop)
+    t0_s = number("t0_s", t0_s)
 
     if isinstance(points_per_rev, bool) or int(points_per_rev) != points_per_rev or \
             not (16 <= points_per_rev <= MAX_POINTS_PER_REV):

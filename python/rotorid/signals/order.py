@@ -163,6 +163,8 @@ def detect_keyphasor(rec: Recording, keyphasor=None) -> Keyphasor:
         return keyphasor_times(rec.channels["kp"], rec.fs_hz, t0_s=rec.t0_s, source=src, **opts)
     except TypeError as exc:
         raise RotoridError(f"keyphasor options: {exc}") from None
+    except RotoridError:
+        raise
 
 
 def track(rec, *, orders=(1, 2, 3), revs_per_block: int | None = None, steady: bool = True,
@@ -228,11 +230,20 @@ def track(rec, *, orders=(1, 2, 3), revs_per_block: int | None = None, steady: b
                            f"{list(raw)!r}")
     if not orders or any(o < 1 for o in orders):
         raise RotoridError(f"orders must be whole numbers >= 1, got {orders!r}")
-    for nm, val, lo in (("min_revs", min_revs, 2), ("settle_revs", settle_revs, 0)):
-        if int(val) != val or val < lo:
-            raise RotoridError(f"{nm} must be a whole number >= {lo}, got {val!r}")
+    from .._validate import flag, index, number
+
+    min_revs = index("min_revs", min_revs, 2)
+    settle_revs = index("settle_revs", settle_revs, 0)
+    steady = flag("steady", steady)
+    speed_tolerance = number("speed_tolerance", speed_tolerance)
     if not (0 < speed_tolerance < 0.5):
         raise RotoridError(f"speed_tolerance must be between 0 and 0.5 (relative), got {speed_tolerance!r}")
+    if revs_per_block is not None:
+        revs_per_block = index("revs_per_block", revs_per_block, 1)
+    if points_per_rev is not None:
+        points_per_rev = index("points_per_rev", points_per_rev, 16, MAX_POINTS_PER_REV)
+    if keyphasor is not None and not isinstance(keyphasor, dict):
+        raise RotoridError(f"keyphasor options must be a dict of keyphasor_times keywords, got {keyphasor!r}")
     if kp is None:
         kp = detect_keyphasor(rec, keyphasor)
     elif not isinstance(kp, Keyphasor):
