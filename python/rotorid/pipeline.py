@@ -6,6 +6,7 @@ Callable from Python (``imbalance_chain``, ``impact_chain``, ``run_config``) and
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import warnings
 from dataclasses import dataclass, field
@@ -55,13 +56,8 @@ def _near_only(track, speeds, tol, label, what):
     warnings.warn(f"{label}: {int(far.sum())} of {far.size} speed(s) ({', '.join(f'{v:.1f}' for v in track.speed_rpm[far][:5])} "
                   f"rpm) dropped: farther than {tol:g} rpm (speed_match_rpm) from every speed of {what}")
     keep = ~far
-    kps = track.keyphasors
-    out = signals.SyncTrack(track.speed_rpm[keep], track.vectors[keep], track.orders, track.n_revs[keep],
-                            track.scatter[keep], track.t_mid[keep], kps, track.cov[keep], track.dof[keep])
-    if hasattr(track, "meta"):  # a TableTrack keeps its name and metadata
-        out = type(track)(out.speed_rpm, out.vectors, out.orders, out.n_revs, out.scatter, out.t_mid, kps, out.cov,
-                          out.dof, name=track.name, source=track.source, meta=track.meta)
-    return out
+    return dataclasses.replace(track, **{f: getattr(track, f)[keep] for f in
+                                         ("speed_rpm", "vectors", "n_revs", "scatter", "t_mid", "cov", "dof")})
 
 
 def _labelled(fn, label, what):
@@ -125,10 +121,8 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
     if len(runs) == 0:
         raise RotoridError("no imbalance runs given")
     steady = flag("steady", steady)
-    if speed_match_rpm is not None:
-        speed_match_rpm = number("speed_match_rpm", speed_match_rpm, positive=True)
-    if slow_roll_max_rpm is not None:
-        slow_roll_max_rpm = number("slow_roll_max_rpm", slow_roll_max_rpm, positive=True)
+    speed_match_rpm = number("speed_match_rpm", speed_match_rpm, positive=True, allow_none=True)
+    slow_roll_max_rpm = number("slow_roll_max_rpm", slow_roll_max_rpm, positive=True, allow_none=True)
     if speeds_rpm is not None:
         speeds_rpm = np.atleast_1d(real_array("speeds_rpm", speeds_rpm, positive=True))
         if speeds_rpm.ndim != 1 or speeds_rpm.size == 0:
@@ -281,6 +275,15 @@ def impact_segments(rec: Recording, *, record_s: float = 0.25, pre_s: float = 0.
     return forces, responses, used, dropped
 
 
+def _h1(forces, responses, fs, zero_pad_s):
+    """H1 FRF of equally long records, zero padded to ``zero_pad_s`` when given."""
+    if zero_pad_s is not None:
+        npad = int(round(zero_pad_s * fs))
+        forces = [np.pad(f, (0, npad - f.size)) for f in forces]
+        responses = [np.pad(r, ((0, 0), (0, npad - r.shape[1]))) for r in responses]
+    return signals.frf_h1(forces, responses, fs)
+
+
 def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_s: float = 0.25, runout: bool = True,
                  identical: bool = False, method: str = "forces", tests_meta=None, exp_window_tau_s: float | None = None,
                  pre_s: float = 0.01, zero_pad_s: float | None = None, revs_before: int = 8, points_per_rev: int = 256,
@@ -334,12 +337,9 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
     pre_s = number("pre_s", pre_s, nonneg=True)
     runout = flag("runout", runout)
     coherence_min = number("coherence_min", coherence_min)
-    if exp_window_tau_s is not None:
-        exp_window_tau_s = number("exp_window_tau_s", exp_window_tau_s, positive=True)
-    if zero_pad_s is not None:
-        zero_pad_s = number("zero_pad_s", zero_pad_s, positive=True)
-    if speed_rpm is not None:
-        speed_rpm = number("speed_rpm", speed_rpm, positive=True)
+    exp_window_tau_s = number("exp_window_tau_s", exp_window_tau_s, positive=True, allow_none=True)
+    zero_pad_s = number("zero_pad_s", zero_pad_s, positive=True, allow_none=True)
+    speed_rpm = number("speed_rpm", speed_rpm, positive=True, allow_none=True)
     if zero_pad_s is not None and not zero_pad_s >= record_s:
         raise RotoridError(f"zero_pad_s must be >= record_s = {record_s:g} s, got {zero_pad_s!r}")
     if not (0.0 <= coherence_min <= 1.0):
@@ -391,11 +391,7 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
     for (plane, direction, at, fs), (fl, rl, ul) in groups.items():
         if not fl:
             raise RotoridError(f"no clean impact left for the test in {direction} at plane {plane:g} m")
-        if zero_pad_s is not None:
-            npad = int(round(zero_pad_s * fs))
-            fl = [np.pad(f, (0, npad - f.size)) for f in fl]
-            rl = [np.pad(r, ((0, 0), (0, npad - r.shape[1]))) for r in rl]
-        frf = signals.frf_h1(fl, rl, fs)
+        frf = _h1(fl, rl, fs, zero_pad_s)
         sel = (frf.freq_hz >= band_hz[0]) & (frf.freq_hz <= band_hz[1])
         coh = frf.coherence[sel]
         if np.any(coh < coherence_min):
@@ -428,11 +424,7 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
             reps, labels = [], []
             for gi, (fl, rl, fs) in enumerate(group_data):
                 for i in range(len(fl)):
-                    frf = signals.frf_h1(fl[:i] + fl[i + 1:], rl[:i] + rl[i + 1:], fs) if zero_pad_s is None else \
-                        signals.frf_h1([np.pad(f, (0, int(round(zero_pad_s * fs)) - f.size)) for k, f in enumerate(fl)
-                                        if k != i],
-                                       [np.pad(r, ((0, 0), (0, int(round(zero_pad_s * fs)) - r.shape[1])))
-                                        for k, r in enumerate(rl) if k != i], fs)
+                    frf = _h1(fl[:i] + fl[i + 1:], rl[:i] + rl[i + 1:], fs, zero_pad_s)
                     sel = (frf.freq_hz >= band_hz[0]) & (frf.freq_hz <= band_hz[1])
                     t0 = tests[gi]
                     rep_tests = list(tests)
