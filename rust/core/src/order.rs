@@ -5,7 +5,29 @@
 //! seconds, strictly increasing): angle = 2 pi (k + (t - kp[k]) / (kp[k+1] - kp[k])). Resampling
 //! each revolution separately follows small speed drift, so a signature does not smear.
 
+use crate::error::{expect_len, product, CoreError};
 use rayon::prelude::*;
+
+/// Keyphasor times must bound at least one revolution and increase strictly.
+pub fn check_keyphasor(kp: &[f64]) -> Result<(), CoreError> {
+    if kp.len() < 2 {
+        return Err(CoreError::value("kp", "needs at least two keyphasor times (one whole revolution)"));
+    }
+    if kp.iter().any(|v| !v.is_finite()) || kp.windows(2).any(|w| !(w[1] > w[0])) {
+        return Err(CoreError::value("kp", "(keyphasor times) must be finite and strictly increasing"));
+    }
+    Ok(())
+}
+
+fn check_sampling(fs: f64, t0: f64) -> Result<(), CoreError> {
+    if !(fs > 0.0 && fs.is_finite()) {
+        return Err(CoreError::value("fs", format!("(sample rate) must be positive and finite, got {fs}")));
+    }
+    if !t0.is_finite() {
+        return Err(CoreError::value("t0", "(time of the first sample) must be finite"));
+    }
+    Ok(())
+}
 
 /// Weights of the 4-point Lagrange (cubic) stencil at samples -1, 0, 1, 2 for a fraction f in [0, 1).
 #[inline(always)]
@@ -35,8 +57,27 @@ pub fn cubic_at(x: &[f64], u: f64) -> f64 {
 
 /// Resample channels at P uniform angles per revolution for revolutions k0..k1 (between pulses
 /// kp[k] and kp[k+1]). `x`: (C, N) row-major, sample i at time t0 + i / fs. `out`: (C, k1-k0, P).
-pub fn angle_resample(x: &[f64], nch: usize, fs: f64, t0: f64, kp: &[f64], k0: usize, k1: usize, p: usize, out: &mut [f64]) {
-    let n = x.len() / nch.max(1);
+#[allow(clippy::too_many_arguments)]
+pub fn angle_resample(x: &[f64], nch: usize, fs: f64, t0: f64, kp: &[f64], k0: usize, k1: usize, p: usize, out: &mut [f64]) -> Result<(), CoreError> {
+    check_keyphasor(kp)?;
+    check_sampling(fs, t0)?;
+    if nch == 0 || x.len() % nch != 0 {
+        return Err(CoreError::length("x", x.len(), format!("a multiple of the channel count {nch} (at least one channel)")));
+    }
+    if !(k0 < k1 && k1 < kp.len()) {
+        return Err(CoreError::value("k0, k1", format!("need k0 < k1 < len(kp) = {}, got k0 = {k0}, k1 = {k1}", kp.len())));
+    }
+    if p < 4 {
+        return Err(CoreError::value("p", format!("(points per revolution) must be at least 4, got {p}")));
+    }
+    expect_len("out", out, product("out", &[nch, k1 - k0, p])?)?;
+    resample_kernel(x, nch, fs, t0, kp, k0, k1, p, out);
+    Ok(())
+}
+
+#[allow(clippy::too_many_arguments)]
+fn resample_kernel(x: &[f64], nch: usize, fs: f64, t0: f64, kp: &[f64], k0: usize, k1: usize, p: usize, out: &mut [f64]) {
+    let n = x.len() / nch;
     let revs = k1 - k0;
     out.par_chunks_mut(revs * p).enumerate().for_each(|(c, o)| {
         let xc = &x[c * n..(c + 1) * n];
@@ -67,8 +108,28 @@ pub fn runout_subtract(
     i0: usize,
     i1: usize,
     out: &mut [f64],
-) {
-    let n = x.len() / nch.max(1);
+) -> Result<(), CoreError> {
+    check_keyphasor(kp)?;
+    check_sampling(fs, t0)?;
+    if nch == 0 || x.len() % nch != 0 {
+        return Err(CoreError::length("x", x.len(), format!("a multiple of the channel count {nch} (at least one channel)")));
+    }
+    let n = x.len() / nch;
+    if p < 4 {
+        return Err(CoreError::value("template", format!("needs at least 4 points per revolution, got {p}")));
+    }
+    expect_len("template", template, product("template", &[nch, p])?)?;
+    if !(i0 <= i1 && i1 <= n) {
+        return Err(CoreError::value("i0, i1", format!("need 0 <= i0 <= i1 <= {n}, got i0 = {i0}, i1 = {i1}")));
+    }
+    expect_len("out", out, nch * (i1 - i0))?;
+    runout_kernel(x, nch, fs, t0, kp, template, p, i0, i1, out);
+    Ok(())
+}
+
+#[allow(clippy::too_many_arguments)]
+fn runout_kernel(x: &[f64], nch: usize, fs: f64, t0: f64, kp: &[f64], template: &[f64], p: usize, i0: usize, i1: usize, out: &mut [f64]) {
+    let n = x.len() / nch;
     let m = i1 - i0;
     // templates padded periodically (one point before, two after) so stencils need no modulo
     let mut ext = vec![0.0; nch * (p + 3)];

@@ -1,16 +1,9 @@
-//! pyo3 bindings of the rotorid core. Only argument checking and conversion live here; the
-//! physics is in the sibling modules. Every entry point releases the GIL while it computes and
-//! converts any Rust panic into a Python RuntimeError (a panic never crosses the boundary).
+//! pyo3 bindings of `rotorid-core`: array shapes checked and converted, output sizes checked
+//! against the memory available, the GIL released while the core computes. The physics is in the
+//! core crate, whose argument errors (`CoreError`) become `ValueError` here; any Rust panic would
+//! become a `RuntimeError` (a panic never crosses into Python).
 
-pub mod forced;
-pub mod identify;
-pub mod lanes;
-pub mod modal;
-pub mod model;
-pub mod order;
-pub mod timesim;
-
-use model::{Rotor, C64};
+use rotorid_core::{forced, identify, modal, order, timesim, CoreError, Rotor, C64};
 use numpy::{PyArray1, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyMemoryError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
@@ -76,6 +69,10 @@ fn in_process_pool<T: Send, F: FnOnce() -> T + Send>(f: F) -> T {
         }
     };
     pool.install(f)
+}
+
+fn core_err(e: CoreError) -> PyErr {
+    PyValueError::new_err(e.to_string())
 }
 
 fn rotor_of(p: &PyReadonlyArrayDyn<'_, f64>) -> PyResult<Rotor> {
@@ -153,15 +150,18 @@ fn forced_response<'py>(
         return Err(PyValueError::new_err(format!("force has shape {fs:?}, expected (n or 1, nrhs, 4)")));
     }
     let nrhs = fs[1];
+    if nrhs == 0 {
+        return Err(PyValueError::new_err("force has no force vectors (shape (n, 0, 4))"));
+    }
     check_alloc("forced_response", n.checked_mul(nrhs).and_then(|v| v.checked_mul(4)), 16)?;
     let (ks, cs, ss, ws, fsl) = (slice(&k, "k")?, slice(&c, "c")?, slice(&spin, "spin")?, slice(&w, "w")?, slice(&force, "force")?);
     let (out, nsing) = py.detach(|| {
         guarded(|| {
             let mut out = vec![C64::new(0.0, 0.0); n * nrhs * 4];
-            let ns = forced::forced_response(&rot, ks, cs, ss, ws, fsl, nrhs, &mut out);
-            (out, ns)
+            forced::forced_response(&rot, ks, cs, ss, ws, fsl, nrhs, &mut out).map(|ns| (out, ns))
         })
-    })?;
+    })?
+    .map_err(core_err)?;
     Ok((to_py(py, out, &[n, nrhs, 4])?, nsing))
 }
 
@@ -225,13 +225,7 @@ fn py_identify<'py>(
         Some(sg) => slice(sg, "sigma")?,
         None => &[],
     };
-    if sigma_sl.iter().any(|v| !v.is_finite()) {
-        return Err(PyValueError::new_err("sigma must be finite"));
-    }
     let ws = slice(&w, "w")?;
-    if ws.iter().any(|&x| !(x.is_finite() && x != 0.0)) {
-        return Err(PyValueError::new_err("w (vibration frequency) must be finite and non-zero"));
-    }
     let prob = identify::IdentProblem {
         rotor: rot,
         w: ws,
@@ -244,6 +238,7 @@ fn py_identify<'py>(
         runs,
         identical,
     };
+    prob.check().map_err(core_err)?;
     let npts = batch.checked_mul(n).ok_or_else(|| PyMemoryError::new_err("identify: batch x points overflows"))?;
     let want_std = with_std && !report;
     check_alloc("identify", npts.checked_mul(if want_std { 36 } else { 20 }), 8)?;
@@ -266,9 +261,10 @@ fn py_identify<'py>(
                 c_std: if want_std { Some(&mut cs[..]) } else { None },
             };
             let nbad = if report { identify::identify_report(&prob, out) } else { identify::identify_forces(&prob, out) };
-            (k, c, cond, resid, amp, ks, cs, nbad)
+            nbad.map(|nbad| (k, c, cond, resid, amp, ks, cs, nbad))
         })
-    })?;
+    })?
+    .map_err(core_err)?;
     let (k, c, cond, resid, amp, ks, cs, nbad) = res;
     let sh = [batch, n, 2, 2, 2];
     let kst = if want_std { Some(to_py(py, ks, &sh)?) } else { None };
@@ -296,10 +292,10 @@ fn py_modal<'py>(
         guarded(|| {
             let mut lam = vec![C64::new(0.0, 0.0); n * 4];
             let mut sh = vec![C64::new(0.0, 0.0); n * 16];
-            let nf = modal::modal(&rot, ks, cs, ss, &mut lam, &mut sh);
-            (lam, sh, nf)
+            modal::modal(&rot, ks, cs, ss, &mut lam, &mut sh).map(|nf| (lam, sh, nf))
         })
-    })?;
+    })?
+    .map_err(core_err)?;
     Ok((to_py(py, lam, &[n, 4])?, to_py(py, sh, &[n, 4, 4])?, nf))
 }
 
@@ -332,21 +328,15 @@ fn lti_run<'py>(
     let out = py.detach(|| {
         guarded(|| {
             let mut out = vec![0.0; steps * n];
-            timesim::lti_run(n, m, p, a, b, uu, x, &mut out);
-            out
+            timesim::lti_run(n, m, p, a, b, uu, x, &mut out).map(|_| out)
         })
-    })?;
+    })?
+    .map_err(core_err)?;
     to_py(py, out, &[steps, n])
 }
 
 fn check_kp(kp: &[f64]) -> PyResult<()> {
-    if kp.len() < 2 {
-        return Err(PyValueError::new_err("kp needs at least two keyphasor times (one whole revolution)"));
-    }
-    if kp.iter().any(|v| !v.is_finite()) || kp.windows(2).any(|w| !(w[1] > w[0])) {
-        return Err(PyValueError::new_err("kp (keyphasor times) must be finite and strictly increasing"));
-    }
-    Ok(())
+    order::check_keyphasor(kp).map_err(core_err)
 }
 
 /// Resample channels x (C, N) at p uniform angles per revolution for revolutions k0..k1.
@@ -378,10 +368,10 @@ fn angle_resample<'py>(
     let out = py.detach(|| {
         guarded(|| {
             let mut out = vec![0.0; nch * (k1 - k0) * p];
-            order::angle_resample(xsl, nch, fs, t0, kps, k0, k1, p, &mut out);
-            out
+            order::angle_resample(xsl, nch, fs, t0, kps, k0, k1, p, &mut out).map(|_| out)
         })
-    })?;
+    })?
+    .map_err(core_err)?;
     to_py(py, out, &[nch, k1 - k0, p])
 }
 
@@ -419,10 +409,10 @@ fn runout_subtract<'py>(
     let out = py.detach(|| {
         guarded(|| {
             let mut out = vec![0.0; nch * (i1 - i0)];
-            order::runout_subtract(xsl, nch, fs, t0, kps, tsl, p, i0, i1, &mut out);
-            out
+            order::runout_subtract(xsl, nch, fs, t0, kps, tsl, p, i0, i1, &mut out).map(|_| out)
         })
-    })?;
+    })?
+    .map_err(core_err)?;
     to_py(py, out, &[nch, i1 - i0])
 }
 

@@ -12,6 +12,7 @@
 //! - `identify_report`: the report's 16-unknown real formulation (eq. 8-12, 16-18) solved with
 //!   faer's QR. Kept as the reference; it equals the default exactly for two runs.
 
+use crate::error::{expect_len, product, CoreError};
 use crate::lanes::{Z, L, V};
 use crate::model::{Rotor, C64};
 use faer::linalg::solvers::SolveLstsq;
@@ -258,6 +259,37 @@ pub struct IdentProblem<'a> {
     pub identical: bool,
 }
 
+impl IdentProblem<'_> {
+    /// Number of points (speeds or frequencies) per batch member.
+    pub fn points(&self) -> usize {
+        self.w.len()
+    }
+
+    /// Check every length and the values the solvers divide by.
+    pub fn check(&self) -> Result<(), CoreError> {
+        let n = self.w.len();
+        if self.runs == 0 {
+            return Err(CoreError::value("runs", "must be at least 1"));
+        }
+        expect_len("spin", self.spin, n)?;
+        expect_len("gain", self.gain, n)?;
+        expect_len("q", self.q, product("q", &[self.batch, self.runs, n, 4])?)?;
+        if self.e.len() != 4 * self.runs && self.e.len() != product("e", &[self.batch, self.runs, 4])? {
+            return Err(CoreError::length("e", self.e.len(), format!("{} (shared) or {}", 4 * self.runs, 4 * self.runs * self.batch)));
+        }
+        if !self.sigma.is_empty() {
+            expect_len("sigma", self.sigma, n)?;
+            if self.sigma.iter().any(|v| !v.is_finite()) {
+                return Err(CoreError::value("sigma", "must be finite"));
+            }
+        }
+        if self.w.iter().any(|&x| !(x.is_finite() && x != 0.0)) {
+            return Err(CoreError::value("w", "(vibration frequency) must be finite and non-zero"));
+        }
+        Ok(())
+    }
+}
+
 /// Outputs, all (batch, n, ...).
 pub struct IdentOut<'a> {
     pub k: &'a mut [f64],      // (B, n, 8)
@@ -268,6 +300,23 @@ pub struct IdentOut<'a> {
     pub amp: &'a mut [f64],
     pub k_std: Option<&'a mut [f64]>, // (B, n, 8)
     pub c_std: Option<&'a mut [f64]>, // (B, n, 8)
+}
+
+impl IdentOut<'_> {
+    fn check(&self, points: usize) -> Result<(), CoreError> {
+        expect_len("k", self.k, product("k", &[points, 8])?)?;
+        expect_len("c", self.c, points * 8)?;
+        expect_len("cond", self.cond, points * 2)?;
+        expect_len("resid", self.resid, points)?;
+        expect_len("amp", self.amp, points)?;
+        if let Some(ks) = &self.k_std {
+            expect_len("k_std", ks, points * 8)?;
+        }
+        if let Some(cs) = &self.c_std {
+            expect_len("c_std", cs, points * 8)?;
+        }
+        Ok(())
+    }
 }
 
 /// Per-call constants of the rotor equations.
@@ -579,7 +628,13 @@ fn forces_chunk_dispatch(p: &IdentProblem, kc: &Consts, start: usize, out: Outs)
 }
 
 /// Fast bearing-force solver. Returns the number of points whose input contained NaN/inf.
-pub fn identify_forces(p: &IdentProblem, out: IdentOut) -> usize {
+pub fn identify_forces(p: &IdentProblem, out: IdentOut) -> Result<usize, CoreError> {
+    p.check()?;
+    out.check(product("batch x points", &[p.batch, p.points()])?)?;
+    Ok(forces_all(p, out))
+}
+
+fn forces_all(p: &IdentProblem, out: IdentOut) -> usize {
     let kc = Consts::new(&p.rotor);
     let IdentOut { k, c, cond, resid, amp, k_std, c_std } = out;
     if resid.len() < SERIAL_BELOW {
@@ -638,7 +693,14 @@ pub const REPORT_TO_BIJ: [usize; 8] = [0, 4, 1, 5, 2, 6, 3, 7];
 /// The report's 16-unknown real least-squares formulation (eq. 8, 12, 16-18), solved by QR.
 /// For `identical`, the 8-unknown variant (Z1 = Z2). cond receives the condition number of the
 /// real stacked matrix (same value for both bearings). Returns the number of NaN/inf points.
-pub fn identify_report(p: &IdentProblem, out: IdentOut) -> usize {
+/// Standard errors are not computed (`k_std`, `c_std` are left untouched).
+pub fn identify_report(p: &IdentProblem, out: IdentOut) -> Result<usize, CoreError> {
+    p.check()?;
+    out.check(product("batch x points", &[p.batch, p.points()])?)?;
+    Ok(report_all(p, out))
+}
+
+fn report_all(p: &IdentProblem, out: IdentOut) -> usize {
     let n = p.w.len();
     let IdentOut { k, c, cond, resid, amp, .. } = out;
     let (l1, l2) = (p.rotor.l1, p.rotor.l2);

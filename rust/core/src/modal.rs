@@ -1,5 +1,6 @@
 //! Batched eigen-analysis of the rotor-bearing system (state-space form of eq. 1 without forcing).
 
+use crate::error::{expect_len, product, CoreError};
 use crate::forced::solve4_near_singular;
 use crate::model::{assemble, Rotor, C64};
 use faer::Mat;
@@ -95,7 +96,16 @@ fn balance(a: &mut Mat<f64>) -> Vec<f64> {
 /// eigenvectors (order [x1, x2, y1, y2], normalized to unit largest component, real at that
 /// component). `lam`: (n, 4); `shapes`: (n, 4 modes, 4 dofs). Returns the number of points where
 /// the eigen-solver failed (NaN output).
-pub fn modal(rotor: &Rotor, kb: &[f64], cb: &[f64], spin: &[f64], lam: &mut [C64], shapes: &mut [C64]) -> usize {
+pub fn modal(rotor: &Rotor, kb: &[f64], cb: &[f64], spin: &[f64], lam: &mut [C64], shapes: &mut [C64]) -> Result<usize, CoreError> {
+    let n = spin.len();
+    expect_len("k", kb, product("k", &[n, 8])?)?;
+    expect_len("c", cb, n * 8)?;
+    expect_len("lam", lam, product("lam", &[n, 4])?)?;
+    expect_len("shapes", shapes, product("shapes", &[n, 16])?)?;
+    Ok(modal_kernel(rotor, kb, cb, spin, lam, shapes))
+}
+
+fn modal_kernel(rotor: &Rotor, kb: &[f64], cb: &[f64], spin: &[f64], lam: &mut [C64], shapes: &mut [C64]) -> usize {
     let m = rotor.mass_matrix();
     let g = rotor.gyro_matrix();
     let minv = match inv4(&m) {
