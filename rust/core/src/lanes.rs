@@ -149,3 +149,47 @@ impl AddAssign for Z {
         self.im += b.im;
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::C64;
+    use proptest::prelude::*;
+
+    fn lanes(v: &[f64]) -> V {
+        let mut o = [0.0; L];
+        o.copy_from_slice(&v[..L]);
+        V(o)
+    }
+
+    proptest! {
+        /// Every lane operation equals the scalar complex arithmetic of num-complex, lane by lane.
+        #[test]
+        fn lane_ops_equal_scalar_complex(a in proptest::collection::vec(-1e3f64..1e3, 4 * L)) {
+            let za = Z { re: lanes(&a[0..]), im: lanes(&a[L..]) };
+            let zb = Z { re: lanes(&a[2 * L..]), im: lanes(&a[3 * L..]) };
+            let s = lanes(&a[2 * L..]);
+            let (prod, cprod, sum, diff) = (za * zb, za.cmul(zb), za + zb, za - zb);
+            let (js, sc, cj, ns) = (za.jscale(s), za.scale(s), za.conj(), za.norm_sqr());
+            for l in 0..L {
+                let x = C64::new(za.re.0[l], za.im.0[l]);
+                let y = C64::new(zb.re.0[l], zb.im.0[l]);
+                let close = |z: C64, re: f64, im: f64| (z.re - re).abs() <= 1e-12 * (1.0 + z.norm()) && (z.im - im).abs() <= 1e-12 * (1.0 + z.norm());
+                prop_assert!(close(x * y, prod.re.0[l], prod.im.0[l]));
+                prop_assert!(close(x.conj() * y, cprod.re.0[l], cprod.im.0[l]));
+                prop_assert!(close(x + y, sum.re.0[l], sum.im.0[l]));
+                prop_assert!(close(x - y, diff.re.0[l], diff.im.0[l]));
+                prop_assert!(close(C64::new(0.0, s.0[l]) * x, js.re.0[l], js.im.0[l]));
+                prop_assert!(close(x * s.0[l], sc.re.0[l], sc.im.0[l]));
+                prop_assert!(close(x.conj(), cj.re.0[l], cj.im.0[l]));
+                prop_assert!((x.norm_sqr() - ns.0[l]).abs() <= 1e-12 * (1.0 + x.norm_sqr()));
+            }
+            let v = lanes(&a[0..]).sqrt();
+            let r = s.recip();
+            for l in 0..L {
+                prop_assert!(v.0[l].to_bits() == a[l].sqrt().to_bits());
+                prop_assert!(r.0[l] == 1.0 / s.0[l]);
+            }
+        }
+    }
+}

@@ -1,0 +1,486 @@
+//! Property tests of the core kernels against the reference implementations in `common`.
+
+mod common;
+
+use common::*;
+use proptest::prelude::*;
+use rotorid_core::identify::{identify_forces, identify_report, IdentOut, IdentProblem};
+use rotorid_core::{forced, modal, order, timesim, CoreError, Rotor, C64};
+
+fn cfg(cases: u32) -> ProptestConfig {
+    ProptestConfig { cases, failure_persistence: None, ..ProptestConfig::default() }
+}
+
+/// Speeds spread over the rotor's natural frequencies: 0.2 to 3 times the bounce frequency.
+fn speeds_for(r: &Rotor, k: &[f64], n: usize) -> Vec<f64> {
+    let kmean = (k[0] + k[3] + k[4] + k[7]) / 4.0;
+    let wn = (2.0 * kmean / r.m).sqrt();
+    (0..n).map(|i| wn * 0.2 * 15f64.powf(i as f64 / (n - 1) as f64)).collect()
+}
+
+fn cplx_vec(v: &[f64]) -> Vec<C64> {
+    v.chunks(2).map(|p| c(p[0], p[1])).collect()
+}
+
+struct Identified {
+    k: Vec<f64>,
+    c: Vec<f64>,
+    cond: Vec<f64>,
+    resid: Vec<f64>,
+    k_std: Vec<f64>,
+    nbad: usize,
+}
+
+fn run_identify(p: &IdentProblem, report: bool) -> Result<Identified, CoreError> {
+    let npts = p.batch * p.w.len();
+    let (mut k, mut cc, mut cond) = (vec![0.0; npts * 8], vec![0.0; npts * 8], vec![0.0; npts * 2]);
+    let (mut resid, mut amp) = (vec![0.0; npts], vec![0.0; npts]);
+    let (mut ks, mut cs) = (vec![0.0; npts * 8], vec![0.0; npts * 8]);
+    let out = IdentOut {
+        k: &mut k,
+        c: &mut cc,
+        cond: &mut cond,
+        resid: &mut resid,
+        amp: &mut amp,
+        k_std: Some(&mut ks),
+        c_std: Some(&mut cs),
+    };
+    let nbad = if report { identify_report(p, out)? } else { identify_forces(p, out)? };
+    Ok(Identified { k, c: cc, cond, resid, k_std: ks, nbad })
+}
+
+/// Largest error of the identified impedances K + j w C per bearing, relative to the largest
+/// true impedance of that bearing, over the points whose condition number is below `max_cond`.
+fn impedance_error(id: &Identified, k: &[f64], cc: &[f64], w: &[f64], max_cond: f64) -> (f64, usize) {
+    let mut worst = 0.0f64;
+    let mut used = 0;
+    for (i, &wi) in w.iter().enumerate() {
+        for b in 0..2 {
+            if !(id.cond[2 * i + b] < max_cond) {
+                continue;
+            }
+            used += 1;
+            let scale = (0..4).map(|t| c(k[4 * b + t], wi * cc[4 * b + t]).norm()).fold(0.0, f64::max);
+            for t in 0..4 {
+                let j = 8 * i + 4 * b + t;
+                let err = c(id.k[j] - k[4 * b + t], wi * (id.c[j] - cc[4 * b + t])).norm();
+                worst = worst.max(err / scale);
+            }
+        }
+    }
+    (worst, used)
+}
+
+proptest! {
+    #![proptest_config(cfg(200))]
+
+    /// solve4 through the forced response: the equations of motion hold, and the answer equals
+    /// a full-pivoting elimination of the same system.
+    #[test]
+    fn forced_response_satisfies_the_equations_of_motion(r in rotors(), (k, cc) in bearings(),
+                                                        wr in 0.05f64..5.0, spin_r in -2.0f64..2.0,
+                                                        f in proptest::collection::vec(-1.0f64..1.0, 8)) {
+        let w = wr * (k[0] / r.m).sqrt();
+        let spin = spin_r * w;
+        let force = cplx_vec(&f);
+        let mut q = [c(0.0, 0.0); 4];
+        let bad = forced::forced_response(&r, &k, &cc, &[spin], &[w], &force, 1, &mut q).unwrap();
+        prop_assert_eq!(bad, 0);
+        let res = motion_residual(&r, &k, &cc, spin, w, &q, &force);
+        let scale = motion_scale(&r, &k, &cc, spin, w, &q);
+        for v in res {
+            prop_assert!(v.norm() <= 1e-12 * scale, "residual {} of scale {}", v.norm(), scale);
+        }
+        // the same system through the reference solver (H from unit forces, column by column)
+        let mut h = [[c(0.0, 0.0); 4]; 4];
+        for j in 0..4 {
+            let mut e = [c(0.0, 0.0); 4];
+            e[j] = c(1.0, 0.0);
+            let hj = motion_residual(&r, &k, &cc, spin, w, &e, &[c(0.0, 0.0); 4]);
+            for i in 0..4 {
+                h[i][j] = hj[i];
+            }
+        }
+        let qref = solve_full_pivot(&h, &[force[0], force[1], force[2], force[3]]).unwrap();
+        let qn = qref.iter().fold(0.0f64, |a, z| a.max(z.norm()));
+        for i in 0..4 {
+            prop_assert!((q[i] - qref[i]).norm() <= 1e-9 * qn);
+        }
+    }
+
+    /// Broadcast bearings and forces give the same answer as one row per point.
+    #[test]
+    fn forced_response_broadcast_equals_per_point(r in rotors(), (k, cc) in bearings(), n in 1usize..40) {
+        let w = speeds_for(&r, &k, n.max(2));
+        let n = w.len();
+        let force = [c(1.0, 0.5), c(-0.2, 0.1), c(0.3, 0.0), c(0.0, -1.0)];
+        let mut a = vec![c(0.0, 0.0); 4 * n];
+        forced::forced_response(&r, &k, &cc, &w, &w, &force, 1, &mut a).unwrap();
+        let kk: Vec<f64> = (0..n).flat_map(|_| k).collect();
+        let cr: Vec<f64> = (0..n).flat_map(|_| cc).collect();
+        let ff: Vec<C64> = (0..n).flat_map(|_| force).collect();
+        let mut b = vec![c(0.0, 0.0); 4 * n];
+        forced::forced_response(&r, &kk, &cr, &w, &w, &ff, 1, &mut b).unwrap();
+        prop_assert_eq!(a, b);
+    }
+
+    /// Exact responses of 2-4 runs identify the bearings they came from (both solvers), and the
+    /// two solvers agree.
+    #[test]
+    fn identification_recovers_the_bearings(r in rotors(), (k, cc) in bearings(), runs in 2usize..5,
+                                            e in proptest::collection::vec(-1.0f64..1.0, 32)) {
+        let w = speeds_for(&r, &k, 24);
+        let e = cplx_vec(&e[..8 * runs]);
+        let q = imbalance_responses(&r, &k, &cc, &w, &e);
+        let gain: Vec<f64> = w.iter().map(|v| v * v).collect();
+        let p = IdentProblem { rotor: r, w: &w, spin: &w, q: &q, e: &e, gain: &gain, sigma: &[], batch: 1, runs, identical: false };
+        let fast = run_identify(&p, false).unwrap();
+        let (err, used) = impedance_error(&fast, &k, &cc, &w, 1e5);
+        prop_assert!(used > 0);
+        prop_assert!(err < 1e-7, "forces solver: relative impedance error {err:e}");
+        prop_assert_eq!(fast.nbad, 0);
+        for (i, rs) in fast.resid.iter().enumerate() {
+            prop_assert!(fast.cond[2 * i].is_nan() || !(fast.cond[2 * i] < 1e5) || *rs < 1e-8, "residual {rs}");
+        }
+        let rep = run_identify(&p, true).unwrap();
+        let (err_r, _) = impedance_error(&rep, &k, &cc, &w, 1e5);
+        prop_assert!(err_r < 1e-6, "report solver: relative impedance error {err_r:e}");
+        if runs > 2 {
+            // exact data: standard errors are at rounding level relative to the coefficients
+            for (i, s) in fast.k_std.iter().enumerate() {
+                prop_assert!(!(*s < 0.0), "negative standard error at {i}");
+            }
+        }
+    }
+
+    /// A batch of problems equals the problems solved one at a time.
+    #[test]
+    fn batch_equals_single_problems(r in rotors(), (k, cc) in bearings(), (k2, c2) in bearings(),
+                                    e in proptest::collection::vec(-1.0f64..1.0, 24)) {
+        let w = speeds_for(&r, &k, 9);
+        let runs = 3;
+        let e = cplx_vec(&e);
+        let qa = imbalance_responses(&r, &k, &cc, &w, &e);
+        let qb = imbalance_responses(&r, &k2, &c2, &w, &e);
+        let gain: Vec<f64> = w.iter().map(|v| v * v).collect();
+        let qab: Vec<C64> = qa.iter().chain(qb.iter()).cloned().collect();
+        let pab = IdentProblem { rotor: r, w: &w, spin: &w, q: &qab, e: &e, gain: &gain, sigma: &[], batch: 2, runs, identical: false };
+        let both = run_identify(&pab, false).unwrap();
+        for (bi, qq) in [&qa, &qb].into_iter().enumerate() {
+            let p1 = IdentProblem { rotor: r, w: &w, spin: &w, q: qq, e: &e, gain: &gain, sigma: &[], batch: 1, runs, identical: false };
+            let one = run_identify(&p1, false).unwrap();
+            let o = bi * w.len() * 8;
+            for t in 0..w.len() * 8 {
+                let (x, y) = (one.k[t], both.k[o + t]);
+                prop_assert!(x == y || (x.is_nan() && y.is_nan()));
+            }
+        }
+    }
+
+    /// Identical bearings identified under `identical = true` (8 unknowns) are recovered too.
+    #[test]
+    fn identical_bearings(r in rotors(), (k, cc) in bearings(), e in proptest::collection::vec(-1.0f64..1.0, 16)) {
+        let mut k = k;
+        let mut cc = cc;
+        for t in 0..4 {
+            k[4 + t] = k[t];
+            cc[4 + t] = cc[t];
+        }
+        let w = speeds_for(&r, &k, 12);
+        let e = cplx_vec(&e);
+        let q = imbalance_responses(&r, &k, &cc, &w, &e);
+        let gain: Vec<f64> = w.iter().map(|v| v * v).collect();
+        let p = IdentProblem { rotor: r, w: &w, spin: &w, q: &q, e: &e, gain: &gain, sigma: &[], batch: 1, runs: 2, identical: true };
+        let id = run_identify(&p, false).unwrap();
+        let (err, used) = impedance_error(&id, &k, &cc, &w, 1e5);
+        prop_assert!(used > 0);
+        prop_assert!(err < 1e-7, "{err:e}");
+    }
+
+    /// Modal analysis: every eigenpair satisfies (lam^2 M + lam (C + Omega G) + K) v = 0, checked
+    /// through the equations of motion with s = lam.
+    #[test]
+    fn modal_eigenpairs_satisfy_the_equations(r in rotors(), (k, cc) in bearings(), spin_r in 0.0f64..2.0) {
+        let spin = spin_r * (k[0] / r.m).sqrt();
+        let (mut lam, mut sh) = ([c(0.0, 0.0); 4], [c(0.0, 0.0); 16]);
+        let failed = modal::modal(&r, &k, &cc, &[spin], &mut lam, &mut sh).unwrap();
+        prop_assert_eq!(failed, 0);
+        for m in 0..4 {
+            let l = lam[m];
+            if l.re.is_nan() {
+                continue; // overdamped pair
+            }
+            let v = &sh[4 * m..4 * m + 4];
+            let res = pencil_residual(&r, &k, &cc, spin, l, v);
+            let vn = v.iter().fold(0.0f64, |a, z| a.max(z.norm()));
+            let scale = (l.norm_sqr() * (r.m + r.it) + l.norm() * (cc.iter().fold(0.0f64, |a, b| a.max(b.abs())) + spin * r.ip)
+                + k.iter().fold(0.0f64, |a, b| a.max(b.abs()))) * vn;
+            prop_assert!(res <= 1e-8 * scale, "mode {m}: residual {res:e} of {scale:e}");
+        }
+    }
+}
+
+/// |D(lam) v| with D(s) = s^2 M + s (C + Omega G) + K, from the equations of motion: at s the
+/// bearing impedance is K + s C, i.e. K + j w C with j w = s.
+fn pencil_residual(r: &Rotor, k: &[f64], cc: &[f64], spin: f64, s: C64, v: &[C64]) -> f64 {
+    // evaluate term by term with complex s (motion_residual is written for s = j w)
+    let span = r.l1 + r.l2;
+    let (x1, x2, y1, y2) = (v[0], v[1], v[2], v[3]);
+    let z = |b: usize, i: usize, j: usize| c(k[4 * b + 2 * i + j], 0.0) + s * cc[4 * b + 2 * i + j];
+    let f1 = [z(0, 0, 0) * x1 + z(0, 0, 1) * y1, z(0, 1, 0) * x1 + z(0, 1, 1) * y1];
+    let f2 = [z(1, 0, 0) * x2 + z(1, 0, 1) * y2, z(1, 1, 0) * x2 + z(1, 1, 1) * y2];
+    let s2 = s * s;
+    let xg = (x1 * r.l2 + x2 * r.l1) / span;
+    let yg = (y1 * r.l2 + y2 * r.l1) / span;
+    let (tx, ty) = ((x2 - x1) / span, (y2 - y1) / span);
+    let res = [
+        s2 * r.m * xg + f1[0] + f2[0],
+        s2 * r.m * yg + f1[1] + f2[1],
+        s2 * r.it * tx + s * spin * r.ip * ty - r.l1 * f1[0] + r.l2 * f2[0],
+        -(s2 * r.it * ty) + s * spin * r.ip * tx + r.l1 * f1[1] - r.l2 * f2[1],
+    ];
+    res.iter().fold(0.0f64, |a, z| a.max(z.norm()))
+}
+
+#[test]
+fn undamped_symmetric_rotor_has_the_textbook_frequencies() {
+    // l1 = l2 = a, equal isotropic springs k, no damping, no spin: bounce sqrt(2k/m) and rocking
+    // sqrt(2 k a^2 / I_T), each twice (x and y)
+    let (m, it, a, kk) = (20.0, 0.5, 0.2, 1e6);
+    let r = Rotor::from_slice(&[m, it, 0.1, a, a]).unwrap();
+    let k = [kk, 0.0, 0.0, kk, kk, 0.0, 0.0, kk];
+    let (mut lam, mut sh) = ([c(0.0, 0.0); 4], [c(0.0, 0.0); 16]);
+    modal::modal(&r, &k, &[0.0; 8], &[0.0], &mut lam, &mut sh).unwrap();
+    let mut want = [(2.0 * kk / m).sqrt(), (2.0 * kk / m).sqrt(), (2.0 * kk * a * a / it).sqrt(), (2.0 * kk * a * a / it).sqrt()];
+    want.sort_by(|x, y| x.partial_cmp(y).unwrap());
+    for i in 0..4 {
+        assert!((lam[i].im - want[i]).abs() < 1e-9 * want[i], "{:?} vs {:?}", lam, want);
+        assert!(lam[i].re.abs() < 1e-9 * want[i]);
+    }
+}
+
+#[test]
+fn undamped_resonance_hit_exactly_is_singular() {
+    let (m, it, a, kk) = (20.0, 0.5, 0.2, 1e6);
+    let r = Rotor::from_slice(&[m, it, 0.0, a, a]).unwrap();
+    let k = [kk, 0.0, 0.0, kk, kk, 0.0, 0.0, kk];
+    let w = (2.0 * kk / m).sqrt();
+    let mut q = [c(0.0, 0.0); 4];
+    let force = [c(1.0, 0.0), c(0.0, 0.0), c(0.0, 0.0), c(0.0, 0.0)];
+    let bad = forced::forced_response(&r, &k, &[0.0; 8], &[w], &[w], &force, 1, &mut q).unwrap();
+    assert_eq!(bad, 1);
+    assert!(q.iter().all(|z| z.re.is_nan()));
+}
+
+/// Reference run-out subtraction, one sample at a time: find the revolution by linear search,
+/// the angle fraction, and interpolate the periodic template with a 4-point Lagrange stencil.
+fn runout_reference(x: &[f64], fs: f64, t0: f64, kp: &[f64], tpl: &[f64], i: usize) -> f64 {
+    let t = t0 + i as f64 / fs;
+    if t < kp[0] || t >= kp[kp.len() - 1] {
+        return f64::NAN;
+    }
+    let k = (0..kp.len() - 1).find(|&k| kp[k] <= t && t < kp[k + 1]).unwrap();
+    let p = tpl.len();
+    let u = (t - kp[k]) / (kp[k + 1] - kp[k]) * p as f64;
+    let m = u.floor();
+    let f = u - m;
+    let at = |j: isize| tpl[(j.rem_euclid(p as isize)) as usize];
+    let m = m as isize;
+    let w = [
+        -f * (f - 1.0) * (f - 2.0) / 6.0,
+        (f + 1.0) * (f - 1.0) * (f - 2.0) / 2.0,
+        -(f + 1.0) * f * (f - 2.0) / 2.0,
+        (f + 1.0) * f * (f - 1.0) / 6.0,
+    ];
+    x[i] - (w[0] * at(m - 1) + w[1] * at(m) + w[2] * at(m + 1) + w[3] * at(m + 2))
+}
+
+proptest! {
+    #![proptest_config(cfg(48))]
+
+    /// The run-out filter equals the sample-by-sample reference, on drifting speeds and any
+    /// sample window, and removes a periodic signature down to the interpolation error.
+    #[test]
+    fn runout_filter_matches_reference(rev_samples in 20.0f64..200.0, drift in -0.2f64..0.2, p in 16usize..300,
+                                        phase in 0.0f64..6.28, start in 0.0f64..1.0, nch in 1usize..4) {
+        let fs = 1000.0;
+        let nrev = 12;
+        // keyphasor with a speed ramp
+        let mut kp = vec![start / fs * rev_samples];
+        for r in 0..nrev {
+            let period = rev_samples / fs * (1.0 + drift * r as f64 / nrev as f64);
+            kp.push(kp[r] + period);
+        }
+        let n = (kp[nrev] * fs) as usize + 10;
+        let t0 = 0.0;
+        // signal: signature s(theta) = cos(theta + phase) + 0.3 cos(2 theta), per channel scaled
+        let theta = |t: f64| -> f64 {
+            if t < kp[0] || t >= kp[nrev] { return f64::NAN; }
+            let k = (0..nrev).find(|&k| kp[k] <= t && t < kp[k + 1]).unwrap();
+            2.0 * std::f64::consts::PI * (k as f64 + (t - kp[k]) / (kp[k + 1] - kp[k]))
+        };
+        let mut x = vec![0.0; nch * n];
+        let mut tpl = vec![0.0; nch * p];
+        for ch in 0..nch {
+            let g = 1.0 + ch as f64;
+            for i in 0..n {
+                let th = theta(t0 + i as f64 / fs);
+                x[ch * n + i] = if th.is_nan() { 0.5 } else { g * ((th + phase).cos() + 0.3 * (2.0 * th).cos()) };
+            }
+            for j in 0..p {
+                let th = 2.0 * std::f64::consts::PI * j as f64 / p as f64;
+                tpl[ch * p + j] = g * ((th + phase).cos() + 0.3 * (2.0 * th).cos());
+            }
+        }
+        let (i0, i1) = (3usize, n - 2);
+        let mut out = vec![0.0; nch * (i1 - i0)];
+        order::runout_subtract(&x, nch, fs, t0, &kp, &tpl, p, i0, i1, &mut out).unwrap();
+        for ch in 0..nch {
+            for i in i0..i1 {
+                let want = runout_reference(&x[ch * n..(ch + 1) * n], fs, t0, &kp, &tpl[ch * p..(ch + 1) * p], i);
+                let got = out[ch * (i1 - i0) + i - i0];
+                prop_assert!((want.is_nan() && got.is_nan()) || (want - got).abs() < 1e-12, "ch {ch} sample {i}: {got} vs {want}");
+                if !got.is_nan() {
+                    // cubic interpolation of a 2-harmonic signature at p >= 16 points per revolution
+                    let h = 2.0 * std::f64::consts::PI * 2.0 / p as f64;
+                    prop_assert!(got.abs() < 0.2 * (1.0 + ch as f64) * h.powi(4) + 1e-12);
+                }
+            }
+        }
+    }
+
+    /// Resampling at uniform angles reproduces a signal defined by its angle, to the cubic
+    /// interpolation error.
+    #[test]
+    fn angle_resample_follows_the_angle(rev_samples in 30.0f64..300.0, drift in -0.2f64..0.2, p in 4usize..64) {
+        let fs = 5000.0;
+        let nrev = 6;
+        let mut kp = vec![0.0123];
+        for r in 0..nrev {
+            kp.push(kp[r] + rev_samples / fs * (1.0 + drift * r as f64 / nrev as f64));
+        }
+        let n = (kp[nrev] * fs) as usize + 4;
+        let x: Vec<f64> = (0..n).map(|i| {
+            let t = i as f64 / fs;
+            let k = (0..nrev).find(|&k| kp[k] <= t && t < kp[k + 1]);
+            match k {
+                Some(k) => (2.0 * std::f64::consts::PI * (t - kp[k]) / (kp[k + 1] - kp[k])).sin(),
+                None => 0.0,
+            }
+        }).collect();
+        let (k0, k1) = (1, nrev - 1);
+        let mut out = vec![0.0; (k1 - k0) * p];
+        order::angle_resample(&x, 1, fs, 0.0, &kp, k0, k1, p, &mut out).unwrap();
+        let h = 2.0 * std::f64::consts::PI / (rev_samples * 0.8);
+        // the angle is linear within a revolution, so the signal's slope jumps at a pulse when the
+        // period changes; a stencil across a pulse sees that kink (error ~ slope jump x spacing)
+        let kink = 2.0 * std::f64::consts::PI * drift.abs() / nrev as f64 / (0.8 * rev_samples);
+        for r in 0..k1 - k0 {
+            for j in 0..p {
+                let want = (2.0 * std::f64::consts::PI * j as f64 / p as f64).sin();
+                prop_assert!((out[r * p + j] - want).abs() < 0.05 * h.powi(4) + kink + 1e-12, "rev {r} point {j}");
+            }
+        }
+    }
+
+    /// Time stepping equals the recursion written out in full.
+    #[test]
+    fn lti_run_matches_the_recursion(n in 1usize..6, m in 1usize..3, steps in 1usize..30,
+                                     vals in proptest::collection::vec(-1.0f64..1.0, 200)) {
+        let mut it = vals.iter().cycle().cloned();
+        let phi: Vec<f64> = (0..n * n).map(|_| 0.5 * it.next().unwrap()).collect();
+        let g0: Vec<f64> = (0..n * m).map(|_| it.next().unwrap()).collect();
+        let g1: Vec<f64> = (0..n * m).map(|_| it.next().unwrap()).collect();
+        let u: Vec<f64> = (0..steps * m).map(|_| it.next().unwrap()).collect();
+        let x0: Vec<f64> = (0..n).map(|_| it.next().unwrap()).collect();
+        let mut out = vec![0.0; steps * n];
+        timesim::lti_run(n, m, &phi, &g0, &g1, &u, &x0, &mut out).unwrap();
+        let mut x = x0.clone();
+        for s in 0..steps {
+            for i in 0..n {
+                prop_assert!((out[s * n + i] - x[i]).abs() < 1e-12 * (1.0 + x[i].abs()));
+            }
+            if s + 1 < steps {
+                let mut nx = vec![0.0; n];
+                for i in 0..n {
+                    nx[i] = (0..n).map(|j| phi[i * n + j] * x[j]).sum::<f64>()
+                        + (0..m).map(|j| g0[i * m + j] * u[s * m + j] + g1[i * m + j] * (u[(s + 1) * m + j] - u[s * m + j])).sum::<f64>();
+                }
+                x = nx;
+            }
+        }
+    }
+
+    /// Any lengths: an entry point answers Ok or a CoreError naming an argument, never panics.
+    #[test]
+    fn wrong_lengths_are_errors_not_panics(nk in 0usize..20, nc in 0usize..20, ns in 0usize..4, nw in 0usize..4,
+                                           nf in 0usize..20, nrhs in 0usize..3, no in 0usize..20) {
+        let r = nsf_rotor();
+        let (k, cc) = (vec![1e6; nk], vec![1e3; nc]);
+        let (spin, w) = (vec![100.0; ns], vec![100.0; nw]);
+        let f = vec![c(1.0, 0.0); nf];
+        let mut out = vec![c(0.0, 0.0); no];
+        match forced::forced_response(&r, &k, &cc, &spin, &w, &f, nrhs, &mut out) {
+            Ok(_) => prop_assert_eq!(no, nw * nrhs * 4),
+            Err(e) => prop_assert!(["nrhs", "spin", "k", "c", "force", "out"].contains(&e.name())),
+        }
+        let (mut lam, mut sh) = (vec![c(0.0, 0.0); no], vec![c(0.0, 0.0); nf]);
+        if let Err(e) = modal::modal(&r, &k, &cc, &spin, &mut lam, &mut sh) {
+            prop_assert!(["k", "c", "lam", "shapes"].contains(&e.name()));
+        }
+    }
+}
+
+#[test]
+fn identification_argument_errors_name_the_argument() {
+    let r = nsf_rotor();
+    let w = [100.0, 200.0];
+    let q = vec![c(1e-6, 0.0); 2 * 2 * 4];
+    let e = vec![c(1e-4, 0.0); 2 * 4];
+    let gain = [1e4, 4e4];
+    let base = IdentProblem { rotor: r, w: &w, spin: &w, q: &q, e: &e, gain: &gain, sigma: &[], batch: 1, runs: 2, identical: false };
+    assert!(run_identify(&base, false).is_ok());
+    let cases: Vec<(IdentProblem, &str)> = vec![
+        (IdentProblem { runs: 0, ..base }, "runs"),
+        (IdentProblem { q: &q[..15], ..base }, "q"),
+        (IdentProblem { e: &e[..5], ..base }, "e"),
+        (IdentProblem { gain: &gain[..1], ..base }, "gain"),
+        (IdentProblem { spin: &w[..1], ..base }, "spin"),
+        (IdentProblem { sigma: &[0.0], ..base }, "sigma"),
+        (IdentProblem { sigma: &[0.0, f64::NAN], ..base }, "sigma"),
+        (IdentProblem { w: &[100.0, 0.0], ..base }, "w"),
+        (IdentProblem { batch: 3, ..base }, "q"),
+    ];
+    for (p, name) in cases {
+        for report in [false, true] {
+            match run_identify(&p, report) {
+                Err(err) => assert_eq!(err.name(), name, "{err}"),
+                Ok(_) => panic!("expected an error about {name}"),
+            }
+        }
+    }
+}
+
+#[test]
+fn order_argument_errors_name_the_argument() {
+    let x = vec![0.0; 100];
+    let kp = [0.01, 0.02, 0.03];
+    let mut out = vec![0.0; 2 * 8];
+    assert!(order::angle_resample(&x, 1, 1000.0, 0.0, &kp, 0, 2, 8, &mut out).is_ok());
+    let err = |r: Result<(), CoreError>| r.unwrap_err().name();
+    assert_eq!(err(order::angle_resample(&x, 1, 1000.0, 0.0, &[0.02, 0.01], 0, 1, 8, &mut out)), "kp");
+    assert_eq!(err(order::angle_resample(&x, 1, 0.0, 0.0, &kp, 0, 2, 8, &mut out)), "fs");
+    assert_eq!(err(order::angle_resample(&x, 1, 1000.0, f64::NAN, &kp, 0, 2, 8, &mut out)), "t0");
+    assert_eq!(err(order::angle_resample(&x, 1, 1000.0, 0.0, &kp, 2, 2, 8, &mut out)), "k0, k1");
+    assert_eq!(err(order::angle_resample(&x, 1, 1000.0, 0.0, &kp, 0, 2, 3, &mut out)), "p");
+    assert_eq!(err(order::angle_resample(&x, 3, 1000.0, 0.0, &kp, 0, 2, 8, &mut out)), "x");
+    assert_eq!(err(order::angle_resample(&x, 1, 1000.0, 0.0, &kp, 0, 2, 8, &mut out[..3])), "out");
+    let tpl = vec![0.0; 8];
+    let mut o2 = vec![0.0; 50];
+    assert!(order::runout_subtract(&x, 1, 1000.0, 0.0, &kp, &tpl, 8, 10, 60, &mut o2).is_ok());
+    assert_eq!(err(order::runout_subtract(&x, 1, 1000.0, 0.0, &kp, &tpl, 8, 60, 10, &mut o2)), "i0, i1");
+    assert_eq!(err(order::runout_subtract(&x, 1, 1000.0, 0.0, &kp, &tpl[..5], 8, 10, 60, &mut o2)), "template");
+    assert_eq!(err(order::runout_subtract(&x, 0, 1000.0, 0.0, &kp, &tpl, 8, 10, 60, &mut o2)), "x");
+    assert_eq!(err(timesim::lti_run(2, 0, &[0.0; 4], &[], &[], &[], &[0.0; 2], &mut [])), "m");
+    assert_eq!(err(timesim::lti_run(2, 1, &[0.0; 3], &[0.0; 2], &[0.0; 2], &[0.0; 2], &[0.0; 2], &mut [0.0; 4])), "phi");
+}
