@@ -3,51 +3,36 @@
 use crate::error::{expect_len, product, CoreError};
 use crate::forced::solve4_near_singular;
 use crate::model::{assemble, Rotor, C64};
-use faer::Mat;
+use nalgebra::{Matrix4, SMatrix, Schur};
 use rayon::prelude::*;
 
-/// Invert a real 4x4 matrix (Gauss-Jordan with partial pivoting).
-fn inv4(a: &[[f64; 4]; 4]) -> Option<[[f64; 4]; 4]> {
-    let mut m = *a;
-    let mut inv = [[0.0; 4]; 4];
-    for i in 0..4 {
-        inv[i][i] = 1.0;
-    }
-    for k in 0..4 {
-        let mut p = k;
-        for i in (k + 1)..4 {
-            if m[i][k].abs() > m[p][k].abs() {
-                p = i;
+/// The 8 x 8 state matrix of one point, A = [[0, I], [-M^-1 K, -M^-1 (C + Omega G)]].
+pub type StateMatrix = SMatrix<f64, 8, 8>;
+
+/// State matrix of eq. 1 without forcing, x = [q, q'], x' = A x. `minv` is M^-1.
+pub fn state_matrix(minv: &Matrix4<f64>, k: &[[f64; 4]; 4], c: &[[f64; 4]; 4], g: &[[f64; 4]; 4], spin: f64) -> StateMatrix {
+    let mut a = StateMatrix::zeros();
+    for r in 0..4 {
+        a[(r, 4 + r)] = 1.0;
+        for col in 0..4 {
+            let mut sk = 0.0;
+            let mut sc = 0.0;
+            for t in 0..4 {
+                sk += minv[(r, t)] * k[t][col];
+                sc += minv[(r, t)] * (c[t][col] + spin * g[t][col]);
             }
-        }
-        if m[p][k] == 0.0 {
-            return None;
-        }
-        m.swap(p, k);
-        inv.swap(p, k);
-        let d = 1.0 / m[k][k];
-        for j in 0..4 {
-            m[k][j] *= d;
-            inv[k][j] *= d;
-        }
-        for i in 0..4 {
-            if i != k {
-                let f = m[i][k];
-                for j in 0..4 {
-                    m[i][j] -= f * m[k][j];
-                    inv[i][j] -= f * inv[k][j];
-                }
-            }
+            a[(4 + r, col)] = -sk;
+            a[(4 + r, 4 + col)] = -sc;
         }
     }
-    Some(inv)
+    a
 }
 
 /// Balance a square matrix in place by a diagonal similarity D^-1 A D with powers of two (the
 /// scaling loop of LAPACK's dgebal, without permutations). Returns D.
-fn balance(a: &mut Mat<f64>) -> Vec<f64> {
-    let n = a.nrows();
-    let mut d = vec![1.0; n];
+pub fn balance(a: &mut StateMatrix) -> [f64; 8] {
+    let n = 8;
+    let mut d = [1.0; 8];
     let radix = 2.0f64;
     for _ in 0..100 {
         let mut done = true;
@@ -91,6 +76,61 @@ fn balance(a: &mut Mat<f64>) -> Vec<f64> {
     d
 }
 
+/// Eigenvalues of a state matrix: nalgebra's real Schur decomposition (Hessenberg reduction and
+/// Francis double-shift QR) on the stack-allocated 8 x 8 matrix. None if QR does not converge.
+pub fn eigenvalues(a: StateMatrix) -> Option<[C64; 8]> {
+    let schur = Schur::try_new(a, f64::EPSILON, 10_000)?;
+    let ev = schur.complex_eigenvalues();
+    let mut out = [C64::new(0.0, 0.0); 8];
+    for (o, e) in out.iter_mut().zip(ev.iter()) {
+        *o = C64::new(e.re, e.im);
+    }
+    Some(out)
+}
+
+/// Generic start vectors of the inverse iteration (no structure a rotor's mode shape could be
+/// orthogonal to).
+const START: [[C64; 4]; 2] = [
+    [C64::new(1.0, 0.0), C64::new(0.71, 0.23), C64::new(0.37, -0.61), C64::new(-0.53, 0.47)],
+    [C64::new(-0.29, 0.83), C64::new(0.61, -0.37), C64::new(1.0, 0.0), C64::new(0.19, 0.67)],
+];
+
+/// Mode shape of eigenvalue `lam` by inverse iteration on D(s) = s^2 M + s (C + Omega G) + K with a
+/// relative shift of 1e-12 (singular to rounding on purpose: each step multiplies the wanted
+/// direction by ~1e12 against the others), starting from `v`; `avoid`: shapes of eigenvalues equal
+/// to this one, projected out so that a repeated eigenvalue gets independent shapes.
+fn mode_shape(m: &[[f64; 4]; 4], cg: &[[f64; 4]; 4], k: &[[f64; 4]; 4], lam: C64, mut v: [C64; 4], avoid: &[[C64; 4]]) -> [C64; 4] {
+    let lam_s = lam * (1.0 + 1e-12);
+    let mut dm0 = [[C64::new(0.0, 0.0); 4]; 4];
+    for r in 0..4 {
+        for col in 0..4 {
+            dm0[r][col] = lam_s * lam_s * m[r][col] + lam_s * cg[r][col] + k[r][col];
+        }
+    }
+    for _ in 0..3 {
+        for u in avoid {
+            // u has unit 2-norm
+            let dot: C64 = (0..4).map(|d| u[d].conj() * v[d]).sum();
+            for d in 0..4 {
+                v[d] -= dot * u[d];
+            }
+        }
+        let mut dm = dm0;
+        let mut y = v;
+        if !solve4_near_singular(&mut dm, &mut y) {
+            break;
+        }
+        let nrm = y.iter().map(|z| z.norm_sqr()).sum::<f64>().sqrt();
+        if !(nrm > 0.0 && nrm.is_finite()) {
+            break;
+        }
+        for d in 0..4 {
+            v[d] = y[d] / nrm;
+        }
+    }
+    v
+}
+
 /// For each point: eigenvalues with positive imaginary part (up to 4, sorted by damped natural
 /// frequency, NaN-padded when a mode is overdamped) and the displacement part of their
 /// eigenvectors (order [x1, x2, y1, y2], normalized to unit largest component, real at that
@@ -108,7 +148,7 @@ pub fn modal(rotor: &Rotor, kb: &[f64], cb: &[f64], spin: &[f64], lam: &mut [C64
 fn modal_kernel(rotor: &Rotor, kb: &[f64], cb: &[f64], spin: &[f64], lam: &mut [C64], shapes: &mut [C64]) -> usize {
     let m = rotor.mass_matrix();
     let g = rotor.gyro_matrix();
-    let minv = match inv4(&m) {
+    let minv = match Matrix4::from_fn(|r, c| m[r][c]).try_inverse() {
         Some(v) => v,
         None => {
             for v in lam.iter_mut().chain(shapes.iter_mut()) {
@@ -119,68 +159,38 @@ fn modal_kernel(rotor: &Rotor, kb: &[f64], cb: &[f64], spin: &[f64], lam: &mut [
     };
     lam.par_chunks_mut(4)
         .zip(shapes.par_chunks_mut(16))
+        .with_min_len(16)
         .enumerate()
         .map(|(i, (lo, so))| {
             let k = assemble(&kb[8 * i..8 * i + 8], rotor.l1, rotor.l2);
             let c = assemble(&cb[8 * i..8 * i + 8], rotor.l1, rotor.l2);
-            let mut a = Mat::<f64>::zeros(8, 8);
-            for r in 0..4 {
-                a[(r, 4 + r)] = 1.0;
-                for col in 0..4 {
-                    let mut sk = 0.0;
-                    let mut sc = 0.0;
-                    for t in 0..4 {
-                        sk += minv[r][t] * k[t][col];
-                        sc += minv[r][t] * (c[t][col] + spin[i] * g[t][col]);
-                    }
-                    a[(4 + r, col)] = -sk;
-                    a[(4 + r, 4 + col)] = -sc;
-                }
-            }
             for v in lo.iter_mut().chain(so.iter_mut()) {
                 *v = C64::new(f64::NAN, f64::NAN);
             }
+            let mut a = state_matrix(&minv, &k, &c, &g, spin[i]);
             // balance (LAPACK-style diagonal similarity with powers of 2): the state matrix of a
             // stiff, heavily damped rotor spans many decades, and unbalanced eigenvalues came
             // out ~3e-7 relative off (checked against 40-digit mpmath)
-            let dscale = balance(&mut a);
-            let evd = match a.eigen() {
-                Ok(e) => e,
-                Err(_) => return 1usize,
+            balance(&mut a);
+            let s = match eigenvalues(a) {
+                Some(s) => s,
+                None => return 1usize,
             };
-            let s = evd.S().column_vector();
-            let u = evd.U();
             let mut idx: Vec<usize> = (0..8).filter(|&t| s[t].im > 1e-9 * s[t].norm().max(1e-300)).collect();
             idx.sort_by(|&x, &y| s[x].im.partial_cmp(&s[y].im).unwrap_or(std::cmp::Ordering::Equal));
+            let mut cg = c;
+            for r in 0..4 {
+                for col in 0..4 {
+                    cg[r][col] += spin[i] * g[r][col];
+                }
+            }
+            let mut found: Vec<[C64; 4]> = Vec::with_capacity(4);
             for (mi, &t) in idx.iter().take(4).enumerate() {
-                lo[mi] = C64::new(s[t].re, s[t].im);
-                let mut v = [C64::new(0.0, 0.0); 4];
-                for d in 0..4 {
-                    v[d] = C64::new(u[(d, t)].re, u[(d, t)].im) * dscale[d];
-                }
-                // Two steps of inverse iteration on D(lam) = lam^2 M + lam (C + Omega G) + K with a
-                // relative shift of 1e-12: the Schur-based eigenvectors of (nearly) repeated
-                // eigenvalues can be poor (residual 1e-5 relative seen); this restores them.
-                let lam_s = lo[mi] * (1.0 + 1e-12);
-                for _ in 0..2 {
-                    let mut dm = [[C64::new(0.0, 0.0); 4]; 4];
-                    for r in 0..4 {
-                        for col in 0..4 {
-                            dm[r][col] = lam_s * lam_s * m[r][col] + lam_s * (c[r][col] + spin[i] * g[r][col]) + k[r][col];
-                        }
-                    }
-                    let mut y = v;
-                    if !solve4_near_singular(&mut dm, &mut y) {
-                        break;
-                    }
-                    let nrm = y.iter().map(|z| z.norm_sqr()).sum::<f64>().sqrt();
-                    if !(nrm > 0.0 && nrm.is_finite()) {
-                        break;
-                    }
-                    for d in 0..4 {
-                        v[d] = y[d] / nrm;
-                    }
-                }
+                lo[mi] = s[t];
+                // shapes of earlier modes with the same eigenvalue (to rounding) are projected out
+                let same: Vec<[C64; 4]> = (0..mi).filter(|&o| (lo[o] - s[t]).norm() <= 1e-9 * s[t].norm()).map(|o| found[o]).collect();
+                let v = mode_shape(&m, &cg, &k, s[t], START[mi % 2], &same);
+                found.push(v);
                 let best = (0..4).fold(0, |b, d| if v[d].norm() > v[b].norm() { d } else { b });
                 let piv = v[best];
                 let scale = if piv.norm() > 0.0 { 1.0 / piv } else { C64::new(1.0, 0.0) };
