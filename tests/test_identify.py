@@ -189,6 +189,13 @@ def test_core_rejects_bad_shapes_without_panicking():
         _core.identify(p, w, w, np.zeros((1, 2, 3, 8), complex)[..., ::2], np.zeros((1, 2, 4), complex), w)
     with pytest.raises(TypeError):
         _core.identify(p, w, w, np.zeros((1, 2, 3, 4)), np.zeros((1, 2, 4), complex), w)
+    # runs handed over as a list of (n, 4) arrays, used where they are
+    with pytest.raises(ValueError, match=r"q\[1\] has shape"):
+        _core.identify(p, w, w, [np.zeros((3, 4), complex), np.zeros((2, 4), complex)], np.zeros((1, 2, 4), complex), w)
+    with pytest.raises(TypeError, match=r"q\[0\] must be a complex128"):
+        _core.identify(p, w, w, [np.zeros((3, 4)), np.zeros((3, 4), complex)], np.zeros((1, 2, 4), complex), w)
+    with pytest.raises(ValueError, match="C-contiguous"):
+        _core.identify(p, w, w, [np.zeros((3, 8), complex)[:, ::2]] * 2, np.zeros((1, 2, 4), complex), w)
     rig = rotorid.nsf_rig()
     rpm = np.array([3000.0, 4000.0, 5000.0])
     om = rpm * np.pi / 30

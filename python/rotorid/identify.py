@@ -59,7 +59,7 @@ class Identification:
     k_std: np.ndarray
     c_std: np.ndarray
     ok: np.ndarray
-    flag: np.ndarray
+    flag_code: np.ndarray
     method: str
     runs: list = field(default_factory=list)
     std_source: str = "none"
@@ -71,6 +71,13 @@ class Identification:
     k_bias: np.ndarray | None = None
     c_bias: np.ndarray | None = None
     estimator: str = "ls"
+    flag_reasons: tuple = ()
+
+    @property
+    def flag(self) -> np.ndarray:
+        """Why each point is flagged (object array of str, "" where ok; reasons joined by "; ",
+        "singular" alone)."""
+        return _flag_strings(self.flag_code, self.flag_reasons)
 
     def interval(self, level: float = 0.95):
         """Confidence bounds of k and c: coefficient ± t(level, dof) × standard error.
@@ -247,20 +254,38 @@ def _diagnose_singular(qs, labels):
             "linearly dependent (one is a complex multiple of another, or the data repeat a run)")
 
 
+#: flag bits of _finish, in the order their reasons are joined
+_SINGULAR, _ILL, _UNCERTAIN, _LOW = 1, 2, 4, 8
+_BASE_REASONS = ("singular", "ill-conditioned", "uncertain", "low amplitude")
+
+
+def _flag_strings(code, reasons):
+    """Flag codes (bit i = reasons[i]) as strings: reasons joined by "; ", "singular" alone."""
+    out = np.full(code.shape, "", dtype=object)
+    for c in np.unique(code[code != 0]):
+        c = int(c)
+        names = ["singular"] if c & _SINGULAR else [why for i, why in enumerate(reasons) if c >> i & 1]
+        out[code == c] = "; ".join(names)
+    return out
+
+
 def _finish(axis_name, axis, amp, k, c, cond, resid, ks, cs, cond_max, min_rel_amplitude, method, labels,
             std_source="none", dof=None, cov=None, max_rel_std=MAX_REL_STD, extra_flags=None, ks_res=None, cs_res=None,
-            bias_k=None, bias_c=None, estimator="ls"):
-    """Result object with per-point flags. ``amp``: rms response amplitude over runs and coordinates."""
-    from .uncertainty import relative_std
-
+            bias_k=None, bias_c=None, estimator="ls", rel_std=None):
+    """Result object with per-point flags. ``amp``: rms response amplitude over runs and coordinates;
+    ``rel_std``: the relative standard error of ``ks``, ``cs`` when the core computed it."""
     peak = amp.max() if amp.size else 0.0
     rel = amp / peak if peak > 0 else np.zeros_like(amp)
-    c1, c2 = cond[:, 0], cond[:, 1]
-    finite = np.isfinite(c1) & np.isfinite(c2)  # the core returns inf (singular) or NaN (bad input)
-    worst = np.maximum(c1, c2)
-    rstd = relative_std(k, c, ks, cs)
-    reasons = [(~finite, "singular"), (finite & (worst > cond_max), "ill-conditioned"),
-               (finite & (rstd > max_rel_std), "uncertain"), (rel < min_rel_amplitude, "low amplitude")]
+    worst = np.maximum(cond[:, 0], cond[:, 1])
+    finite = np.isfinite(worst)  # the core returns inf (singular) or NaN (bad input)
+    if rel_std is None:
+        rel_std = _core.relative_std(*(np.ascontiguousarray(a, dtype=float).reshape(-1, 8) for a in (k, c, ks, cs)))
+    # bit i of the code is reason i of _BASE_REASONS (bool arrays viewed as 0/1 bytes)
+    code = (~finite).view(np.uint8)
+    code |= (finite & (worst > cond_max)).view(np.uint8) << 1
+    code |= (finite & (rel_std > max_rel_std)).view(np.uint8) << 2
+    code |= (rel < min_rel_amplitude).view(np.uint8) << 3
+    reasons = list(_BASE_REASONS)
     if extra_flags is not None:
         try:
             extra = [(np.asarray(m, dtype=bool), str(why)) for m, why in extra_flags if isinstance(why, str)]
@@ -268,14 +293,15 @@ def _finish(axis_name, axis, amp, k, c, cond, resid, ks, cs, cond_max, min_rel_a
             raise RotoridError("extra_flags must be a list of (mask over the points, reason) pairs") from None
         if len(extra) != len(list(extra_flags)) or any(m.shape != (axis.size,) for m, _ in extra):
             raise RotoridError(f"extra_flags must be a list of (mask of {axis.size} points, reason) pairs")
-        reasons += extra
-    flag = np.full(axis.size, "", dtype=object)
-    for mask, why in reasons:
-        for i in np.nonzero(mask)[0]:
-            flag[i] = why if not flag[i] else (flag[i] if flag[i] == "singular" else f"{flag[i]}; {why}")
-    ok = flag == ""
-    return Identification(axis_name, axis, k, c, cond, resid, rel, ks, cs, ok, flag, method, labels, std_source, dof,
-                          cov, rstd, ks_res, cs_res, bias_k, bias_c, estimator)
+        if len(reasons) + len(extra) > 16:
+            raise RotoridError("extra_flags: at most 12 extra reasons")
+        code = code.astype(np.uint16)
+        for mask, why in extra:
+            code |= mask.astype(np.uint16) << len(reasons)
+            reasons.append(why)
+    ok = code == 0
+    return Identification(axis_name, axis, k, c, cond, resid, rel, ks, cs, ok, code, method, labels, std_source, dof,
+                          cov, rel_std, ks_res, cs_res, bias_k, bias_c, estimator, tuple(reasons))
 
 
 def _check_bool(name, value):
@@ -343,18 +369,28 @@ def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", ide
         labels.append(_run_label(i, r))
     check_imbalance_independence(rotor, [r.imbalance for r in runs], labels, identical=identical)
     rpm = runs[0].speed_rpm
-    for i, r in enumerate(runs[1:], 1):
-        if r.speed_rpm.shape != rpm.shape or not np.allclose(r.speed_rpm, rpm, rtol=1e-9, atol=0):
-            raise RotoridError(f"speed_rpm of {labels[i]} differs from that of {labels[0]}: all runs must be "
-                               "given at the same speeds (interpolate the 1X vectors first)")
+    _check_same_axis("speed_rpm", [r.speed_rpm for r in runs], labels, "runs", "speeds", "interpolate the 1X vectors first")
     at_b = [r.at_bearings(rotor) for r in runs]
-    qs = np.stack([r.q for r in at_b])  # (R, n, 4)
+    qs = [np.ascontiguousarray(r.q, dtype=complex) for r in at_b]  # the runs as they are: no copy, no stack
     om = rpm * RPM
     e = np.stack([r.imbalance.generalized(rotor) for r in runs])  # (R, 4), scaled by Omega^2 below
+    covs = _run_covs(at_b, labels)
     return _solve(rotor, "speed_rpm", rpm, om, om, qs, e, om ** 2, None, identical=identical, method=method,
                   labels=labels, cond_max=cond_max, min_rel_amplitude=min_rel_amplitude, what="responses",
-                  covs=_run_covs(at_b, labels), dofs=_run_dofs(at_b), max_rel_std=max_rel_std, estimator=estimator,
-                  shared_cov=_shared(rotor, runs, shared_cov))
+                  covs=covs, dofs=None if covs is None else _run_dofs(at_b), max_rel_std=max_rel_std,
+                  estimator=estimator, shared_cov=_shared(rotor, runs, shared_cov))
+
+
+def _check_same_axis(name, axes, labels, what, unit, advice):
+    """Every run on the first run's axis: equal arrays pass at once (the common case, a pass over
+    the data), otherwise within 1e-9 relative (rounding of a stored axis)."""
+    ref = axes[0]
+    for i, a in enumerate(axes[1:], 1):
+        if a is ref or np.array_equal(a, ref):
+            continue
+        if a.shape != ref.shape or not np.allclose(a, ref, rtol=1e-9, atol=0):
+            raise RotoridError(f"{name} of {labels[i]} differs from that of {labels[0]}: all {what} must be given at "
+                               f"the same {unit} ({advice})")
 
 
 def _shared(rotor, runs, shared_cov):
@@ -404,11 +440,13 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
     min_rel_amplitude = _check_threshold("min_rel_amplitude", min_rel_amplitude, -1e-300, 1.0)
     max_rel_std = _check_threshold("max_rel_std", max_rel_std, 0.0)
     # standard errors need redundant equations: more rows than the 2 unknowns of each system
-    redundant = qs.shape[0] * (2 if identical else 1) > 2
-    k, c, cond, resid, amp, ks, cs, nbad = _core.identify(
-        rotor.core_params(), w, spin, np.ascontiguousarray(qs[None]), np.ascontiguousarray(e[None], dtype=complex),
+    nruns = len(qs)
+    redundant = nruns * (2 if identical else 1) > 2
+    k, c, cond, resid, amp, ks, cs, rel_std, nbad = _core.identify(
+        rotor.core_params(), w, spin, list(qs), np.ascontiguousarray(e[None], dtype=complex),
         gain, identical=identical, method=method, with_std=redundant, sigma=sigma)
     if nbad:
+        qs = np.stack(qs)
         big = float(np.nanmax(np.abs(qs))) if np.isfinite(qs).all() else None
         if big is not None:
             raise RotoridError(f"{what} reach {big:.3g} (m or m/N): the computation overflows; no rotor responds that "
@@ -417,23 +455,26 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
     if ks is None:
         ks = np.full_like(k, np.nan)
         cs = np.full_like(c, np.nan)
+        rel_std = np.full(k.shape[:2], np.nan)
     if not np.any(np.isfinite(cond)):
-        raise IdentifiabilityError(_diagnose_singular(qs, labels))
+        raise IdentifiabilityError(_diagnose_singular(np.stack(qs), labels))
     ks, cs = ks[0], cs[0]
+    rel_std = None if rel_std is None else rel_std[0]
     ks_res, cs_res = ks, cs
     bias_k = bias_c = None
     source, dof, cov = ("residual" if redundant else "none"), None, None
     if redundant:
         # residual dof per bearing system: R complex equations (2R real) for 2 complex unknowns
-        dof = np.full(axis.size, 2.0 * (qs.shape[0] * (2 if identical else 1) - 2))
+        dof = np.full(axis.size, 2.0 * (nruns * (2 if identical else 1) - 2))
     choice("estimator", estimator, {"ls", "bias-corrected"})
     if estimator == "bias-corrected" and covs is None:
         raise RotoridError("estimator='bias-corrected' needs the measurement covariance of every run or test (cov=)")
     if covs is not None:
         from .model import _REPORT_TO_BIJ
 
-        cov, b = propagate(rotor, w, spin, qs, e, gain, sigma, covs, identical=identical, method=method, bias=True,
-                           shared=shared_cov)
+        cov, b = propagate(rotor, w, spin, np.stack(qs), e, gain, sigma, covs, identical=identical, method=method,
+                           bias=True, shared=shared_cov)
+        rel_std = None  # the standard errors change: recomputed in _finish
         n = axis.size
         bk = np.zeros((n, 8))
         bc = np.zeros((n, 8))
@@ -467,7 +508,7 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
             extra_flags = list(extra_flags or []) + [(rejected, "identical bearings rejected by the data")]
     return _finish(axis_name, axis, amp[0], k[0], c[0], cond[0], resid[0], ks, cs, cond_max, min_rel_amplitude,
                    method, labels, source, dof, cov, max_rel_std, extra_flags, ks_res, cs_res, bias_k, bias_c,
-                   estimator)
+                   estimator, rel_std)
 
 
 def identify_synchronous_batch(rotor: RigidRotor, speed_rpm, q, imbalances, *, method: str = "forces",
@@ -509,7 +550,7 @@ def identify_synchronous_batch(rotor: RigidRotor, speed_rpm, q, imbalances, *, m
                                        "linearly dependent across the runs (complex multiples of one another): those "
                                        "trials cannot identify the coefficients")
     om = rpm * RPM
-    k, c, cond, resid, amp, ks, cs, _ = _core.identify(rotor.core_params(), om, om, np.ascontiguousarray(q),
+    k, c, cond, resid, amp, ks, cs, _, _ = _core.identify(rotor.core_params(), om, om, np.ascontiguousarray(q),
                                                       np.ascontiguousarray(e), om ** 2, identical=identical,
                                                       method=method, with_std=with_std)
     out = dict(k=k, c=c, cond=cond, residual=resid, amplitude=amp)
@@ -565,10 +606,9 @@ def identify_impact(rotor: RigidRotor, tests, *, method: str = "forces", identic
         raise IdentifiabilityError("no impact tests given")
     f = tests[0].freq_hz
     speed = tests[0].speed_rpm
+    _check_same_axis("freq_hz", [t.freq_hz for t in tests], labels, "tests", "frequencies",
+                     "same record length and sample rate")
     for i, t in enumerate(tests[1:], 1):
-        if t.freq_hz.shape != f.shape or not np.allclose(t.freq_hz, f, rtol=1e-9, atol=0):
-            raise RotoridError(f"freq_hz of {labels[i]} differs from that of {labels[0]}: all tests must share one "
-                               "frequency axis (same record length and sample rate)")
         if not np.isclose(t.speed_rpm, speed, rtol=1e-6, atol=1e-9):
             raise RotoridError(f"speed_rpm of {labels[i]} ({t.speed_rpm:g}) differs from {labels[0]} ({speed:g}): "
                                "impact identification needs all tests at the same running speed")
@@ -577,9 +617,9 @@ def identify_impact(rotor: RigidRotor, tests, *, method: str = "forces", identic
                                f"{labels[0]} ({tests[0].sigma:g} 1/s): window all tests alike")
     check_impact_independence(tests, labels, identical=identical)
     at_b = [t.at_bearings(rotor) for t in tests]
-    qs = np.stack([t.frf() for t in at_b])  # (R, n, 4) per unit force
+    qs = [np.ascontiguousarray(t.frf(), dtype=complex) for t in at_b]  # (n, 4) per unit force, per test
     covs = _run_covs(at_b, labels)
-    dofs = _run_dofs(at_b)
+    dofs = None if covs is None else _run_dofs(at_b)
     w = 2 * np.pi * f
     spin = np.full_like(w, speed * RPM)
     e = np.stack([t.excitation() for t in tests])  # (R, 4), per unit force

@@ -5,8 +5,9 @@
 
 use rotorid_core::{forced, identify, modal, order, timesim, CoreError, Rotor, C64};
 use numpy::{PyArray1, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
-use pyo3::exceptions::{PyMemoryError, PyRuntimeError, PyValueError};
+use pyo3::exceptions::{PyMemoryError, PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
+use pyo3::types::PyList;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::{Arc, Mutex, OnceLock};
 
@@ -173,14 +174,63 @@ type IdentTuple<'py> = (
     Bound<'py, PyArrayDyn<f64>>,
     Option<Bound<'py, PyArrayDyn<f64>>>,
     Option<Bound<'py, PyArrayDyn<f64>>>,
+    Option<Bound<'py, PyArrayDyn<f64>>>,
     usize,
 );
 
+/// The responses of an identification as (batch, runs) blocks of (n, 4): either one array
+/// (batch, runs, n, 4) or a list of `runs` arrays (n, 4) of one problem, used where they are.
+struct Responses<'py> {
+    arrays: Vec<PyReadonlyArrayDyn<'py, C64>>,
+    /// one array (batch, runs, n, 4) rather than a list of runs
+    stacked: bool,
+    batch: usize,
+    runs: usize,
+    n: usize,
+}
+
+fn responses<'py>(q: &Bound<'py, PyAny>) -> PyResult<Responses<'py>> {
+    if let Ok(list) = q.cast::<PyList>() {
+        let arrays: Vec<PyReadonlyArrayDyn<'py, C64>> = list
+            .iter()
+            .enumerate()
+            .map(|(r, a)| a.extract().map_err(|_| PyTypeError::new_err(format!("q[{r}] must be a complex128 array"))))
+            .collect::<PyResult<_>>()?;
+        let n = arrays.first().map(|a| a.shape()[0]).unwrap_or(0);
+        for (r, a) in arrays.iter().enumerate() {
+            if a.shape() != [n, 4] {
+                return Err(PyValueError::new_err(format!("q[{r}] has shape {:?}, expected ({n}, 4)", a.shape())));
+            }
+        }
+        let runs = arrays.len();
+        return Ok(Responses { arrays, stacked: false, batch: 1, runs, n });
+    }
+    let a: PyReadonlyArrayDyn<'py, C64> = q.extract().map_err(|_| PyTypeError::new_err("q must be a complex128 array or a list of them"))?;
+    let qs = a.shape().to_vec();
+    if qs.len() != 4 || qs[3] != 4 {
+        return Err(PyValueError::new_err(format!("q has shape {qs:?}, expected (batch, runs, n, 4)")));
+    }
+    Ok(Responses { arrays: vec![a], stacked: true, batch: qs[0], runs: qs[1], n: qs[2] })
+}
+
+impl Responses<'_> {
+    fn blocks(&self) -> PyResult<Vec<&[C64]>> {
+        if self.stacked {
+            let all = slice(&self.arrays[0], "q")?;
+            let step = 4 * self.n;
+            return Ok(if step == 0 { vec![&all[..0]; self.batch * self.runs] } else { all.chunks(step).collect() });
+        }
+        self.arrays.iter().map(|a| slice(a, "every q[r]")).collect()
+    }
+}
+
 /// Batched identification (see identify.rs).
-/// q: (B, R, n, 4) complex; e: (1 or B, R, 4) complex; w, spin, gain: (n,).
-/// method: "forces" (default solver) or "report" (16-unknown real formulation).
-/// Returns (k, c, cond, resid, amp, k_std, c_std, n_nonfinite) with k, c: (B, n, 2, 2, 2),
-/// cond (B, n, 2), resid and amp (rms response amplitude) (B, n).
+/// q: (B, R, n, 4) complex, or a list of R arrays (n, 4) for B = 1; e: (1 or B, R, 4) complex;
+/// w, spin, gain: (n,). method: "forces" (default solver) or "report" (16-unknown real
+/// formulation). Returns (k, c, cond, resid, amp, k_std, c_std, rel_std, n_nonfinite) with
+/// k, c: (B, n, 2, 2, 2), cond (B, n, 2), resid, amp (rms response amplitude) and rel_std (largest
+/// standard error relative to the bearing's direct coefficients, see identify::relative_std)
+/// (B, n).
 #[pyfunction]
 #[pyo3(name = "identify", signature = (rotor, w, spin, q, e, gain, identical=false, method="forces", with_std=true, sigma=None))]
 #[allow(clippy::too_many_arguments)]
@@ -189,7 +239,7 @@ fn py_identify<'py>(
     rotor: PyReadonlyArrayDyn<'py, f64>,
     w: PyReadonlyArrayDyn<'py, f64>,
     spin: PyReadonlyArrayDyn<'py, f64>,
-    q: PyReadonlyArrayDyn<'py, C64>,
+    q: &Bound<'py, PyAny>,
     e: PyReadonlyArrayDyn<'py, C64>,
     gain: PyReadonlyArrayDyn<'py, f64>,
     identical: bool,
@@ -198,20 +248,17 @@ fn py_identify<'py>(
     sigma: Option<PyReadonlyArrayDyn<'py, f64>>,
 ) -> PyResult<IdentTuple<'py>> {
     let rot = rotor_of(&rotor)?;
-    let qs = q.shape().to_vec();
-    if qs.len() != 4 || qs[3] != 4 {
-        return Err(PyValueError::new_err(format!("q has shape {qs:?}, expected (batch, runs, n, 4)")));
+    let resp = responses(q)?;
+    let (batch, runs, n) = (resp.batch, resp.runs, resp.n);
+    if runs == 0 {
+        return Err(PyValueError::new_err("at least one run is needed"));
     }
-    let (batch, runs, n) = (qs[0], qs[1], qs[2]);
     check_shape("w", w.shape(), &[n])?;
     check_shape("spin", spin.shape(), &[n])?;
     check_shape("gain", gain.shape(), &[n])?;
     let es = e.shape().to_vec();
     if es.len() != 3 || es[1] != runs || es[2] != 4 || !(es[0] == 1 || es[0] == batch) {
         return Err(PyValueError::new_err(format!("e has shape {es:?}, expected (1 or {batch}, {runs}, 4)")));
-    }
-    if runs == 0 {
-        return Err(PyValueError::new_err("at least one run is needed"));
     }
     let report = match method {
         "forces" => false,
@@ -225,12 +272,12 @@ fn py_identify<'py>(
         Some(sg) => slice(sg, "sigma")?,
         None => &[],
     };
-    let ws = slice(&w, "w")?;
+    let blocks = resp.blocks()?;
     let prob = identify::IdentProblem {
         rotor: rot,
-        w: ws,
+        w: slice(&w, "w")?,
         spin: slice(&spin, "spin")?,
-        q: slice(&q, "q")?,
+        q: &blocks,
         e: slice(&e, "e")?,
         gain: slice(&gain, "gain")?,
         sigma: sigma_sl,
@@ -241,7 +288,7 @@ fn py_identify<'py>(
     prob.check().map_err(core_err)?;
     let npts = batch.checked_mul(n).ok_or_else(|| PyMemoryError::new_err("identify: batch x points overflows"))?;
     let want_std = with_std && !report;
-    check_alloc("identify", npts.checked_mul(if want_std { 36 } else { 20 }), 8)?;
+    check_alloc("identify", npts.checked_mul(if want_std { 37 } else { 20 }), 8)?;
     let res = py.detach(|| {
         guarded(|| {
             let mut k = out_buf(npts * 8);
@@ -260,16 +307,47 @@ fn py_identify<'py>(
                 k_std: if want_std { Some(&mut ks[..]) } else { None },
                 c_std: if want_std { Some(&mut cs[..]) } else { None },
             };
-            let nbad = if report { identify::identify_report(&prob, out) } else { identify::identify_forces(&prob, out) };
-            nbad.map(|nbad| (k, c, cond, resid, amp, ks, cs, nbad))
+            let nbad = if report { identify::identify_report(&prob, out) } else { identify::identify_forces(&prob, out) }?;
+            let mut rel = Vec::new();
+            if want_std {
+                rel = out_buf(npts);
+                identify::relative_std(&k, &c, &ks, &cs, &mut rel)?;
+            }
+            Ok::<_, CoreError>((k, c, cond, resid, amp, ks, cs, rel, nbad))
         })
     })?
     .map_err(core_err)?;
-    let (k, c, cond, resid, amp, ks, cs, nbad) = res;
+    let (k, c, cond, resid, amp, ks, cs, rel, nbad) = res;
     let sh = [batch, n, 2, 2, 2];
     let kst = if want_std { Some(to_py(py, ks, &sh)?) } else { None };
     let cst = if want_std { Some(to_py(py, cs, &sh)?) } else { None };
-    Ok((to_py(py, k, &sh)?, to_py(py, c, &sh)?, to_py(py, cond, &[batch, n, 2])?, to_py(py, resid, &[batch, n])?, to_py(py, amp, &[batch, n])?, kst, cst, nbad))
+    let relp = if want_std { Some(to_py(py, rel, &[batch, n])?) } else { None };
+    Ok((to_py(py, k, &sh)?, to_py(py, c, &sh)?, to_py(py, cond, &[batch, n, 2])?, to_py(py, resid, &[batch, n])?, to_py(py, amp, &[batch, n])?, kst, cst, relp, nbad))
+}
+
+/// Largest standard error relative to the bearing's direct coefficients per point (see
+/// identify::relative_std). k, c, k_std, c_std: (n, 8) -> (n,).
+#[pyfunction]
+fn relative_std<'py>(
+    py: Python<'py>,
+    k: PyReadonlyArrayDyn<'py, f64>,
+    c: PyReadonlyArrayDyn<'py, f64>,
+    k_std: PyReadonlyArrayDyn<'py, f64>,
+    c_std: PyReadonlyArrayDyn<'py, f64>,
+) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+    let n = k.shape().first().copied().unwrap_or(0);
+    for (name, a) in [("k", &k), ("c", &c), ("k_std", &k_std), ("c_std", &c_std)] {
+        check_shape(name, a.shape(), &[n, 8])?;
+    }
+    let (ks, cs, kss, css) = (slice(&k, "k")?, slice(&c, "c")?, slice(&k_std, "k_std")?, slice(&c_std, "c_std")?);
+    let out = py.detach(|| {
+        guarded(|| {
+            let mut out = out_buf(n);
+            identify::relative_std(ks, cs, kss, css, &mut out).map(|_| out)
+        })
+    })?
+    .map_err(core_err)?;
+    to_py(py, out, &[n])
 }
 
 /// Batched eigen-analysis (see modal.rs). Returns (lam (n, 4), shapes (n, 4, 4), n_failed).
@@ -422,6 +500,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(forced_response, m)?)?;
     m.add_function(wrap_pyfunction!(py_identify, m)?)?;
     m.add_function(wrap_pyfunction!(py_modal, m)?)?;
+    m.add_function(wrap_pyfunction!(relative_std, m)?)?;
     m.add_function(wrap_pyfunction!(lti_run, m)?)?;
     m.add_function(wrap_pyfunction!(angle_resample, m)?)?;
     m.add_function(wrap_pyfunction!(runout_subtract, m)?)?;

@@ -244,8 +244,10 @@ pub struct IdentProblem<'a> {
     pub w: &'a [f64],
     /// spin speed Omega at each point, rad/s
     pub spin: &'a [f64],
-    /// responses, (batch, runs, n, 4), order [x1, x2, y1, y2]
-    pub q: &'a [C64],
+    /// responses: `batch * runs` blocks (batch-major), each (n, 4) in the order [x1, x2, y1, y2].
+    /// Blocks rather than one array so that separately stored runs are used where they are,
+    /// without being stacked into a new array first.
+    pub q: &'a [&'a [C64]],
     /// excitation base vectors, (batch_e, runs, 4) with batch_e in {1, batch}
     pub e: &'a [C64],
     /// gain applied to e at each point (Omega^2 for imbalance, 1 for unit-force FRFs), (n,)
@@ -273,7 +275,11 @@ impl IdentProblem<'_> {
         }
         expect_len("spin", self.spin, n)?;
         expect_len("gain", self.gain, n)?;
-        expect_len("q", self.q, product("q", &[self.batch, self.runs, n, 4])?)?;
+        expect_len("q (blocks)", self.q, product("q", &[self.batch, self.runs])?)?;
+        let block = product("q", &[n, 4])?;
+        if let Some(bad) = self.q.iter().position(|b| b.len() != block) {
+            return Err(CoreError::length("q", self.q[bad].len(), format!("{block} in every block (block {bad} differs)")));
+        }
         if self.e.len() != 4 * self.runs && self.e.len() != product("e", &[self.batch, self.runs, 4])? {
             return Err(CoreError::length("e", self.e.len(), format!("{} (shared) or {}", 4 * self.runs, 4 * self.runs * self.batch)));
         }
@@ -371,9 +377,9 @@ fn sigma_at(p: &IdentProblem, i: usize) -> f64 {
 
 #[inline(always)]
 fn load_q(p: &IdentProblem, b: usize, r: usize, i: usize) -> [C64; 4] {
-    let n = p.w.len();
-    let o = ((b * p.runs + r) * n + i) * 4;
-    [p.q[o], p.q[o + 1], p.q[o + 2], p.q[o + 3]]
+    let blk = p.q[b * p.runs + r];
+    let o = i * 4;
+    [blk[o], blk[o + 1], blk[o + 2], blk[o + 3]]
 }
 
 const CHUNK: usize = 1024;
@@ -438,8 +444,8 @@ fn forces_chunk(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize
             let mut q = [Z::zero(); 4];
             let mut e = [Z::zero(); 4];
             if contiguous {
-                let o = ((bi[0].0 * p.runs + r) * n + bi[0].1) * 4;
-                let src = &p.q[o..o + 4 * L];
+                let o = bi[0].1 * 4;
+                let src = &p.q[bi[0].0 * p.runs + r][o..o + 4 * L];
                 for l in 0..L {
                     for dd in 0..4 {
                         q[dd].re.0[l] = src[4 * l + dd].re;
@@ -449,9 +455,9 @@ fn forces_chunk(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize
             } else {
                 for l in 0..L {
                     let (b, i) = bi[l];
-                    let o = ((b * p.runs + r) * n + i) * 4;
+                    let blk = p.q[b * p.runs + r];
                     for dd in 0..4 {
-                        let v = p.q[o + dd];
+                        let v = blk[i * 4 + dd];
                         q[dd].re.0[l] = v.re;
                         q[dd].im.0[l] = v.im;
                     }
@@ -791,4 +797,39 @@ fn report_all(p: &IdentProblem, out: IdentOut) -> usize {
             0usize
         })
         .sum()
+}
+
+/// NaN-propagating maximum (as NumPy's `maximum`): a NaN anywhere makes the result NaN.
+#[inline(always)]
+fn max_nan(a: f64, b: f64) -> f64 {
+    if a.is_nan() || b.is_nan() {
+        f64::NAN
+    } else {
+        a.max(b)
+    }
+}
+
+/// Largest standard error per point relative to its bearing's direct coefficients:
+///     max over bearings b and over (K, C) of  max_ij std(Z_b,ij) / sqrt(|Z_b,xx Z_b,yy|),
+/// so that small cross-coupled terms are judged on the bearing's scale. `k`, `c`, `k_std`,
+/// `c_std`: (points, 8) in [bearing][i][j] order; `out`: (points,). NaN where any input is NaN.
+pub fn relative_std(k: &[f64], c: &[f64], k_std: &[f64], c_std: &[f64], out: &mut [f64]) -> Result<(), CoreError> {
+    let n = out.len();
+    for (name, a) in [("k", k), ("c", c), ("k_std", k_std), ("c_std", c_std)] {
+        expect_len(name, a, product(name, &[n, 8])?)?;
+    }
+    out.par_iter_mut().with_min_len(4096).enumerate().for_each(|(i, o)| {
+        let mut worst = f64::NEG_INFINITY;
+        for (v, sd) in [(k, k_std), (c, c_std)] {
+            for b in 0..2 {
+                let z = &v[8 * i + 4 * b..8 * i + 4 * b + 4];
+                let s = &sd[8 * i + 4 * b..8 * i + 4 * b + 4];
+                let scale = (z[0] * z[3]).abs().sqrt();
+                let top = max_nan(max_nan(s[0], s[1]), max_nan(s[2], s[3]));
+                worst = max_nan(worst, top / scale);
+            }
+        }
+        *o = worst;
+    });
+    Ok(())
 }

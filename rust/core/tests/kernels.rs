@@ -18,6 +18,11 @@ fn speeds_for(r: &Rotor, k: &[f64], n: usize) -> Vec<f64> {
     (0..n).map(|i| wn * 0.2 * 15f64.powf(i as f64 / (n - 1) as f64)).collect()
 }
 
+/// Split (blocks, n, 4) responses into the per-run blocks the identification takes.
+fn blocks(q: &[C64], n: usize) -> Vec<&[C64]> {
+    q.chunks(4 * n).collect()
+}
+
 fn cplx_vec(v: &[f64]) -> Vec<C64> {
     v.chunks(2).map(|p| c(p[0], p[1])).collect()
 }
@@ -133,7 +138,8 @@ proptest! {
         let e = cplx_vec(&e[..8 * runs]);
         let q = imbalance_responses(&r, &k, &cc, &w, &e);
         let gain: Vec<f64> = w.iter().map(|v| v * v).collect();
-        let p = IdentProblem { rotor: r, w: &w, spin: &w, q: &q, e: &e, gain: &gain, sigma: &[], batch: 1, runs, identical: false };
+        let qb = blocks(&q, w.len());
+        let p = IdentProblem { rotor: r, w: &w, spin: &w, q: &qb, e: &e, gain: &gain, sigma: &[], batch: 1, runs, identical: false };
         let fast = run_identify(&p, false).unwrap();
         let (err, used) = impedance_error(&fast, &k, &cc, &w, 1e5);
         prop_assert!(used > 0);
@@ -164,10 +170,12 @@ proptest! {
         let qb = imbalance_responses(&r, &k2, &c2, &w, &e);
         let gain: Vec<f64> = w.iter().map(|v| v * v).collect();
         let qab: Vec<C64> = qa.iter().chain(qb.iter()).cloned().collect();
-        let pab = IdentProblem { rotor: r, w: &w, spin: &w, q: &qab, e: &e, gain: &gain, sigma: &[], batch: 2, runs, identical: false };
+        let qabb = blocks(&qab, w.len());
+        let pab = IdentProblem { rotor: r, w: &w, spin: &w, q: &qabb, e: &e, gain: &gain, sigma: &[], batch: 2, runs, identical: false };
         let both = run_identify(&pab, false).unwrap();
         for (bi, qq) in [&qa, &qb].into_iter().enumerate() {
-            let p1 = IdentProblem { rotor: r, w: &w, spin: &w, q: qq, e: &e, gain: &gain, sigma: &[], batch: 1, runs, identical: false };
+            let qqb = blocks(qq, w.len());
+            let p1 = IdentProblem { rotor: r, w: &w, spin: &w, q: &qqb, e: &e, gain: &gain, sigma: &[], batch: 1, runs, identical: false };
             let one = run_identify(&p1, false).unwrap();
             let o = bi * w.len() * 8;
             for t in 0..w.len() * 8 {
@@ -190,7 +198,8 @@ proptest! {
         let e = cplx_vec(&e);
         let q = imbalance_responses(&r, &k, &cc, &w, &e);
         let gain: Vec<f64> = w.iter().map(|v| v * v).collect();
-        let p = IdentProblem { rotor: r, w: &w, spin: &w, q: &q, e: &e, gain: &gain, sigma: &[], batch: 1, runs: 2, identical: true };
+        let qb = blocks(&q, w.len());
+        let p = IdentProblem { rotor: r, w: &w, spin: &w, q: &qb, e: &e, gain: &gain, sigma: &[], batch: 1, runs: 2, identical: true };
         let id = run_identify(&p, false).unwrap();
         let (err, used) = impedance_error(&id, &k, &cc, &w, 1e5);
         prop_assert!(used > 0);
@@ -436,20 +445,23 @@ fn identification_argument_errors_name_the_argument() {
     let r = nsf_rotor();
     let w = [100.0, 200.0];
     let q = vec![c(1e-6, 0.0); 2 * 2 * 4];
+    let qb = blocks(&q, 2);
+    let uneven: [&[C64]; 2] = [&q[..8], &q[..7]];
     let e = vec![c(1e-4, 0.0); 2 * 4];
     let gain = [1e4, 4e4];
-    let base = IdentProblem { rotor: r, w: &w, spin: &w, q: &q, e: &e, gain: &gain, sigma: &[], batch: 1, runs: 2, identical: false };
+    let base = IdentProblem { rotor: r, w: &w, spin: &w, q: &qb, e: &e, gain: &gain, sigma: &[], batch: 1, runs: 2, identical: false };
     assert!(run_identify(&base, false).is_ok());
     let cases: Vec<(IdentProblem, &str)> = vec![
         (IdentProblem { runs: 0, ..base }, "runs"),
-        (IdentProblem { q: &q[..15], ..base }, "q"),
+        (IdentProblem { q: &qb[..1], ..base }, "q (blocks)"),
+        (IdentProblem { q: &uneven, ..base }, "q"),
         (IdentProblem { e: &e[..5], ..base }, "e"),
         (IdentProblem { gain: &gain[..1], ..base }, "gain"),
         (IdentProblem { spin: &w[..1], ..base }, "spin"),
         (IdentProblem { sigma: &[0.0], ..base }, "sigma"),
         (IdentProblem { sigma: &[0.0, f64::NAN], ..base }, "sigma"),
         (IdentProblem { w: &[100.0, 0.0], ..base }, "w"),
-        (IdentProblem { batch: 3, ..base }, "q"),
+        (IdentProblem { batch: 3, ..base }, "q (blocks)"),
     ];
     for (p, name) in cases {
         for report in [false, true] {
