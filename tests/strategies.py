@@ -56,3 +56,23 @@ def imbalance_sets(draw, n):
         sv = np.linalg.svd(U, compute_uv=False)
         assume(sv[-1] > 0.05 * sv[0])
     return sets
+
+
+# ---------------------------------------------------------------------------------------------
+# bad arguments for the fuzz runs over the public API (tests/test_fuzz.py)
+
+#: values that are wrong for most arguments: non-finite, signed zero, sub-normal, huge (every size
+#: they set must be refused, never allocated), strings, None, booleans, complex numbers, sequences
+#: and arrays where scalars belong, mappings, bytes, an arbitrary object. Ordinary numbers stay
+#: small (|x| <= 20), so that a size they give is legal and cheap rather than slow.
+bad_values = st.one_of(
+    st.sampled_from([np.nan, np.inf, -np.inf, -1.0, 0.0, -0.0, 5e-324, 1e-300, 1e12, 1e300, 2.0 ** 40, 10 ** 30,
+                     -(10 ** 9), 2 ** 63, 1.5]),
+    st.floats(-20.0, 20.0), st.integers(-5, 20),
+    st.sampled_from(["x", "", "nan", "1e3", None, True, False, b"x", 1 + 1j, [1.0, 2.0], (1.0,), [], {"a": 1},
+                     {"x1": 3}, np.zeros(0), np.ones((2, 2)), np.array([np.nan]), np.float64(np.nan), object()]))
+
+
+def bad_kwargs(names, values=bad_values, max_size=2):
+    """One or two of the keyword arguments ``names`` set to bad values."""
+    return st.dictionaries(st.sampled_from(list(names)), values, min_size=1, max_size=max_size)

@@ -226,3 +226,133 @@ def test_sweep_findings_are_rotorid_errors(tmp_path):
     for i, call in enumerate(bad):
         with pytest.raises(RotoridError):
             call()
+
+
+# ---------------------------------------------------------------------------------------------
+# found by the sweep over every public function (tests/test_fuzz.py): each refusal names the argument
+
+def _bad_argument_cases():
+    from rotorid import kcm, outputs, phasecal, rawsim, tables, uncertainty
+    from rotorid import io as rio
+    from rotorid.recording import SegmentedRecording
+
+    rotor, brg, remnant = rawsim.example_rig()
+    imb = rotorid.Imbalance((5e-3, 5e-3), (0.0, 0.0))
+    sim = dict(rotor=rotor, bearings=brg, added=imb, remnant=remnant, fs_hz=2000.0)
+    rec = Recording(1000.0, {"x1": np.zeros(32)})
+    seg = SegmentedRecording.from_arrays(1000.0, {"x1": np.zeros((2, 8))})
+    track = tables.load_1x_table(tables.EXAMPLE_DIR + "/run_S0.csv", columns=tables.EXAMPLE_COLUMNS)
+    kp = np.tile(np.r_[np.zeros(40), 5.0 * np.ones(5)], 20)
+    x = np.zeros((4, 1000))
+    return [
+        # simulators: no argument was checked beyond speeds_rpm, fs_hz, dwell_s, noise_m
+        ("runout", lambda: rawsim.imbalance_recording(speeds_rpm=[3000.0], dwell_s=0.1, runout=1.0, **sim)),
+        ("seed", lambda: rawsim.imbalance_recording(speeds_rpm=[3000.0], dwell_s=0.1, seed=-1.0, **sim)),
+        ("theta0", lambda: rawsim.imbalance_recording(speeds_rpm=[3000.0], dwell_s=0.1, theta0="x", **sim)),
+        ("duration_s", lambda: rawsim.coastdown_recording(start_rpm=4000.0, stop_rpm=3000.0, duration_s=np.nan, **sim)),
+        ("fs_hz", lambda: rawsim.coastdown_recording(start_rpm=4000.0, stop_rpm=3000.0, duration_s=0.2,
+                                                     **{**sim, "fs_hz": 1e12})),  # 2e11 samples, never allocated
+        ("stop_rpm", lambda: rawsim.coastdown_recording(start_rpm=4000.0, stop_rpm="x", duration_s=0.2, **sim)),
+        ("speed_rpm", lambda: rawsim.impact_recording(rotor, brg, speed_rpm=5e-324, plane=0.0, direction="x",
+                                                      record_s=0.3, impact_times_s=(0.1,), fs_hz=2000.0)),
+        ("direction", lambda: rawsim.impact_recording(rotor, brg, speed_rpm=1000.0, plane=0.0, direction=["x"],
+                                                      record_s=0.3, impact_times_s=(0.1,), fs_hz=2000.0)),
+        ("impact_times_s", lambda: rawsim.impact_recording(rotor, brg, speed_rpm=1000.0, plane=0.0, direction="x",
+                                                           record_s=0.3, impact_times_s=0.1, fs_hz=2000.0)),
+        ("record_s", lambda: rawsim.impact_recording(rotor, brg, speed_rpm=1000.0, plane=0.0, direction="x",
+                                                     record_s=-1.0, impact_times_s=(0.1,), fs_hz=2000.0)),
+        ("double_hit_at", lambda: rawsim.impact_recording(rotor, brg, speed_rpm=1000.0, plane=0.0, direction="x",
+                                                          record_s=0.3, impact_times_s=(0.1,), double_hit_at=[1])),
+        ("speeds_rpm", lambda: rawsim.lab_imbalance_recording(speeds_rpm=1e12, dwell_s=0.1, **sim)),  # was 12 GB
+        ("probe_delay_s", lambda: rawsim.lab_imbalance_recording(speeds_rpm=[3000.0], dwell_s=0.1, probe_delay_s=0.0,
+                                                                 **sim)),
+        ("adc_bits", lambda: rawsim.lab_imbalance_recording(speeds_rpm=[3000.0], dwell_s=0.1, adc_bits=1e12, **sim)),
+        ("kp_shape", lambda: rawsim.lab_imbalance_recording(speeds_rpm=[3000.0], dwell_s=0.1, kp_shape=None, **sim)),
+        ("segmented", lambda: rawsim.lab_imbalance_recording(speeds_rpm=[3000.0], dwell_s=0.1, segmented="no", **sim)),
+        ("kp_delay_s", lambda: rawsim.lab_imbalance_recording(speeds_rpm=[3000.0], dwell_s=0.1, kp_delay_s=1e12,
+                                                              **sim)),
+        ("edge_samples", lambda: rawsim.PulseShape("trapezoid", 0.0)),  # 0/0 in the edge: a NaN pulse train
+        ("kind", lambda: rawsim.PulseShape(np.array(["rc"]))),
+        ("duty", lambda: rawsim.PulseShape(duty=1.5)),
+        ("ringing", lambda: rawsim.PulseShape(ringing=(0.1, 900.0))),
+        ("event_times", lambda: rawsim.pulse_train(np.arange(10.0), [2.0, 1.0], 1.0)),
+        ("shape", lambda: rawsim.pulse_train(np.arange(10.0), [2.0], 1.0, shape="rc")),
+        ("speed_rpm", lambda: rawsim.event_times(1e12, 10.0)),  # was 10 GB of event times
+        ("t0_s", lambda: rawsim.event_times(3000.0, 1.0, t0_s=np.nan)),  # was a silent NaN
+        ("amplitudes_m", lambda: rawsim.Runout(amplitudes_m=(1e-6, -1e-6))),
+        # writers and readers
+        ("names", lambda: rio.save_csv(rec, "unused.csv", names=1.0)),
+        ("units", lambda: rio.save_uff58(rec, "unused.uff", units=["mil"])),
+        ("path", lambda: rio.save_tdms(rec, None)),
+        ("dtype", lambda: rio.save_tdms(rec, "unused.tdms", dtype={"x1": "mil"})),
+        ("groups", lambda: rio.save_tdms_segmented(seg, "unused.tdms", groups=3)),
+        ("path", lambda: rio.list_groups(3.0)),
+        ("min_run", lambda: rio.check_clipping(rec, min_run="5")),
+        ("rec", lambda: rio.check_clipping(None)),
+        ("fmt", lambda: rio.load_recording("unused.npz", fmt=np.array(["csv"]))),
+        # tables
+        ("path", lambda: tables.load_1x_table(None, columns=tables.EXAMPLE_COLUMNS)),
+        ("meta", lambda: tables.load_1x_table(tables.EXAMPLE_DIR + "/run_S0.csv", columns=tables.EXAMPLE_COLUMNS,
+                                              meta=[1])),
+        ("amplitude_std", lambda: tables.load_1x_table(tables.EXAMPLE_DIR + "/run_S0.csv",
+                                                       columns=tables.EXAMPLE_COLUMNS, amplitude_std=[1.0, 2.0])),
+        ("preamble", lambda: tables.save_1x_table(track, "unused.csv", preamble="Machine: m")),
+        ("preamble", lambda: tables.save_1x_table(track, "unused.csv", preamble={"Note": "two\nlines"})),
+        ("tracks", lambda: tables.match_speeds(3.0)),
+        ("max_rpm", lambda: tables.slow_roll_vector(track, max_rpm="400")),
+        ("out_dir", lambda: tables.example_tables(None)),
+        ("amplitude_std_m", lambda: tables.polar_covariance(np.ones((2, 4)), 1e300, 0.0)),  # overflowed
+        ("other", lambda: track.minus(np.ones(3))),
+        ("speed_rpm", lambda: track.at_speeds(np.nan)),
+        ("orders", lambda: signals.SyncTrack([3000.0], np.ones((1, 1, 4)), "1", [1], np.zeros((1, 4)), [0.0])),
+        # kcm, phasecal, uncertainty, outputs
+        ("fit", lambda: kcm.with_jackknife(None, 3.0, [0])),
+        ("runs", lambda: rotorid.calibrate_phase(rotor, 3.0)),
+        ("degree", lambda: rotorid.calibrate_phase(rotor, [], degree=np.nan)),
+        ("runs", lambda: phasecal.PhaseCalibration(0.0, 0.0, 0.0, 0.0, 1.0, 3, False, "").apply([1.0])),
+        ("level", lambda: uncertainty.t_quantile("0.95", 5)),
+        ("dof", lambda: uncertainty.t_quantile(0.95, None)),
+        ("cov", lambda: uncertainty.std_from_cov(np.eye(16))),
+        ("k", lambda: uncertainty.report_vector(np.ones(2), np.ones((1, 2, 2, 2)))),
+        ("path", lambda: outputs.ResultsFolder(None, patterns=["*.csv"])),
+        ("patterns", lambda: outputs.ResultsFolder("unused", patterns=3)),
+        # signals
+        ("pulse_side", lambda: signals.state_levels(kp, pulse_side=["up"])),
+        ("keyphasor times", lambda: signals.Keyphasor.from_times("x")),
+        ("kp", lambda: signals.steady_segments(None)),
+        ("return_cov", lambda: signals.slow_roll_vector(rec, return_cov=np.zeros(2))),
+        ("points_per_rev", lambda: signals.revolution_signature(x, 1000.0, np.arange(0.0, 1.0, 0.1), 0.0, 0.5,
+                                                                points_per_rev=np.nan)),
+        ("t0_s", lambda: signals.runout_filter(x, 1000.0, np.arange(0.0, 1.0, 0.1), np.zeros((4, 16)), 0, 10,
+                                               t0_s=np.nan)),  # was all NaN
+        ("i0", lambda: signals.runout_filter(x, 1000.0, np.arange(0.0, 1.0, 0.1), np.zeros((4, 16)), np.nan, 10)),
+        ("n", lambda: signals.force_window(10 ** 12, 0, 10)),  # was 8 TB
+        ("forces", lambda: signals.frf_h1(3.0, 3.0, 1000.0)),
+        ("polarity", lambda: signals.keyphasor_times(kp, 1000.0, polarity=["positive"])),
+        ("source", lambda: signals.keyphasor_times(kp, 1000.0, source=np.zeros(2))),
+    ]
+
+
+def test_every_refusal_found_by_the_sweep_names_its_argument(tmp_path, monkeypatch):
+    import re
+
+    monkeypatch.chdir(tmp_path)
+    wrong = []
+    for i, (arg, call) in enumerate(_bad_argument_cases()):
+        try:
+            call()
+            wrong.append(f"case {i} ({arg}): no error")
+        except RotoridError as exc:
+            if not re.search(re.escape(arg), str(exc)):
+                wrong.append(f"case {i} ({arg}): {exc}")
+    assert not wrong, "\n".join(wrong)
+
+
+def test_a_mark_angle_whole_turns_away_is_the_same_mark():
+    # the lab simulator reduces the mark angle to one turn (a huge angle lost the events to rounding)
+    rotor, brg, remnant = rotorid.rawsim.example_rig()
+    kw = dict(speeds_rpm=[3000.0], added=None, remnant=remnant, dwell_s=0.1, fs_hz=2048.0, segmented=False)
+    a = rotorid.rawsim.lab_imbalance_recording(rotor, brg, mark_angle_deg=23.0, **kw)
+    for turns in (1, -3, 10 ** 6):
+        b = rotorid.rawsim.lab_imbalance_recording(rotor, brg, mark_angle_deg=23.0 + 360.0 * turns, **kw)
+        np.testing.assert_allclose(b.channels["kp"], a.channels["kp"], atol=1e-3)

@@ -1,8 +1,12 @@
 """Short fuzz runs kept in CI: the file readers, the public API and the CLI answer bad input with a
 RotoridError (CLI: one line, exit 2), never another exception, a crash or a hang."""
 
+import contextlib
+import functools
 import os
+import signal
 import tempfile
+import warnings
 
 import numpy as np
 import pytest
@@ -10,8 +14,11 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import rotorid
-from rotorid import RotoridError, cli
-from rotorid.io import load_recording, save_csv, save_recording
+from rotorid import RotoridError, cli, kcm, outputs, phasecal, rawsim, signals, tables, uncertainty
+from rotorid.io import (check_clipping, list_groups, load_recording, load_segmented, save_csv, save_recording,
+                        save_tdms, save_tdms_segmented, save_uff58)
+from rotorid.recording import SegmentedRecording
+from strategies import bad_kwargs, bad_values
 
 FUZZ = settings(max_examples=120, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow,
                                                                         HealthCheck.function_scoped_fixture])
@@ -134,3 +141,751 @@ def test_tracking_and_chains_fail_only_with_rotorid_errors(a, b, orders, steady,
             call()
         except RotoridError:
             pass
+
+
+# ---------------------------------------------------------------------------------------------
+# every public function: arguments set to bad values (tests/strategies.py), one at a time over a
+# fixed list (a sweep) and one or two at a time at random (fuzz), give a RotoridError or a checked
+# result: never another exception, a NaN without a flag, an allocation of gigabytes or a hang
+
+
+@contextlib.contextmanager
+def _deadline(seconds):
+    """A call that takes longer than ``seconds`` is a hang: it fails the test (POSIX only)."""
+    if not hasattr(signal, "setitimer"):
+        yield
+        return
+
+    def stop(signum, frame):
+        raise TimeoutError(f"no answer within {seconds} s")
+
+    old = signal.signal(signal.SIGALRM, stop)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)
+
+
+def _vm_bytes():
+    try:
+        with open("/proc/self/status") as fh:
+            return next(int(line.split()[1]) * 1024 for line in fh if line.startswith("VmSize:"))
+    except (OSError, StopIteration, ValueError, IndexError):
+        return None
+
+
+@contextlib.contextmanager
+def _memory_cap(extra=4 << 30):
+    """Address space limited to what the process holds plus ``extra`` (Linux): a call that tries to
+    allocate gigabytes gets a MemoryError (and fails the test) instead of exhausting the machine."""
+    try:
+        import resource
+    except ImportError:
+        resource = None
+    vm = _vm_bytes() if resource is not None else None
+    if vm is None:
+        yield
+        return
+    soft, hard = resource.getrlimit(resource.RLIMIT_AS)
+    cap = vm + extra
+    for limit in (soft, hard):
+        if limit != resource.RLIM_INFINITY:
+            cap = min(cap, limit)
+    resource.setrlimit(resource.RLIMIT_AS, (cap, hard))
+    try:
+        yield
+    finally:
+        resource.setrlimit(resource.RLIMIT_AS, (soft, hard))
+
+
+def _finite(out, where="result"):
+    """No NaN or inf in a result: arrays, numbers, recordings, tracks, and containers of them."""
+    if isinstance(out, rotorid.Recording):
+        for k, v in out.channels.items():
+            _finite(v, f"{where} channel {k!r}")
+    elif isinstance(out, SegmentedRecording):
+        for i, b in enumerate(out.blocks):
+            _finite(b, f"{where} block {i}")
+    elif isinstance(out, signals.SyncTrack):
+        _finite(out.speed_rpm, f"{where}.speed_rpm")
+        _finite(out.vectors, f"{where}.vectors")
+    elif isinstance(out, kcm.KCMFit):
+        for name in ("K", "M", "C"):
+            _finite(getattr(out, name), f"{where}.{name}")
+    elif isinstance(out, np.ndarray) and out.dtype.kind in "fc":
+        assert np.all(np.isfinite(out)), f"{where} holds NaN or inf without a flag"
+    elif isinstance(out, (float, complex, np.floating, np.complexfloating)):
+        assert np.isfinite(out), f"{where} is {out!r}"
+    elif isinstance(out, (list, tuple)):
+        for i, v in enumerate(out):
+            _finite(v, f"{where}[{i}]")
+    elif isinstance(out, dict):
+        for k, v in out.items():
+            _finite(v, f"{where}[{k!r}]")
+
+
+def _outcome(call, *, nan_ok=False, seconds=30):
+    """The result of ``call``, or None if it raised a RotoridError; any other exception, a hang or a
+    result holding NaN/inf (unless ``nan_ok``: NaN documented as "unknown") fails the test."""
+    with warnings.catch_warnings(), _deadline(seconds), _memory_cap():
+        warnings.simplefilter("ignore")
+        try:
+            out = call()
+        except RotoridError:
+            return None
+    if not nan_ok:
+        _finite(out)
+    return out
+
+
+# a failure is reported at its first bug, shrunk alone (several at once take minutes to shrink)
+API = settings(FUZZ, report_multiple_bugs=False)
+
+#: the sweep's bad values, each tried in every argument of every function
+SWEEP = [np.nan, np.inf, -np.inf, -1.0, 0, -0.0, 5e-324, 1e12, 1e300, 2 ** 63, 10 ** 30, "x", "", None, True, b"x",
+         1 + 1j, [1.0, 2.0], [], {"a": 1}, np.zeros(0), np.ones((2, 2)), np.array([np.nan]), object()]
+
+
+class Call:
+    """A public function with good arguments (``defaults``), the arguments to corrupt (default: all),
+    values of the right kind that fit other arguments (``extras``), and what its result may hold."""
+
+    def __init__(self, fn, defaults, *, args=None, extras=(), nan_ok=False, check=None):
+        self.fn, self.defaults, self.extras, self.nan_ok, self.check = fn, defaults, list(extras), nan_ok, check
+        self.args = list(defaults) if args is None else list(args)
+
+    def run(self, bad):
+        kw = {**self.defaults, **bad}
+        out = _outcome(lambda: self.fn(**kw), nan_ok=self.nan_ok)
+        if out is not None and self.check is not None:
+            self.check(out, kw)
+        return out
+
+
+def _runout_covered(out, kw):
+    """runout_filter: NaN is documented for samples outside the keyphasor pulses, and only there."""
+    t = kw["t0_s"] + np.arange(kw["i0"], kw["i1"]) / kw["fs_hz"]
+    inside = (t > kw["kp_times"][0]) & (t < kw["kp_times"][-1])
+    assert np.all(np.isfinite(out[:, inside]))
+
+
+def _unknown_dof_only(out, kw):
+    """t_quantile: NaN where the degrees of freedom are unknown (NaN or <= 0), and only there (inf
+    where they are so small that the quantile overflows)."""
+    dof = np.asarray(kw["dof"], float)
+    assert np.all(np.isfinite(out) | ~(dof > 0) | (np.isposinf(out) & (dof < 1)))
+
+
+def _nan_from_unknown(out, kw):
+    """relative_std: NaN only at points where a coefficient or a standard error is NaN (unknown)."""
+    unknown = np.zeros(out.shape, bool)
+    for name in ("k", "c", "k_std", "c_std"):
+        unknown |= np.isnan(np.asarray(kw[name], float)).reshape(out.size, -1).any(axis=1)
+    assert np.all(~np.isnan(out) | unknown)
+
+
+def _whole_points(out, kw):
+    """propagate: NaN marks a point (unknown covariance, singular estimator): all of it or none."""
+    cov = out[0] if isinstance(out, tuple) else out
+    nan = np.isnan(cov).reshape(cov.shape[0], -1)
+    assert np.all(nan.all(axis=1) | ~nan.any(axis=1)) and not np.any(np.isinf(cov))
+
+
+def _a_table(out, kw):
+    """What load_1x_table reads is a table: speeds > 0, ascending, one row each."""
+    assert np.all(out.speed_rpm > 0) and np.all(np.diff(out.speed_rpm) > 0)
+
+
+def _frf_flagged(out, kw):
+    """frf_h1: H1 is NaN only at frequencies without force (0/0), and the coherence says so."""
+    bad = ~np.all(np.isfinite(out.h), axis=1)
+    assert np.all(out.force[bad] == 0)
+
+
+@functools.lru_cache(maxsize=None)
+def _fixtures():
+    """The good arguments the calls share, built on first use."""
+    rotor, brg, remnant = rawsim.example_rig()
+    imb = rotorid.Imbalance((5e-3, 5e-3), (0.0, 0.0))
+    rec = _rec()
+    kp = signals.keyphasor_times(rec.channels["kp"], rec.fs_hz)
+    x = rec.displacements()
+    rig = rotorid.nsf_rig()
+    runs = [rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=[3200.0, 3600.0, 4000.0])
+            for s in "AB"]
+    track = tables.load_1x_table(os.path.join(tables.EXAMPLE_DIR, "run_S0.csv"), columns=tables.EXAMPLE_COLUMNS)
+    slow = tables.load_1x_table(os.path.join(tables.EXAMPLE_DIR, "slow_roll.csv"), columns=tables.EXAMPLE_COLUMNS)
+    return dict(rotor=rotor, brg=brg, remnant=remnant, imb=imb, rec=rec, kp=kp, x=x, rig=rig, runs=runs, track=track,
+                slow=slow, template=signals.revolution_signature(x, rec.fs_hz, kp.times, 0.05, 0.25),
+                lab=rotorid.Recording(1000.0, {"x1": np.sin(np.arange(32) / 3.0) * 1e-5, "kp": np.zeros(32)}),
+                seg=SegmentedRecording.from_arrays(1000.0, {"x1": np.zeros((2, 8))}))
+
+
+@functools.lru_cache(maxsize=None)
+def _impact_fit():
+    """(identification over frequency, its K-C-M fit), built on first use."""
+    rig = _fixtures()["rig"]
+    tests = [rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=1000, freq_hz=np.arange(10.0, 60.0, 5.0),
+                                direction=d) for d in "xy"]
+    ident = rotorid.identify_impact(rig.rotor, tests)
+    return ident, rotorid.fit_kcm(ident)
+
+
+def _calls(tmp):
+    """Every public function beyond the model, simulation and identification (fuzzed above), with good
+    arguments; files go to the folder ``tmp``."""
+    f = _fixtures()
+    rotor, brg, rec, kp, x, track = f["rotor"], f["brg"], f["rec"], f["kp"], f["x"], f["track"]
+    n = track.speed_rpm.size
+    runout = rawsim.Runout()
+    models = [rotor, brg, f["imb"], rawsim.Runout(amplitudes_m=(1e-6,)), rawsim.PulseShape.notch(), (1e-6, 2e-6)]
+    lab_names = ["out.npz", "out.csv", "out.tdms", "out.uff", "no/such/folder/out.csv", ".", "Run 1", "a/b",
+                 "float32", "int16", {"x1": "mil"}, {"x1": "Prox\nX"}, {"kp": "mV"}, {"x1": "kg"}, {"zz": "m"},
+                 {"x1": ""}, {"x1": "a,b"}, {"x1": "x" * 100}, {"x1": 3}, ["g1", "g2"], ["g", "g"], ["g1"], [1, 2]]
+    table_values = ["auto", "pk-pk", "0-pk", "pp", "lag", "lead", "deg", "rad", "um", "mil", "kg", "Speed (rpm)",
+                    "Sample", 2, "adre", {"Machine": "m"}, {"Note": "two\nlines"}, track, [track, track], {"a": track},
+                    f["slow"], np.ones((3, 4), complex), np.eye(8), np.array([3500.0, 4000.0]),
+                    {**tables.EXAMPLE_COLUMNS, "x1": tables.EXAMPLE_COLUMNS["y1"]},
+                    {k: v for k, v in tables.EXAMPLE_COLUMNS.items() if k != "y2"},
+                    {**tables.EXAMPLE_COLUMNS, "x1": {"amplitude": "DE X 1X Amp (mil pp)"}}]
+    unc_values = [f["rig"].rotor, f["runs"], f["runs"][:1], [f["runs"][0], "x"], (5.0, 40.0), (40.0, 5.0),
+                  (np.nan, 30.0), (1.0, 2.0, 3.0), [0, 0, 1], ["a", "b"], f["rig"].bearings.k[None],
+                  np.ones((1, 2, 2)), np.full((1, 2, 2, 2), np.nan), np.eye(16)[None], np.eye(8)[None, None],
+                  np.ones((1, 2, 4), complex), 0.95, 5]
+    sig_values = ["rising", "falling", "auto", "positive", "up", "down", kp, rec, x, f["template"], kp.times,
+                  kp.times[::-1], kp.times[:3], np.zeros(64), np.ones((4, 3)), [np.ones(256)], [np.ones((4, 256))],
+                  0.5, 2.5, 64, 3000]
+    k, c = f["rig"].bearings.k[None], f["rig"].bearings.c[None]
+    written = {}
+    for ext, write in (("npz", save_recording), ("tdms", save_tdms)):
+        written[ext] = tmp / f"lab.{ext}"
+        if not written[ext].exists():
+            write(f["lab"], str(written[ext]))
+    read_values = ["native", "csv", "tdms", "uff58", "rotorid", "*", ",", ";", "whitespace", 0, 3, ["rotorid"],
+                   {"x1": {"to": "x2", "unit": "mil"}}, {"x1": {"to": "kp", "scale": np.nan}}, {"nope": {"to": "x1"}},
+                   {"x1": "x2"}, {"x1": {"to": "x1", "delay_s": 2.0}}, str(written["tdms"])]
+    cal = phasecal.PhaseCalibration(0.5, 0.1, 1e-5, 1e-6, 1.0, 3, False, "")
+    om = 3200.0 * np.pi / 30.0
+    return {
+        # rawsim
+        "imbalance_recording": Call(rawsim.imbalance_recording, dict(
+            rotor=rotor, bearings=brg, speeds_rpm=[3000.0], added=f["imb"], remnant=f["remnant"], runout=runout,
+            noise_m=5e-7, dwell_s=0.1, fs_hz=2000.0, seed=0, kind="imbalance", theta0=0.3), extras=models),
+        "coastdown_recording": Call(rawsim.coastdown_recording, dict(
+            rotor=rotor, bearings=brg, start_rpm=4000.0, stop_rpm=3000.0, duration_s=0.2, added=f["imb"],
+            remnant=f["remnant"], runout=runout, noise_m=5e-7, fs_hz=2000.0, seed=0, theta0=0.3), extras=models),
+        "impact_recording": Call(rawsim.impact_recording, dict(
+            rotor=rotor, bearings=brg, speed_rpm=1000.0, plane=0.0, direction="x", impact_times_s=(0.1, 0.2),
+            peak_N=4000.0, duration_s=2e-3, record_s=0.3, remnant=f["remnant"], runout=runout, noise_m=5e-7,
+            force_noise_N=2.0, fs_hz=2000.0, seed=0, theta0=0.3, double_hit_at=None), extras=models + ["y"]),
+        "lab_imbalance_recording": Call(rawsim.lab_imbalance_recording, dict(
+            rotor=rotor, bearings=brg, speeds_rpm=[3000.0, 3500.0], added=f["imb"], remnant=f["remnant"],
+            runout_1x_m=(3e-6,) * 4, kp_shape=rawsim.PulseShape("trapezoid", 2.0, duty=0.03), mark_angle_deg=0.0,
+            kp_delay_s=0.0, probe_delay_s=(0.0,) * 4, adc_bits=16, probe_range_m=2e-3, kp_range_v=20.0, noise_m=3e-7,
+            dwell_s=0.1, gap_s=0.1, fs_hz=2048.0, segmented=True, seed=0), extras=models),
+        "event_times": Call(rawsim.event_times, dict(speed_rpm=3000.0, duration_s=0.2, t0_s=0.0, mark_time_s=0.0137)),
+        "pulse_train": Call(rawsim.pulse_train, dict(t=np.arange(400) / 2000.0, event_times=rawsim.event_times(
+            3000.0, 0.2), fs_hz=2000.0, shape=rawsim.PulseShape(), seed=0), extras=models),
+        "PulseShape": Call(rawsim.PulseShape, dict(
+            kind="trapezoid", edge_samples=2.0, edge_deg=1.5, duty=0.05, min_width_samples=4.0, low_v=0.0, high_v=5.0,
+            noise_v=0.0, ringing=None, drift_v=0.0, drift_hz=0.3), extras=list(rawsim.SHAPES) + [(0.1, 900.0, 1e-3)]),
+        "Runout": Call(rawsim.Runout, dict(amplitudes_m=(8e-6, 3e-6, 1e-6), seed=11),
+                       check=lambda out, kw: _finite(out.vectors())),
+        # io writers (the readers are fuzzed with damaged files above and with bad options below)
+        "save_recording": Call(save_recording, dict(rec=f["lab"], path=str(tmp / "w.npz")), extras=lab_names),
+        "save_csv": Call(save_csv, dict(rec=f["lab"], path=str(tmp / "w.csv"), units=None, names=None),
+                         extras=lab_names),
+        "save_tdms": Call(save_tdms, dict(rec=f["lab"], path=str(tmp / "w.tdms"), group="rotorid", names=None,
+                                          units=None, dtype="float64"), extras=lab_names),
+        "save_tdms_segmented": Call(save_tdms_segmented, dict(seg=f["seg"], path=str(tmp / "s.tdms"), groups=None,
+                                                              names=None, units=None, dtype="float64"),
+                                    extras=lab_names),
+        "save_uff58": Call(save_uff58, dict(rec=f["lab"], path=str(tmp / "w.uff"), names=None, units=None),
+                           extras=lab_names),
+        "check_clipping": Call(check_clipping, dict(rec=f["lab"], min_run=5), extras=[f["seg"], 1, 3]),
+        "load_recording": Call(load_recording, dict(
+            path=str(written["npz"]), channel_map=None, fs_hz=None, meta=None, fmt=None, group=None, skip_rows=None,
+            sep=None, decimal=None, time_column=None), extras=read_values),
+        "load_segmented": Call(load_segmented, dict(source=[str(written["npz"])] * 2, groups=None, channel_map=None,
+                                                    fs_hz=None, meta=None, fmt=None), extras=read_values),
+        "list_groups": Call(list_groups, dict(path=str(written["tdms"])), extras=[str(written["npz"])]),
+        # tables
+        "load_1x_table": Call(tables.load_1x_table, dict(
+            path=os.path.join(tables.EXAMPLE_DIR, "run_S0.csv"), columns=tables.EXAMPLE_COLUMNS, speed_column="auto",
+            amplitude="pk-pk", unit="mil", phase="lag", phase_unit="deg", sheet=None, skip_rows="auto", name=None,
+            meta=None, amplitude_std=None, phase_std_deg=None), extras=table_values, check=_a_table),
+        "save_1x_table": Call(tables.save_1x_table, dict(track=track, path=str(tmp / "t.csv"), layout="adre",
+                                                         amplitude="pk-pk", unit="mil", phase="lag", preamble=None),
+                              extras=table_values),
+        "match_speeds": Call(tables.match_speeds, dict(tracks=[track, track], grid=None, tolerance_rpm=2.0),
+                             extras=table_values),
+        "tables.slow_roll_vector": Call(tables.slow_roll_vector, dict(track=f["slow"], max_rpm=None),
+                                        extras=table_values),
+        "example_tables": Call(tables.example_tables, dict(out_dir=str(tmp / "daq")), extras=["t.csv"]),
+        "polar_covariance": Call(tables.polar_covariance, dict(q=np.ones((3, 4), complex), amplitude_std_m=1e-6,
+                                                               phase_std_rad=0.01), extras=table_values),
+        "TableTrack.minus": Call(track.minus, dict(other=f["slow"], other_cov=None), extras=table_values),
+        "SyncTrack.at_speeds": Call(track.at_speeds, dict(speed_rpm=[3500.0, 4000.0]), extras=table_values),
+        "SyncTrack.order": Call(track.order, dict(n=1), extras=[2, np.int64(1)]),
+        "SyncTrack": Call(signals.SyncTrack, dict(
+            speed_rpm=track.speed_rpm, vectors=track.vectors, orders=(1,), n_revs=np.full(n, 10),
+            scatter=np.zeros((n, 4)), t_mid=np.zeros(n), keyphasors=[], cov=None, dof=None), extras=table_values),
+        # kcm, phasecal, uncertainty
+        "fit_kcm": Call(lambda **kw: rotorid.fit_kcm(**{"ident": _impact_fit()[0], **kw}), dict(
+            band_hz=None, rotor=f["rig"].rotor, only_ok=True), args=["ident", "band_hz", "rotor", "only_ok"],
+            extras=unc_values),
+        "KCMFit.interval": Call(lambda **kw: _impact_fit()[1].interval(**kw), dict(level=0.95)),
+        "with_jackknife": Call(lambda **kw: kcm.with_jackknife(**{"fit": _impact_fit()[1], "replicates": [
+            _impact_fit()[1]] * 3, **kw}), dict(groups=[0, 0, 1], rotor=f["rig"].rotor),
+            args=["fit", "replicates", "groups", "rotor"], extras=unc_values),
+        "calibrate_phase": Call(rotorid.calibrate_phase, dict(rotor=f["rig"].rotor, runs=f["runs"], delay=True,
+                                                              offset=True, degree=0, significance=3.0),
+                                extras=unc_values),
+        "PhaseCalibration.apply": Call(cal.apply, dict(runs=f["runs"]), extras=unc_values),
+        "t_quantile": Call(uncertainty.t_quantile, dict(level=0.95, dof=5), nan_ok=True, check=_unknown_dof_only),
+        "report_vector": Call(uncertainty.report_vector, dict(k=k, c=c), extras=unc_values),
+        "std_from_cov": Call(uncertainty.std_from_cov, dict(cov=np.eye(16)[None]), extras=unc_values),
+        "relative_std": Call(uncertainty.relative_std, dict(k=k, c=c, k_std=k * 0.01, c_std=c * 0.01),
+                             extras=unc_values, nan_ok=True, check=_nan_from_unknown),
+        "propagate": Call(uncertainty.propagate, dict(
+            rotor=f["rig"].rotor, w=np.array([om]), spin=np.array([om]), qs=np.stack([r.q[:1] for r in f["runs"]]),
+            e=np.stack([r.imbalance.generalized(f["rig"].rotor) for r in f["runs"]]), gain=np.array([om ** 2]),
+            sigma=None, covs=np.broadcast_to(np.eye(8) * 1e-14, (2, 1, 8, 8)), identical=False, method="forces",
+            bias=False, shared=None), args=["qs", "covs", "shared", "bias"], extras=unc_values, nan_ok=True,
+            check=_whole_points),
+        # outputs (its methods: test_results_folder_fails_only_with_rotorid_errors)
+        "ResultsFolder": Call(outputs.ResultsFolder, dict(path=str(tmp / "res"), patterns=["*.csv"], overwrite=True,
+                                                          command="fuzz"), extras=["res", "*.csv", ["*.csv", 3], [""]]),
+        # signals
+        "state_levels": Call(signals.state_levels, dict(v=rec.channels["kp"], where="", pulse_side=None),
+                             extras=sig_values),
+        "Keyphasor.from_times": Call(signals.Keyphasor.from_times, dict(times=kp.times, mark_angle_deg=0.0,
+                                                                       delay_s=0.0, source=""), extras=sig_values),
+        "steady_segments": Call(signals.steady_segments, dict(kp=kp, tolerance=0.005, min_revs=8, settle_revs=2),
+                                extras=sig_values),
+        "signals.slow_roll_vector": Call(signals.slow_roll_vector, dict(rec=rec, orders=(1, 2), return_cov=False),
+                                         extras=sig_values),
+        "detect_impacts": Call(signals.detect_impacts, dict(
+            force=np.r_[np.zeros(500), np.hanning(10) * 100.0, np.zeros(1500)], fs_hz=1e4, threshold_N=None,
+            min_separation_s=0.2, double_hit_window_s=0.02, double_hit_fraction=0.1, overload_N=None),
+            extras=sig_values),
+        "force_window": Call(signals.force_window, dict(n=100, start=10, stop=50, taper=0), extras=sig_values),
+        "exponential_window": Call(signals.exponential_window, dict(n=100, fs_hz=1e3, tau_s=0.1, start=0),
+                                   extras=sig_values),
+        "revolution_signature": Call(signals.revolution_signature, dict(
+            x=x, fs_hz=rec.fs_hz, kp_times=kp.times, t_start=0.05, t_stop=0.25, t0_s=0.0, points_per_rev=64),
+            extras=sig_values),
+        "runout_filter": Call(signals.runout_filter, dict(
+            x=x, fs_hz=rec.fs_hz, kp_times=kp.times, template=f["template"], i0=100, i1=2000, t0_s=0.0),
+            extras=sig_values, nan_ok=True, check=_runout_covered),
+        "frf_h1": Call(signals.frf_h1, dict(forces=[np.r_[np.hanning(10), np.zeros(246)]] * 2,
+                                            responses=[np.random.default_rng(0).standard_normal((4, 256))] * 2,
+                                            fs_hz=1e3), extras=sig_values, nan_ok=True, check=_frf_flagged),
+        "keyphasor_times": Call(signals.keyphasor_times, dict(
+            kp=rec.channels["kp"], fs_hz=rec.fs_hz, t0_s=0.0, level=None, hysteresis=None, edge="auto",
+            mark_angle_deg=0.0, delay_s=0.0, tolerance=0.35, fill_missing=True, refine=True, polarity=None,
+            max_speed_step=None, source=""), extras=sig_values),
+        "track": Call(signals.track, dict(rec=rec, orders=(1, 2), revs_per_block=None, steady=True,
+                                          points_per_rev=None, kp=None, min_revs=8, settle_revs=2,
+                                          speed_tolerance=0.005, keyphasor=None), extras=sig_values),
+    }
+
+
+CALL_NAMES = [
+    "KCMFit.interval", "Keyphasor.from_times", "PhaseCalibration.apply", "PulseShape", "ResultsFolder", "Runout",
+    "SyncTrack", "SyncTrack.at_speeds", "SyncTrack.order", "TableTrack.minus", "calibrate_phase", "check_clipping",
+    "coastdown_recording", "detect_impacts", "event_times", "example_tables", "exponential_window", "fit_kcm",
+    "force_window", "frf_h1", "imbalance_recording", "impact_recording", "keyphasor_times", "lab_imbalance_recording",
+    "list_groups", "load_1x_table", "load_recording", "load_segmented", "match_speeds", "polar_covariance",
+    "propagate", "pulse_train", "relative_std", "report_vector", "revolution_signature", "runout_filter",
+    "save_1x_table", "save_csv", "save_recording", "save_tdms", "save_tdms_segmented", "save_uff58",
+    "signals.slow_roll_vector", "state_levels", "std_from_cov", "steady_segments", "t_quantile",
+    "tables.slow_roll_vector", "track", "with_jackknife"]
+
+
+@pytest.mark.parametrize("name", CALL_NAMES)
+def test_every_argument_refuses_every_bad_value(tmp_path, monkeypatch, name):
+    """The sweep: each argument in turn set to each bad value (the others good)."""
+    monkeypatch.chdir(tmp_path)  # relative paths among the bad values land in tmp_path
+    call = _calls(tmp_path)[name]
+    for arg in call.args:
+        for value in SWEEP:
+            call.run({arg: value})
+
+
+@settings(API, max_examples=600)
+@given(name=st.sampled_from(CALL_NAMES), data=st.data())
+def test_public_functions_fail_only_with_rotorid_errors(tmp_path, monkeypatch, name, data):
+    """The fuzz: one or two arguments at a time, bad values and good values of other arguments."""
+    monkeypatch.chdir(tmp_path)
+    call = _calls(tmp_path)[name]
+    values = st.one_of(bad_values, st.sampled_from(call.extras)) if call.extras else bad_values
+    call.run(data.draw(bad_kwargs(call.args, values), label="bad"))
+
+
+@API
+@given(shape=bad_kwargs(["kind", "edge_samples", "edge_deg", "duty", "min_width_samples", "low_v", "high_v", "noise_v",
+                         "ringing", "drift_v", "drift_hz"], st.one_of(bad_values, st.sampled_from(rawsim.SHAPES),
+                                                                      st.just((0.1, 900.0, 1e-3)))))
+def test_every_pulse_shape_gives_a_finite_pulse_train_or_an_error(shape):
+    kind = _outcome(lambda: rawsim.PulseShape(**shape))
+    if kind is not None:
+        fs = 2000.0
+        _outcome(lambda: rawsim.pulse_train(np.arange(400) / fs, rawsim.event_times(3000.0, 0.2), fs, kind))
+
+
+@pytest.fixture(scope="module")
+def lab_files(tmp_path_factory):
+    """One small recording in every format (and a two-block TDMS file), written once."""
+    d = tmp_path_factory.mktemp("lab_files")
+    rec = rotorid.Recording(1000.0, {"x1": np.sin(np.arange(64) / 3.0) * 1e-5, "kp": (np.arange(64) % 16 < 2) * 5.0})
+    files = {ext: str(d / f"a.{ext}") for ext in ("npz", "csv", "tdms", "uff")}
+    save_recording(rec, files["npz"])
+    save_csv(rec, files["csv"])
+    save_tdms(rec, files["tdms"], group="Run 1")
+    save_uff58(rec, files["uff"])
+    files["seg"] = str(d / "seg.tdms")
+    save_tdms_segmented(SegmentedRecording.from_arrays(1000.0, {"x1": np.ones((2, 16)) * 1e-6}), files["seg"])
+    return files
+
+
+_CHANNEL_MAPS = st.dictionaries(
+    st.sampled_from(["x1", "kp", "Run 1/x1", "nope", "1:+X"]),
+    st.one_of(bad_values, st.dictionaries(st.sampled_from(["to", "unit", "scale", "offset", "delay_s", "bogus"]),
+                                          st.one_of(bad_values, st.sampled_from(["x1", "y1", "kp", "force", "mil",
+                                                                                 "V", "lbf", "kg"])), max_size=4)),
+    max_size=2)
+_READ_VALUES = st.one_of(bad_values, _CHANNEL_MAPS, st.sampled_from(
+    ["native", "csv", "tdms", "uff58", "Run 1", "block 0", "*", ",", ";", ".", "whitespace", "time [s]", 0, 3,
+     ["block 0"], ["block 0", "block 0"], ["nope"]]))
+
+
+@settings(API, max_examples=240)
+@given(ext=st.sampled_from(["npz", "csv", "tdms", "uff", "seg"]),
+       bad=bad_kwargs(["channel_map", "fs_hz", "meta", "fmt", "group", "skip_rows", "sep", "decimal", "time_column"],
+                      _READ_VALUES),
+       seg=bad_kwargs(["source", "groups", "channel_map", "fs_hz", "meta", "fmt", "time_column"], _READ_VALUES))
+def test_reader_options_fail_only_with_rotorid_errors(lab_files, ext, bad, seg):
+    _outcome(lambda: load_recording(lab_files[ext], **bad))
+    _outcome(lambda: load_segmented(**{"source": lab_files["seg"], "groups": "*", **seg}))
+    _outcome(lambda: load_segmented(**{"source": [lab_files["npz"], lab_files["csv"]],
+                                       **{k: v for k, v in seg.items() if k != "groups"}}))
+    _outcome(lambda: list_groups(lab_files[ext]))  # a TDMS file's groups; any other file is refused
+
+
+with open(os.path.join(tables.EXAMPLE_DIR, "run_S0.csv"), "rb") as _fh:
+    _TABLE_TEXT = _fh.read()
+
+
+@API
+@given(cut=st.integers(0, len(_TABLE_TEXT)), flips=st.lists(st.tuples(st.integers(0, len(_TABLE_TEXT) - 1),
+                                                                      st.sampled_from(b",;.-0 9e\n\t\x00\xff")),
+                                                            max_size=4), drop=st.integers(0, 30))
+def test_damaged_1x_tables_fail_only_with_rotorid_errors(tmp_path, cut, flips, drop):
+    lines = _TABLE_TEXT[:max(cut, 1)].split(b"\n")
+    lines = lines[:drop] + lines[drop + 1:] if drop < len(lines) else lines  # a line lost
+    b = bytearray(b"\n".join(lines))
+    for at, byte in flips:
+        if b:
+            b[at % len(b)] = byte
+    p = tmp_path / "t.csv"
+    p.write_bytes(bytes(b))
+    out = _outcome(lambda: tables.load_1x_table(p, columns=tables.EXAMPLE_COLUMNS))
+    if out is not None:
+        _a_table(out, None)
+
+
+@API
+@given(init=bad_kwargs(["path", "patterns", "overwrite", "command"], st.one_of(bad_values, st.sampled_from(
+           ["res", "*.csv", ["*.csv"], ["*.csv", 3], ("a.*",), [""]]))),
+       name=st.one_of(bad_values, st.sampled_from(["a.csv", "../a.csv", "sub/a.csv", outputs.MANIFEST, ".", ".."])))
+def test_results_folder_fails_only_with_rotorid_errors(tmp_path, monkeypatch, init, name):
+    monkeypatch.chdir(tmp_path)
+    folder = _outcome(lambda: outputs.ResultsFolder(**{"path": str(tmp_path / "res"), "patterns": ["*.csv"],
+                                                       "overwrite": True, "command": "fuzz", **init}))
+    if folder is None:
+        return
+
+    def write():
+        with folder.atomic(name) as tmp:
+            with open(tmp, "w") as fh:
+                fh.write("x\n")
+
+    _outcome(write)
+    _outcome(lambda: folder.record(name))
+    _outcome(folder.finish)
+    assert all(os.path.dirname(folder.file(f)) == folder.path for f in folder.written)
+
+
+# ---------------------------------------------------------------------------------------------
+# the rest of the public surface (model, simulation, identification, modal analysis, recordings,
+# units, chains, plots, config): the same sweep. The modules are maintained apart from this suite;
+# where the sweep still finds an argument answered with another exception, the case is marked
+# xfail with the finding (it turns XPASS once the module checks that argument).
+
+
+@functools.lru_cache(maxsize=None)
+def _chain_fixtures():
+    rotor, brg, remnant = rawsim.example_rig()
+    imb = [rotorid.Imbalance((5e-3, 5e-3), a) for a in ((0.0, 0.0), (0.0, 180.0))]
+    speeds = [3000.0, 3500.0, 4000.0]
+    runs = [rawsim.imbalance_recording(rotor, brg, speeds_rpm=speeds, added=i, remnant=remnant, dwell_s=0.3, seed=s)
+            for s, i in enumerate(imb)]
+    base = rawsim.imbalance_recording(rotor, brg, speeds_rpm=speeds, added=None, remnant=remnant, dwell_s=0.3, seed=5)
+    impacts = [rawsim.impact_recording(rotor, brg, speed_rpm=3000.0, plane=0.0, direction=d, impact_times_s=(0.3, 0.8),
+                                       record_s=1.2, seed=j) for j, d in enumerate("xy")]
+    return dict(rotor=rotor, runs=runs, base=base, impacts=impacts)
+
+
+def _batch_solved(out, kw):
+    """identify_synchronous_batch: k and c of the solved points are finite (std unknown: NaN)."""
+    ok = np.isfinite(out["cond"])
+    _finite(out["k"][ok], "k")
+    _finite(out["c"][ok], "c")
+
+
+def _nan_in_nan_out(out, kw):
+    """A unit conversion keeps NaN/inf samples as they are, and makes none."""
+    assert np.all(np.isfinite(out) | ~np.isfinite(np.asarray(kw["value"], float)))
+
+
+def _owned_calls(tmp):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from rotorid import config, demo, example, pipeline, plot, units
+
+    rig = rotorid.nsf_rig()
+    rotor, brg = rig.rotor, rig.bearings
+    rpm = np.array([4000.0, 5000.0])
+    runs = [rotorid.imbalance_response(rotor, brg, rig.imbalances[s], speed_rpm=rpm) for s in "AB"]
+    tests = [rotorid.impact_frf(rotor, brg, speed_rpm=1000, freq_hz=[20.0, 40.0], direction=d) for d in "xy"]
+    ident = rotorid.identify_synchronous(rotor, runs)
+    modal = rotorid.modal_analysis(rotor, brg, speed_rpm=[1000.0, 2000.0])
+    rec = rotorid.Recording(1000.0, {"x1": np.zeros(16)})
+    chain = _chain_fixtures()
+
+    def plotting(fn):
+        def call(**kw):
+            import matplotlib.pyplot as plt
+
+            try:
+                return fn(**kw)
+            finally:
+                plt.close("all")
+        return call
+
+    q = np.stack([r.q for r in runs])[None]
+    e = np.stack([rig.imbalances[s].generalized(rotor) for s in "AB"])[None]
+    values = [rotor, brg, rig.imbalances["A"], runs, tests, ident, modal, rec, "x", "y", "probes", "bearings", "report",
+              "mil", "length", np.ones((2, 4), complex), np.ones((2, 2, 2)), [1e-3, 1e-3], (0.0, 90.0)]
+    return {
+        "RigidRotor": Call(rotorid.RigidRotor, dict(mass_kg=45.3, it_kgm2=0.7, ip_kgm2=0.3, l1=0.2, l2=0.2,
+                                                    d=(0.1, 0.1), r=(0.05, 0.05), s=(0.2, 0.2)), extras=values),
+        "BearingCoefficients": Call(rotorid.BearingCoefficients, dict(k=brg.k, c=brg.c), extras=values),
+        "Imbalance": Call(rotorid.Imbalance, dict(mass_kg=(1e-3, 1e-3), angle_deg=(0.0, 0.0), name="A"),
+                          extras=values),
+        "ProbeResolution": Call(rotorid.ProbeResolution, dict(amplitude_m=25.4e-9, phase_deg=1.0, noise_m=0.0)),
+        "SyncResponse": Call(rotorid.SyncResponse, dict(speed_rpm=rpm, q=runs[0].q, imbalance=rig.imbalances["A"]),
+                             extras=values),
+        "ImpactResponse": Call(rotorid.ImpactResponse, dict(speed_rpm=1000.0, freq_hz=[20.0, 40.0], q=tests[0].q,
+                                                            plane=0.0, direction="x"), extras=values),
+        "imbalance_response": Call(rotorid.imbalance_response, dict(rotor=rotor, bearings=brg,
+                                                                    imbalance=rig.imbalances["A"], speed_rpm=rpm,
+                                                                    at="bearings"), extras=values),
+        "impact_frf": Call(rotorid.impact_frf, dict(rotor=rotor, bearings=brg, speed_rpm=1000.0, freq_hz=[20.0, 40.0],
+                                                    plane=0.0, direction="x", at="bearings", name=None), extras=values),
+        "impact_time_response": Call(rotorid.impact_time_response, dict(
+            rotor=rotor, bearings=brg, speed_rpm=1000.0, force_N=np.r_[np.hanning(10), np.zeros(90)], fs_hz=1e4,
+            plane=0.0, direction="x", at="bearings"), extras=values),
+        "impact_vector": Call(rotorid.impact_vector, dict(plane=0.0, direction="x"), extras=values),
+        "half_sine_pulse": Call(rotorid.half_sine_pulse, dict(peak_N=100.0, duration_s=1e-3, fs_hz=1e4, n_samples=100,
+                                                              t0_s=0.0)),
+        "probes_to_bearings": Call(rotorid.probes_to_bearings, dict(rotor=rotor, q_probes=runs[0].q), extras=values),
+        "bearings_to_probes": Call(rotorid.bearings_to_probes, dict(rotor=rotor, q_bearings=runs[0].q),
+                                   extras=values),
+        "identify_synchronous": Call(rotorid.identify_synchronous, dict(
+            rotor=rotor, runs=runs, method="forces", identical=False, cond_max=1e4, min_rel_amplitude=0.08,
+            max_rel_std=0.1, estimator="ls", shared_cov=None), extras=values),
+        "identify_impact": Call(rotorid.identify_impact, dict(
+            rotor=rotor, tests=tests, method="forces", identical=False, cond_max=1e4, min_rel_amplitude=0.01,
+            max_rel_std=0.1, extra_flags=None, estimator="ls"), extras=values),
+        "identify_synchronous_batch": Call(rotorid.identify_synchronous_batch, dict(
+            rotor=rotor, speed_rpm=rpm, q=q, imbalances=e, method="forces", identical=False, with_std=False,
+            at="bearings"), extras=values, nan_ok=True, check=_batch_solved),
+        "Identification.interval": Call(ident.interval, dict(level=0.95), nan_ok=True),
+        "modal_analysis": Call(rotorid.modal_analysis, dict(rotor=rotor, bearings=brg, speed_rpm=[1000.0]),
+                               extras=values),
+        "critical_speeds": Call(rotorid.critical_speeds, dict(rotor=rotor, bearings=brg, max_rpm=5000.0, n_grid=50,
+                                                              order=1.0), extras=values),
+        "Recording": Call(rotorid.Recording, dict(fs_hz=1000.0, channels={"x1": np.zeros(8)}, meta={}, units={},
+                                                  t0_s=0.0, source=""), extras=values),
+        "Recording.segment": Call(rec.segment, dict(start_s=0.0, stop_s=0.01)),
+        "SegmentedRecording": Call(SegmentedRecording, dict(blocks=[rec, rec], meta={}, source=""), extras=values),
+        "SegmentedRecording.from_arrays": Call(SegmentedRecording.from_arrays, dict(
+            fs_hz=1000.0, channels={"x1": np.zeros((2, 8))}, t0_s=None, meta=None, units=None, source=""),
+            extras=values),
+        "units.factor": Call(units.factor, dict(unit="mil", quantity=None), extras=values),
+        "units.to_si": Call(units.to_si, dict(value=1.0, unit="mil", quantity=None), extras=values, nan_ok=True,
+                            check=_nan_in_nan_out),
+        "units.from_si": Call(units.from_si, dict(value=1.0, unit="mil", quantity=None), extras=values, nan_ok=True,
+                              check=_nan_in_nan_out),
+        "units.quantity_of": Call(units.quantity_of, dict(unit="mil"), extras=values),
+        "plot.bode": Call(plotting(plot.bode), dict(response=runs[0], title="", path=str(tmp / "b.png"),
+                                                    x_label="rpm", axis=None), extras=values),
+        "plot.coefficients": Call(plotting(plot.coefficients), dict(ident=ident, truth=None, title="",
+                                                                    path=str(tmp / "c.png"), show_flagged=True,
+                                                                    ylim_factor=3.0), extras=values),
+        "plot.campbell": Call(plotting(plot.campbell), dict(modal_result=modal, crit=None, path=str(tmp / "m.png"),
+                                                            title=""), extras=values),
+        "imbalance_chain": Call(pipeline.imbalance_chain, dict(
+            rotor=chain["rotor"], runs=chain["runs"], baseline=chain["base"], speeds_rpm=None, steady=True,
+            orders=(1,), method="forces", keyphasor=None, speed_match_rpm=None, points_per_rev=None, min_revs=8,
+            settle_revs=2, speed_tolerance=0.005, revs_per_block=None), extras=values),
+        "impact_segments": Call(pipeline.impact_segments, dict(
+            rec=chain["impacts"][0], record_s=0.2, pre_s=0.01, revs_before=8, runout=True, kp=None, points_per_rev=64,
+            exp_window_tau_s=None, detect=None), extras=values),
+        "impact_chain": Call(pipeline.impact_chain, dict(
+            rotor=chain["rotor"], recordings=chain["impacts"], band_hz=(5.0, 150.0), record_s=0.2, runout=True,
+            identical=False, method="forces", exp_window_tau_s=None, pre_s=0.01, zero_pad_s=None, revs_before=8,
+            points_per_rev=64, keyphasor=None, coherence_min=0.9, threshold_N=None, min_separation_s=0.2,
+            double_hit_window_s=0.02, overload_N=None, kcm_band_hz=None), extras=values),
+        "run_config": Call(pipeline.run_config, dict(path=os.path.join(example.path(), "imbalance.toml"),
+                                                     kind="imbalance", out_dir=str(tmp / "out"), overwrite=True,
+                                                     log=lambda *a: None), args=["path", "kind"]),
+        "config.load_config": Call(config.load_config, dict(path=os.path.join(example.path(), "impact.toml"),
+                                                            check_files=True)),
+        "config.parse_config": Call(config.parse_config, dict(data={}, source="<fuzz>", base_dir=".",
+                                                              check_files=False)),
+        "example.copy_example": Call(example.copy_example, dict(out=str(tmp / "ex"), overwrite=False)),
+        "demo.synchronous": Call(demo.synchronous, dict(out=str(tmp / "demo"), step_rpm=50.0, resolution=None,
+                                                        log=lambda *a: None), args=["step_rpm", "resolution", "out"]),
+        "demo.impact": Call(demo.impact, dict(out=str(tmp / "demo"), speed_rpm=1000.0, log=lambda *a: None),
+                            args=["out", "speed_rpm"]),
+    }
+
+
+#: findings of the sweep in modules this suite does not maintain (argument: what happens instead of
+#: a RotoridError); each case turns XPASS once its module checks the argument
+OWNED_FINDINGS = {
+    "impact_time_response": "plane='x'/None/[1, 2] raises ValueError/TypeError from float(plane) "
+                            "(simulate.impact_vector)",
+    "impact_vector": "plane=nan/inf gives a NaN excitation vector; plane='x'/None raises ValueError/TypeError",
+    "half_sine_pulse": "n_samples=nan/inf/'x'/None raises ValueError/OverflowError/TypeError from int(n_samples)",
+    "probes_to_bearings": "rotor that is not a RigidRotor raises AttributeError ('l1')",
+    "bearings_to_probes": "rotor that is not a RigidRotor raises AttributeError ('l1')",
+    "identify_synchronous": "cond_max/min_rel_amplitude/max_rel_std as an array raise ValueError (truth value of an "
+                            "array, identify._check_threshold)",
+    "identify_impact": "cond_max/min_rel_amplitude/max_rel_std as an array raise ValueError (truth value of an array)",
+    "Recording": "units that is not a dict raises AttributeError (setdefault); meta/source unchecked",
+    "Recording.segment": "start_s/stop_s nan/inf/'x'/None raise ValueError/OverflowError/TypeError (int(round()))",
+    "SegmentedRecording": "blocks that is not iterable raises TypeError; meta/source as arrays raise ValueError",
+    "SegmentedRecording.from_arrays": "fs_hz/t0_s 'x'/None/complex raise ValueError/TypeError (float()); meta/units "
+                                      "that are not dicts raise TypeError/ValueError (dict())",
+    "units.factor": "quantity as an array raises ValueError (truth value of an array)",
+    "units.to_si": "value 'x'/None/[1, 2] raises TypeError (value * factor); quantity as an array raises ValueError",
+    "units.from_si": "value 'x'/None/[1, 2] raises TypeError (value / factor); quantity as an array raises ValueError",
+    "plot.bode": "no argument is checked: response of another type raises AttributeError, path a number raises "
+                 "AttributeError in Pillow",
+    "plot.coefficients": "no argument is checked: ident/truth of another type raise AttributeError, title a number "
+                         "TypeError, show_flagged an array ValueError",
+    "plot.campbell": "no argument is checked: modal_result of another type raises AttributeError, crit a number "
+                     "TypeError",
+    "imbalance_chain": "orders=b'x' raises ValueError from tuple.index (pipeline.py, orders not checked before use)",
+    "impact_segments": "rec not a Recording raises AttributeError; record_s/pre_s nan raise ValueError (int()); "
+                       "revs_before 'x' TypeError; runout an array ValueError; detect not a dict TypeError",
+    "impact_chain": "recordings holding non-recordings raise AttributeError ('meta'); tests_meta a number TypeError; "
+                    "zero_pad_s=1e12 MemoryError (allocates before checking)",
+    "run_config": "path that is not a path raises TypeError (config.load_config); kind an array ValueError",
+    "config.load_config": "path that is not a str/PathLike raises TypeError (Path(path))",
+    "example.copy_example": "out that is not a path raises TypeError (os.path); overwrite an array ValueError",
+    "demo.synchronous": "step_rpm=nan ValueError (np.arange), 0 ZeroDivisionError, 'x'/None TypeError, 0.001 "
+                        "allocates gigabytes (6e6 speeds; `rotorid demo --step-rpm 0.001` too); resolution not a "
+                        "ProbeResolution AttributeError; out not a path TypeError",
+    "demo.impact": "out that is not a path raises TypeError (os.makedirs)",
+}
+
+
+OWNED_NAMES = [
+    "BearingCoefficients", "Identification.interval", "Imbalance", "ImpactResponse", "ProbeResolution", "Recording",
+    "Recording.segment", "RigidRotor", "SegmentedRecording", "SegmentedRecording.from_arrays", "SyncResponse",
+    "bearings_to_probes", "config.load_config", "config.parse_config", "critical_speeds", "demo.impact",
+    "demo.synchronous", "example.copy_example", "half_sine_pulse", "identify_impact", "identify_synchronous",
+    "identify_synchronous_batch", "imbalance_chain", "imbalance_response", "impact_chain", "impact_frf",
+    "impact_segments", "impact_time_response", "impact_vector", "modal_analysis", "plot.bode", "plot.campbell",
+    "plot.coefficients", "probes_to_bearings", "run_config", "units.factor", "units.from_si", "units.quantity_of",
+    "units.to_si"]
+
+
+def test_the_sweeps_list_every_call(tmp_path):
+    assert sorted(_calls(tmp_path)) == CALL_NAMES
+    assert sorted(_owned_calls(tmp_path)) == OWNED_NAMES
+    assert set(OWNED_FINDINGS) <= set(OWNED_NAMES)
+
+
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.xfail(reason=OWNED_FINDINGS[n], strict=False))
+                                  if n in OWNED_FINDINGS else n for n in OWNED_NAMES])
+def test_every_argument_of_the_rest_refuses_every_bad_value(tmp_path, monkeypatch, name):
+    monkeypatch.chdir(tmp_path)
+    call = _owned_calls(tmp_path)[name]
+    for arg in call.args:
+        for value in SWEEP:
+            call.run({arg: value})
+
+
+def _example_config(name):
+    """An example config with its data files named by absolute path (so it can be copied anywhere)."""
+    import re
+
+    ex = rotorid.example.path()
+    text = open(os.path.join(ex, name), encoding="utf-8").read()
+    return re.sub(r'"((?:imbalance|impact|daq_1x)/[^"]+)"', lambda m: '"' + os.path.join(ex, m.group(1)) + '"', text)
+
+
+_TOML_VALUES = st.sampled_from(["nan", "inf", "-inf", "-1", "0", "-0.0", "1e300", "1e999", "true", '"x"', '""', '"nan"',
+                                "[]", "{}", "[1, 2]", '["a"]', '"-1"', "2.5", "99999999999999999999"])
+_EDITS = st.lists(st.tuples(st.integers(0, 400), st.sampled_from(["value", "drop", "repeat"]), _TOML_VALUES),
+                  min_size=1, max_size=3)
+
+
+def _damaged(text, edits):
+    lines = text.splitlines()
+    for at, how, value in edits:
+        j = at % len(lines)
+        if how == "value" and "=" in lines[j]:
+            lines[j] = lines[j].partition("=")[0] + "= " + value
+        elif how == "drop":
+            del lines[j]
+        else:
+            lines.insert(j, lines[(at * 7) % len(lines)])
+    return "\n".join(lines) + "\n"
+
+
+def _cli(argv, capsys):
+    with warnings.catch_warnings(), _deadline(120):
+        warnings.simplefilter("ignore")
+        try:
+            code = cli.main(argv)
+        except SystemExit as exc:  # argparse usage errors
+            code = exc.code
+    err = capsys.readouterr().err
+    assert code in (0, 2) and "Traceback" not in err, err
+    return code
+
+
+@API
+@given(name=st.sampled_from(["imbalance.toml", "impact.toml", "imbalance_1x_table.toml"]), edits=_EDITS)
+def test_cli_check_of_damaged_configs_answers_in_one_line(tmp_path, capsys, name, edits):
+    p = tmp_path / "c.toml"
+    p.write_text(_damaged(_example_config(name), edits), encoding="utf-8")
+    _cli(["check", str(p)], capsys)
+
+
+@settings(API, max_examples=25)
+@given(edits=_EDITS)
+def test_cli_identify_with_damaged_configs_answers_in_one_line(tmp_path, capsys, edits):
+    p = tmp_path / "c.toml"
+    p.write_text(_damaged(_example_config("imbalance_1x_table.toml"), edits), encoding="utf-8")
+    _cli(["identify", "imbalance", str(p), "--out", str(tmp_path / "out"), "--overwrite"], capsys)

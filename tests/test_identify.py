@@ -234,3 +234,9 @@ def test_batch_axis_equals_individual_calls_and_threads_are_safe():
         t.join()
     for r in results:
         np.testing.assert_array_equal(r, batch["k"])
+    # the batch is used as it is (no copy); a NaN in one trial marks that trial's point only
+    trials[5, 2, 7, 1] = np.nan
+    out = rotorid.identify_synchronous_batch(rig.rotor, rpm, trials, imbs)
+    assert np.isnan(out["k"][5, 7]).all() and np.isnan(out["cond"][5, 7]).all()
+    assert np.isfinite(out["k"][5, 8]).all() and np.isfinite(out["k"][4, 7]).all()
+    np.testing.assert_array_equal(out["k"][6], batch["k"][6])

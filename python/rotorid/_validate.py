@@ -7,7 +7,8 @@ import numpy as np
 from .errors import RotoridError
 
 
-def real_array(name, value, *, ndim=None, shape=None, positive=False, nonneg=False, nonzero=False):
+def real_array(name, value, *, ndim=None, shape=None, positive=False, nonneg=False, nonzero=False, finite=True):
+    """A real float array; ``finite=False`` lets NaN and inf through (arrays where NaN means unknown)."""
     if isinstance(value, (str, bytes)):
         raise RotoridError(f"{name} must be numeric real values, got the string {value!r}")
     if np.iscomplexobj(value):
@@ -20,13 +21,13 @@ def real_array(name, value, *, ndim=None, shape=None, positive=False, nonneg=Fal
     if raw.dtype == bool:
         raise RotoridError(f"{name} must be numbers, got booleans ({value!r})")
     if raw.dtype.kind in "USO" and raw.dtype.kind != "O" or raw.dtype.kind == "O" and any(
-            isinstance(v, (str, bytes, bool, np.bool_)) for v in raw.ravel().tolist()):
+            v is None or isinstance(v, (str, bytes, bool, np.bool_)) for v in raw.ravel().tolist()):
         raise RotoridError(f"{name} must be numeric real values, got {value!r}")
     try:
-        a = raw.astype(float)
+        a = raw.astype(float, copy=False)  # the caller's array as it is when it already is float
     except (TypeError, ValueError) as exc:
         raise RotoridError(f"{name} must be numeric real values ({exc})") from None
-    return _check(name, a, ndim, shape, positive, nonneg, nonzero)
+    return _check(name, a, ndim, shape, positive, nonneg, nonzero, finite)
 
 
 def flag(name, value):
@@ -48,20 +49,22 @@ def index(name, value, lo=0, hi=None):
     return v
 
 
-def complex_array(name, value, *, ndim=None, shape=None):
+def complex_array(name, value, *, ndim=None, shape=None, finite=True):
+    """A complex128 array (the caller's own when it already is one); ``finite=False`` leaves NaN
+    and inf to the caller (the core marks such points itself)."""
     try:
         a = np.asarray(value)
         if a.dtype == bool:
             raise TypeError("booleans are not numbers here")
         if not np.issubdtype(a.dtype, np.number):
             raise TypeError(f"dtype {a.dtype}")
-        a = a.astype(complex)
+        a = a.astype(complex, copy=False)  # the caller's array as it is when it already is complex
     except (TypeError, ValueError) as exc:
         raise RotoridError(f"{name} must be numeric complex values ({exc})") from None
-    return _check(name, a, ndim, shape, False, False, False)
+    return _check(name, a, ndim, shape, False, False, False, finite)
 
 
-def _check(name, a, ndim, shape, positive, nonneg, nonzero):
+def _check(name, a, ndim, shape, positive, nonneg, nonzero, finite=True):
     if a.dtype == bool:
         raise RotoridError(f"{name} must be numbers, got booleans")
     if ndim is not None and a.ndim != ndim:
@@ -70,10 +73,10 @@ def _check(name, a, ndim, shape, positive, nonneg, nonzero):
         if len(shape) != a.ndim or any(s is not None and s != t for s, t in zip(shape, a.shape)):
             want = tuple("n" if s is None else s for s in shape)
             raise RotoridError(f"{name} has shape {a.shape}, expected {want}")
-    if a.size and not np.all(np.isfinite(a)):
+    if finite and a.size and not np.all(np.isfinite(a)):
         bad = np.argwhere(~np.isfinite(a))[0]
         raise RotoridError(f"{name} contains NaN or inf (first at index {tuple(int(i) for i in bad)})")
-    if positive and a.size and np.any(a <= 0):
+    if positive and a.size and np.any(a <= 0):  # NaN (finite=False) passes every bound
         raise RotoridError(f"{name} must be > 0 (got min {a.min():g})")
     if nonneg and a.size and np.any(a < 0):
         raise RotoridError(f"{name} must be >= 0 (got min {a.min():g})")
@@ -105,7 +108,11 @@ def speeds_rpm(name, value):
 
 
 def choice(name, value, options):
-    if value not in options:
+    try:
+        ok = isinstance(value, str) and value in options
+    except (TypeError, ValueError):  # unhashable values (lists, arrays) are no option
+        ok = False
+    if not ok:
         raise RotoridError(f"{name} must be one of {sorted(options)}, got {value!r}")
     return value
 
@@ -129,3 +136,49 @@ def number(name, value, *, positive=False, nonneg=False, allow_none=False):
     if nonneg and v < 0:
         raise RotoridError(f"{name} must be >= 0, got {value!r}")
     return v
+
+
+def seed(name, value):
+    """A random seed: a whole number >= 0 (what numpy's generators take)."""
+    return index(name, value, 0)
+
+
+def path(name, value):
+    """A file or folder path: a non-empty str or os.PathLike (not bytes, numbers or None)."""
+    import os
+    from pathlib import Path
+
+    if isinstance(value, os.PathLike):
+        value = os.fspath(value)
+    if not isinstance(value, str) or not value.strip():
+        raise RotoridError(f"{name} must be a file path (a non-empty str or pathlib.Path), got {value!r}")
+    return Path(value)
+
+
+def mapping(name, value, *, allow_none=True):
+    """A dict argument (None allowed unless ``allow_none=False``); returns a copy (None: {})."""
+    if value is None and allow_none:
+        return {}
+    if not isinstance(value, dict):
+        raise RotoridError(f"{name} must be a dict{' or None' if allow_none else ''}, got {type(value).__name__} "
+                           f"{value!r}"[:300])
+    return dict(value)
+
+
+def text(name, value, *, allow_none=False):
+    """A str argument (None allowed with ``allow_none``)."""
+    if value is None and allow_none:
+        return None
+    if not isinstance(value, str):
+        raise RotoridError(f"{name} must be a string, got {type(value).__name__} {value!r}"[:300])
+    return value
+
+
+def instance(name, value, cls, *, allow_none=False, what=None):
+    """An argument of class ``cls`` (or None with ``allow_none``)."""
+    if value is None and allow_none:
+        return None
+    if not isinstance(value, cls):
+        want = what or (cls.__name__ if isinstance(cls, type) else " or ".join(c.__name__ for c in cls))
+        raise RotoridError(f"{name} must be a {want}{' (or None)' if allow_none else ''}, got {type(value).__name__}")
+    return value

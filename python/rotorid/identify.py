@@ -520,6 +520,7 @@ def identify_synchronous_batch(rotor: RigidRotor, speed_rpm, q, imbalances, *, m
     perturbed per trial. Returns a dict of arrays k, c (trials, n, 2, 2, 2), cond (trials, n, 2),
     residual and amplitude (rms response, m) (trials, n) and, with ``with_std``, k_std and c_std.
     No per-point flags: use cond (inf where singular, NaN where the input was not finite).
+    ``q`` is used as it is when it is a C-contiguous complex128 array (no copy, no extra pass).
     """
     if not isinstance(rotor, RigidRotor):
         raise RotoridError(f"rotor must be a rotorid.RigidRotor, got {type(rotor).__name__}")
@@ -528,7 +529,7 @@ def identify_synchronous_batch(rotor: RigidRotor, speed_rpm, q, imbalances, *, m
     _check_bool("identical", identical)
     _check_bool("with_std", with_std)
     rpm = real_array("speed_rpm", speed_rpm, ndim=1, positive=True)
-    q = complex_array("q", q, ndim=4)
+    q = complex_array("q", q, ndim=4, finite=False)  # NaN/inf trials come back as NaN with cond NaN
     if q.shape[2:] != (rpm.size, 4):
         raise RotoridError(f"q has shape {q.shape}, expected (trials, runs, {rpm.size}, 4)")
     if at == "probes":

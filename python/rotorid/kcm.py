@@ -173,7 +173,28 @@ def with_jackknife(fit: KCMFit, replicates, groups, rotor=None) -> KCMFit:
     each replicate left an impact of. Resampling whole impacts carries every correlation between
     frequencies (windows, zero padding, the common force spectrum) into the standard errors,
     which a fit of independent points cannot; dof = smallest group size - 1."""
+    from ._validate import instance
+    from .model import RigidRotor
+
+    instance("fit", fit, KCMFit, what="KCMFit")
+    instance("rotor", rotor, RigidRotor, allow_none=True, what="rotorid.RigidRotor")
+    if isinstance(replicates, (KCMFit, str, bytes)):
+        raise RotoridError(f"replicates must be a list of KCMFit (one per left-out impact), got one "
+                           f"{type(replicates).__name__}")
+    try:
+        replicates = list(replicates)
+    except TypeError:
+        raise RotoridError(f"replicates must be a list of KCMFit, got {type(replicates).__name__}") from None
+    for i, r in enumerate(replicates):
+        instance(f"replicates[{i}]", r, KCMFit, what="KCMFit")
+    if isinstance(groups, (str, bytes)):
+        raise RotoridError(f"groups must list the group of each replicate, got {groups!r}")
     groups = np.asarray(groups)
+    if groups.ndim != 1 or groups.size != len(replicates) or groups.size < 2:
+        raise RotoridError(f"groups must give the group of each of the {len(replicates)} replicates (at least 2), got "
+                           f"shape {groups.shape}")
+    if groups.dtype.kind not in "iuUS":
+        raise RotoridError(f"groups must be whole numbers or names, got dtype {groups.dtype}")
     var = {name: np.zeros((2, 2, 2)) for name in ("K", "M", "C")}
     sizes = []
     for g in np.unique(groups):

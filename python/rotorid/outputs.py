@@ -49,9 +49,14 @@ class ResultsFolder:
     """
 
     def __init__(self, path, *, patterns, overwrite: bool = False, command: str = ""):
-        self.path = os.path.abspath(str(path))
-        self.overwrite = bool(overwrite)
-        self.command = command
+        from ._validate import flag, path as _path, text
+
+        self.path = os.path.abspath(str(_path("path", path)))
+        self.overwrite = flag("overwrite", overwrite)
+        self.command = text("command", command)
+        if isinstance(patterns, str) or not isinstance(patterns, (list, tuple)) or \
+                not all(isinstance(p, str) and p for p in patterns):
+            raise RotoridError(f"patterns must be a list of file name patterns (e.g. ['*.csv']), got {patterns!r}")
         self.written: list[str] = []
         if os.path.exists(self.path) and not os.path.isdir(self.path):
             raise RotoridError(f"the output folder {self.path} is a file; choose another --out")
@@ -83,6 +88,8 @@ class ResultsFolder:
 
     def file(self, name: str) -> str:
         """Full path of a result file (use with :meth:`atomic` to write it)."""
+        if not isinstance(name, str):
+            raise RotoridError(f"result file name must be a string, got {name!r}")
         if os.path.basename(name) != name or name in ("", ".", "..", MANIFEST):
             raise RotoridError(f"result file name {name!r} is not a plain file name")
         return os.path.join(self.path, name)
@@ -97,6 +104,7 @@ class ResultsFolder:
 
     def record(self, name: str):
         """Note a file written by other means (e.g. a copied data set) in the manifest."""
+        self.file(name)  # a plain file name, like the files the folder writes itself
         if name not in self.written:
             self.written.append(name)
 

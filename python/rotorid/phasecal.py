@@ -44,7 +44,22 @@ class PhaseCalibration:
 
     def apply(self, runs):
         """The runs corrected (each SyncResponse's q multiplied by e^{-j(theta - Omega tau)})."""
+        runs = _runs(runs)
         return [_rotated(r, -np.deg2rad(self.offset_deg), -self.delay_s) for r in runs]
+
+
+def _runs(runs) -> list:
+    """A list of SyncResponse, or a RotoridError naming what is not."""
+    if isinstance(runs, (SyncResponse, str, bytes)):
+        raise RotoridError(f"runs must be a list of SyncResponse, got one {type(runs).__name__}")
+    try:
+        runs = list(runs)
+    except TypeError:
+        raise RotoridError(f"runs must be a list of SyncResponse, got {type(runs).__name__}") from None
+    for i, r in enumerate(runs):
+        if not isinstance(r, SyncResponse):
+            raise RotoridError(f"runs[{i}] must be a SyncResponse, got {type(r).__name__}")
+    return runs
 
 
 def _rotated(run: SyncResponse, theta, tau) -> SyncResponse:
@@ -106,17 +121,16 @@ def calibrate_phase(rotor, runs, *, delay: bool = True, offset: bool = True, deg
     from .identify import identify_synchronous
     from .uncertainty import report_vector
 
-    from ._validate import number
+    from ._validate import index, number
 
-    runs = list(runs)
+    runs = _runs(runs)
     for nm, v in (("delay", delay), ("offset", offset)):
         if not isinstance(v, (bool, np.bool_)):
             raise RotoridError(f"{nm} must be True or False, got {v!r}")
     significance = number("significance", significance, positive=True)
     if not (offset or delay):
         raise RotoridError("calibrate_phase: estimate the offset, the delay or both")
-    if int(degree) != degree or degree < 0:
-        raise RotoridError(f"degree must be a whole number >= 0, got {degree!r}")
+    degree = index("degree", degree, 0)
     unknown = sorted(set(ident_kw) - {"method", "identical", "cond_max", "min_rel_amplitude", "max_rel_std",
                                       "estimator", "shared_cov"})
     if unknown:

@@ -578,8 +578,21 @@ def load_1x_table(path, *, columns, speed_column="auto", amplitude="pk-pk", unit
     >>> round(float(t.speed_rpm[0]))
     3000
     """
-    path = Path(os.fspath(path))
+    from ._validate import mapping, number, path as _path, text
+
+    path = _path("path", path)
     cols = _check_columns_arg(columns)
+    speed_column = text("speed_column", speed_column)
+    if not (isinstance(skip_rows, str) and skip_rows == "auto") and (
+            isinstance(skip_rows, (bool, np.bool_)) or not isinstance(skip_rows, (int, np.integer)) or skip_rows < 0):
+        raise RotoridError(f"skip_rows must be 'auto' or the number of rows before the header (>= 0), got "
+                           f"{skip_rows!r}")
+    if sheet is not None and (isinstance(sheet, (bool, np.bool_)) or not isinstance(sheet, (str, int, np.integer))):
+        raise RotoridError(f"sheet must be a sheet name or a 0-based index, got {sheet!r}")
+    name = text("name", name, allow_none=True)
+    meta = mapping("meta", meta)
+    amplitude_std = number("amplitude_std", amplitude_std, nonneg=True, allow_none=True)
+    phase_std_deg = number("phase_std_deg", phase_std_deg, nonneg=True, allow_none=True)
     amp_kind = _amplitude_kind(amplitude)
     phase_kind = _phase_kind(phase)
     angle_kind = _angle_kind(phase_unit)
@@ -703,8 +716,6 @@ def load_1x_table(path, *, columns, speed_column="auto", amplitude="pk-pk", unit
     m.setdefault("table", info)
     cov, dof = None, None
     if amplitude_std is not None or phase_std_deg is not None:
-        from ._validate import number
-
         sa = number("amplitude_std", amplitude_std or 0.0, nonneg=True) * f_len * (0.5 if amp_kind == "pk-pk" else 1.0)
         sp = np.deg2rad(number("phase_std_deg", phase_std_deg or 0.0, nonneg=True))
         if not (np.isfinite(sa) and np.isfinite(sp) and sa >= 0 and sp >= 0) or (sa == 0 and sp == 0):
@@ -721,17 +732,25 @@ def polar_covariance(q, amplitude_std_m: float, phase_std_rad: float) -> np.ndar
     """Covariance (n, 8, 8) of 1X vectors q (n, 4) whose amplitude and phase carry independent
     errors of the given standard deviations (a DAQ's stated accuracy), as the real 8-vector
     [Re x1..y2, Im x1..y2]: per channel, variance sa² along the vector and (|q| sp)² across it."""
-    q = np.asarray(q, complex)
+    from ._validate import complex_array, number
+
+    q = complex_array("q", q, shape=(None, 4))
+    amplitude_std_m = number("amplitude_std_m", amplitude_std_m, nonneg=True)
+    phase_std_rad = number("phase_std_rad", phase_std_rad, nonneg=True)
     n = q.shape[0]
     cov = np.zeros((n, 8, 8))
-    u = q / np.where(np.abs(q) > 0, np.abs(q), 1.0)
-    u = np.where(np.abs(q) > 0, u, 1.0)
-    for j in range(4):
-        ur, ui = u[:, j].real, u[:, j].imag
-        va, vt = amplitude_std_m ** 2, (np.abs(q[:, j]) * phase_std_rad) ** 2
-        cov[:, j, j] = va * ur * ur + vt * ui * ui
-        cov[:, j + 4, j + 4] = va * ui * ui + vt * ur * ur
-        cov[:, j, j + 4] = cov[:, j + 4, j] = (va - vt) * ur * ui
+    with np.errstate(over="ignore", invalid="ignore"):  # an overflow is refused below
+        u = q / np.where(np.abs(q) > 0, np.abs(q), 1.0)
+        u = np.where(np.abs(q) > 0, u, 1.0)
+        for j in range(4):
+            ur, ui = u[:, j].real, u[:, j].imag
+            va, vt = np.float64(amplitude_std_m) ** 2, (np.abs(q[:, j]) * phase_std_rad) ** 2
+            cov[:, j, j] = va * ur * ur + vt * ui * ui
+            cov[:, j + 4, j + 4] = va * ui * ui + vt * ur * ur
+            cov[:, j, j + 4] = cov[:, j + 4, j] = (va - vt) * ur * ui
+    if not np.all(np.isfinite(cov)):
+        raise RotoridError(f"amplitude_std_m = {amplitude_std_m:g} m and phase_std_rad = {phase_std_rad:g} rad with "
+                           f"amplitudes up to {np.abs(q).max():g} m give a covariance that overflows")
     return cov
 
 
@@ -819,8 +838,14 @@ def match_speeds(tracks, *, grid=None, tolerance_rpm=2.0):
     if isinstance(tracks, dict):
         keys = list(tracks)
         tracks = [tracks[k] for k in keys]
+    elif isinstance(tracks, (SyncTrack, str, bytes)):
+        raise RotoridError(f"match_speeds: tracks must be a list or dict of tracks, got one {type(tracks).__name__}")
     else:
-        tracks = list(tracks)
+        try:
+            tracks = list(tracks)
+        except TypeError:
+            raise RotoridError(f"match_speeds: tracks must be a list or dict of tracks, got "
+                               f"{type(tracks).__name__}") from None
         keys = [None] * len(tracks)
     if not tracks:
         raise RotoridError("match_speeds: no tracks given")
@@ -942,9 +967,12 @@ def slow_roll_vector(track, *, max_rpm=None) -> np.ndarray:
     sp = np.asarray(track.speed_rpm, float)
     v = np.asarray(track.vectors)
     lab = _label(track, 0)
+    from ._validate import number
+
+    max_rpm = number("max_rpm", max_rpm, positive=True, allow_none=True)
     if max_rpm is None:
         return v[int(np.argmin(sp))].copy()
-    sel = sp <= float(max_rpm)
+    sel = sp <= max_rpm
     if not sel.any():
         raise RotoridError(f"slow_roll_vector: {lab!r} has no row at or below max_rpm={max_rpm:g} (slowest "
                            f"{sp.min():.1f} rpm)")
@@ -1010,10 +1038,15 @@ def save_1x_table(track, path, *, layout="adre", amplitude="pk-pk", unit="mil", 
     >>> bool(np.allclose(back.vectors, t.vectors, atol=0.01e-6))     # printed to 0.01 µm, 0.1 deg
     True
     """
-    if layout != "adre":
+    from ._validate import mapping, path as _path
+
+    if not isinstance(layout, str) or layout != "adre":
         raise RotoridError(f"layout must be 'adre', got {layout!r}")
     if not isinstance(track, SyncTrack):
         raise RotoridError(f"save_1x_table needs a SyncTrack, got {type(track).__name__}")
+    path = _path("path", path)
+    if preamble is not None:
+        preamble = mapping("preamble", preamble)
     amp_kind = _amplitude_kind(amplitude)
     phase_kind = _phase_kind(phase)
     f_len = _length_factor(unit)
@@ -1046,6 +1079,9 @@ def save_1x_table(track, path, *, layout="adre", amplitude="pk-pk", unit="mil", 
         header += [cols[ch]["amplitude"], cols[ch]["phase"]]
     idx = {ch: CHANNELS.index(ch) for ch in CHANNELS}
     lines = [f"{k}: {val}" for k, val in preamble.items()]
+    broken = [ln for ln in lines if "\n" in ln or "\r" in ln]
+    if broken:
+        raise RotoridError(f"save_1x_table: preamble entries must be one line each, got {broken[0]!r}")
     lines.append("")
     lines.append(",".join(header))
     for r in range(sp.size):
@@ -1055,9 +1091,11 @@ def save_1x_table(track, path, *, layout="adre", amplitude="pk-pk", unit="mil", 
             a = round(float(amp[r, j]), dec)
             cells += [f"{a:.{dec}f}", f"{ang[r, j] + 0.0:.1f}"]
         lines.append(",".join(cells))
-    path = Path(os.fspath(path))
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    except OSError as exc:
+        raise RotoridError(f"cannot write {path}: {exc.strerror or exc}") from None
     return cols
 
 
@@ -1091,11 +1129,17 @@ def example_tables(out_dir=EXAMPLE_DIR) -> dict:
     from .model import Imbalance
     from .simulate import imbalance_response
 
+    from ._validate import path as _path
+
+    out_dir = str(_path("out_dir", out_dir))
     rotor, brg, remnant = rawsim.example_rig()
     runout = rawsim.Runout(amplitudes_m=(4e-6,), seed=7).vectors()[0]   # (4,) 1X run-out, ~3-5 µm
     nominal = np.arange(3000.0, 6000.0 + 1e-9, 250.0)
     rng = np.random.default_rng(2001)
-    os.makedirs(out_dir, exist_ok=True)
+    try:
+        os.makedirs(out_dir, exist_ok=True)
+    except OSError as exc:
+        raise RotoridError(f"cannot create the folder {out_dir}: {exc.strerror or exc}") from None
 
     def table(speeds, added, run):
         q = imbalance_response(rotor, brg, remnant, speed_rpm=speeds, at="probes").q + runout[None, :]

@@ -43,10 +43,26 @@ class Interval(NamedTuple):
 
 
 def report_vector(k, c):
-    """(..., 16) in report eq. 9 order from k, c (..., 2, 2, 2)."""
+    """(..., 16) in report eq. 9 order from k, c (..., 2, 2, 2) (NaN where unknown stays NaN)."""
+    k, c = _coefficients(k=k, c=c)
     lead = k.shape[:-3]
     return np.concatenate([k.reshape(lead + (8,))[..., _REPORT_TO_BIJ], c.reshape(lead + (8,))[..., _REPORT_TO_BIJ]],
                           axis=-1)
+
+
+def _coefficients(**arrays):
+    """Real arrays (..., 2, 2, 2) of one shape (NaN allowed: unknown), in the order given."""
+    from ._validate import real_array
+
+    out = []
+    for name, v in arrays.items():
+        a = real_array(name, v, finite=False)
+        if a.ndim < 3 or a.shape[-3:] != (2, 2, 2):
+            raise RotoridError(f"{name} must have shape (..., 2, 2, 2) = [bearing, i, j], got {a.shape}")
+        if out and a.shape != out[0].shape:
+            raise RotoridError(f"{name} has shape {a.shape}, {next(iter(arrays))} has {out[0].shape}")
+        out.append(a)
+    return out
 
 
 def _eval(rotor, w, spin, qb, e, gain, sigma, identical, method):
@@ -67,7 +83,14 @@ def propagate(rotor, w, spin, qs, e, gain, sigma, covs, *, identical, method, bi
 
     ``shared`` (n, 8, 8): a covariance common to every pair of runs (all runs less the same
     baseline run): the off-diagonal blocks of Σ."""
+    from ._validate import complex_array, flag, real_array
+
+    qs = complex_array("qs", qs, shape=(None, None, 4))
     R, n, _ = qs.shape
+    covs = real_array("covs", covs, shape=(R, n, 8, 8), finite=False)
+    if shared is not None:
+        shared = real_array("shared", shared, shape=(n, 8, 8), finite=False)
+    bias = flag("bias", bias)
     scale = np.sqrt(np.mean(np.abs(qs) ** 2, axis=(0, 2)))
     h = _H_REL * np.where(scale > 0, scale, 1.0)
     nb = 16 * R
@@ -114,20 +137,29 @@ def propagate(rotor, w, spin, qs, e, gain, sigma, covs, *, identical, method, bi
 
 
 def t_quantile(level: float, dof):
-    """Two-sided quantile of Student's t for a confidence ``level`` (normal where dof is inf)."""
+    """Two-sided quantile of Student's t for a confidence ``level`` (normal where dof is inf; NaN
+    where dof is NaN or <= 0: a covariance of unknown quality, no interval; inf where dof > 0 is
+    so small that the quantile overflows)."""
+    from ._validate import number, real_array
+
+    level = number("level", level)
     if not (0.0 < level < 1.0):
         raise RotoridError(f"level must be between 0 and 1 (e.g. 0.95), got {level!r}")
     from scipy import stats
 
-    dof = np.asarray(dof, dtype=float)
+    dof = real_array("dof", dof, finite=False)
     q = (1.0 + level) / 2.0
     out = np.where(np.isfinite(dof), stats.t.ppf(q, np.where(np.isfinite(dof) & (dof > 0), dof, 1.0)),
                    stats.norm.ppf(q))
+    out = np.where(np.isnan(out) & (dof > 0), np.inf, out)  # scipy gives NaN for sub-normal dof
     return np.where(dof > 0, out, np.nan)
 
 
 def std_from_cov(cov):
     """(k_std, c_std) (n, 2, 2, 2) from the report-order covariance (n, 16, 16)."""
+    from ._validate import real_array
+
+    cov = real_array("cov", cov, shape=(None, 16, 16), finite=False)
     n = cov.shape[0]
     sd = np.sqrt(np.clip(np.diagonal(cov, axis1=1, axis2=2), 0.0, None))
     k = np.empty((n, 8))
@@ -141,11 +173,7 @@ def relative_std(k, c, k_std, c_std):
     """Largest standard error per point relative to its bearing's direct coefficients,
     sqrt(|Kxx Kyy|) for stiffnesses and sqrt(|Cxx Cyy|) for dampings (so cross-coupled terms that
     are small are judged on the bearing's scale, not their own)."""
-    n = k.shape[0]
-    out = np.full(n, -np.inf)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        for v, sd in ((k, k_std), (c, c_std)):
-            scale = np.sqrt(np.abs(v[:, :, 0, 0] * v[:, :, 1, 1]))          # (n, 2)
-            worst = sd.reshape(n, 2, 4).max(axis=2)                          # (n, 2)
-            out = np.maximum(out, (worst / scale).max(axis=1))
-    return out
+    k, c, k_std, c_std = _coefficients(k=k, c=c, k_std=k_std, c_std=c_std)
+    if k.ndim != 4:
+        raise RotoridError(f"k must have shape (n, 2, 2, 2), got {k.shape}")
+    return _core.relative_std(*(np.ascontiguousarray(a, dtype=float).reshape(-1, 8) for a in (k, c, k_std, c_std)))

@@ -240,9 +240,11 @@ def _lab_columns(rec: Recording, path, names, units, *, max_name=None, max_unit=
     The tables may cover canonical channels the recording lacks (one table for a lab's channel
     set); any other key that is not a channel of the recording is taken for a typo and raises.
     """
+    from .._validate import mapping
+
     if not isinstance(rec, Recording):
         raise RotoridError(f"rec must be a Recording, got {type(rec).__name__}")
-    names, units = dict(names or {}), dict(units or {})
+    names, units = mapping("names", names), mapping("units", units)
     for arg, d in (("names", names), ("units", units)):
         extra = sorted(k for k in d if k not in rec.channels and k not in KNOWN)
         if extra:
@@ -261,6 +263,8 @@ def _lab_columns(rec: Recording, path, names, units, *, max_name=None, max_unit=
         seen.add(lab)
         have = rec.units.get(name, "")
         unit = units.get(name, have)
+        if not isinstance(unit, str):
+            raise RotoridError(f"cannot write {path}: the unit of channel {name!r} must be a string, got {unit!r}")
         if unit != have:
             try:
                 f_have = _units.factor(have)

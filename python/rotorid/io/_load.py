@@ -26,7 +26,7 @@ def _format(path, fmt) -> str:
         if fmt is None:
             raise RotoridError(f"cannot tell the format of {path} from its extension {p.suffix!r}: use one of "
                                f"{sorted(_EXTENSIONS)} or pass fmt= one of {list(FORMATS)}")
-    elif fmt not in FORMATS:
+    elif not isinstance(fmt, str) or fmt not in FORMATS:
         raise RotoridError(f"fmt must be one of {list(FORMATS)}, got {fmt!r} (for {path})")
     return fmt
 
@@ -239,11 +239,11 @@ def _segmented_groups(path, groups, channel_map, fs_hz, meta, fmt, layout):
         raise RotoridError(f"cannot read {path}: " + ("it is a directory" if Path(path).is_dir() else "no such file"))
     content = _read_tdms_file(Path(path))
     names = [g for g, _ in content]
-    if groups == "*":
+    if isinstance(groups, str) and groups == "*":
         groups = [g for g, chans in content if chans]
         if not groups:
             raise RotoridError(f"{path} holds no group with channels")
-    elif isinstance(groups, str) or not all(isinstance(g, str) for g in groups) or not list(groups):
+    elif not isinstance(groups, (list, tuple)) or not groups or not all(isinstance(g, str) for g in groups):
         raise RotoridError(f"groups must be '*' or a non-empty list of group names, got {groups!r} (for {path})")
     missing = [g for g in groups if g not in names]
     if missing:

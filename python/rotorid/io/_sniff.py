@@ -70,7 +70,7 @@ def _norm_sep(sep):
 def _norm_decimal(decimal, sep):
     if decimal is None:
         return None
-    if decimal not in (".", ","):
+    if not isinstance(decimal, str) or decimal not in (".", ","):
         raise RotoridError(f"decimal must be '.' or ',', got {decimal!r}")
     if decimal == sep:
         raise RotoridError(f"sep and decimal must differ, both are {decimal!r}")

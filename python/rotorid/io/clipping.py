@@ -44,6 +44,10 @@ def check_clipping(rec: Recording, *, min_run: int = CLIP_MIN_RUN) -> list[dict]
     ...     [f["side"] for f in check_clipping(Recording(1000.0, {"x1": x}))]
     ['maximum']
     """
+    from .._validate import index, instance
+
+    instance("rec", rec, Recording)
+    min_run = index("min_run", min_run, 1)
     findings = []
     for name in CLIP_CHECKED:
         a = rec.channels.get(name)

@@ -77,6 +77,9 @@ def list_groups(path) -> list[str]:
     >>> list_groups(path)
     ['Run 1']
     """
+    from .._validate import path as _path
+
+    _path("path", path)
     if not Path(path).is_file():
         raise RotoridError(f"cannot read {path}: " + ("it is a directory" if Path(path).is_dir() else "no such file"))
     nptdms = _nptdms()
@@ -283,7 +286,7 @@ def _read_tdms(path: Path, group=None, time_column=None) -> _Read:
 def _check_dtype(dtype):
     try:
         dtype = np.dtype(dtype)
-    except TypeError:
+    except (TypeError, ValueError):
         raise RotoridError(f"dtype must be 'float64' or 'float32', got {dtype!r}") from None
     if dtype not in (np.float64, np.float32):
         raise RotoridError(f"dtype must be 'float64' or 'float32', got {dtype!r}")
@@ -320,6 +323,9 @@ def save_tdms(rec: Recording, path, group: str = "rotorid", names=None, units=No
     dtype : {"float64", "float32"}
         float64 is exact; float32 is half the size, ~7 significant digits, as many DAQs store.
     """
+    from .._validate import path as _path
+
+    _path("path", path)
     dtype = _check_dtype(dtype)
     nptdms = _nptdms()
     objects = [nptdms.RootObject(properties={"name": Path(path).stem})]
@@ -355,11 +361,22 @@ def save_tdms_segmented(seg: SegmentedRecording, path, groups=None, names=None, 
     >>> list_groups(path)
     ['500 rpm', '600 rpm']
     """
+    from .._validate import path as _path
+
     if not isinstance(seg, SegmentedRecording):
         raise RotoridError(f"seg must be a SegmentedRecording, got {type(seg).__name__}")
+    _path("path", path)
     if groups is None:
         groups = [f"block {i}" for i in range(len(seg.blocks))]
-    groups = list(groups) if not isinstance(groups, str) else [groups]
+    elif isinstance(groups, str):
+        groups = [groups]
+    elif isinstance(groups, (list, tuple)):
+        groups = list(groups)
+    else:
+        raise RotoridError(f"groups must be a list of group names (one per block), got {groups!r}")
+    bad = [g for g in groups if not isinstance(g, str)]
+    if bad:
+        raise RotoridError(f"cannot write {path}: group names must be strings, got {bad!r}")
     if len(groups) != len(seg.blocks):
         raise RotoridError(f"cannot write {path}: {len(groups)} group name(s) for {len(seg.blocks)} blocks")
     if len(set(groups)) != len(groups):

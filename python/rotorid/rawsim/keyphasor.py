@@ -26,7 +26,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import RotoridError
+
 SHAPES = ("rectangular", "trapezoid", "rc", "smooth", "notch")
+#: most keyphasor events one call generates (each is a pulse evaluated in Python)
+MAX_EVENTS = 2_000_000
 
 
 def _erf(x):
@@ -60,8 +64,27 @@ class PulseShape:
     drift_hz: float = 0.3
 
     def __post_init__(self):
-        if self.kind not in SHAPES:
-            raise ValueError(f"kind must be one of {SHAPES}, got {self.kind!r}")
+        from .._validate import choice, number, real_array
+
+        choice("kind", self.kind, set(SHAPES))
+        # edge_samples shapes the trapezoid, rc and smooth edges, where zero would give 0/0 (NaN)
+        edge_ok = dict(positive=self.kind not in ("rectangular", "notch"), nonneg=True)
+        checked = dict(edge_samples=number("edge_samples", self.edge_samples, **edge_ok),
+                       edge_deg=number("edge_deg", self.edge_deg, positive=True),
+                       duty=number("duty", self.duty, positive=True),
+                       min_width_samples=number("min_width_samples", self.min_width_samples, nonneg=True),
+                       low_v=number("low_v", self.low_v), high_v=number("high_v", self.high_v),
+                       noise_v=number("noise_v", self.noise_v, nonneg=True), drift_v=number("drift_v", self.drift_v),
+                       drift_hz=number("drift_hz", self.drift_hz, nonneg=True))
+        if not checked["duty"] < 1:
+            raise RotoridError(f"duty must be a fraction of the revolution between 0 and 1, got {self.duty!r}")
+        if self.ringing is not None:
+            r = real_array("ringing", self.ringing, shape=(3,))
+            if not (r[1] >= 0 and r[2] > 0):
+                raise RotoridError(f"ringing must be (amplitude, frequency >= 0 Hz, decay > 0 s), got {self.ringing!r}")
+            checked["ringing"] = tuple(float(v) for v in r)
+        for k, v in checked.items():
+            object.__setattr__(self, k, v)
 
     @classmethod
     def notch(cls, **kw):
@@ -109,10 +132,22 @@ def pulse_train(t, event_times, fs_hz: float, shape: PulseShape = PulseShape(), 
     mid-height of its trailing edge (period: the interval to the next event, or the previous one
     for the last). Returns volts (float array like ``t``).
     """
-    t = np.asarray(t, dtype=float)
-    ev = np.asarray(event_times, dtype=float)
-    if ev.ndim != 1 or ev.size < 1:
-        raise ValueError("event_times must be a non-empty 1-D array")
+    from .._validate import instance, number, real_array
+    from .._validate import seed as _seed
+
+    t = real_array("t", t, ndim=1)
+    ev = real_array("event_times", event_times, ndim=1)
+    fs_hz = number("fs_hz", fs_hz, positive=True)
+    instance("shape", shape, PulseShape)
+    seed = _seed("seed", seed)
+    if ev.size < 1:
+        raise RotoridError("event_times must be a non-empty 1-D array")
+    if ev.size > MAX_EVENTS:
+        raise RotoridError(f"event_times holds {ev.size} events, more than {MAX_EVENTS}")
+    if np.any(np.diff(ev) <= 0):
+        raise RotoridError("event_times must increase")
+    if np.any(np.diff(t) <= 0):
+        raise RotoridError("t (the sample times) must increase")
     per = np.diff(ev)
     per = np.r_[per, per[-1] if per.size else 1.0]
     width = np.maximum(shape.duty * per, (shape.min_width_samples + _settle_samples(shape, per, fs_hz)) / fs_hz)
@@ -144,11 +179,27 @@ def pulse_train(t, event_times, fs_hz: float, shape: PulseShape = PulseShape(), 
         v += shape.drift_v * np.sin(2 * np.pi * shape.drift_hz * t + 0.7)
     if shape.noise_v:
         v += shape.noise_v * np.random.default_rng(seed).standard_normal(t.shape)
+    if not np.all(np.isfinite(v)):
+        raise RotoridError(f"shape: the pulse train overflows (low_v {shape.low_v:g} V, high_v {shape.high_v:g} V, "
+                           f"noise_v {shape.noise_v:g} V, drift_v {shape.drift_v:g} V)")
     return v
 
 
 def event_times(speed_rpm: float, duration_s: float, *, t0_s: float = 0.0, mark_time_s: float = 0.0137):
     """Event times of a steady speed: one every revolution from ``mark_time_s`` (s after t0)."""
-    period = 60.0 / float(speed_rpm)
-    n = int(np.floor((duration_s - mark_time_s) / period)) + 1
-    return t0_s + mark_time_s + period * np.arange(max(n, 0))
+    from .._validate import number
+
+    period = 60.0 / number("speed_rpm", speed_rpm, positive=True)
+    duration_s = number("duration_s", duration_s, nonneg=True)
+    t0_s = number("t0_s", t0_s)
+    mark_time_s = number("mark_time_s", mark_time_s)
+    revs = (duration_s - mark_time_s) / period
+    if revs > MAX_EVENTS:
+        raise RotoridError(f"duration_s = {duration_s:g} s at speed_rpm = {speed_rpm:g} rpm are {revs:.3g} "
+                           f"revolutions, more than {MAX_EVENTS}")
+    n = int(np.floor(revs)) + 1
+    out = t0_s + mark_time_s + period * np.arange(max(n, 0))
+    if not np.all(np.isfinite(out)):
+        raise RotoridError(f"event times of speed_rpm = {speed_rpm!r} rpm from t0_s = {t0_s!r} + mark_time_s = "
+                           f"{mark_time_s!r} overflow")
+    return out

@@ -43,10 +43,36 @@ def lab_imbalance_recording(rotor: RigidRotor, bearings: BearingCoefficients, *,
     delay of each of x1, x2, y1, y2. With ``segmented`` the result has one block per speed, the
     blocks ``gap_s`` apart; otherwise the dwells are concatenated (the speed changing within one
     sample, which a real drive cannot do; use it only with a single speed)."""
+    from .._validate import flag, index, instance, number, real_array, seed as _seed, speeds_rpm as _speeds
+    from ..errors import RotoridError
+    from .recordings import _models, _n_samples, _turning
+
+    _models(rotor, bearings, added=added, remnant=remnant)
+    seed = _seed("seed", seed)
     rng = np.random.default_rng(seed)
-    speeds = np.atleast_1d(np.asarray(speeds_rpm, dtype=float))
-    ro = np.asarray(runout_1x_m, dtype=float) * np.exp(1j * np.array([0.4, 2.1, -1.3, 2.9]))
-    mark = np.deg2rad(mark_angle_deg)
+    speeds = _speeds("speeds_rpm", speeds_rpm)
+    _turning("speeds_rpm", speeds)
+    instance("kp_shape", kp_shape, PulseShape, what="rawsim.PulseShape")
+    mark_angle_deg = number("mark_angle_deg", mark_angle_deg)
+    kp_delay_s = number("kp_delay_s", kp_delay_s)
+    probe_delay_s = real_array("probe_delay_s", probe_delay_s, shape=(4,))
+    if adc_bits is not None:
+        adc_bits = index("adc_bits", adc_bits, 1, 64)
+    probe_range_m = number("probe_range_m", probe_range_m, positive=True)
+    kp_range_v = number("kp_range_v", kp_range_v, positive=True)
+    noise_m = number("noise_m", noise_m, nonneg=True)
+    dwell_s = number("dwell_s", dwell_s, positive=True)
+    gap_s = number("gap_s", gap_s, nonneg=True)
+    fs_hz = number("fs_hz", fs_hz, positive=True)
+    segmented = flag("segmented", segmented)
+    _n_samples("dwell_s", dwell_s, fs_hz, speeds.size)
+    if fs_hz * 60.0 / speeds.max() < 4:
+        raise RotoridError(f"speeds_rpm up to {speeds.max():g} rpm at fs_hz = {fs_hz:g} Hz are fewer than 4 samples "
+                           "per revolution: the keyphasor pulses cannot be sampled")
+    if not segmented and speeds.size != 1:
+        raise RotoridError("a continuous lab recording holds one speed; use segmented=True for several")
+    ro = real_array("runout_1x_m", runout_1x_m, shape=(4,), nonneg=True) * np.exp(1j * np.array([0.4, 2.1, -1.3, 2.9]))
+    mark = np.deg2rad(mark_angle_deg % 360.0)  # the same events (mark + 2 pi k), without cancellation
     blocks = []
     t_start = 0.0
     theta0 = 0.25
@@ -68,6 +94,9 @@ def lab_imbalance_recording(rotor: RigidRotor, bearings: BearingCoefficients, *,
         ks = k0 + np.arange(int(dwell_s * om / (2 * np.pi)) + 3)
         ev = (mark + 2 * np.pi * ks - theta0) / om + kp_delay_s
         ev = ev[(ev > -1.0) & (ev < dwell_s + 1.0)]
+        if ev.size < 2:
+            raise RotoridError(f"kp_delay_s = {kp_delay_s:g} s moves the keyphasor pulses out of the {dwell_s:g} s "
+                               "dwell")
         chans["kp"] = _quantize(pulse_train(t, ev, fs_hz, kp_shape, seed=seed + 100 + i), adc_bits, kp_range_v)
         meta = dict(kind="imbalance" if added is not None else "baseline", probes_at="probes", speed_rpm=float(rpm))
         if added is not None:
@@ -79,7 +108,5 @@ def lab_imbalance_recording(rotor: RigidRotor, bearings: BearingCoefficients, *,
     meta["speed_rpm"] = speeds.tolist()
     if segmented:
         return SegmentedRecording(blocks, meta, "lab simulator")
-    if speeds.size != 1:
-        raise ValueError("a continuous lab recording holds one speed; use segmented=True for several")
     b = blocks[0]
     return Recording(b.fs_hz, b.channels, meta, b.units, b.t0_s, "lab simulator")

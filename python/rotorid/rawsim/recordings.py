@@ -20,6 +20,11 @@ from ..model import BearingCoefficients, Imbalance, RigidRotor
 from ..recording import Recording
 from ..simulate import RPM, half_sine_pulse, imbalance_response, impact_time_response
 
+#: most samples per channel a simulated recording holds (33 min at 10 kHz, 160 MB a channel)
+MAX_SAMPLES = 20_000_000
+#: most run-out orders
+MAX_ORDERS = 64
+
 
 @dataclass(frozen=True)
 class Runout:
@@ -30,8 +35,18 @@ class Runout:
     amplitudes_m: tuple = (8e-6, 3e-6, 1e-6)
     seed: int = 11
 
+    def __post_init__(self):
+        from .._validate import real_array, seed
+
+        a = real_array("amplitudes_m", self.amplitudes_m, ndim=1, nonneg=True)
+        if not 1 <= a.size <= MAX_ORDERS:
+            raise RotoridError(f"amplitudes_m must hold the run-out of orders 1..n (1 <= n <= {MAX_ORDERS}), got "
+                               f"{a.size} value(s)")
+        object.__setattr__(self, "amplitudes_m", tuple(float(v) for v in a))
+        object.__setattr__(self, "seed", seed("seed", self.seed))
+
     def vectors(self) -> np.ndarray:
-        """(3, 4) complex run-out vectors, orders 1..3 x [x1, x2, y1, y2]."""
+        """(n, 4) complex run-out vectors, orders 1..n (n = len(amplitudes_m)) x [x1, x2, y1, y2]."""
         rng = np.random.default_rng(self.seed)
         ph = rng.uniform(-np.pi, np.pi, (len(self.amplitudes_m), 4))
         mag = np.asarray(self.amplitudes_m)[:, None] * rng.uniform(0.7, 1.3, (len(self.amplitudes_m), 4))
@@ -54,6 +69,50 @@ def _keyphasor(theta, fs_hz, omega, volts=5.0, width_rev=0.05):
     return volts * rise * fall
 
 
+def _n_samples(name, seconds, fs_hz, count=1):
+    """Samples of one record of ``seconds`` (the argument ``name``) at ``fs_hz``: at least 16, and
+    at most MAX_SAMPLES per channel over all ``count`` records."""
+    n = seconds * fs_hz
+    if count * n > MAX_SAMPLES:
+        raise RotoridError(f"{name} = {seconds:g} s at fs_hz = {fs_hz:g} Hz{f' ({count} records)' if count > 1 else ''}"
+                           f" is {count * n:.3g} samples per channel, more than the simulator's limit of "
+                           f"{MAX_SAMPLES:.0e}")
+    if n < 16:
+        raise RotoridError(f"{name} = {seconds:g} s at fs_hz = {fs_hz:g} Hz holds fewer than 16 samples")
+    return int(round(n))
+
+
+def _models(rotor, bearings, **imbalances):
+    """Type checks of the rig model arguments (every simulator takes them)."""
+    from .._validate import instance
+
+    instance("rotor", rotor, RigidRotor, what="rotorid.RigidRotor")
+    instance("bearings", bearings, BearingCoefficients, what="rotorid.BearingCoefficients")
+    for name, imb in imbalances.items():
+        instance(name, imb, Imbalance, allow_none=True, what="rotorid.Imbalance")
+
+
+def _turning(name, rpm):
+    """Speeds (rpm) whose angular speed is > 0 in floating point (5e-324 rpm is not)."""
+    if not np.all(np.asarray(rpm) * RPM > 0):
+        raise RotoridError(f"{name} = {rpm!r} rpm is too slow to turn the rotor (its angular speed is 0)")
+
+
+def _runout(runout):
+    """(orders, 4) run-out vectors (at least one order: zeros without run-out)."""
+    from .._validate import instance
+
+    instance("runout", runout, Runout, allow_none=True, what="rawsim.Runout")
+    return runout.vectors() if runout is not None else np.zeros((1, 4), complex)
+
+
+def _with_1x(q, ro):
+    """Run-out vectors with the 1X response ``q`` (4,) added to order 1."""
+    v = np.array(ro, dtype=complex)
+    v[0] += q
+    return v
+
+
 def _synchronous(q_vectors, theta):
     """sum over orders n of Re(V_n e^{j n theta}) for V (orders, 4) -> (4, N)."""
     out = np.zeros((q_vectors.shape[1], theta.size))
@@ -70,18 +129,19 @@ def imbalance_recording(rotor: RigidRotor, bearings: BearingCoefficients, *, spe
     """A run of steady dwells of ``dwell_s`` seconds at ``speeds_rpm`` with the ``added`` imbalance
     (None for a baseline run) on top of the ``remnant`` imbalance. Channels x1, x2, y1, y2 (probes,
     m), kp (V)."""
-    from .._validate import number, speeds_rpm as _speeds
+    from .._validate import number, seed as _seed, speeds_rpm as _speeds, text
 
-    rng = np.random.default_rng(seed)
+    _models(rotor, bearings, added=added, remnant=remnant)
+    rng = np.random.default_rng(_seed("seed", seed))
     speeds = _speeds("speeds_rpm", speeds_rpm)
     fs_hz = number("fs_hz", fs_hz, positive=True)
     dwell_s = number("dwell_s", dwell_s, positive=True)
     noise_m = number("noise_m", noise_m, nonneg=True)
-    if speeds.size * dwell_s * fs_hz > 2e8:
-        raise RotoridError(f"{speeds.size} dwells of {dwell_s:g} s at {fs_hz:g} Hz are more than 2e8 samples")
-    if dwell_s * fs_hz < 16:
-        raise RotoridError(f"a dwell of {dwell_s:g} s at {fs_hz:g} Hz holds fewer than 16 samples")
-    ro = runout.vectors() if runout is not None else np.zeros((3, 4), complex)
+    theta0 = number("theta0", theta0)
+    kind = text("kind", kind)
+    _turning("speeds_rpm", speeds)
+    _n_samples("dwell_s", dwell_s, fs_hz, speeds.size)
+    ro = _runout(runout)
     chunks, kps = [], []
     theta_start = theta0
     for rpm in speeds:
@@ -92,7 +152,7 @@ def imbalance_recording(rotor: RigidRotor, bearings: BearingCoefficients, *, spe
         for imb in (added, remnant):
             if imb is not None:
                 q += imbalance_response(rotor, bearings, imb, speed_rpm=[rpm], at="probes").q[0]
-        sig = _synchronous(np.vstack([q[None], np.zeros((2, 4))]) + ro, theta)
+        sig = _synchronous(_with_1x(q, ro), theta)
         chunks.append(sig)
         kps.append(_keyphasor(theta, fs_hz, om))
         theta_start = theta[-1] + om / fs_hz
@@ -116,17 +176,37 @@ def impact_recording(rotor: RigidRotor, bearings: BearingCoefficients, *, speed_
     """Impacts at ``plane`` in ``direction`` while the rotor spins at ``speed_rpm``: channels x1, x2,
     y1, y2 (probes, m), kp (V), force (N). ``double_hit_at``: index of an impact to follow by a
     rebound 8 ms later (to exercise the detector)."""
-    rng = np.random.default_rng(seed)
+    from .._validate import choice, index, number, real_array, seed as _seed
+
+    _models(rotor, bearings, remnant=remnant)
+    rng = np.random.default_rng(_seed("seed", seed))
+    speed_rpm = number("speed_rpm", speed_rpm, positive=True)
+    _turning("speed_rpm", speed_rpm)
+    plane = number("plane", plane)
+    choice("direction", direction, {"x", "y"})
+    peak_N = number("peak_N", peak_N, positive=True)
+    duration_s = number("duration_s", duration_s, positive=True)
+    record_s = number("record_s", record_s, positive=True)
+    noise_m = number("noise_m", noise_m, nonneg=True)
+    force_noise_N = number("force_noise_N", force_noise_N, nonneg=True)
+    fs_hz = number("fs_hz", fs_hz, positive=True)
+    theta0 = number("theta0", theta0)
+    times = real_array("impact_times_s", impact_times_s, ndim=1)
+    if times.size and not (times.min() >= 0 and times.max() < record_s):
+        raise RotoridError(f"impact_times_s must lie within the record, 0 to record_s = {record_s:g} s, got "
+                           f"{times.min():g} to {times.max():g} s")
+    if double_hit_at is not None:
+        double_hit_at = index("double_hit_at", double_hit_at, 0, times.size - 1)
+    n = _n_samples("record_s", record_s, fs_hz)
     om = speed_rpm * RPM
-    n = int(round(record_s * fs_hz))
     theta = theta0 + om * np.arange(n) / fs_hz
     q = np.zeros(4, complex)
     if remnant is not None:
         q = imbalance_response(rotor, bearings, remnant, speed_rpm=[speed_rpm], at="probes").q[0]
-    ro = runout.vectors() if runout is not None else np.zeros((3, 4), complex)
-    x = _synchronous(np.vstack([q[None], np.zeros((2, 4))]) + ro, theta)
+    ro = _runout(runout)
+    x = _synchronous(_with_1x(q, ro), theta)
     u = np.zeros(n)
-    for k, t in enumerate(impact_times_s):
+    for k, t in enumerate(times.tolist()):
         u += half_sine_pulse(peak_N * (1 + 0.05 * k), duration_s, fs_hz, n, t0_s=t)
         if double_hit_at is not None and k == double_hit_at:
             u += half_sine_pulse(0.4 * peak_N, duration_s, fs_hz, n, t0_s=t + 0.008)
@@ -161,8 +241,20 @@ def coastdown_recording(rotor: RigidRotor, bearings: BearingCoefficients, *, sta
     The response is quasi-steady, x(t) = Re(q(Omega(t)) e^{j theta(t)}): not exact (the transient
     terms scale with the deceleration), so use slow coast-downs, as on a rig with a free-wheeling
     clutch. Run-out, noise and keyphasor as in ``imbalance_recording``."""
-    rng = np.random.default_rng(seed)
-    n = int(round(duration_s * fs_hz))
+    from .._validate import number, seed as _seed
+
+    _models(rotor, bearings, added=added, remnant=remnant)
+    rng = np.random.default_rng(_seed("seed", seed))
+    start_rpm = number("start_rpm", start_rpm, positive=True)
+    stop_rpm = number("stop_rpm", stop_rpm, positive=True)
+    _turning("start_rpm", start_rpm)
+    _turning("stop_rpm", stop_rpm)
+    duration_s = number("duration_s", duration_s, positive=True)
+    noise_m = number("noise_m", noise_m, nonneg=True)
+    fs_hz = number("fs_hz", fs_hz, positive=True)
+    theta0 = number("theta0", theta0)
+    ro = _runout(runout)
+    n = _n_samples("duration_s", duration_s, fs_hz)
     t = np.arange(n) / fs_hz
     rpm = start_rpm + (stop_rpm - start_rpm) * t / duration_s
     om = rpm * RPM
@@ -174,7 +266,6 @@ def coastdown_recording(rotor: RigidRotor, bearings: BearingCoefficients, *, sta
             qg += imbalance_response(rotor, bearings, imb, speed_rpm=grid, at="probes").q
     q = np.stack([np.interp(rpm, grid, qg[:, j].real) + 1j * np.interp(rpm, grid, qg[:, j].imag) for j in range(4)])
     x = (q * np.exp(1j * theta)[None, :]).real
-    ro = runout.vectors() if runout is not None else np.zeros((3, 4), complex)
     x += _synchronous(ro, theta) + noise_m * rng.standard_normal(x.shape)
     kp = _keyphasor(theta, fs_hz, om)
     meta = dict(kind="imbalance", probes_at="probes", speed_rpm=[float(start_rpm), float(stop_rpm)])

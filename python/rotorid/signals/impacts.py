@@ -11,6 +11,11 @@ from .._corecall import core as _core
 from ..errors import RotoridError
 from ..recording import DISPLACEMENTS, Recording
 
+#: longest window (samples) the window functions build (512 MB of float64)
+MAX_WINDOW = 1 << 26
+#: most doubles revolution_signature resamples at once (1 GB)
+MAX_RESAMPLED = 1 << 27
+
 
 def _fs(fs_hz, name="fs_hz"):
     from .._validate import number
@@ -47,7 +52,9 @@ def detect_impacts(force, fs_hz: float, *, threshold_N=None, min_separation_s: f
     least ``double_hit_fraction`` of the peak follows within ``double_hit_window_s``; "overload" when
     the signal sits at its maximum (or at ``overload_N``) for 3 or more samples (a clipped
     transducer or DAQ range)."""
-    f = np.asarray(force, float)
+    from .._validate import real_array
+
+    f = real_array("force", force, finite=False)
     if f.ndim != 1 or f.size == 0 or not np.all(np.isfinite(f)):
         raise RotoridError("force must be a finite, non-empty 1-D signal")
     fs_hz = _fs(fs_hz)
@@ -109,23 +116,26 @@ def revolution_signature(x, fs_hz: float, kp_times, t_start: float, t_stop: floa
                          points_per_rev: int = 256) -> np.ndarray:
     """Average revolution signature (C, P) of channels x (C, N) over the whole revolutions that lie in
     [t_start, t_stop]: each revolution resampled at P uniform angles from its own pulses."""
-    from .._validate import number, real_array
+    from .._validate import index, number, real_array
     from .order import MAX_POINTS_PER_REV
 
+    x = real_array("x", x, ndim=2)
     kpt = real_array("kp_times", kp_times, ndim=1)
     fs_hz = _fs(fs_hz)
     t_start = number("t_start", t_start)
     t_stop = number("t_stop", t_stop)
     t0_s = number("t0_s", t0_s)
 
-    if isinstance(points_per_rev, bool) or int(points_per_rev) != points_per_rev or \
-            not (16 <= points_per_rev <= MAX_POINTS_PER_REV):
-        raise RotoridError(f"points_per_rev must be a whole number from 16 to {MAX_POINTS_PER_REV}, got "
-                           f"{points_per_rev!r}")
+    points_per_rev = index("points_per_rev", points_per_rev, 16, MAX_POINTS_PER_REV)
     inside = np.nonzero((kpt >= t_start) & (kpt <= t_stop))[0]
     if inside.size < 2:
         raise RotoridError(f"no whole revolution between t = {t_start:.4f} s and {t_stop:.4f} s to build the "
                            "run-out signature (record more revolutions before the impact)")
+    size = x.shape[0] * (int(inside[-1]) - int(inside[0])) * points_per_rev
+    if size > MAX_RESAMPLED:
+        raise RotoridError(f"{int(inside[-1]) - int(inside[0])} revolutions between t_start and t_stop at "
+                           f"points_per_rev = {points_per_rev} are {size:.3g} resampled values, more than "
+                           f"{MAX_RESAMPLED:.3g}: shorten t_start..t_stop or lower points_per_rev")
     res = _core.angle_resample(np.ascontiguousarray(x, dtype=float), fs_hz, t0_s, np.ascontiguousarray(kpt),
                                int(inside[0]), int(inside[-1]), int(points_per_rev))
     return res.mean(axis=1)
@@ -135,21 +145,30 @@ def runout_filter(x, fs_hz: float, kp_times, template, i0: int, i1: int, *, t0_s
     """The report's time-domain run-out filter: samples i0..i1 of x (C, N) minus the revolution
     signature ``template`` (C, P) placed at each sample's rotor angle from the keyphasor pulses
     (each revolution stretched to its own pulse interval, so slow speed drift does not smear the
-    subtraction). Runs in the Rust core."""
-    x = np.asarray(x, dtype=float)
-    template = np.asarray(template, dtype=float)
+    subtraction). Runs in the Rust core. Samples before the first or after the last keyphasor pulse
+    have no rotor angle: they come back NaN (check with ``np.isfinite``)."""
+    from .._validate import index, number, real_array
+
+    x = real_array("x", x, finite=False)  # NaN/inf are counted by the core on its way through
+    template = real_array("template", template)
+    kp_times = real_array("kp_times", kp_times, ndim=1)
+    t0_s = number("t0_s", t0_s)
     if x.ndim != 2 or template.ndim != 2 or template.shape[0] != x.shape[0] or template.shape[1] < 4:
         raise RotoridError(f"runout_filter needs x (channels, samples) and a template (channels, points >= 4) with the "
                            f"same channels, got {x.shape} and {template.shape}")
-    for nm, v in (("i0", i0), ("i1", i1)):
-        if isinstance(v, bool) or int(v) != v:
-            raise RotoridError(f"{nm} must be a sample index, got {v!r}")
+    i0 = index("i0", i0, 0)
+    i1 = index("i1", i1, 0)
     if not (0 <= i0 < i1 <= x.shape[1]):
         raise RotoridError(f"need 0 <= i0 < i1 <= {x.shape[1]} (the samples to filter), got i0 = {i0}, i1 = {i1}")
     fs_hz = _fs(fs_hz)
-    return _core.runout_subtract(np.ascontiguousarray(x, dtype=float), float(fs_hz), float(t0_s),
-                                 np.ascontiguousarray(kp_times, dtype=float),
-                                 np.ascontiguousarray(template, dtype=float), int(i0), int(i1))
+    out, nonfinite = _core.runout_subtract(np.ascontiguousarray(x, dtype=float), float(fs_hz), float(t0_s),
+                                           np.ascontiguousarray(kp_times, dtype=float),
+                                           np.ascontiguousarray(template, dtype=float), int(i0), int(i1))
+    if nonfinite:
+        bad = np.argwhere(~np.isfinite(x[:, i0:i1]))[0]
+        raise RotoridError(f"x contains NaN or inf ({nonfinite} values in samples {i0}..{i1}, first at channel "
+                           f"{int(bad[0])}, sample {i0 + int(bad[1])})")
+    return out
 
 
 def exponential_window(n: int, fs_hz: float, tau_s: float, start: int = 0) -> np.ndarray:
@@ -161,7 +180,7 @@ def exponential_window(n: int, fs_hz: float, tau_s: float, start: int = 0) -> np
     tau_s = _positive("tau_s (exponential window)", tau_s)
     from .._validate import index
 
-    n = index("n", n, 1)
+    n = index("n", n, 1, MAX_WINDOW)
     start = index("start", start, 0, n)
     t = (np.arange(n) - start) / fs_hz
     return np.where(t > 0, np.exp(-np.clip(t, 0, None) / tau_s), 1.0)
@@ -172,7 +191,7 @@ def force_window(n: int, start: int, stop: int, *, taper: int = 0) -> np.ndarray
     optionally with cosine tapers of ``taper`` samples on each side."""
     from .._validate import index
 
-    n = index("n", n, 1)
+    n = index("n", n, 1, MAX_WINDOW)
     start = index("start", start, 0, n - 1)
     stop = index("stop", stop, start + 1, n)
     taper = index("taper", taper, 0, n)
@@ -209,8 +228,13 @@ def frf_h1(forces, responses, fs_hz: float) -> FRF:
     With n >= 2 impacts and C = 4 channels, also the covariance of H1's [Re, Im] per frequency
     from the scatter of the single impacts: with X_i = H F_i + N_i, H1 - H = Σ N_i F_i* / Σ|F_i|²,
     estimated from the residuals R_i = X_i - H1 F_i as n/(n-1) Σ_i outer(R_i F_i* / Σ|F|²)
-    (real 8-vector form), with n - 1 degrees of freedom."""
-    forces, responses = list(forces), list(responses)
+    (real 8-vector form), with n - 1 degrees of freedom. A frequency at which no impact has any force
+    has no H1: h and coherence are NaN there, flagged by ``force`` = 0."""
+    try:
+        forces, responses = list(forces), list(responses)
+    except TypeError:
+        raise RotoridError(f"forces and responses must be lists of records (one per impact), got "
+                           f"{type(forces).__name__} and {type(responses).__name__}") from None
     if len(forces) != len(responses) or not forces:
         raise RotoridError("frf_h1 needs one response record per force record (and at least one)")
     fs_hz = _fs(fs_hz)

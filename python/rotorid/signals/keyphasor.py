@@ -87,7 +87,15 @@ class Keyphasor:
         """Pulse times given directly (s, one per revolution, increasing): from another system, a
         tachometer file, or a previous analysis. The same corrections apply as for detected
         pulses."""
-        t = np.asarray(times, dtype=float)
+        from .._validate import number, real_array, text
+
+        try:
+            source = text("source", source)
+            t = real_array("keyphasor times", times, finite=False)
+            mark_angle_deg = number("mark_angle_deg", mark_angle_deg)
+            delay_s = number("delay_s", delay_s)
+        except RotoridError as exc:
+            raise KeyphasorError(str(exc)) from None
         where = f" ({source})" if source else ""
         if t.ndim != 1 or t.size < 2:
             raise KeyphasorError(f"keyphasor times{where} must be a 1-D array of at least 2 times, got shape {t.shape}")
@@ -152,7 +160,17 @@ def state_levels(v, *, where: str = "", pulse_side: str | None = None) -> tuple:
     Raises KeyphasorError for a flat channel, a channel without two distinct states (noise, an
     analog signal) or pulses on both sides of the resting state, unless ``pulse_side`` ("up" or
     "down") says which pulses to use."""
-    v = np.asarray(v, dtype=float)
+    from .._validate import real_array, text
+
+    try:
+        where = text("where", where)
+        v = real_array("v", v, ndim=1)
+        if pulse_side is not None and (not isinstance(pulse_side, str) or pulse_side not in ("up", "down")):
+            raise RotoridError(f"pulse_side must be 'up', 'down' or None, got {pulse_side!r}")
+    except RotoridError as exc:
+        raise KeyphasorError(str(exc)) from None
+    if v.size == 0:
+        raise KeyphasorError(f"no keyphasor pulses{where}: the channel holds no samples")
     vmin, vmax = float(v.min()), float(v.max())
     span = vmax - vmin
     if not span > 1e-12 * max(abs(vmin), abs(vmax), 1e-300):
@@ -292,6 +310,8 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
     >>> bool(np.abs(err).max() < 0.001), round(kp.level, 3)   # 2-sample edges; triggered at mid-height
     (True, 2.5)
     """
+    if not isinstance(source, str):
+        raise KeyphasorError(f"source must be a string (the file and channel, for messages), got {source!r}")
     where = f" in {source}" if source else ""
     if np.iscomplexobj(kp):
         raise KeyphasorError(f"the keyphasor channel{where} holds complex values; it is a real signal")
@@ -322,6 +342,9 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
     except RotoridError as exc:
         raise KeyphasorError(str(exc)) from None
     if polarity is not None:
+        if not isinstance(polarity, str) or polarity not in ("auto", "positive", "negative", "rising", "falling"):
+            raise KeyphasorError(f"polarity (older name of edge) must be 'auto', 'positive' or 'negative', got "
+                                 f"{polarity!r}")
         edge = {"auto": "auto", "positive": "rising", "negative": "falling"}.get(polarity, polarity)
     if not isinstance(edge, str) or edge not in ("auto", "rising", "falling"):
         raise KeyphasorError(f"edge must be 'auto', 'rising' or 'falling', got {edge!r}")

@@ -42,14 +42,37 @@ class SyncTrack:
     dof: np.ndarray | None = None
 
     def __post_init__(self):
-        n = np.shape(self.speed_rpm)[0]
+        from .._validate import complex_array, real_array
+
+        # checked, then kept as given (arrays; n_revs stays integer)
+        sp = real_array("speed_rpm", self.speed_rpm, ndim=1)
+        n = sp.size
+        if n == 0:
+            raise RotoridError("a SyncTrack needs at least one speed (speed_rpm is empty)")
+        try:
+            orders = tuple(self.orders)
+        except TypeError:
+            orders = ()
+        if not orders or any(isinstance(o, (bool, np.bool_)) or not isinstance(o, (int, np.integer)) or o < 1
+                             for o in orders):
+            raise RotoridError(f"orders must be a tuple of whole numbers >= 1, got {self.orders!r}")
+        self.orders = tuple(int(o) for o in orders)
+        complex_array("vectors", self.vectors, shape=(n, len(self.orders), 4))
+        for name, shape in (("n_revs", (n,)), ("scatter", (n, 4)), ("t_mid", (n,))):
+            real_array(name, getattr(self, name), shape=shape, finite=False)
+            setattr(self, name, np.asarray(getattr(self, name)))
+        self.speed_rpm, self.vectors = sp, np.asarray(self.vectors)
         if self.cov is None:
             self.cov = np.full((n, 8, 8), np.nan)
+        else:
+            self.cov = real_array("cov", self.cov, shape=(n, 8, 8), finite=False)
         if self.dof is None:
             self.dof = np.full(n, np.nan)
+        else:
+            self.dof = real_array("dof", self.dof, shape=(n,), finite=False)
 
     def order(self, n: int = 1) -> np.ndarray:
-        if n not in self.orders:
+        if isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer)) or n not in self.orders:
             raise RotoridError(f"order {n} was not tracked (orders {self.orders})")
         return self.vectors[:, self.orders.index(n), :]
 
@@ -63,14 +86,26 @@ class SyncTrack:
             sub = other.at_speeds(self.speed_rpm)
             ocov, odof = other.cov_at_speeds(self.speed_rpm)
         else:
-            sub = np.broadcast_to(np.asarray(other, complex), self.vectors.shape[1:])[None]
-            ocov = np.zeros((1, 8, 8)) if other_cov is None else np.asarray(other_cov, float)[None]
+            from .._validate import complex_array, real_array
+
+            sub = complex_array("other", other)
+            try:
+                sub = np.broadcast_to(sub, self.vectors.shape[1:])[None]
+            except ValueError:
+                raise RotoridError(f"other must be a track or vectors (n_orders, 4) = {self.vectors.shape[1:]} to "
+                                   f"subtract, got shape {sub.shape}") from None
+            ocov = np.zeros((1, 8, 8)) if other_cov is None else real_array("other_cov", other_cov, shape=(8, 8),
+                                                                            finite=False)[None]
             odof = np.full(1, np.inf)
         return SyncTrack(self.speed_rpm, self.vectors - sub, self.orders, self.n_revs, self.scatter, self.t_mid,
                          self.keyphasors, self.cov + ocov, np.minimum(self.dof, odof))
 
     def _weights(self, speed_rpm):
-        s = np.asarray(speed_rpm, float)
+        from .._validate import real_array
+
+        s = real_array("speed_rpm", speed_rpm)
+        if s.ndim > 1 or s.size == 0:
+            raise RotoridError(f"speed_rpm must be a speed or a non-empty 1-D array of speeds, got shape {s.shape}")
         order = np.argsort(self.speed_rpm)
         sp = self.speed_rpm[order]
         lo, hi = sp[0], sp[-1]
@@ -117,6 +152,12 @@ def steady_segments(kp: Keyphasor, *, tolerance: float = 0.005, min_revs: int = 
     """Split the revolutions into runs of steady speed (each revolution within ``tolerance`` of the
     segment's median), skipping ``settle_revs`` revolutions after each change. Returns a list of
     (first_rev, last_rev_exclusive)."""
+    from .._validate import index, instance, number
+
+    instance("kp", kp, Keyphasor, what="signals.Keyphasor")
+    tolerance = number("tolerance", tolerance, positive=True)
+    min_revs = index("min_revs", min_revs, 1)
+    settle_revs = index("settle_revs", settle_revs, 0)
     rpm = kp.speed_rpm
     segs = []
     start = 0
@@ -145,8 +186,10 @@ def detect_keyphasor(rec: Recording, keyphasor=None) -> Keyphasor:
     """Keyphasor of a recording with the given options (a dict of ``keyphasor_times`` keywords);
     the keyphasor channel's delay from the file's channel map (``meta["channel_delays_s"]["kp"]``)
     is applied unless the options give ``delay_s``."""
+    from .._validate import mapping
+
     opts = dict(rec.meta.get("keyphasor_options") or {})
-    opts.update({k: v for k, v in (keyphasor or {}).items() if v is not None})
+    opts.update({k: v for k, v in mapping("keyphasor", keyphasor).items() if v is not None})
     times = opts.pop("times", None)
     delays = rec.meta.get("channel_delays_s", {}) or {}
     opts.setdefault("delay_s", float(delays.get("kp", 0.0)))
@@ -154,7 +197,9 @@ def detect_keyphasor(rec: Recording, keyphasor=None) -> Keyphasor:
     src = f"{rec.source or 'recording'}, channel {lab!r} (kp)" if lab and lab != "kp" else \
         f"{rec.source or 'recording'}, channel 'kp'"
     if times is not None:
-        t = np.asarray(times, dtype=float)
+        from .._validate import real_array
+
+        t = real_array("keyphasor times", times, ndim=1)
         t = t[(t >= rec.t0_s) & (t <= rec.t0_s + rec.n_samples / rec.fs_hz)]
         return Keyphasor.from_times(t, mark_angle_deg=opts.get("mark_angle_deg", 0.0), delay_s=opts["delay_s"],
                                     source=src)
@@ -338,6 +383,9 @@ def slow_roll_vector(rec: Recording, *, orders=(1, 2, 3), return_cov: bool = Fal
     """Run-out vectors (n_orders, 4) from a slow-roll recording: the synchronous vectors at a speed
     low enough for the dynamic response to be negligible (mechanical and electrical run-out).
     With ``return_cov`` also the (8, 8) covariance of its 1X vector."""
+    from .._validate import flag
+
+    return_cov = flag("return_cov", return_cov)
     tr = track(rec, orders=orders, **kw)
     if tr.speed_rpm.size > 1:
         warnings.warn(f"slow-roll recording has {tr.speed_rpm.size} steady segments; using the slowest "

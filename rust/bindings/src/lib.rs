@@ -81,7 +81,8 @@ fn rotor_of(p: &PyReadonlyArrayDyn<'_, f64>) -> PyResult<Rotor> {
 }
 
 /// An output buffer of `n` values that the kernels overwrite completely before anything reads it
-/// (every kernel writes every output element of every point it owns). Skipping the zero fill
+/// (every kernel writes every output element of every point it owns: identification, relative
+/// standard errors, resampling, run-out filter). Skipping the zero fill
 /// saves a pass over memory that dominated small calls.
 fn out_buf(n: usize) -> Vec<f64> {
     let mut v = Vec::with_capacity(n);
@@ -445,7 +446,7 @@ fn angle_resample<'py>(
     check_alloc("angle_resample", nch.checked_mul(k1 - k0).and_then(|v| v.checked_mul(p)), 8)?;
     let out = py.detach(|| {
         guarded(|| {
-            let mut out = vec![0.0; nch * (k1 - k0) * p];
+            let mut out = out_buf(nch * (k1 - k0) * p);
             order::angle_resample(xsl, nch, fs, t0, kps, k0, k1, p, &mut out).map(|_| out)
         })
     })?
@@ -454,7 +455,8 @@ fn angle_resample<'py>(
 }
 
 /// Time-domain run-out filter: x (C, N) minus the revolution signature template (C, p) placed by
-/// the keyphasor times kp, for samples i0..i1. Returns (C, i1 - i0); NaN outside the pulses.
+/// the keyphasor times kp, for samples i0..i1. Returns ((C, i1 - i0), the number of NaN/inf input
+/// samples in i0..i1); NaN outside the pulses.
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
 fn runout_subtract<'py>(
@@ -466,7 +468,7 @@ fn runout_subtract<'py>(
     template: PyReadonlyArrayDyn<'py, f64>,
     i0: usize,
     i1: usize,
-) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+) -> PyResult<(Bound<'py, PyArrayDyn<f64>>, usize)> {
     let xs = x.shape().to_vec();
     if xs.len() != 2 {
         return Err(PyValueError::new_err(format!("x has shape {xs:?}, expected (channels, samples)")));
@@ -486,12 +488,12 @@ fn runout_subtract<'py>(
     check_alloc("runout_subtract", nch.checked_mul(i1 - i0), 8)?;
     let out = py.detach(|| {
         guarded(|| {
-            let mut out = vec![0.0; nch * (i1 - i0)];
-            order::runout_subtract(xsl, nch, fs, t0, kps, tsl, p, i0, i1, &mut out).map(|_| out)
+            let mut out = out_buf(nch * (i1 - i0));
+            order::runout_subtract(xsl, nch, fs, t0, kps, tsl, p, i0, i1, &mut out).map(|bad| (out, bad))
         })
     })?
     .map_err(core_err)?;
-    to_py(py, out, &[nch, i1 - i0])
+    Ok((to_py(py, out.0, &[nch, i1 - i0])?, out.1))
 }
 
 #[pymodule]

@@ -811,7 +811,8 @@ fn max_nan(a: f64, b: f64) -> f64 {
 
 /// Largest standard error per point relative to its bearing's direct coefficients:
 ///     max over bearings b and over (K, C) of  max_ij std(Z_b,ij) / sqrt(|Z_b,xx Z_b,yy|),
-/// so that small cross-coupled terms are judged on the bearing's scale. `k`, `c`, `k_std`,
+/// so that small cross-coupled terms are judged on the bearing's scale (a zero standard error is
+/// relative error 0, a non-zero one on zero direct coefficients is inf). `k`, `c`, `k_std`,
 /// `c_std`: (points, 8) in [bearing][i][j] order; `out`: (points,). NaN where any input is NaN.
 pub fn relative_std(k: &[f64], c: &[f64], k_std: &[f64], c_std: &[f64], out: &mut [f64]) -> Result<(), CoreError> {
     let n = out.len();
@@ -826,7 +827,8 @@ pub fn relative_std(k: &[f64], c: &[f64], k_std: &[f64], c_std: &[f64], out: &mu
                 let s = &sd[8 * i + 4 * b..8 * i + 4 * b + 4];
                 let scale = (z[0] * z[3]).abs().sqrt();
                 let top = max_nan(max_nan(s[0], s[1]), max_nan(s[2], s[3]));
-                worst = max_nan(worst, top / scale);
+                // no error at all is relative error 0 whatever the scale (0 / 0 is not unknown)
+                worst = max_nan(worst, if top == 0.0 { 0.0 } else { top / scale });
             }
         }
         *o = worst;

@@ -24,6 +24,7 @@
 //! assert!(q[0].norm() > 0.0);
 //! ```
 
+pub mod eig8;
 pub mod error;
 pub mod forced;
 pub mod identify;

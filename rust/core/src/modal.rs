@@ -76,9 +76,16 @@ pub fn balance(a: &mut StateMatrix) -> [f64; 8] {
     d
 }
 
-/// Eigenvalues of a state matrix: nalgebra's real Schur decomposition (Hessenberg reduction and
-/// Francis double-shift QR) on the stack-allocated 8 x 8 matrix. None if QR does not converge.
+/// Eigenvalues of a state matrix: Householder reduction to Hessenberg form and Francis
+/// double-shift QR without accumulating transformations ([`crate::eig8`], on the stack; ~1.7x
+/// faster than nalgebra's real Schur decomposition, which also forms the orthogonal factor, see
+/// benches/small_algebra.rs), with nalgebra's Schur as the fallback when that QR iteration does
+/// not converge within its budget. None if neither converges.
 pub fn eigenvalues(a: StateMatrix) -> Option<[C64; 8]> {
+    let rows: [[f64; 8]; 8] = std::array::from_fn(|r| std::array::from_fn(|c| a[(r, c)]));
+    if let Some(ev) = crate::eig8::eigenvalues(&rows) {
+        return Some(ev);
+    }
     let schur = Schur::try_new(a, f64::EPSILON, 10_000)?;
     let ev = schur.complex_eigenvalues();
     let mut out = [C64::new(0.0, 0.0); 8];
@@ -96,39 +103,46 @@ const START: [[C64; 4]; 2] = [
 ];
 
 /// Mode shape of eigenvalue `lam` by inverse iteration on D(s) = s^2 M + s (C + Omega G) + K with a
-/// relative shift of 1e-12 (singular to rounding on purpose: each step multiplies the wanted
-/// direction by ~1e12 against the others), starting from `v`; `avoid`: shapes of eigenvalues equal
-/// to this one, projected out so that a repeated eigenvalue gets independent shapes.
-fn mode_shape(m: &[[f64; 4]; 4], cg: &[[f64; 4]; 4], k: &[[f64; 4]; 4], lam: C64, mut v: [C64; 4], avoid: &[[C64; 4]]) -> [C64; 4] {
-    let lam_s = lam * (1.0 + 1e-12);
-    let mut dm0 = [[C64::new(0.0, 0.0); 4]; 4];
-    for r in 0..4 {
-        for col in 0..4 {
-            dm0[r][col] = lam_s * lam_s * m[r][col] + lam_s * cg[r][col] + k[r][col];
-        }
-    }
-    for _ in 0..3 {
-        for u in avoid {
-            // u has unit 2-norm
-            let dot: C64 = (0..4).map(|d| u[d].conj() * v[d]).sum();
-            for d in 0..4 {
-                v[d] -= dot * u[d];
+/// small relative shift (singular to rounding on purpose: each step multiplies the wanted
+/// direction by ~1/shift against the others), starting from `v`; `avoid`: shapes of eigenvalues
+/// equal to this one, projected out so that a repeated eigenvalue gets independent shapes.
+/// The shift starts at 1e-12 and grows (1e-10, 1e-8) while the shifted matrix is singular to
+/// working precision (a pivot below 1e-15 of its largest entry: seen for heavily damped modes,
+/// where the mass and stiffness terms cancel). None if no shift gives three steps.
+fn mode_shape(m: &[[f64; 4]; 4], cg: &[[f64; 4]; 4], k: &[[f64; 4]; 4], lam: C64, start: [C64; 4], avoid: &[[C64; 4]]) -> Option<[C64; 4]> {
+    'shift: for shift in [1e-12, 1e-10, 1e-8] {
+        let lam_s = lam * (1.0 + shift);
+        let mut dm0 = [[C64::new(0.0, 0.0); 4]; 4];
+        for r in 0..4 {
+            for col in 0..4 {
+                dm0[r][col] = lam_s * lam_s * m[r][col] + lam_s * cg[r][col] + k[r][col];
             }
         }
-        let mut dm = dm0;
-        let mut y = v;
-        if !solve4_near_singular(&mut dm, &mut y) {
-            break;
+        let mut v = start;
+        for _ in 0..3 {
+            for u in avoid {
+                // u has unit 2-norm
+                let dot: C64 = (0..4).map(|d| u[d].conj() * v[d]).sum();
+                for d in 0..4 {
+                    v[d] -= dot * u[d];
+                }
+            }
+            let mut dm = dm0;
+            let mut y = v;
+            if !solve4_near_singular(&mut dm, &mut y) {
+                continue 'shift;
+            }
+            let nrm = y.iter().map(|z| z.norm_sqr()).sum::<f64>().sqrt();
+            if !(nrm > 0.0 && nrm.is_finite()) {
+                continue 'shift;
+            }
+            for d in 0..4 {
+                v[d] = y[d] / nrm;
+            }
         }
-        let nrm = y.iter().map(|z| z.norm_sqr()).sum::<f64>().sqrt();
-        if !(nrm > 0.0 && nrm.is_finite()) {
-            break;
-        }
-        for d in 0..4 {
-            v[d] = y[d] / nrm;
-        }
+        return Some(v);
     }
-    v
+    None
 }
 
 /// For each point: eigenvalues with positive imaginary part (up to 4, sorted by damped natural
@@ -189,7 +203,16 @@ fn modal_kernel(rotor: &Rotor, kb: &[f64], cb: &[f64], spin: &[f64], lam: &mut [
                 lo[mi] = s[t];
                 // shapes of earlier modes with the same eigenvalue (to rounding) are projected out
                 let same: Vec<[C64; 4]> = (0..mi).filter(|&o| (lo[o] - s[t]).norm() <= 1e-9 * s[t].norm()).map(|o| found[o]).collect();
-                let v = mode_shape(&m, &cg, &k, s[t], START[mi % 2], &same);
+                let v = match mode_shape(&m, &cg, &k, s[t], START[mi % 2], &same) {
+                    Some(v) => v,
+                    None => {
+                        // no shape: the point is reported as failed, all NaN
+                        for v in lo.iter_mut().chain(so.iter_mut()) {
+                            *v = C64::new(f64::NAN, f64::NAN);
+                        }
+                        return 1usize;
+                    }
+                };
                 found.push(v);
                 let best = (0..4).fold(0, |b, d| if v[d].norm() > v[b].norm() { d } else { b });
                 let piv = v[best];

@@ -95,7 +95,8 @@ fn resample_kernel(x: &[f64], nch: usize, fs: f64, t0: f64, kp: &[f64], k0: usiz
 /// `template`: (C, P), the signature of each channel over one revolution starting at the pulse.
 /// Samples outside [kp[0], kp[last]) cannot be placed in a revolution and are set to NaN.
 /// `out`: (C, i1 - i0). One pass over the samples: the rotor angle and the interpolation weights
-/// of a sample are computed once and applied to every channel.
+/// of a sample are computed once and applied to every channel. Returns the number of input
+/// samples in i0..i1 that are NaN or inf (counted on the way, their outputs are NaN).
 #[allow(clippy::too_many_arguments)]
 pub fn runout_subtract(
     x: &[f64],
@@ -108,7 +109,7 @@ pub fn runout_subtract(
     i0: usize,
     i1: usize,
     out: &mut [f64],
-) -> Result<(), CoreError> {
+) -> Result<usize, CoreError> {
     check_keyphasor(kp)?;
     check_sampling(fs, t0)?;
     if nch == 0 || x.len() % nch != 0 {
@@ -123,12 +124,11 @@ pub fn runout_subtract(
         return Err(CoreError::value("i0, i1", format!("need 0 <= i0 <= i1 <= {n}, got i0 = {i0}, i1 = {i1}")));
     }
     expect_len("out", out, nch * (i1 - i0))?;
-    runout_kernel(x, nch, fs, t0, kp, template, p, i0, i1, out);
-    Ok(())
+    Ok(runout_kernel(x, nch, fs, t0, kp, template, p, i0, i1, out))
 }
 
 #[allow(clippy::too_many_arguments)]
-fn runout_kernel(x: &[f64], nch: usize, fs: f64, t0: f64, kp: &[f64], template: &[f64], p: usize, i0: usize, i1: usize, out: &mut [f64]) {
+fn runout_kernel(x: &[f64], nch: usize, fs: f64, t0: f64, kp: &[f64], template: &[f64], p: usize, i0: usize, i1: usize, out: &mut [f64]) -> usize {
     let n = x.len() / nch;
     let m = i1 - i0;
     // templates padded periodically (one point before, two after) so stencils need no modulo
@@ -153,33 +153,122 @@ fn runout_kernel(x: &[f64], nch: usize, fs: f64, t0: f64, kp: &[f64], template: 
             rest = tail;
         }
     }
+    let ctx = Runout { x, n, nch, fs, t0, kp, inv_period: &inv_period, ext: &ext, p };
+    per_block.into_par_iter().enumerate().map(|(b, mut outs)| runout_block_dispatch(&ctx, i0 + b * BLOCK, &mut outs)).sum()
+}
+
+/// What every block of the run-out filter reads.
+struct Runout<'a> {
+    x: &'a [f64],
+    n: usize,
+    nch: usize,
+    fs: f64,
+    t0: f64,
+    kp: &'a [f64],
+    inv_period: &'a [f64],
+    /// templates padded periodically, (C, P + 3)
+    ext: &'a [f64],
+    p: usize,
+}
+
+/// Samples per stencil table: the weights and template offsets of this many samples are computed
+/// once (vectorized, one revolution segment at a time) and applied to every channel.
+const SUB: usize = 512;
+
+/// One block of output samples starting at `first` (one slice per channel).
+///
+/// The rotor angle of sample i, t_i = t0 + i / fs, in revolution k (kp[k] <= t_i < kp[k+1]) is
+/// u_i = (t_i - kp[k]) P / (kp[k+1] - kp[k]) template points; the signature there is the 4-point
+/// Lagrange stencil sum_m w_m(frac u_i) T[floor u_i - 1 + m]. Within a revolution segment every
+/// step is branch-free, so the weight loop vectorizes; samples outside the pulses get weight NaN
+/// (output NaN).
+#[inline(always)]
+fn runout_block(ctx: &Runout, first: usize, outs: &mut [&mut [f64]]) -> usize {
+    let mut nonfinite = 0usize;
+    let len = outs.first().map(|o| o.len()).unwrap_or(0);
+    let (kp, p) = (ctx.kp, ctx.p);
     let pf = p as f64;
-    per_block.into_par_iter().enumerate().for_each(|(b, mut outs)| {
-        let first = i0 + b * BLOCK;
-        let len = outs.first().map(|o| o.len()).unwrap_or(0);
-        let t_first = t0 + first as f64 / fs;
-        let mut k = kp.partition_point(|&tk| tk <= t_first).saturating_sub(1);
-        for j in 0..len {
-            let i = first + j;
-            let t = t0 + i as f64 / fs;
-            while k + 1 < kp.len() && kp[k + 1] <= t {
-                k += 1;
-            }
-            if k + 1 >= kp.len() || t < kp[0] {
-                for o in outs.iter_mut() {
-                    o[j] = f64::NAN;
+    let last = kp[kp.len() - 1];
+    let mut w = [[0.0f64; SUB]; 4];
+    let mut mi = [0usize; SUB];
+    let mut t = [0.0f64; SUB];
+    for s0 in (0..len).step_by(SUB) {
+        let m = SUB.min(len - s0);
+        for j in 0..m {
+            t[j] = ctx.t0 + (first + s0 + j) as f64 / ctx.fs;
+        }
+        // revolution segments of this stencil table (t is increasing)
+        let mut j = 0;
+        while j < m {
+            let tj = t[j];
+            if tj < kp[0] || tj >= last {
+                // outside the pulses: until the first pulse, or to the end
+                let end = if tj < kp[0] { j + t[j..m].partition_point(|&v| v < kp[0]) } else { m };
+                for q in j..end {
+                    w[0][q] = f64::NAN;
+                    w[1][q] = 0.0;
+                    w[2][q] = 0.0;
+                    w[3][q] = 0.0;
+                    mi[q] = 0;
                 }
+                j = end;
                 continue;
             }
-            let u = (t - kp[k]) * inv_period[k] * pf;
-            let mf = u.floor();
-            let f = u - mf;
-            let mi = (mf as usize).min(p - 1);
-            let w = lagrange4(f);
-            for (c, o) in outs.iter_mut().enumerate() {
-                let e = &ext[c * (p + 3) + mi..c * (p + 3) + mi + 4];
-                o[j] = x[c * n + i] - (w[0] * e[0] + w[1] * e[1] + w[2] * e[2] + w[3] * e[3]);
+            let k = kp.partition_point(|&v| v <= tj) - 1;
+            let end = j + t[j..m].partition_point(|&v| v < kp[k + 1]);
+            let (tk, sc) = (kp[k], ctx.inv_period[k] * pf);
+            for q in j..end {
+                let u = (t[q] - tk) * sc;
+                let mf = u.floor();
+                let f = u - mf;
+                let lw = lagrange4(f);
+                w[0][q] = lw[0];
+                w[1][q] = lw[1];
+                w[2][q] = lw[2];
+                w[3][q] = lw[3];
+                mi[q] = (mf as usize).min(p - 1);
+            }
+            j = end;
+        }
+        for (c, o) in outs.iter_mut().enumerate().take(ctx.nch) {
+            let e = &ctx.ext[c * (p + 3)..(c + 1) * (p + 3)];
+            let xr = &ctx.x[c * ctx.n + first + s0..c * ctx.n + first + s0 + m];
+            let o = &mut o[s0..s0 + m];
+            for q in 0..m {
+                let b = mi[q];
+                let sig = w[0][q] * e[b] + w[1][q] * e[b + 1] + w[2][q] * e[b + 2] + w[3][q] * e[b + 3];
+                o[q] = xr[q] - sig;
+                nonfinite += (!xr[q].is_finite()) as usize;
             }
         }
-    });
+    }
+    nonfinite
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512dq,avx2,fma")]
+fn runout_block_avx512(ctx: &Runout, first: usize, outs: &mut [&mut [f64]]) -> usize {
+    runout_block(ctx, first, outs)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn runout_block_avx2(ctx: &Runout, first: usize, outs: &mut [&mut [f64]]) -> usize {
+    runout_block(ctx, first, outs)
+}
+
+/// Runtime dispatch to the widest SIMD the CPU has (inline `floor`, vector weights).
+fn runout_block_dispatch(ctx: &Runout, first: usize, outs: &mut [&mut [f64]]) -> usize {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::is_x86_feature_detected!("avx512f") && std::is_x86_feature_detected!("avx512dq") {
+            // SAFETY: the CPU supports the features the function is compiled for.
+            return unsafe { runout_block_avx512(ctx, first, outs) };
+        }
+        if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
+            // SAFETY: as above.
+            return unsafe { runout_block_avx2(ctx, first, outs) };
+        }
+    }
+    runout_block(ctx, first, outs)
 }

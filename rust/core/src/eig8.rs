@@ -1,0 +1,926 @@
+//! Eigenvalues (only) of a small dense real matrix, on the stack: reduction to upper Hessenberg
+//! form by Householder reflections, then the Francis implicit double-shift QR iteration on the
+//! Hessenberg matrix without accumulating the transformations (the algorithm of EISPACK `hqr`,
+//! Wilkinson & Reinsch, *Handbook for Automatic Computation* vol. II, contribution II/14; Golub &
+//! Van Loan, *Matrix Computations*, 4th ed., §7.4-7.5). Written for the 8 x 8 state matrix of the
+//! modal analysis ([`crate::modal`]), generic over the size `N`.
+//!
+//! # Hessenberg reduction
+//!
+//! For k = 0 .. N-3, with x = A[k+1.., k] (the part of column k below the subdiagonal), the
+//! Householder reflector P = I - beta v v^T with
+//!
+//! - alpha = -sign(x_0) ||x||_2, v = x - alpha e_1, beta = 2 / (v^T v) = -1 / (alpha v_0)
+//!
+//! maps x to alpha e_1 (the sign choice avoids cancellation in v_0 = x_0 - alpha). The similarity
+//! A <- P A P (P acting on rows / columns k+1..) zeroes column k below the subdiagonal and leaves
+//! the earlier columns alone. P is orthogonal, so the reduction is backward stable: the Hessenberg
+//! matrix H is exactly similar to A + E with ||E|| = O(eps ||A||). ||x||^2 is formed directly when
+//! it lies safely inside the floating-point range, else after scaling x by its 1-norm.
+//!
+//! # Francis double-shift QR on H (active window l..=en)
+//!
+//! - **Deflation.** A subdiagonal entry h[k][k-1] is set to zero when it is negligible. First
+//!   test (the classical one): |h[k][k-1]| <= eps (|h[k-1][k-1]| + |h[k][k]|). It is then refined
+//!   by the criterion of Ahues & Tisseur (1997, used in LAPACK `dlahqr`), which keeps small but
+//!   significant entries of graded matrices: with ab = max(|h[k][k-1]|, |h[k-1][k]|),
+//!   ba = min(..), aa = max(|h[k][k]|, |h[k-1][k-1] - h[k][k]|), bb = min(..), s = aa + ab, the
+//!   entry is negligible when ba (ab / s) <= eps bb (aa / s). The window's lower end l is the
+//!   largest k with a negligible h[k][k-1] (or 0); the upper end en is the last undeflated row.
+//! - **Convergence.** When l = en, h[en][en] is an eigenvalue. When l = en - 1, the trailing
+//!   2 x 2 block [[a, b], [c, d]] gives two: with p = (a - d) / 2 and q = p^2 + b c, a complex
+//!   pair (a + d) / 2 ± i sqrt(-q) when q < 0, else the real pair lambda_1 = d + z,
+//!   lambda_2 = d - b c / z with z = p + sign(p) sqrt(q) (the second from the product of the
+//!   roots, which avoids cancellation). The window then shrinks by one or two rows.
+//! - **Shifts.** The double shift is the pair of eigenvalues sigma_1, sigma_2 of the trailing
+//!   2 x 2 block of the window, used only through the real quantities x = h[en][en],
+//!   y = h[en-1][en-1] and w = h[en][en-1] h[en-1][en] (so sigma_1 + sigma_2 = x + y and
+//!   sigma_1 sigma_2 = x y - w): one double step equals two single QR steps with shifts sigma_1
+//!   and sigma_2, or with a complex-conjugate pair, in real arithmetic. At the 10th and 20th
+//!   iteration on the same eigenvalue an *exceptional shift* breaks cycles (e.g. the cyclic
+//!   permutation matrix, on which the standard shifts stall): with
+//!   s = |h[en][en-1]| + |h[en-1][en-2]|, x = y = h[en][en] + 0.75 s and w = -0.4375 s^2.
+//! - **Implicit step (implicit Q theorem).** The first column of
+//!   (H - sigma_1 I)(H - sigma_2 I) = H^2 - (x + y) H + (x y - w) I has three nonzero entries;
+//!   for the window starting at row m they are
+//!
+//!   p = (x - h[m][m]) (y - h[m][m]) - w + h[m][m+1] h[m+1][m],
+//!   q = h[m+1][m] (h[m+1][m+1] - h[m][m] - (x - h[m][m]) - (y - h[m][m])),
+//!   r = h[m+1][m] h[m+2][m+1]
+//!
+//!   (EISPACK divides all three by h[m+1][m]; only their direction matters). A 3 x 3 Householder
+//!   reflector mapping (p, q, r) to a multiple of e_1 is applied as a similarity on rows /
+//!   columns m..m+2; this creates a bulge below the subdiagonal that further 3 x 3 reflectors
+//!   (2 x 2 for the last row) chase down to row en, restoring the Hessenberg form. With
+//!   s = sign(p) ||(p, q, r)||, the reflector I - tau u u^T, u = (1, q / (p + s), r / (p + s)),
+//!   tau = (p + s) / s, maps (p, q, r) to (-s, 0, 0); it is applied to a column c of three rows as
+//!   c -= (u . c) tau u, and likewise to rows.
+//! - **Range.** When the entries of H leave [1e-100, 1e100] H is first scaled by a power of two
+//!   (exactly; the eigenvalues are scaled back), and a reflector whose ||(p, q, r)||^2 leaves the
+//!   safe range is formed from (p, q, r) / (|p| + |q| + |r|) instead (the first one in EISPACK's
+//!   divided form), so that the products and squares above neither overflow nor underflow.
+//! - **Starting row m.** The sweep may start at a row m > l when two consecutive subdiagonal
+//!   entries are small enough (EISPACK's test: |h[m][m-1]| (|q| + |r|) negligible next to
+//!   |p| (|h[m-1][m-1]| + |h[m][m]| + |h[m+1][m+1]|)); the reflector then changes h[m][m-1] only
+//!   by the factor 1 - (p + s)/s and the fill-in it would create is below rounding level.
+//! - **Eigenvalues only.** The eigenvalues of the window are those of the block
+//!   H[l..=en, l..=en] (the matrix is block upper triangular around it), so each reflector is
+//!   applied to columns k..=en of its rows and rows l..=min(en, k+3) of its columns only, not to
+//!   the whole matrix, and no orthogonal factor is accumulated.
+//! - **Order of the updates.** The chase is a chain: each reflector is formed from the column the
+//!   previous one produced (a square root and two divisions). Each similarity therefore first
+//!   updates the 3 x 3 block on its rows and columns (and row k+3), which holds the next
+//!   reflector's column, and only then the rest of its rows and columns, which the processor
+//!   overlaps with the next square root and divisions.
+//!
+//! Convergence is typically quadratic, about two double steps per eigenvalue pair; the iteration
+//! budget is 30 N steps in total (EISPACK's). Each double step is a sequence of orthogonal
+//! similarities, so the computed eigenvalues are the exact eigenvalues of a matrix A + E with
+//! ||E|| = O(eps ||A||); their accuracy is then eps ||A|| times each eigenvalue's condition number
+//! (balance the matrix first, see [`crate::modal::balance`], when its entries span many decades).
+//! No balancing is done here.
+
+use crate::model::C64;
+
+const EPS: f64 = f64::EPSILON;
+/// Below this a subdiagonal entry is negligible in absolute terms (LAPACK's safe minimum times
+/// N / ulp, taken for N = 64: only matters for matrices near the underflow threshold).
+const SMALL: f64 = f64::MIN_POSITIVE * (64.0 / f64::EPSILON);
+
+/// All N eigenvalues of a real N x N matrix (row-major `a[row][col]`), complex pairs as
+/// conjugates (positive imaginary part first). None when the QR iteration has not converged
+/// within 30 N double steps, or when the matrix has non-finite entries.
+///
+/// ```
+/// use rotorid_core::eig8::eigenvalues;
+/// // rotation by 90 degrees scaled by 2 (eigenvalues ±2i) and 3 on the diagonal
+/// let a = [[0.0, -2.0, 0.0], [2.0, 0.0, 0.0], [1.0, 1.0, 3.0]];
+/// let ev = eigenvalues(&a).unwrap();
+/// assert!(ev.iter().any(|z| (z.re - 3.0).abs() < 1e-14 && z.im == 0.0));
+/// assert!(ev.iter().any(|z| z.re.abs() < 1e-14 && (z.im - 2.0).abs() < 1e-14));
+/// ```
+pub fn eigenvalues<const N: usize>(a: &[[f64; N]; N]) -> Option<[C64; N]> {
+    if !a.iter().flatten().all(|v| v.is_finite()) {
+        return None;
+    }
+    let mut h = *a;
+    hessenberg(&mut h);
+    hqr(&mut h)
+}
+
+/// Reduce `h` in place to upper Hessenberg form by a similarity of N - 2 Householder reflectors
+/// (not accumulated). Entries below the subdiagonal are set to zero.
+pub fn hessenberg<const N: usize>(h: &mut [[f64; N]; N]) {
+    let mut k = 0;
+    while k + 2 < N {
+        // x = h[k+1.., k]; ||x||^2 unscaled when it is safely representable
+        let mut v = [0.0f64; N];
+        let (mut s0, mut s1) = (0.0, 0.0);
+        for i in k + 1..N {
+            v[i] = h[i][k];
+        }
+        for i in (k + 2..N).step_by(2) {
+            s0 += v[i] * v[i];
+            if i + 1 < N {
+                s1 += v[i + 1] * v[i + 1];
+            }
+        }
+        let below = s0 + s1;
+        if below == 0.0 && v[k + 2..].iter().all(|x| *x == 0.0) {
+            // already zero below the subdiagonal
+            k += 1;
+            continue;
+        }
+        let mut ss = below + v[k + 1] * v[k + 1];
+        let mut scale = 1.0;
+        if !(below > SAFE_LO && ss < SAFE_HI) {
+            // rare: entries so small or large that their squares leave the floating-point range
+            scale = v.iter().map(|x| x.abs()).sum::<f64>();
+            ss = 0.0;
+            for x in v.iter_mut() {
+                *x /= scale;
+                ss += *x * *x;
+            }
+        }
+        let alpha = -ss.sqrt().copysign(v[k + 1]);
+        v[k + 1] -= alpha;
+        let beta = -1.0 / (alpha * v[k + 1]);
+        // left: rows k+1.., columns k+1..
+        let mut t = [0.0f64; N];
+        let mut t2 = [0.0f64; N];
+        let mut i = k + 1;
+        while i + 1 < N {
+            let (vi, vi1) = (v[i], v[i + 1]);
+            for j in k + 1..N {
+                t[j] += vi * h[i][j];
+                t2[j] += vi1 * h[i + 1][j];
+            }
+            i += 2;
+        }
+        if i < N {
+            for j in k + 1..N {
+                t[j] += v[i] * h[i][j];
+            }
+        }
+        for j in k + 1..N {
+            t[j] = beta * (t[j] + t2[j]);
+        }
+        for i in k + 1..N {
+            let vi = v[i];
+            for j in k + 1..N {
+                h[i][j] -= vi * t[j];
+            }
+        }
+        // right: all rows, columns k+1..
+        for row in h.iter_mut() {
+            let (mut a, mut b) = (0.0, 0.0);
+            let mut j = k + 1;
+            while j + 1 < N {
+                a += row[j] * v[j];
+                b += row[j + 1] * v[j + 1];
+                j += 2;
+            }
+            if j < N {
+                a += row[j] * v[j];
+            }
+            let f = beta * (a + b);
+            for j in k + 1..N {
+                row[j] -= f * v[j];
+            }
+        }
+        h[k + 1][k] = alpha * scale;
+        for row in h.iter_mut().skip(k + 2) {
+            row[k] = 0.0;
+        }
+        k += 1;
+    }
+}
+
+/// Whether the subdiagonal entry h[k][k-1] (k >= 1) of the window ending at row `en` is negligible
+/// (classical test, refined by Ahues & Tisseur's; see the module documentation).
+#[inline(always)]
+fn negligible<const N: usize>(h: &[[f64; N]; N], k: usize, en: usize) -> bool {
+    let sub = h[k][k - 1].abs();
+    if sub <= SMALL {
+        return true;
+    }
+    let mut tst = h[k - 1][k - 1].abs() + h[k][k].abs();
+    if tst == 0.0 {
+        if k >= 2 {
+            tst += h[k - 1][k - 2].abs();
+        }
+        if k < en {
+            tst += h[k + 1][k].abs();
+        }
+    }
+    if sub > EPS * tst {
+        return false;
+    }
+    let sup = h[k - 1][k].abs();
+    let (ab, ba) = if sub > sup { (sub, sup) } else { (sup, sub) };
+    let diag = h[k][k].abs();
+    let diff = (h[k - 1][k - 1] - h[k][k]).abs();
+    let (aa, bb) = if diag > diff { (diag, diff) } else { (diff, diag) };
+    let s = aa + ab;
+    ba * (ab / s) <= SMALL.max(EPS * (bb * (aa / s)))
+}
+
+/// Eigenvalues of the upper Hessenberg matrix `h` (entries below the subdiagonal are ignored) by
+/// the Francis double-shift QR iteration, without accumulating transformations; `h` is
+/// overwritten. None when it has not converged within 30 N double steps.
+pub fn hqr<const N: usize>(h: &mut [[f64; N]; N]) -> Option<[C64; N]> {
+    let mut ev = [C64::new(0.0, 0.0); N];
+    if N == 0 {
+        return Some(ev);
+    }
+    // exact power-of-two scaling into [2^-2, 2^2] when the entries are far from 1, so that the
+    // unscaled reflector arithmetic below can neither overflow nor underflow
+    let mut big = 0.0f64;
+    for (i, row) in h.iter().enumerate() {
+        for v in &row[i.saturating_sub(1)..] {
+            big = big.max(v.abs());
+        }
+    }
+    let unscale = if big > 1e100 || (big < 1e-100 && big > 0.0) {
+        let e = big.log2().round() as i32;
+        let f = 2f64.powi(-e);
+        for (i, row) in h.iter_mut().enumerate() {
+            for v in &mut row[i.saturating_sub(1)..] {
+                *v *= f;
+            }
+        }
+        2f64.powi(e)
+    } else {
+        1.0
+    };
+    let mut itn = 30 * N;
+    // upper end of the active window: rows/columns > en are done
+    let mut en = N - 1;
+    loop {
+        let mut its = 0usize;
+        let mut l = 0usize;
+        loop {
+            // lower end: the nearest negligible subdiagonal entry at or above en
+            let mut k = en;
+            while k > l {
+                if negligible(h, k, en) {
+                    h[k][k - 1] = 0.0;
+                    break;
+                }
+                k -= 1;
+            }
+            l = k;
+            let x = h[en][en];
+            if l == en {
+                // one real eigenvalue
+                ev[en] = C64::new(x * unscale, 0.0);
+                if en == 0 {
+                    return Some(ev);
+                }
+                en -= 1;
+                break;
+            }
+            let na = en - 1;
+            let y = h[na][na];
+            let w = h[en][na] * h[na][en];
+            if l == na {
+                // trailing 2 x 2 block: a pair
+                let p = 0.5 * (y - x);
+                let q = p * p + w;
+                let z = q.abs().sqrt();
+                if q >= 0.0 {
+                    let z = p + z.copysign(p);
+                    let l1 = x + z;
+                    let l2 = if z != 0.0 { x - w / z } else { l1 };
+                    ev[na] = C64::new(l1 * unscale, 0.0);
+                    ev[en] = C64::new(l2 * unscale, 0.0);
+                } else {
+                    ev[na] = C64::new((x + p) * unscale, z * unscale);
+                    ev[en] = C64::new((x + p) * unscale, -z * unscale);
+                }
+                if na == 0 {
+                    return Some(ev);
+                }
+                en = na - 1;
+                break;
+            }
+            if itn == 0 {
+                return None;
+            }
+            // shifts (through x + y and x y - w), exceptional at the 10th and 20th step
+            let (x, y, w) = if its == 10 || its == 20 {
+                let s = h[en][na].abs() + h[na][na - 1].abs();
+                let x = h[en][en] + 0.75 * s;
+                (x, x, -0.4375 * s * s)
+            } else {
+                (x, y, w)
+            };
+            its += 1;
+            itn -= 1;
+            // starting row m: two consecutive small subdiagonal entries, or l; (p, q, r) is the
+            // first column of (H - sigma_1)(H - sigma_2) at row m (times nothing: not divided by
+            // h[m+1][m], the tests are ratios)
+            let mut m = en - 2;
+            let (mut p, mut q, mut r);
+            loop {
+                let zz = h[m][m];
+                let h10 = h[m + 1][m];
+                let rr = x - zz;
+                let ss = y - zz;
+                p = rr * ss - w + h[m][m + 1] * h10;
+                q = h10 * (h[m + 1][m + 1] - zz - rr - ss);
+                r = h10 * h[m + 2][m + 1];
+                if m == l {
+                    break;
+                }
+                let tst1 = p.abs() * (h[m - 1][m - 1].abs() + zz.abs() + h[m + 1][m + 1].abs());
+                let tst2 = h[m][m - 1].abs() * (q.abs() + r.abs());
+                if tst2 <= EPS * tst1 {
+                    break;
+                }
+                m -= 1;
+            }
+            // double step: reflectors on rows/columns k..k+2 for k = m ..= en-1
+            for k in m..en {
+                let last = k + 1 == en;
+                if k != m {
+                    p = h[k][k - 1];
+                    q = h[k + 1][k - 1];
+                    r = if last { 0.0 } else { h[k + 2][k - 1] };
+                }
+                let mut scale = 1.0;
+                let mut nrm2 = p * p + q * q + r * r;
+                if !(nrm2 > SAFE_LO && nrm2 < SAFE_HI) {
+                    // rare: rescale by the 1-norm (recomputing the first column in the form
+                    // divided by h[m+1][m] if the products over- or underflowed)
+                    if k == m {
+                        (p, q, r) = first_column_scaled(h, m, x, y, w);
+                    }
+                    scale = p.abs() + q.abs() + r.abs();
+                    if scale == 0.0 || !scale.is_finite() {
+                        continue;
+                    }
+                    p /= scale;
+                    q /= scale;
+                    r /= scale;
+                    nrm2 = p * p + q * q + r * r;
+                }
+                let s = nrm2.sqrt().copysign(p);
+                if k != m {
+                    h[k][k - 1] = -s * scale;
+                    h[k + 1][k - 1] = 0.0;
+                    if !last {
+                        h[k + 2][k - 1] = 0.0;
+                    }
+                } else if m != l {
+                    h[k][k - 1] *= -p / s;
+                }
+                // reflector I - tau u u^T, u = (1, v1, v2): tau = (p + s) / s, v = (q, r) / (p + s)
+                let p1 = p + s;
+                let (inv_s, inv_p1) = (1.0 / s, 1.0 / p1);
+                let (tx, ty, tz) = (p1 * inv_s, q * inv_s, r * inv_s);
+                let (v1, v2) = (q * inv_p1, r * inv_p1);
+                if last {
+                    reflect2(h, k, l, en, tx, ty, v1);
+                } else {
+                    reflect3(h, k, l, en, tx, ty, tz, v1, v2);
+                }
+            }
+        }
+    }
+}
+
+const SAFE_LO: f64 = 1e-280;
+const SAFE_HI: f64 = 1e280;
+
+/// First column of (H - sigma_1)(H - sigma_2) at row m in EISPACK's form (divided by h[m+1][m],
+/// then by its 1-norm): the fallback when the undivided products leave the safe range.
+#[cold]
+fn first_column_scaled<const N: usize>(h: &[[f64; N]; N], m: usize, x: f64, y: f64, w: f64) -> (f64, f64, f64) {
+    let zz = h[m][m];
+    let rr = x - zz;
+    let ss = y - zz;
+    let p = (rr * ss - w) / h[m + 1][m] + h[m][m + 1];
+    let q = h[m + 1][m + 1] - zz - rr - ss;
+    let r = h[m + 2][m + 1];
+    let s = p.abs() + q.abs() + r.abs();
+    (p / s, q / s, r / s)
+}
+
+/// Apply the 3 x 3 reflector I - tau u u^T, u = (1, v1, v2), (tx, ty, tz) = tau u, as a
+/// similarity on rows / columns k..k+2: first the block that the next reflector reads (rows
+/// k..k+2 x columns k..k+2 from both sides, and row k+3), then the rest (rows k..k+2 x columns
+/// k+3..=en from the left, rows l..k-1 x columns k..k+2 from the right), which is independent of
+/// the next reflector and overlaps with its square root and divisions.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn reflect3<const N: usize>(h: &mut [[f64; N]; N], k: usize, l: usize, en: usize, tx: f64, ty: f64, tz: f64, v1: f64, v2: f64) {
+    let mut c = [[0.0f64; 3]; 3];
+    for (i, ci) in c.iter_mut().enumerate() {
+        ci.copy_from_slice(&h[k + i][k..k + 3]);
+    }
+    let [c0, c1, c2] = &mut c;
+    for ((a, b), d) in c0.iter_mut().zip(c1.iter_mut()).zip(c2.iter_mut()) {
+        let t = *a + v1 * *b + v2 * *d;
+        *a -= t * tx;
+        *b -= t * ty;
+        *d -= t * tz;
+    }
+    for (i, ci) in c.iter_mut().enumerate() {
+        let t = tx * ci[0] + ty * ci[1] + tz * ci[2];
+        ci[0] -= t;
+        ci[1] -= t * v1;
+        ci[2] -= t * v2;
+        h[k + i][k..k + 3].copy_from_slice(ci);
+    }
+    if k + 3 <= en {
+        let row = &mut h[k + 3];
+        let t = tz * row[k + 2];
+        row[k] = -t;
+        row[k + 1] = -t * v1;
+        row[k + 2] -= t * v2;
+    }
+    {
+        let (top, bot) = h.split_at_mut(k + 1);
+        let (mid, bot) = bot.split_at_mut(1);
+        let (r0, r1, r2) = (&mut top[k][k + 3..=en], &mut mid[0][k + 3..=en], &mut bot[0][k + 3..=en]);
+        for ((a, b), c) in r0.iter_mut().zip(r1.iter_mut()).zip(r2.iter_mut()) {
+            let t = *a + v1 * *b + v2 * *c;
+            *a -= t * tx;
+            *b -= t * ty;
+            *c -= t * tz;
+        }
+    }
+    for row in h[l..k].iter_mut() {
+        let c = &mut row[k..k + 3];
+        let t = tx * c[0] + ty * c[1] + tz * c[2];
+        c[0] -= t;
+        c[1] -= t * v1;
+        c[2] -= t * v2;
+    }
+}
+
+/// The 2 x 2 reflector I - tau u u^T, u = (1, v1), (tx, ty) = tau u, on rows k, k+1 (columns
+/// k..=en) and columns k, k+1 (rows l..=en), k + 1 = en.
+#[inline(always)]
+fn reflect2<const N: usize>(h: &mut [[f64; N]; N], k: usize, l: usize, en: usize, tx: f64, ty: f64, v1: f64) {
+    {
+        let (top, bot) = h.split_at_mut(k + 1);
+        let (r0, r1) = (&mut top[k][k..=en], &mut bot[0][k..=en]);
+        for (a, b) in r0.iter_mut().zip(r1.iter_mut()) {
+            let t = *a + v1 * *b;
+            *a -= t * tx;
+            *b -= t * ty;
+        }
+    }
+    for row in h[l..=en].iter_mut() {
+        let c = &mut row[k..k + 2];
+        let t = tx * c[0] + ty * c[1];
+        c[0] -= t;
+        c[1] -= t * v1;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::modal::{balance, state_matrix};
+    use crate::model::assemble;
+    use crate::Rotor;
+    use nalgebra::{Matrix4, SMatrix, Schur};
+    use proptest::prelude::*;
+
+    type M8 = [[f64; 8]; 8];
+
+    fn to_na(a: &M8) -> SMatrix<f64, 8, 8> {
+        SMatrix::<f64, 8, 8>::from_fn(|r, c| a[r][c])
+    }
+
+    fn fro(a: &M8) -> f64 {
+        a.iter().flatten().map(|v| v * v).sum::<f64>().sqrt()
+    }
+
+    /// nalgebra's eigenvalues (real Schur form, complex eigenvalues of its 2 x 2 blocks); faer's
+    /// where nalgebra's QR does not converge (it has no exceptional shifts: the cyclic permutation
+    /// matrix, some matrices with repeated imaginary pairs) or where it returns NaN (the
+    /// imaginary part of a 2 x 2 block with a double real eigenvalue, seen with 1.5 three times).
+    fn reference(a: &M8) -> [C64; 8] {
+        let mut out = [C64::new(0.0, 0.0); 8];
+        if let Some(schur) = Schur::try_new(to_na(a), f64::EPSILON, 100_000) {
+            for (o, e) in out.iter_mut().zip(schur.complex_eigenvalues().iter()) {
+                *o = C64::new(e.re, e.im);
+            }
+            if out.iter().all(|z| z.re.is_finite() && z.im.is_finite()) {
+                return out;
+            }
+        }
+        let ev = faer::Mat::<f64>::from_fn(8, 8, |r, c| a[r][c]).eigenvalues().expect("faer eigenvalues");
+        for (o, e) in out.iter_mut().zip(ev.iter()) {
+            *o = C64::new(e.re, e.im);
+        }
+        out
+    }
+
+    /// Pair every reference eigenvalue with one of ours, closest pairs first; returns the indices
+    /// into `ours` in the order of `refs`.
+    fn matching(ours: &[C64; 8], refs: &[C64; 8]) -> [usize; 8] {
+        let mut pairs: Vec<(f64, usize, usize)> = Vec::with_capacity(64);
+        for (i, r) in refs.iter().enumerate() {
+            for (j, o) in ours.iter().enumerate() {
+                pairs.push(((r - o).norm(), i, j));
+            }
+        }
+        pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let (mut used_r, mut used_o, mut out) = ([false; 8], [false; 8], [usize::MAX; 8]);
+        for (_, i, j) in pairs {
+            if !used_r[i] && !used_o[j] {
+                used_r[i] = true;
+                used_o[j] = true;
+                out[i] = j;
+            }
+        }
+        out
+    }
+
+    /// Smallest singular value of A - lam I and |u^H v| of its singular vectors: for a simple
+    /// eigenvalue lam, u and v approximate its left and right eigenvectors and 1 / |u^H v| is its
+    /// condition number.
+    fn shifted_svd(a: &M8, lam: C64) -> (f64, f64) {
+        let m = SMatrix::<C64, 8, 8>::from_fn(|r, c| C64::new(a[r][c], 0.0) - if r == c { lam } else { C64::new(0.0, 0.0) });
+        let svd = m.svd(true, true);
+        let (u, vt) = (svd.u.unwrap(), svd.v_t.unwrap());
+        let i = svd.singular_values.imin();
+        // right singular vector: row i of V^H, conjugated
+        let dot: C64 = (0..8).map(|t| u[(t, i)].conj() * vt[(i, t)].conj()).sum();
+        (svd.singular_values[i], dot.norm())
+    }
+
+    /// Largest differences seen: (relative to |lambda| for simple eigenvalues, relative to ||A||).
+    #[derive(Default, Debug)]
+    struct Seen {
+        rel: f64,
+        abs: f64,
+    }
+
+    /// Compare ours with nalgebra's on one matrix; returns the differences (relative to |lambda|,
+    /// relative to ||A||_F) over the simple eigenvalues, or a description of the failure.
+    fn check(a: &M8) -> Result<Seen, String> {
+        let ours = eigenvalues(a).ok_or("no convergence")?;
+        let refs = reference(a);
+        let na = fro(a);
+        if na == 0.0 {
+            return if ours.iter().all(|z| z.norm() == 0.0) { Ok(Seen::default()) } else { Err(format!("zero matrix: {ours:?}")) };
+        }
+        // complex eigenvalues come in conjugate pairs
+        for z in ours.iter().filter(|z| z.im != 0.0) {
+            if !ours.iter().any(|w| w.re == z.re && w.im == -z.im) {
+                return Err(format!("{z} without its conjugate in {ours:?}"));
+            }
+        }
+        let mut seen = Seen::default();
+        // backward error: lam is an eigenvalue of A + E with ||E|| = sigma_min(A - lam I)
+        let mut kappa = [0.0; 8];
+        for (i, &lam) in ours.iter().enumerate() {
+            let (smin, dot) = shifted_svd(a, lam);
+            if smin > 1e-13 * na {
+                return Err(format!("residual: sigma_min(A - {lam} I) = {smin:e} of ||A|| = {na:e}"));
+            }
+            kappa[i] = 1.0 / dot.max(1e-300);
+        }
+        let map = matching(&ours, &refs);
+        // clusters of the reference spectrum: single linkage of eigenvalues within 1e-3 of their
+        // size or within 1e-6 ||A|| of each other (a defective eigenvalue splits by ~sqrt(eps) ||A||)
+        let mut group: [usize; 8] = std::array::from_fn(|i| i);
+        for i in 0..8 {
+            for j in 0..i {
+                if (refs[i] - refs[j]).norm() <= (1e-3 * refs[i].norm().max(refs[j].norm())).max(1e-6 * na) {
+                    let (gi, gj) = (group[i], group[j]);
+                    for g in group.iter_mut() {
+                        if *g == gi {
+                            *g = gj;
+                        }
+                    }
+                }
+            }
+        }
+        for i in 0..8 {
+            let members: Vec<usize> = (0..8).filter(|&t| group[t] == group[i]).collect();
+            let o = ours[map[i]];
+            let d = (o - refs[i]).norm();
+            if members.len() == 1 {
+                // simple eigenvalue: perturbation theory gives kappa eps ||A||
+                let tol = 1e-9 * refs[i].norm() + 64.0 * kappa[map[i]] * EPS * na;
+                if d > tol {
+                    return Err(format!(
+                        "eigenvalue {i}: ours {o}, nalgebra {}, |d| = {d:e} > {tol:e} (kappa {:e})",
+                        refs[i], kappa[map[i]]
+                    ));
+                }
+                if kappa[map[i]] < 1e3 {
+                    seen.rel = seen.rel.max(d / refs[i].norm().max(1e-6 * na));
+                    seen.abs = seen.abs.max(d / na);
+                }
+            } else {
+                // multiple (maybe defective) eigenvalue: the members are only eps^(1/k) accurate,
+                // their mean is well conditioned
+                let k = members.len() as f64;
+                let tol = 10.0 * EPS.powf(1.0 / k.max(2.0)) * na;
+                if d > tol {
+                    return Err(format!("multiple eigenvalue {i}: ours {o}, nalgebra {}, |d| = {d:e} > {tol:e}", refs[i]));
+                }
+                // ... when the cluster is all of the multiple eigenvalue (isolated from the rest)
+                let apart = (0..8).filter(|t| group[*t] != group[i]).map(|t| (refs[t] - refs[i]).norm()).fold(f64::INFINITY, f64::min);
+                let mo: C64 = members.iter().map(|&t| ours[map[t]]).sum::<C64>() / k;
+                let mr: C64 = members.iter().map(|&t| refs[t]).sum::<C64>() / k;
+                let tol = 1e-9 * mr.norm() + 1e-10 * na;
+                if apart >= 1e-3 * na && (mo - mr).norm() > tol {
+                    return Err(format!("cluster mean of eigenvalue {i}: ours {mo}, nalgebra {mr}"));
+                }
+            }
+        }
+        Ok(seen)
+    }
+
+    fn dense_from(v: &[f64], scale: f64) -> M8 {
+        std::array::from_fn(|r| std::array::from_fn(|c| v[8 * r + c] * scale))
+    }
+
+    /// A = V D V^-1 with D block diagonal: real eigenvalues, or 2 x 2 blocks [[a, b], [-b, a]]
+    /// (a ± i b), and with `jordan` a 1 above the diagonal joining equal neighbours.
+    fn similar(blocks: &[(bool, f64, f64)], vpert: &[f64], jordan: bool) -> (M8, Vec<C64>) {
+        let mut d = [[0.0; 8]; 8];
+        let mut exact = Vec::new();
+        let mut i = 0;
+        for &(cplx, a, b) in blocks {
+            if i >= 8 {
+                break;
+            }
+            if cplx && i + 1 < 8 {
+                d[i][i] = a;
+                d[i + 1][i + 1] = a;
+                d[i][i + 1] = b;
+                d[i + 1][i] = -b;
+                exact.push(C64::new(a, b));
+                exact.push(C64::new(a, -b));
+                i += 2;
+            } else {
+                d[i][i] = a;
+                exact.push(C64::new(a, 0.0));
+                i += 1;
+            }
+        }
+        if jordan {
+            for i in 0..7 {
+                if d[i][i] == d[i + 1][i + 1] && d[i][i + 1] == 0.0 && d[i + 1][i] == 0.0 {
+                    // a 1 between equal real eigenvalues, or between two equal complex blocks
+                    // (a coupling [[0, 0], [1, 0]], which is not in the range of X -> B X - X B)
+                    d[i][i + 1] = 1.0;
+                }
+            }
+        }
+        let v = SMatrix::<f64, 8, 8>::from_fn(|r, c| if r == c { 1.0 } else { 0.0 } + 0.4 * vpert[8 * r + c]);
+        let vi = v.try_inverse().unwrap();
+        let a = v * to_na(&d) * vi;
+        (std::array::from_fn(|r| std::array::from_fn(|c| a[(r, c)])), exact)
+    }
+
+    fn rotor_state(p: &[f64], kd: &[f64], cd: &[f64], x: &[f64], spin_r: f64, bal: bool) -> M8 {
+        let (m, rg, ipr, l1, l2) = (p[0], p[1], p[2], p[3], p[4]);
+        let it = m * (rg * (l1 + l2)).powi(2);
+        let rotor = Rotor::from_slice(&[m, it, ipr * it, l1, l2]).unwrap();
+        let (mut k, mut c) = ([0.0; 8], [0.0; 8]);
+        for b in 0..2 {
+            let (kx, ky) = (10f64.powf(kd[2 * b]), 10f64.powf(kd[2 * b + 1]));
+            let (cx, cy) = (10f64.powf(cd[2 * b]), 10f64.powf(cd[2 * b + 1]));
+            k[4 * b] = kx;
+            k[4 * b + 3] = ky;
+            k[4 * b + 1] = x[4 * b] * kx.min(ky);
+            k[4 * b + 2] = x[4 * b + 1] * kx.min(ky);
+            c[4 * b] = cx;
+            c[4 * b + 3] = cy;
+            c[4 * b + 1] = x[4 * b + 2] * cx.min(cy);
+            c[4 * b + 2] = x[4 * b + 3] * cx.min(cy);
+        }
+        let mm = rotor.mass_matrix();
+        let minv = Matrix4::from_fn(|r, c| mm[r][c]).try_inverse().unwrap();
+        let (ka, ca) = (assemble(&k, l1, l2), assemble(&c, l1, l2));
+        let spin = spin_r * (k[0] / m).sqrt();
+        let mut a = state_matrix(&minv, &ka, &ca, &rotor.gyro_matrix(), spin);
+        if bal {
+            balance(&mut a);
+        }
+        std::array::from_fn(|r| std::array::from_fn(|c| a[(r, c)]))
+    }
+
+    fn assert_check(a: &M8) -> Seen {
+        match check(a) {
+            Ok(s) => s,
+            Err(e) => panic!("{e}\nA = {a:?}"),
+        }
+    }
+
+    fn exact_match(ours: &[C64; 8], exact: &[C64], tol: f64) -> Result<(), String> {
+        let mut ex = [C64::new(0.0, 0.0); 8];
+        ex[..exact.len()].copy_from_slice(exact);
+        let map = matching(ours, &ex);
+        for (i, e) in ex.iter().enumerate() {
+            let d = (ours[map[i]] - e).norm();
+            if d > tol {
+                return Err(format!("exact {e}: ours {}, |d| = {d:e}", ours[map[i]]));
+            }
+        }
+        Ok(())
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(400))]
+
+        /// Dense random matrices over six decades of scale.
+        #[test]
+        fn dense_matches_nalgebra(v in proptest::collection::vec(-1.0f64..1.0, 64), e in -3.0f64..3.0) {
+            check(&dense_from(&v, 10f64.powf(e))).map_err(TestCaseError::fail)?;
+        }
+
+        /// Zero rows and columns (exact zero eigenvalues, reducible matrices).
+        #[test]
+        fn zero_rows_and_columns(v in proptest::collection::vec(-1.0f64..1.0, 64), rows in 0u8..=255, cols in 0u8..=255) {
+            let mut a = dense_from(&v, 1.0);
+            for i in 0..8 {
+                if rows >> i & 1 == 1 && i % 2 == 0 {
+                    a[i] = [0.0; 8];
+                }
+                if cols >> i & 1 == 1 && i % 3 == 0 {
+                    for row in a.iter_mut() {
+                        row[i] = 0.0;
+                    }
+                }
+            }
+            check(&a).map_err(TestCaseError::fail)?;
+        }
+
+        /// Rotor state matrices, balanced (as the modal analysis uses them) and raw (entries from
+        /// ~1e-3 to ~1e8).
+        #[test]
+        fn rotor_state_matrices(m in 1.0f64..1000.0, rg in 0.1f64..0.6, ipr in 0.05f64..1.5, l1 in 0.05f64..1.0, l2 in 0.05f64..1.0,
+                                kd in proptest::collection::vec(5.0f64..8.0, 4), cd in proptest::collection::vec(1.0f64..5.0, 4),
+                                x in proptest::collection::vec(-0.5f64..0.5, 8), spin_r in 0.0f64..3.0) {
+            let p = [m, rg, ipr, l1, l2];
+            let a = rotor_state(&p, &kd, &cd, &x, spin_r, true);
+            check(&a).map_err(TestCaseError::fail)?;
+            let a = rotor_state(&p, &kd, &cd, &x, spin_r, false);
+            check(&a).map_err(TestCaseError::fail)?;
+        }
+
+        /// Prescribed spectra with repeated real eigenvalues and repeated complex pairs, semisimple
+        /// and defective (Jordan blocks).
+        #[test]
+        fn prescribed_spectra(blocks in proptest::collection::vec((any::<bool>(), 0usize..4, 1usize..3), 8),
+                              vpert in proptest::collection::vec(-1.0f64..1.0, 64), jordan in any::<bool>()) {
+            let re = [-2.0, -0.5, 0.0, 1.5];
+            let b: Vec<(bool, f64, f64)> = blocks.iter().map(|&(c, r, i)| (c, re[r], i as f64)).collect();
+            let (a, exact) = similar(&b, &vpert, jordan);
+            check(&a).map_err(TestCaseError::fail)?;
+            if !jordan {
+                exact_match(&eigenvalues(&a).unwrap(), &exact, 1e-9 * fro(&a)).map_err(TestCaseError::fail)?;
+            }
+        }
+
+        /// Graded matrices D A D^-1 (entries spanning up to 16 decades) with random complex pairs,
+        /// balanced: same eigenvalues as A.
+        #[test]
+        fn graded_balanced(v in proptest::collection::vec(-1.0f64..1.0, 64), g in proptest::collection::vec(-4.0f64..4.0, 8)) {
+            let mut a = dense_from(&v, 1.0);
+            let plain = eigenvalues(&a).unwrap();
+            for r in 0..8 {
+                for c in 0..8 {
+                    a[r][c] *= 10f64.powf(g[r] - g[c]);
+                }
+            }
+            let mut na = to_na(&a);
+            balance(&mut na);
+            let a: M8 = std::array::from_fn(|r| std::array::from_fn(|c| na[(r, c)]));
+            check(&a).map_err(TestCaseError::fail)?;
+            let plain: Vec<C64> = plain.to_vec();
+            exact_match(&eigenvalues(&a).unwrap(), &plain, 1e-9 * fro(&dense_from(&v, 1.0))).map_err(TestCaseError::fail)?;
+        }
+    }
+
+    /// Largest differences with nalgebra over a fixed set of rotor and random matrices (printed with
+    /// --nocapture).
+    #[test]
+    fn differences_with_nalgebra() {
+        let (mut rotor, mut dense) = (Seen::default(), Seen::default());
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut rnd = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for _ in 0..2000 {
+            let p = [1.0 + 999.0 * rnd(), 0.1 + 0.5 * rnd(), 0.05 + 1.45 * rnd(), 0.05 + 0.95 * rnd(), 0.05 + 0.95 * rnd()];
+            let kd: Vec<f64> = (0..4).map(|_| 5.0 + 3.0 * rnd()).collect();
+            let cd: Vec<f64> = (0..4).map(|_| 1.0 + 4.0 * rnd()).collect();
+            let x: Vec<f64> = (0..8).map(|_| rnd() - 0.5).collect();
+            let s = assert_check(&rotor_state(&p, &kd, &cd, &x, 3.0 * rnd(), true));
+            rotor.rel = rotor.rel.max(s.rel);
+            rotor.abs = rotor.abs.max(s.abs);
+            let v: Vec<f64> = (0..64).map(|_| 2.0 * rnd() - 1.0).collect();
+            let s = assert_check(&dense_from(&v, 1.0));
+            dense.rel = dense.rel.max(s.rel);
+            dense.abs = dense.abs.max(s.abs);
+        }
+        println!(
+            "largest difference with nalgebra, balanced rotor state matrices: {:.2e} of |lambda|, {:.2e} of ||A||",
+            rotor.rel, rotor.abs
+        );
+        println!(
+            "largest difference with nalgebra, dense uniform matrices:        {:.2e} of |lambda|, {:.2e} of ||A||",
+            dense.rel, dense.abs
+        );
+        assert!(rotor.rel < 1e-9 && dense.rel < 1e-9);
+    }
+
+    #[test]
+    fn special_matrices() {
+        // zero, identity, diagonal, triangular
+        assert_check(&[[0.0; 8]; 8]);
+        let id: M8 = std::array::from_fn(|r| std::array::from_fn(|c| if r == c { 1.0 } else { 0.0 }));
+        assert_eq!(eigenvalues(&id).unwrap(), [C64::new(1.0, 0.0); 8]);
+        let tri: M8 = std::array::from_fn(|r| std::array::from_fn(|c| if c >= r { (1 + r + 2 * c) as f64 } else { 0.0 }));
+        let ev = eigenvalues(&tri).unwrap();
+        exact_match(&ev, &(0..8).map(|r| C64::new((1 + 3 * r) as f64, 0.0)).collect::<Vec<_>>(), 0.0).unwrap();
+        // cyclic permutation: the 8th roots of unity, where the standard shifts stall
+        let mut p = [[0.0; 8]; 8];
+        for r in 0..8 {
+            p[(r + 1) % 8][r] = 1.0;
+        }
+        let ev = eigenvalues(&p).unwrap();
+        let roots: Vec<C64> = (0..8).map(|t| C64::from_polar(1.0, std::f64::consts::PI * t as f64 / 4.0)).collect();
+        exact_match(&ev, &roots, 1e-13).unwrap();
+        assert_check(&p);
+        // companion matrix of (x - 1)(x - 2)...(x - 8): ill-conditioned eigenvalues
+        let mut coef = [1.0f64; 9]; // monic, coef[i] of x^i, built up root by root
+        coef.iter_mut().for_each(|c| *c = 0.0);
+        coef[0] = 1.0;
+        for root in 1..=8 {
+            for i in (0..=8).rev() {
+                coef[i] = if i > 0 { coef[i - 1] } else { 0.0 } - root as f64 * coef[i];
+            }
+        }
+        let mut comp = [[0.0; 8]; 8];
+        for r in 1..8 {
+            comp[r][r - 1] = 1.0;
+        }
+        for r in 0..8 {
+            comp[r][7] = -coef[r];
+        }
+        let ev = eigenvalues(&comp).unwrap();
+        exact_match(&ev, &(1..=8).map(|r| C64::new(r as f64, 0.0)).collect::<Vec<_>>(), 1e-6).unwrap();
+        assert_check(&comp);
+        // Hessenberg input with tiny subdiagonal entries (deflation), and an already split matrix
+        let h: M8 = std::array::from_fn(|r| {
+            std::array::from_fn(|c| if c + 1 >= r { ((r * 7 + c * 3) % 5) as f64 - 2.0 + if r == c { r as f64 } else { 0.0 } } else { 0.0 })
+        });
+        let mut h = h;
+        h[3][2] = 1e-20;
+        h[6][5] = 0.0;
+        assert_check(&h);
+        // non-finite input
+        let mut bad = id;
+        bad[2][3] = f64::NAN;
+        assert!(eigenvalues(&bad).is_none());
+    }
+
+    #[test]
+    fn other_sizes() {
+        assert_eq!(eigenvalues::<0>(&[]).unwrap().len(), 0);
+        assert_eq!(eigenvalues(&[[-3.5]]).unwrap(), [C64::new(-3.5, 0.0)]);
+        // 2 x 2: complex pair 1 ± 2i and a real pair with cancellation-prone roots
+        let ev = eigenvalues(&[[1.0, -4.0], [1.0, 1.0]]).unwrap();
+        assert!((ev[0] - C64::new(1.0, 2.0)).norm() < 1e-15 && (ev[1] - C64::new(1.0, -2.0)).norm() < 1e-15);
+        let ev = eigenvalues(&[[1e8, 1.0], [1.0, 0.0]]).unwrap();
+        let small = ev.iter().map(|z| z.re).fold(f64::INFINITY, f64::min);
+        assert!((small + 1e-8).abs() < 1e-22, "{small:e}");
+        // 5 x 5 with known spectrum: tridiagonal Toeplitz [1, 2, 1] has 2 + 2 cos(k pi / 6)
+        let t: [[f64; 5]; 5] = std::array::from_fn(|r| {
+            std::array::from_fn(|c| match r.abs_diff(c) {
+                0 => 2.0,
+                1 => 1.0,
+                _ => 0.0,
+            })
+        });
+        let mut ev: Vec<f64> = eigenvalues(&t).unwrap().iter().map(|z| z.re).collect();
+        ev.sort_by(f64::total_cmp);
+        for (k, e) in ev.iter().enumerate() {
+            let exact = 2.0 + 2.0 * (std::f64::consts::PI * (5 - k) as f64 / 6.0).cos();
+            assert!((e - exact).abs() < 1e-14, "{e} vs {exact}");
+        }
+        // 16 x 16 dense against its trace and the 8 x 8 case's machinery via the residual
+        let a: [[f64; 16]; 16] = std::array::from_fn(|r| std::array::from_fn(|c| ((r * 31 + c * 17) % 13) as f64 - 6.0));
+        let ev = eigenvalues(&a).unwrap();
+        let tr: f64 = (0..16).map(|i| a[i][i]).sum();
+        let s: C64 = ev.iter().sum();
+        assert!((s.re - tr).abs() < 1e-11 * 16.0 * 13.0 && s.im.abs() < 1e-11);
+    }
+}
