@@ -330,6 +330,66 @@ def _bad_argument_cases():
         ("forces", lambda: signals.frf_h1(3.0, 3.0, 1000.0)),
         ("polarity", lambda: signals.keyphasor_times(kp, 1000.0, polarity=["positive"])),
         ("source", lambda: signals.keyphasor_times(kp, 1000.0, source=np.zeros(2))),
+        # the rest of the public surface (the second sweep of tests/test_fuzz.py)
+        *_rest_of_the_surface_cases(rotor, rec),
+    ]
+
+
+def _rest_of_the_surface_cases(rotor, rec):
+    from rotorid import config, demo, example, pipeline, plot, units
+    from rotorid.recording import SegmentedRecording
+
+    rpm = np.array([4000.0, 5000.0])
+    runs = [rotorid.imbalance_response(RIG.rotor, RIG.bearings, RIG.imbalances[s], speed_rpm=rpm) for s in "AB"]
+    arrays = {"x1": np.zeros((2, 8))}
+    return [
+        ("plane", lambda: rotorid.impact_vector(np.nan, "x")),  # was a NaN excitation vector
+        ("plane", lambda: rotorid.impact_time_response(RIG.rotor, RIG.bearings, speed_rpm=1000.0,
+                                                       force_N=np.ones(8), fs_hz=1e4, plane="x")),
+        ("n_samples", lambda: rotorid.half_sine_pulse(100.0, 1e-3, 1e4, np.nan)),
+        ("rotor", lambda: rotorid.probes_to_bearings(None, runs[0].q)),
+        ("rotor", lambda: rotorid.bearings_to_probes(3.0, runs[0].q)),
+        ("cond_max", lambda: rotorid.identify_synchronous(RIG.rotor, runs, cond_max=np.ones(2))),
+        ("max_rel_std", lambda: rotorid.identify_synchronous(RIG.rotor, runs, max_rel_std=np.zeros(0))),
+        ("units", lambda: Recording(1e3, {"x1": np.zeros(8)}, units=3.0)),
+        ("source", lambda: Recording(1e3, {"x1": np.zeros(8)}, source=np.zeros(2))),
+        ("start_s", lambda: rec.segment(np.nan, 0.01)),
+        ("stop_s", lambda: rec.segment(0.0, "x")),
+        ("blocks", lambda: SegmentedRecording(3.0)),
+        ("meta", lambda: SegmentedRecording([rec], meta=np.zeros(2))),
+        ("fs_hz", lambda: SegmentedRecording.from_arrays("x", arrays)),
+        ("meta", lambda: SegmentedRecording.from_arrays(1e3, arrays, meta=3)),
+        ("units", lambda: SegmentedRecording.from_arrays(1e3, arrays, units="mil")),
+        ("quantity", lambda: units.factor("mil", np.ones(2))),
+        ("value", lambda: units.to_si("x", "mil")),
+        ("value", lambda: units.from_si(None, "mil")),
+        ("response", lambda: plot.bode(3.0)),
+        ("path", lambda: plot.bode(runs[0], path=3.0)),
+        ("ident", lambda: plot.coefficients(None)),
+        ("show_flagged", lambda: plot.coefficients(rotorid.identify_synchronous(RIG.rotor, runs),
+                                                   show_flagged=np.ones(2))),
+        ("modal_result", lambda: plot.campbell(None)),
+        ("crit", lambda: plot.campbell(rotorid.modal_analysis(RIG.rotor, RIG.bearings, speed_rpm=[1000.0]), crit=3)),
+        ("orders", lambda: pipeline.imbalance_chain(rotor, [rec], orders=b"x")),
+        ("rec", lambda: pipeline.impact_segments(None)),
+        ("record_s", lambda: pipeline.impact_segments(rec, record_s=np.nan)),
+        ("revs_before", lambda: pipeline.impact_segments(rec, revs_before="x")),
+        ("runout", lambda: pipeline.impact_segments(rec, runout=np.ones(2))),
+        ("detect", lambda: pipeline.impact_segments(rec, detect=3)),
+        ("detect", lambda: pipeline.impact_segments(rec, detect={"bogus": 1})),
+        ("recordings[0]", lambda: pipeline.impact_chain(rotor, [1.0])),
+        ("tests_meta", lambda: pipeline.impact_chain(rotor, [rec], tests_meta=3)),
+        ("zero_pad_s", lambda: pipeline.impact_chain(rotor, [rec], zero_pad_s=1e12)),  # was a MemoryError
+        ("path", lambda: pipeline.run_config(3.0, "imbalance")),
+        ("kind", lambda: pipeline.run_config("unused.toml", np.zeros(2))),
+        ("path", lambda: config.load_config(None)),
+        ("check_files", lambda: config.load_config("unused.toml", check_files="no")),
+        ("out", lambda: example.copy_example(None)),
+        ("overwrite", lambda: example.copy_example("unused", overwrite=np.ones(2))),
+        ("step_rpm", lambda: demo.synchronous("unused", step_rpm=0.001)),  # was 6e6 speeds, gigabytes
+        ("step_rpm", lambda: demo.synchronous("unused", step_rpm=np.nan)),
+        ("resolution", lambda: demo.synchronous("unused", resolution=3.0)),
+        ("out", lambda: demo.impact(None)),
     ]
 
 
@@ -346,6 +406,23 @@ def test_every_refusal_found_by_the_sweep_names_its_argument(tmp_path, monkeypat
             if not re.search(re.escape(arg), str(exc)):
                 wrong.append(f"case {i} ({arg}): {exc}")
     assert not wrong, "\n".join(wrong)
+
+
+def test_cli_demo_refuses_a_speed_step_of_millions_of_speeds_at_once(tmp_path, capsys):
+    import time
+
+    from rotorid import cli
+
+    out = tmp_path / "demo"
+    t = time.perf_counter()
+    code = cli.main(["demo", "--out", str(out), "--step-rpm", "0.001"])  # was 1e7 speeds, gigabytes
+    took = time.perf_counter() - t
+    err = capsys.readouterr().err
+    assert code == 2
+    assert err.count("\n") == 1 and err.startswith("rotorid: error:") and "--step-rpm" in err, err
+    assert "10000" in err  # the stated maximum number of speeds
+    assert took < 10.0, f"took {took:.1f} s"
+    assert not out.exists()  # refused before anything was written
 
 
 def test_a_mark_angle_whole_turns_away_is_the_same_mark():

@@ -621,9 +621,8 @@ def test_results_folder_fails_only_with_rotorid_errors(tmp_path, monkeypatch, in
 
 # ---------------------------------------------------------------------------------------------
 # the rest of the public surface (model, simulation, identification, modal analysis, recordings,
-# units, chains, plots, config): the same sweep. The modules are maintained apart from this suite;
-# where the sweep still finds an argument answered with another exception, the case is marked
-# xfail with the finding (it turns XPASS once the module checks that argument).
+# units, chains, plots, config): the same sweep, every case must pass (the findings it made,
+# deep TypeErrors/AttributeErrors, a NaN excitation vector, gigabyte allocations, are fixed).
 
 
 @functools.lru_cache(maxsize=None)
@@ -767,47 +766,6 @@ def _owned_calls(tmp):
     }
 
 
-#: findings of the sweep in modules this suite does not maintain (argument: what happens instead of
-#: a RotoridError); each case turns XPASS once its module checks the argument
-OWNED_FINDINGS = {
-    "impact_time_response": "plane='x'/None/[1, 2] raises ValueError/TypeError from float(plane) "
-                            "(simulate.impact_vector)",
-    "impact_vector": "plane=nan/inf gives a NaN excitation vector; plane='x'/None raises ValueError/TypeError",
-    "half_sine_pulse": "n_samples=nan/inf/'x'/None raises ValueError/OverflowError/TypeError from int(n_samples)",
-    "probes_to_bearings": "rotor that is not a RigidRotor raises AttributeError ('l1')",
-    "bearings_to_probes": "rotor that is not a RigidRotor raises AttributeError ('l1')",
-    "identify_synchronous": "cond_max/min_rel_amplitude/max_rel_std as an array raise ValueError (truth value of an "
-                            "array, identify._check_threshold)",
-    "identify_impact": "cond_max/min_rel_amplitude/max_rel_std as an array raise ValueError (truth value of an array)",
-    "Recording": "units that is not a dict raises AttributeError (setdefault); meta/source unchecked",
-    "Recording.segment": "start_s/stop_s nan/inf/'x'/None raise ValueError/OverflowError/TypeError (int(round()))",
-    "SegmentedRecording": "blocks that is not iterable raises TypeError; meta/source as arrays raise ValueError",
-    "SegmentedRecording.from_arrays": "fs_hz/t0_s 'x'/None/complex raise ValueError/TypeError (float()); meta/units "
-                                      "that are not dicts raise TypeError/ValueError (dict())",
-    "units.factor": "quantity as an array raises ValueError (truth value of an array)",
-    "units.to_si": "value 'x'/None/[1, 2] raises TypeError (value * factor); quantity as an array raises ValueError",
-    "units.from_si": "value 'x'/None/[1, 2] raises TypeError (value / factor); quantity as an array raises ValueError",
-    "plot.bode": "no argument is checked: response of another type raises AttributeError, path a number raises "
-                 "AttributeError in Pillow",
-    "plot.coefficients": "no argument is checked: ident/truth of another type raise AttributeError, title a number "
-                         "TypeError, show_flagged an array ValueError",
-    "plot.campbell": "no argument is checked: modal_result of another type raises AttributeError, crit a number "
-                     "TypeError",
-    "imbalance_chain": "orders=b'x' raises ValueError from tuple.index (pipeline.py, orders not checked before use)",
-    "impact_segments": "rec not a Recording raises AttributeError; record_s/pre_s nan raise ValueError (int()); "
-                       "revs_before 'x' TypeError; runout an array ValueError; detect not a dict TypeError",
-    "impact_chain": "recordings holding non-recordings raise AttributeError ('meta'); tests_meta a number TypeError; "
-                    "zero_pad_s=1e12 MemoryError (allocates before checking)",
-    "run_config": "path that is not a path raises TypeError (config.load_config); kind an array ValueError",
-    "config.load_config": "path that is not a str/PathLike raises TypeError (Path(path))",
-    "example.copy_example": "out that is not a path raises TypeError (os.path); overwrite an array ValueError",
-    "demo.synchronous": "step_rpm=nan ValueError (np.arange), 0 ZeroDivisionError, 'x'/None TypeError, 0.001 "
-                        "allocates gigabytes (6e6 speeds; `rotorid demo --step-rpm 0.001` too); resolution not a "
-                        "ProbeResolution AttributeError; out not a path TypeError",
-    "demo.impact": "out that is not a path raises TypeError (os.makedirs)",
-}
-
-
 OWNED_NAMES = [
     "BearingCoefficients", "Identification.interval", "Imbalance", "ImpactResponse", "ProbeResolution", "Recording",
     "Recording.segment", "RigidRotor", "SegmentedRecording", "SegmentedRecording.from_arrays", "SyncResponse",
@@ -822,11 +780,9 @@ OWNED_NAMES = [
 def test_the_sweeps_list_every_call(tmp_path):
     assert sorted(_calls(tmp_path)) == CALL_NAMES
     assert sorted(_owned_calls(tmp_path)) == OWNED_NAMES
-    assert set(OWNED_FINDINGS) <= set(OWNED_NAMES)
 
 
-@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.xfail(reason=OWNED_FINDINGS[n], strict=False))
-                                  if n in OWNED_FINDINGS else n for n in OWNED_NAMES])
+@pytest.mark.parametrize("name", OWNED_NAMES)
 def test_every_argument_of_the_rest_refuses_every_bad_value(tmp_path, monkeypatch, name):
     monkeypatch.chdir(tmp_path)
     call = _owned_calls(tmp_path)[name]

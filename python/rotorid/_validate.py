@@ -97,7 +97,12 @@ def finite_scalar(name, value):
 
 
 def speeds_rpm(name, value):
-    a = np.atleast_1d(real_array(name, value))
+    a = np.atleast_1d(real_array(name, value, finite=False))
+    if a.size and a.min() > 0 and a.max() < np.inf:  # two passes (NaN fails the comparisons)
+        if a.ndim != 1:
+            raise RotoridError(f"{name} must be a scalar or a 1-D array, got shape {a.shape}")
+        return a
+    a = _check(name, a, None, None, False, False, False)  # the error naming what is wrong
     if a.ndim != 1:
         raise RotoridError(f"{name} must be a scalar or a 1-D array, got shape {a.shape}")
     if a.size == 0:

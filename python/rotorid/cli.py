@@ -19,7 +19,8 @@ def main(argv=None):
     sub = ap.add_subparsers(dest="cmd", required=True)
     d = sub.add_parser("demo", help="run the report's numerical experiments on the built-in NSF rig")
     d.add_argument("--out", default="rotorid_demo", help="output directory for PNG figures and CSV tables")
-    d.add_argument("--step-rpm", type=float, default=50.0, help="speed step of the imbalance sweep (rpm)")
+    d.add_argument("--step-rpm", type=float, default=50.0,
+                   help="speed step of the imbalance sweep to 10000 rpm (rpm, 1 to 10000)")
     d.add_argument("--amplitude-resolution-um", type=float, default=None,
                    help="1X amplitude resolution of the measurement model (µm; default 0.0254 = 0.001 mil)")
     d.add_argument("--phase-resolution-deg", type=float, default=None, help="1X phase resolution (deg)")
@@ -83,13 +84,14 @@ def _demo(args):
     from .outputs import ResultsFolder
     from .simulate import ProbeResolution
 
-    for name, v, ok in (("--step-rpm", args.step_rpm, args.step_rpm > 0), ("--noise-um", args.noise_um, args.noise_um >= 0),
+    demo.check_step_rpm("--step-rpm", args.step_rpm)  # before anything is computed or written
+    for name, v, ok in (("--noise-um", args.noise_um, args.noise_um >= 0),
                         ("--amplitude-resolution-um", args.amplitude_resolution_um,
                          args.amplitude_resolution_um is None or args.amplitude_resolution_um >= 0),
                         ("--phase-resolution-deg", args.phase_resolution_deg,
                          args.phase_resolution_deg is None or args.phase_resolution_deg >= 0)):
         if not ok or (v is not None and v != v):
-            raise RotoridError(f"{name} must be {'> 0' if name == '--step-rpm' else '>= 0'}, got {v:g}")
+            raise RotoridError(f"{name} must be >= 0, got {v:g}")
     folder = ResultsFolder(args.out, patterns=["table5_*", "campbell.*", "figure*"], overwrite=args.overwrite,
                            command="rotorid demo")
     base = ProbeResolution()

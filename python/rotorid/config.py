@@ -1434,9 +1434,13 @@ def load_config(path, *, check_files=True) -> Config:
     >>> cfg.channels_for(None)["Prox DE X"]["unit"], cfg.rotor().l1
     ('mil', 0.189)
     """
-    src = os.fspath(path)
+    from ._validate import flag
+    from ._validate import path as _path
+
+    check_files = flag("check_files", check_files)
+    src = os.fspath(path) if isinstance(path, (str, bytes, os.PathLike)) else path
     src = src.decode(errors="replace") if isinstance(src, bytes) else src
-    p = Path(src)
+    p = _path("path", src)
     where = Path(os.path.abspath(p)).parent
     if p.is_dir():
         raise ConfigError.from_problems(src, ["is a directory, not a config file"])

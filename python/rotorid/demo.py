@@ -6,7 +6,8 @@ import os
 
 import numpy as np
 
-from . import plot
+from . import _validate, plot
+from .errors import RotoridError
 from .identify import identify_synchronous
 from .modal import critical_speeds, modal_analysis
 from .model import nsf_rig
@@ -15,6 +16,38 @@ from .simulate import ProbeResolution, imbalance_response
 #: report Table 5 (critical speed in cpm, damping ratio)
 TABLE5 = [(3467, 0.114), (3676, 0.131), (4997, 0.201), (7360, 0.199)]
 BANDS = [(0, 2000), (2000, 3000), (3000, 6000), (6000, 10001)]
+#: the imbalance sweep of the synchronous demo runs up to this speed (rpm) ...
+TOP_RPM = 10000.0
+#: ... in at most this many speeds (so step_rpm >= TOP_RPM / MAX_SPEEDS = 1 rpm)
+MAX_SPEEDS = 10000
+
+
+def check_step_rpm(name, step_rpm):
+    """The speed step of the demo's imbalance sweep: from TOP_RPM / MAX_SPEEDS (1 rpm) to TOP_RPM."""
+    step = _validate.number(name, step_rpm, positive=True)
+    lo = TOP_RPM / MAX_SPEEDS
+    if not lo <= step <= TOP_RPM:
+        raise RotoridError(f"{name} must be between {lo:g} and {TOP_RPM:g} rpm (the sweep to {TOP_RPM:g} rpm has at "
+                           f"most {MAX_SPEEDS} speeds), got {step:g}")
+    return step
+
+
+def _out_dir(out):
+    """The output folder ``out``, created when missing."""
+    p = _validate.path("out", out)
+    if p.exists() and not p.is_dir():
+        raise RotoridError(f"out: {str(p)!r} is a file, not a folder")
+    try:
+        os.makedirs(p, exist_ok=True)
+    except OSError as exc:
+        raise RotoridError(f"cannot create the output folder {str(p)!r}: {exc}") from None
+    return str(p)
+
+
+def _log(log):
+    if not callable(log):
+        raise RotoridError(f"log must be a function taking a message (e.g. print), got {type(log).__name__}")
+    return log
 
 
 def _band_errors(ident, truth):
@@ -34,10 +67,15 @@ def _band_errors(ident, truth):
 
 
 def synchronous(out: str, *, step_rpm: float = 50.0, resolution: ProbeResolution | None = None, log=print):
-    """Report section 4: Table 5, Figure 3 (Bode, sets A and B), Figure 4 (identification from A-D)."""
+    """Report section 4: Table 5, Figure 3 (Bode, sets A and B), Figure 4 (identification from A-D).
+
+    ``step_rpm``: speed step of the imbalance sweep up to 10000 rpm, from 1 rpm (10000 speeds) up."""
     import pandas as pd
 
-    os.makedirs(out, exist_ok=True)
+    step_rpm = check_step_rpm("step_rpm", step_rpm)
+    _validate.instance("resolution", resolution, ProbeResolution, allow_none=True, what="rotorid.ProbeResolution")
+    log = _log(log)
+    out = _out_dir(out)
     rig = nsf_rig()
     rotor, brg = rig.rotor, rig.bearings
     files = []
@@ -56,7 +94,7 @@ def synchronous(out: str, *, step_rpm: float = 50.0, resolution: ProbeResolution
     files += [os.path.join(out, "campbell.csv"), os.path.join(out, "campbell.png")]
 
     # Figure 3: imbalance responses of sets A and B at the bearings
-    rpm = np.arange(step_rpm, 10000 + step_rpm / 2, step_rpm)
+    rpm = np.arange(step_rpm, TOP_RPM + step_rpm / 2, step_rpm)
     runs = {n: imbalance_response(rotor, brg, rig.imbalances[n], speed_rpm=rpm) for n in "ABCD"}
     for tag, n in (("a", "A"), ("b", "B")):
         p = os.path.join(out, f"figure3{tag}_bode_set_{n}.png")
@@ -111,7 +149,9 @@ def impact(out: str, *, speed_rpm: float = 1000.0, log=print):
     from .identify import identify_impact
     from .simulate import ImpactResponse, half_sine_pulse, impact_frf, impact_time_response
 
-    os.makedirs(out, exist_ok=True)
+    speed_rpm = _validate.number("speed_rpm", speed_rpm, nonneg=True)
+    log = _log(log)
+    out = _out_dir(out)
     rig = nsf_rig()
     rotor, brg = rig.rotor, rig.bearings
     files = []

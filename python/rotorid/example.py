@@ -45,8 +45,12 @@ def path() -> str:
 def copy_example(out: str, *, overwrite: bool = False) -> str:
     """Copy the bundled example data set to ``out``; files already there are replaced only with
     ``overwrite``."""
+    from ._validate import flag
+    from ._validate import path as _path
     from .errors import RotoridError
 
+    _path("out", out)
+    overwrite = flag("overwrite", overwrite)
     if not os.path.isdir(HERE):
         raise RotoridError(f"the bundled example data set is missing from {HERE}")
     if os.path.exists(out) and not os.path.isdir(out):

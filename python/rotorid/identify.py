@@ -313,7 +313,7 @@ def _check_bool(name, value):
 def _check_threshold(name, value, lo, hi=np.inf):
     from ._validate import number
 
-    if value == np.inf and hi == np.inf:
+    if hi == np.inf and isinstance(value, (float, np.floating)) and value == np.inf:  # no threshold
         return np.inf
     v = number(name, value)
     if not (lo < v < hi) and not (hi == np.inf and v == np.inf):
@@ -453,9 +453,9 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
                                "much (a unit error?)")
         raise RotoridError(f"{what} contain NaN or inf")
     if ks is None:
-        ks = np.full_like(k, np.nan)
-        cs = np.full_like(c, np.nan)
-        rel_std = np.full(k.shape[:2], np.nan)
+        # unknown: read-only NaN views (no memory, no pass over it)
+        ks = cs = np.broadcast_to(np.nan, k.shape)
+        rel_std = np.broadcast_to(np.nan, k.shape[:2])
     if not np.any(np.isfinite(cond)):
         raise IdentifiabilityError(_diagnose_singular(np.stack(qs), labels))
     ks, cs = ks[0], cs[0]

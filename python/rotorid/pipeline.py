@@ -121,6 +121,8 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
     if len(runs) == 0:
         raise RotoridError("no imbalance runs given")
     steady = flag("steady", steady)
+    if isinstance(orders, (str, bytes, dict)):
+        raise RotoridError(f"orders must be a tuple of whole numbers >= 1 holding 1 (the 1X), got {orders!r}")
     speed_match_rpm = number("speed_match_rpm", speed_match_rpm, positive=True, allow_none=True)
     slow_roll_max_rpm = number("slow_roll_max_rpm", slow_roll_max_rpm, positive=True, allow_none=True)
     if speeds_rpm is not None:
@@ -152,6 +154,8 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
     orders_of = tracks[0].orders
     if any(t.orders != orders_of for t in tracks):
         raise RotoridError("all runs must carry the same orders (waveforms and 1X tables cannot be mixed)")
+    if 1 not in orders_of:
+        raise RotoridError(f"orders must include 1: the 1X vectors identify the coefficients, got orders {orders_of}")
     # with a baseline the slow roll cancels (run - sr - (baseline - sr)): its covariance does not count
     sr_cov_used = None if baseline is not None else sr_cov
     comp = [t.minus(sr[: len(t.orders)], sr_cov_used) if sr is not None else t for t in tracks]
@@ -225,17 +229,31 @@ def impact_segments(rec: Recording, *, record_s: float = 0.25, pre_s: float = 0.
     each impact. The run-out filter subtracts the synchronous revolution signature of the
     ``revs_before`` revolutions preceding the impact (run-out and remnant-imbalance response).
     ``exp_window_tau_s``: multiply force and response by exp(-(t - t_impact)/tau) (the FRFs are then
-    at s = 1/tau + j w, which ``impact_chain`` passes on to the identification)."""
+    at s = 1/tau + j w, which ``impact_chain`` passes on to the identification).
+    ``detect``: options of :func:`rotorid.signals.detect_impacts` (a dict, optional)."""
+    from ._validate import flag, index, instance, mapping, number
+
+    instance("rec", rec, Recording, what="rotorid.Recording (one impact recording)")
+    record_s = number("record_s", record_s, positive=True)
+    pre_s = number("pre_s", pre_s, nonneg=True)
+    revs_before = index("revs_before", revs_before, 0)
+    runout = flag("runout", runout)
+    instance("kp", kp, signals.Keyphasor, allow_none=True, what="rotorid.signals.Keyphasor")
+    exp_window_tau_s = number("exp_window_tau_s", exp_window_tau_s, positive=True, allow_none=True)
+    detect = mapping("detect", detect)
+    unknown = sorted(str(k) for k in detect if k not in _DETECT_OPTIONS)
+    if unknown:
+        raise RotoridError(f"detect: unknown option(s) {unknown}; known: {list(_DETECT_OPTIONS)}")
     rec.require("force", *DISPLACEMENTS)
     fs = rec.fs_hz
+    if not pre_s < record_s:
+        raise RotoridError(f"need record_s > 0 and 0 <= pre_s < record_s, got record_s={record_s!r}, pre_s={pre_s!r}")
     n_seg = int(round(record_s * fs))
     pre = int(round(pre_s * fs))
-    if not (record_s > 0 and 0 <= pre_s < record_s):
-        raise RotoridError(f"need record_s > 0 and 0 <= pre_s < record_s, got record_s={record_s!r}, pre_s={pre_s!r}")
-    imps = signals.detect_impacts(rec.channels["force"], fs, **(detect or {}))
+    imps = signals.detect_impacts(rec.channels["force"], fs, **detect)
     if runout:
         rec.require("kp")
-        kp = kp or signals.order.detect_keyphasor(rec)
+        kp = kp if kp is not None else signals.order.detect_keyphasor(rec)
     x = rec.displacements()
     forces, responses, used, dropped = [], [], [], []
     for j, imp in enumerate(imps):
@@ -273,6 +291,12 @@ def impact_segments(rec: Recording, *, record_s: float = 0.25, pre_s: float = 0.
         responses.append(y)
         used.append((rec.source, t_imp))
     return forces, responses, used, dropped
+
+
+_DETECT_OPTIONS = ("threshold_N", "min_separation_s", "double_hit_window_s", "double_hit_fraction", "overload_N")
+
+#: longest zero-padded impact record (samples) the impact chain transforms (8 MB per channel)
+MAX_FFT_SAMPLES = 1 << 20
 
 
 def _h1(forces, responses, fs, zero_pad_s):
@@ -319,13 +343,25 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
         Also fit K, C and an apparent mass over this band (:func:`rotorid.fit_kcm`), with standard
         errors from a delete-one jackknife over the impacts (``result.kcm``).
     """
-    from ._validate import flag, number
+    from ._validate import flag, index, mapping, number
 
-    if isinstance(recordings, (str, bytes)) or not hasattr(recordings, "__iter__"):
+    if isinstance(recordings, (str, bytes, dict)) or not hasattr(recordings, "__iter__"):
         raise RotoridError(f"recordings must be a list of impact recordings, got {type(recordings).__name__}")
     recordings = list(recordings)
     if not recordings:
         raise RotoridError("no impact recordings given")
+    for i, rec in enumerate(recordings):
+        if not isinstance(rec, Recording):
+            raise RotoridError(f"recordings[{i}] must be a rotorid.Recording (one impact recording), got "
+                               f"{type(rec).__name__}")
+    if tests_meta is not None:
+        if isinstance(tests_meta, (str, bytes, dict)) or not isinstance(tests_meta, (list, tuple)):
+            raise RotoridError(f"tests_meta must be a list of dicts (one per recording) or None, got "
+                               f"{type(tests_meta).__name__}")
+        if len(tests_meta) != len(recordings):
+            raise RotoridError(f"tests_meta gives {len(tests_meta)} entries for {len(recordings)} recordings")
+        tests_meta = [mapping(f"tests_meta[{i}]", m) for i, m in enumerate(tests_meta)]
+    revs_before = index("revs_before", revs_before, 0)
     try:
         lo, hi = (number("band_hz", v, nonneg=True) for v in band_hz)
     except (TypeError, ValueError):
@@ -342,6 +378,12 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
     speed_rpm = number("speed_rpm", speed_rpm, positive=True, allow_none=True)
     if zero_pad_s is not None and not zero_pad_s >= record_s:
         raise RotoridError(f"zero_pad_s must be >= record_s = {record_s:g} s, got {zero_pad_s!r}")
+    if zero_pad_s is not None:
+        fs_max = max(rec.fs_hz for rec in recordings)
+        if zero_pad_s * fs_max > MAX_FFT_SAMPLES:
+            raise RotoridError(f"zero_pad_s = {zero_pad_s:g} s makes records of {zero_pad_s * fs_max:.3g} samples at "
+                               f"{fs_max:g} Hz; the maximum is {MAX_FFT_SAMPLES} samples (zero_pad_s <= "
+                               f"{MAX_FFT_SAMPLES / fs_max:g} s)")
     if not (0.0 <= coherence_min <= 1.0):
         raise RotoridError(f"coherence_min must be between 0 and 1, got {coherence_min!r}")
     detect = dict(threshold_N=threshold_N, min_separation_s=min_separation_s, double_hit_window_s=double_hit_window_s,
@@ -521,12 +563,18 @@ def run_config(path, kind: str, *, out_dir=None, log=print, overwrite: bool = Fa
     the output folder is checked: results of an earlier run are replaced only with
     ``overwrite=True`` (stale ones removed, see :mod:`rotorid.outputs`). Returns
     (Identification, list of written files)."""
+    from ._validate import choice, flag
+    from ._validate import path as _path
     from .outputs import ResultsFolder
 
     from . import plot
 
-    if kind not in ("imbalance", "impact"):
-        raise RotoridError(f"kind must be 'imbalance' or 'impact', got {kind!r}")
+    choice("kind", kind, {"imbalance", "impact"})
+    overwrite = flag("overwrite", overwrite)
+    if out_dir is not None and not (isinstance(out_dir, str) and out_dir == ""):  # "": the config's folder
+        _path("out_dir", out_dir)
+    if not callable(log):
+        raise RotoridError(f"log must be a function taking a message (e.g. print), got {type(log).__name__}")
     cfg = load_config(path)
     sec = cfg.section(kind)
     rotor = cfg.rotor()

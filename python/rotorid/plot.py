@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import _validate as _v
+from .errors import RotoridError
+
 DOF_TITLES = ("Drive end (1), horizontal x", "Free end (2), horizontal x", "Drive end (1), vertical y",
               "Free end (2), vertical y")
 
@@ -21,20 +24,53 @@ def _plt():
     return plt
 
 
+def _path(path):
+    """The file to save a plot to: None (or "") for none, else a path."""
+    return None if path is None or isinstance(path, str) and path == "" else _v.path("path", path)
+
+
 def finish(fig, path=None):
     """Lay out the figure; with ``path``, save it as PNG and close it (keeps memory flat in loops)."""
+    path = _path(path)
     fig.tight_layout()
-    if path:
-        fig.savefig(path, dpi=110)
+    if path is not None:
+        try:
+            fig.savefig(path, dpi=110)
+        except (OSError, ValueError) as exc:  # no such folder, no permission, an unknown image format
+            _plt().close(fig)
+            raise RotoridError(f"cannot save the plot to {str(path)!r}: {exc}") from None
         _plt().close(fig)
     return fig
 
 
 def bode(response, *, title="", path=None, x_label="Rotor speed (rpm)", axis=None):
-    """Amplitude (µm 0-pk) and phase lag (deg, as a vibration DAQ shows it) of the four responses."""
+    """Amplitude (µm 0-pk) and phase lag (deg, as a vibration DAQ shows it) of the four responses.
+
+    ``response``: a SyncResponse (plotted over its speeds), an ImpactResponse (over its
+    frequencies) or a complex (n, 4) array [x1, x2, y1, y2] with ``axis`` (n,) given."""
+    from .simulate import ImpactResponse, SyncResponse
+
+    title, x_label, path = _v.text("title", title), _v.text("x_label", x_label), _path(path)
+    if isinstance(response, SyncResponse):
+        q, x = response.q, response.speed_rpm
+    elif isinstance(response, ImpactResponse):
+        q, x = response.q, response.freq_hz
+    else:
+        try:
+            q = _v.complex_array("response", response, ndim=2, finite=False)
+            if q.shape[1] != 4 or q.shape[0] == 0:
+                raise RotoridError(f"got shape {q.shape}")
+        except RotoridError as exc:
+            raise RotoridError("response must be a SyncResponse, an ImpactResponse or a complex (n, 4) array "
+                               f"[x1, x2, y1, y2], got {type(response).__name__} ({exc})") from None
+        if axis is None:
+            raise RotoridError("axis (the speeds or frequencies of the rows) is needed when response is an array")
+        x = None
+    if axis is not None:
+        x = _v.real_array("axis", axis, ndim=1)
+    if x.shape != (q.shape[0],):
+        raise RotoridError(f"axis must hold {q.shape[0]} values (one per row of the response), got shape {x.shape}")
     plt = _plt()
-    q = response.q if hasattr(response, "q") else np.asarray(response)
-    x = response.speed_rpm if axis is None else axis
     fig, axes = plt.subplots(2, 4, figsize=(15, 6), sharex=True)
     for j in range(4):
         amp = 1e6 * np.abs(q[:, j])
@@ -59,6 +95,13 @@ def coefficients(ident, truth=None, *, title="", path=None, show_flagged=True, y
     (``ident.interval(0.95)``) where the uncertainty is known. The y range is clipped to
     ``ylim_factor`` times the truth range so that wild low-speed values do not hide the rest.
     """
+    from .identify import Identification
+    from .model import BearingCoefficients
+
+    _v.instance("ident", ident, Identification, what="rotorid Identification")
+    _v.instance("truth", truth, BearingCoefficients, allow_none=True, what="rotorid.BearingCoefficients")
+    title, path, show_flagged = _v.text("title", title), _path(path), _v.flag("show_flagged", show_flagged)
+    ylim_factor = _v.number("ylim_factor", ylim_factor, nonneg=True)
     plt = _plt()
     x = ident.axis
     xlabel = "Rotor speed (rpm)" if ident.axis_name == "speed_rpm" else "Frequency (Hz)"
@@ -114,6 +157,19 @@ def coefficients(ident, truth=None, *, title="", path=None, show_flagged=True, y
 
 
 def campbell(modal_result, *, crit=None, path=None, title="Campbell diagram"):
+    """Damped natural frequencies (cpm) over speed with the 1X line; ``crit``, the DataFrame of
+    :func:`rotorid.critical_speeds`, marks the critical speeds."""
+    from .modal import ModalResult
+
+    _v.instance("modal_result", modal_result, ModalResult, what="rotorid ModalResult (from modal_analysis)")
+    title, path = _v.text("title", title), _path(path)
+    if crit is not None:
+        import pandas as pd
+
+        need = ["speed_rpm", "freq_hz", "damping_ratio_wd", "whirl"]
+        if not isinstance(crit, pd.DataFrame) or any(c not in crit.columns for c in need):
+            raise RotoridError(f"crit must be the DataFrame of rotorid.critical_speeds (columns {need}) or None, got "
+                               f"{type(crit).__name__}")
     plt = _plt()
     fig, ax = plt.subplots(figsize=(8, 6))
     rpm = modal_result.speed_rpm

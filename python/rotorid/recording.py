@@ -53,6 +53,8 @@ class Recording:
                                f"{type(self.channels).__name__}")
         if not isinstance(self.meta, dict):
             raise RotoridError(f"meta must be a dict, got {type(self.meta).__name__}")
+        self.units = _units(self.units)
+        self.source = _source(self.source)
         n = None
         chans = {}
         for name, data in self.channels.items():
@@ -103,8 +105,12 @@ class Recording:
         return np.stack([self.channels[c] for c in DISPLACEMENTS])
 
     def segment(self, start_s: float, stop_s: float) -> "Recording":
-        i0 = max(0, int(round((start_s - self.t0_s) * self.fs_hz)))
-        i1 = min(self.n_samples, int(round((stop_s - self.t0_s) * self.fs_hz)))
+        from ._validate import number
+
+        start_s, stop_s = number("start_s", start_s), number("stop_s", stop_s)
+        # clipped to the recording before rounding (times far outside it stay whole numbers)
+        i0 = int(round(min(max((start_s - self.t0_s) * self.fs_hz, 0.0), self.n_samples)))
+        i1 = int(round(min(max((stop_s - self.t0_s) * self.fs_hz, 0.0), self.n_samples)))
         return Recording(self.fs_hz, {k: v[i0:i1] for k, v in self.channels.items()}, dict(self.meta),
                          dict(self.units), self.t0_s + i0 / self.fs_hz, self.source)
 
@@ -125,7 +131,16 @@ class SegmentedRecording:
     source: str = ""
 
     def __post_init__(self):
-        blocks = list(self.blocks)
+        from ._validate import mapping
+
+        if isinstance(self.blocks, (str, bytes, dict, np.ndarray)):
+            raise RotoridError(f"blocks must be a list of Recording, got {type(self.blocks).__name__}")
+        try:
+            blocks = list(self.blocks)
+        except TypeError:
+            raise RotoridError(f"blocks must be a list of Recording, got {type(self.blocks).__name__}") from None
+        self.meta = mapping("meta", self.meta)
+        self.source = _source(self.source)
         if not blocks:
             raise RotoridError("a segmented recording needs at least one block")
         for i, b in enumerate(blocks):
@@ -150,8 +165,10 @@ class SegmentedRecording:
                     source: str = "") -> "SegmentedRecording":
         """Blocks from 2-D arrays: ``channels[name]`` of shape (n_blocks, n_samples), one row per
         block; ``t0_s`` the start time of each block (default: back to back)."""
-        from ._validate import real_array
+        from ._validate import mapping, number, real_array
 
+        fs_hz = number("fs_hz", fs_hz, positive=True)
+        meta, units = mapping("meta", meta), mapping("units", units)
         if not isinstance(channels, dict):
             raise RotoridError(f"channels must be a dict {{name: 2-D array (blocks, samples)}}, got "
                                f"{type(channels).__name__}")
@@ -171,14 +188,15 @@ class SegmentedRecording:
             raise RotoridError(f"from_arrays needs 2-D arrays (n_blocks, n_samples) of one shape, got {shapes}")
         nb, ns = first.shape
         if t0_s is None:
-            t0 = np.arange(nb) * ns / float(fs_hz)
+            t0 = np.arange(nb) * ns / fs_hz
         else:
-            t0 = np.asarray(t0_s, dtype=float)
+            t0 = real_array("t0_s", t0_s, finite=False)
             if t0.shape != (nb,) or not np.all(np.isfinite(t0)):
                 raise RotoridError(f"t0_s must hold {nb} finite start times (one per block), got shape {t0.shape}")
-        blocks = [Recording(fs_hz, {k: a[i] for k, a in arrays.items()}, dict(meta or {}), dict(units or {}),
+        source = _source(source)
+        blocks = [Recording(fs_hz, {k: a[i] for k, a in arrays.items()}, dict(meta), dict(units),
                             float(t0[i]), f"{source} block {i}" if source else f"block {i}") for i in range(nb)]
-        return cls(blocks, dict(meta or {}), source)
+        return cls(blocks, dict(meta), source)
 
     @property
     def fs_hz(self) -> float:
@@ -200,3 +218,23 @@ class SegmentedRecording:
     def require(self, *names):
         for b in self.blocks:
             b.require(*names)
+
+
+def _units(units):
+    """The units of a recording's channels: a dict {name: unit string} (a copy; None: {})."""
+    from ._validate import mapping
+
+    units = mapping("units", units)
+    for k, v in units.items():
+        if not isinstance(k, str) or not isinstance(v, str):
+            raise RotoridError(f"units must map channel names to unit strings, got {k!r}: {v!r}"[:300])
+    return units
+
+
+def _source(source):
+    """Where a recording came from: a str (a path is turned into one)."""
+    import os
+
+    from ._validate import text
+
+    return os.fsdecode(source) if isinstance(source, os.PathLike) else text("source", source)

@@ -37,6 +37,9 @@ SI_UNIT = {"length": "m", "force": "N", "acceleration": "m/s^2", "voltage": "V",
 
 def factor(unit: str, quantity: str | None = None) -> float:
     """Factor that converts a value in ``unit`` to SI; checks the quantity when given."""
+    from ._validate import text
+
+    quantity = text("quantity", quantity, allow_none=True)
     key = str(unit).strip().lower().replace(" ", "")
     if key not in _UNITS:
         raise RotoridError(f"unknown unit {unit!r}; known: {sorted(_UNITS)}")
@@ -47,11 +50,21 @@ def factor(unit: str, quantity: str | None = None) -> float:
 
 
 def to_si(value, unit: str, quantity: str | None = None):
-    return value * factor(unit, quantity)
+    """``value`` (a number, an array or a pandas Series, in ``unit``) in SI; NaN stays NaN."""
+    return _real(value) * factor(unit, quantity)
 
 
 def from_si(value, unit: str, quantity: str | None = None):
-    return value / factor(unit, quantity)
+    """``value`` (a number, an array or a pandas Series, in SI) in ``unit``; NaN stays NaN."""
+    return _real(value) / factor(unit, quantity)
+
+
+def _real(value):
+    """``value`` checked to be real numbers (NaN allowed): itself, or as an array when it is a list."""
+    from ._validate import real_array
+
+    a = real_array("value", value, finite=False)
+    return a if isinstance(value, (list, tuple)) else value
 
 
 def quantity_of(unit: str) -> str:

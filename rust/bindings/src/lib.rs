@@ -127,8 +127,11 @@ fn to_py<'py, T: numpy::Element>(py: Python<'py>, v: Vec<T>, shape: &[usize]) ->
     PyArray1::from_vec(py, v).reshape(shape.to_vec())
 }
 
-/// Batched forced response H q = F (see forced.rs). Returns (q, n_singular).
+/// Batched forced response H q = F (see forced.rs); with `gain` (n,), q_i = gain_i H_i^-1 F
+/// (an imbalance: F broadcast, gain = Omega^2). Returns (q, n_singular).
 #[pyfunction]
+#[pyo3(signature = (rotor, k, c, spin, w, force, gain=None))]
+#[allow(clippy::too_many_arguments)]
 fn forced_response<'py>(
     py: Python<'py>,
     rotor: PyReadonlyArrayDyn<'py, f64>,
@@ -137,6 +140,7 @@ fn forced_response<'py>(
     spin: PyReadonlyArrayDyn<'py, f64>,
     w: PyReadonlyArrayDyn<'py, f64>,
     force: PyReadonlyArrayDyn<'py, C64>,
+    gain: Option<PyReadonlyArrayDyn<'py, f64>>,
 ) -> PyResult<(Bound<'py, PyArrayDyn<C64>>, usize)> {
     let rot = rotor_of(&rotor)?;
     let n = w.len();
@@ -157,10 +161,21 @@ fn forced_response<'py>(
     }
     check_alloc("forced_response", n.checked_mul(nrhs).and_then(|v| v.checked_mul(4)), 16)?;
     let (ks, cs, ss, ws, fsl) = (slice(&k, "k")?, slice(&c, "c")?, slice(&spin, "spin")?, slice(&w, "w")?, slice(&force, "force")?);
+    if let Some(g) = &gain {
+        check_shape("gain", g.shape(), &[n])?;
+    }
+    let gs: Option<&[f64]> = match &gain {
+        Some(g) => Some(slice(g, "gain")?),
+        None => None,
+    };
     let (out, nsing) = py.detach(|| {
         guarded(|| {
             let mut out = vec![C64::new(0.0, 0.0); n * nrhs * 4];
-            forced::forced_response(&rot, ks, cs, ss, ws, fsl, nrhs, &mut out).map(|ns| (out, ns))
+            match gs {
+                Some(g) => forced::forced_response_scaled(&rot, ks, cs, ss, ws, fsl, nrhs, g, &mut out),
+                None => forced::forced_response(&rot, ks, cs, ss, ws, fsl, nrhs, &mut out),
+            }
+            .map(|ns| (out, ns))
         })
     })?
     .map_err(core_err)?;

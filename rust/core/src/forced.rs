@@ -2,6 +2,7 @@
 //! (report eq. 13-14 for imbalance, eq. 27-28 for impacts).
 
 use crate::error::{expect_len, expect_len_or_broadcast, product, CoreError};
+use crate::lanes::{Z, L, V};
 use crate::model::{assemble, Rotor, C64};
 use rayon::prelude::*;
 
@@ -116,6 +117,10 @@ pub fn dynamic_stiffness(rotor: &Rotor, m: &[[f64; 4]; 4], g: &[[f64; 4]; 4], kb
 /// `kb`, `cb`: (n, 8) or (1, 8) broadcast, order [bearing][i][j]; `spin` (Omega), `w`: (n,),
 /// rad/s; `force`: (n, nrhs, 4) or (1, nrhs, 4) broadcast; `out`: (n, nrhs, 4). Returns the
 /// number of singular points (their output is NaN).
+///
+/// The points are solved L = 8 at a time in SIMD lanes (AVX2 or AVX-512 chosen at run time), each
+/// lane with its own pivots; the results are those of [`dynamic_stiffness`] + [`solve4`] point by
+/// point.
 #[allow(clippy::too_many_arguments)]
 pub fn forced_response(
     rotor: &Rotor,
@@ -136,27 +141,794 @@ pub fn forced_response(
     expect_len_or_broadcast("c", cb, 8, product("c", &[n, 8])?)?;
     expect_len_or_broadcast("force", force, 4 * nrhs, product("force", &[n, nrhs, 4])?)?;
     expect_len("out", out, product("out", &[n, nrhs, 4])?)?;
-    Ok(forced_kernel(rotor, kb, cb, spin, w, force, nrhs, out))
+    Ok(forced_kernel(rotor, kb, cb, spin, w, force, nrhs, &[], out))
+}
+
+/// [`forced_response`] with the force of point i scaled by `gain[i]`: q_i = gain_i H_i^-1 F,
+/// e.g. an imbalance (F = generalized imbalance vector, gain = Omega^2) without building the
+/// (n, 4) force array. `gain`: (n,). Each chunk of points is scaled while it is in cache.
+#[allow(clippy::too_many_arguments)]
+pub fn forced_response_scaled(
+    rotor: &Rotor,
+    kb: &[f64],
+    cb: &[f64],
+    spin: &[f64],
+    w: &[f64],
+    force: &[C64],
+    nrhs: usize,
+    gain: &[f64],
+    out: &mut [C64],
+) -> Result<usize, CoreError> {
+    expect_len("gain", gain, w.len())?;
+    if nrhs == 0 {
+        return Err(CoreError::value("nrhs", "must be at least 1 (one force vector per point)"));
+    }
+    let n = w.len();
+    expect_len("spin", spin, n)?;
+    expect_len_or_broadcast("k", kb, 8, product("k", &[n, 8])?)?;
+    expect_len_or_broadcast("c", cb, 8, product("c", &[n, 8])?)?;
+    expect_len_or_broadcast("force", force, 4 * nrhs, product("force", &[n, nrhs, 4])?)?;
+    expect_len("out", out, product("out", &[n, nrhs, 4])?)?;
+    Ok(forced_kernel(rotor, kb, cb, spin, w, force, nrhs, gain, out))
+}
+
+/// Scale the outputs of the points starting at `start` by their gains (none if `gain` is empty).
+fn apply_gain(gain: &[f64], start: usize, nrhs: usize, out: &mut [C64]) {
+    if gain.is_empty() {
+        return;
+    }
+    for (o, &g) in out.chunks_mut(4 * nrhs).zip(&gain[start..]) {
+        for v in o.iter_mut() {
+            *v *= g;
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Lane-parallel kernel: L points in lock-step.
+//
+// The points are processed in groups of L. Each group goes through lane loops `for l in 0..L`
+// whose body is the computation of one point written without branches (the pivot choice and the
+// row exchanges are selects), so that LLVM's loop vectorizer turns every scalar operation of the
+// body into one SIMD operation over the lanes (4 lanes per AVX2 register, 8 per AVX-512 register).
+// The body performs exactly the IEEE operations of `dynamic_stiffness` + `solve4` in the same order
+// (no fused multiply-adds), so every lane reproduces the per-point solution: same pivots, same
+// singular points, same values. The only difference is that `solve4` skips an elimination when its
+// multiplier is exactly zero, which can only change the sign of an exact zero.
+
+/// Points per parallel task.
+const CHUNK: usize = 1024;
+/// Below this many points one thread is faster than waking the pool.
+const SERIAL_BELOW: usize = 2048;
+/// Smallest admissible ratio min |pivot| / max |pivot| (the rule of [`solve4`]).
+const MAX_SPREAD: f64 = 1e-10;
+
+/// Arguments of one batched forced response, shared by every chunk.
+struct Batch<'a> {
+    rotor: Rotor,
+    m: [[f64; 4]; 4],
+    g: [[f64; 4]; 4],
+    kb: &'a [f64],
+    cb: &'a [f64],
+    spin: &'a [f64],
+    w: &'a [f64],
+    force: &'a [C64],
+    nrhs: usize,
+    /// bearing stiffness, damping, forces shared by all points
+    kbc: bool,
+    cbc: bool,
+    fbc: bool,
+}
+
+impl<'a> Batch<'a> {
+    #[allow(clippy::too_many_arguments)]
+    fn new(rotor: &Rotor, kb: &'a [f64], cb: &'a [f64], spin: &'a [f64], w: &'a [f64], force: &'a [C64], nrhs: usize) -> Self {
+        let n = w.len();
+        Batch {
+            rotor: *rotor,
+            m: rotor.mass_matrix(),
+            g: rotor.gyro_matrix(),
+            kb,
+            cb,
+            spin,
+            w,
+            force,
+            nrhs,
+            kbc: kb.len() == 8,
+            cbc: cb.len() == 8,
+            fbc: force.len() == nrhs * 4 && n != 1,
+        }
+    }
+
+    /// Point `i` alone through [`dynamic_stiffness`] and [`solve4`]: the reference the lanes
+    /// reproduce, and the path of groups holding a non-finite number. Returns true if singular.
+    fn point(&self, i: usize, o: &mut [C64]) -> bool {
+        let s = 4 * self.nrhs;
+        o.copy_from_slice(if self.fbc { self.force } else { &self.force[i * s..(i + 1) * s] });
+        let ki = if self.kbc { 0 } else { 8 * i };
+        let ci = if self.cbc { 0 } else { 8 * i };
+        let mut h = dynamic_stiffness(&self.rotor, &self.m, &self.g, &self.kb[ki..ki + 8], &self.cb[ci..ci + 8], self.spin[i], self.w[i]);
+        !solve4(&mut h, o)
+    }
+}
+
+/// Inputs of one group, lane-major: w, Omega and the 8 stiffness and 8 damping coefficients.
+struct GroupIn {
+    w: V,
+    spin: V,
+    k: [V; 8],
+    c: [V; 8],
+}
+
+/// The eliminations of the L matrices of a group, as left by [`eliminate`]: U in the upper
+/// triangle of `h`, below it the multiplier of each row at the step that eliminated it, `piv[k]`
+/// the row (as f64) exchanged with row k at step k, `ns[k]` = |U_kk|^2; the singular lanes, and
+/// the lanes whose H holds a non-finite number.
+struct LaneLu {
+    h: [[Z; 4]; 4],
+    ns: [V; 4],
+    piv: [V; 4],
+    bad: [bool; L],
+    finite: [bool; L],
+}
+
+impl LaneLu {
+    fn new() -> Self {
+        LaneLu { h: [[Z::zero(); 4]; 4], ns: [V::zero(); 4], piv: [V::zero(); 4], bad: [false; L], finite: [true; L] }
+    }
+}
+
+/// Gaussian elimination of one matrix, in the state the steps share.
+struct Elim {
+    a: [[C64; 4]; 4],
+    ns: [f64; 4],
+    piv: [f64; 4],
+    tiny: f64,
+    pmin: f64,
+    pmax: f64,
+    bad: bool,
+}
+
+/// LU factorization with partial pivoting of one matrix, as `solve4` but without branches.
+///
+/// Step k: the pivot is the first row i >= k of largest |re| + |im| in column k (strict `>` over
+/// i = k+1..3 against the running best), and rows k and p are exchanged by selects (columns
+/// k..3; columns < k hold multipliers, which the exchange in `solve4` moves but never reads
+/// again). The matrix is singular when a pivot is not > 1e-15 max_ij |H_ij|, or when the running
+/// min |pivot| < 1e-10 max |pivot| (for a forced response a condition number beyond ~1e10, i.e. a
+/// damping ratio below ~1e-10 at a resonance). Multipliers f_i = H_ik (1 / H_kk) with
+/// 1 / (c + j d) = (c - j d) / (c^2 + d^2) evaluated as num-complex does, then H_ij -= f_i H_kj
+/// for i, j > k, the multiplier f_i being kept in place of H_ik. Also returns sum_ij |H_ij|,
+/// finite iff every entry of H is (short of an overflow).
+#[inline(always)]
+fn eliminate(h: [[C64; 4]; 4]) -> (Elim, f64) {
+    let mut scale = 0.0f64;
+    let mut total = 0.0f64;
+    for row in h.iter() {
+        for v in row.iter() {
+            let m = mag(*v);
+            scale = if m > scale { m } else { scale };
+            total += m;
+        }
+    }
+    let mut e = Elim { a: h, ns: [0.0; 4], piv: [0.0; 4], tiny: scale * 1e-15, pmin: f64::INFINITY, pmax: 0.0, bad: false };
+    // one instance per step: constant bounds, so the steps unroll into one straight body
+    elim_step::<0>(&mut e);
+    elim_step::<1>(&mut e);
+    elim_step::<2>(&mut e);
+    elim_step::<3>(&mut e);
+    (e, total)
+}
+
+#[inline(always)]
+fn elim_step<const K: usize>(e: &mut Elim) {
+    let a = &mut e.a;
+    let mut best = mag(a[K][K]);
+    let mut p = K as f64;
+    for i in (K + 1)..4 {
+        let v = mag(a[i][K]);
+        let gt = v > best;
+        best = if gt { v } else { best };
+        p = if gt { i as f64 } else { p };
+    }
+    e.pmin = if best < e.pmin { best } else { e.pmin };
+    e.pmax = if best > e.pmax { best } else { e.pmax };
+    e.bad |= !(best > e.tiny) | (e.pmin < MAX_SPREAD * e.pmax);
+    e.piv[K] = p;
+    if K < 3 {
+        let rk = a[K];
+        for i in (K + 1)..4 {
+            let t = p == i as f64;
+            for j in K..4 {
+                let ai = a[i][j];
+                a[K][j] = if t { ai } else { a[K][j] };
+                a[i][j] = if t { rk[j] } else { ai };
+            }
+        }
+    }
+    let d = a[K][K];
+    let ns = d.norm_sqr();
+    e.ns[K] = ns;
+    let inv = C64::new(d.re / ns, 0.0 - d.im / ns);
+    for i in (K + 1)..4 {
+        let f = a[i][K] * inv;
+        a[i][K] = f;
+        for j in (K + 1)..4 {
+            let t = a[K][j];
+            a[i][j] -= f * t;
+        }
+    }
+}
+
+/// Solve H q = b with the elimination of [`eliminate`]: its exchanges and eliminations applied to
+/// b step by step (b_i -= f_i b_k after exchanging b_k and b_p), then back substitution
+/// q_k = (b_k - sum_{j>k} U_kj q_j) / U_kk with the complex division of num-complex,
+/// (a + j b) / (c + j d) = ((a c + b d) + j (b c - a d)) / (c^2 + d^2).
+#[inline(always)]
+fn substitute(a: &[[C64; 4]; 4], ns: &[f64; 4], piv: &[f64; 4], b: &mut [C64; 4]) {
+    forward_step::<0>(a, piv, b);
+    forward_step::<1>(a, piv, b);
+    forward_step::<2>(a, piv, b);
+    back_step::<3>(a, ns, b);
+    back_step::<2>(a, ns, b);
+    back_step::<1>(a, ns, b);
+    back_step::<0>(a, ns, b);
+}
+
+#[inline(always)]
+fn forward_step<const K: usize>(a: &[[C64; 4]; 4], piv: &[f64; 4], b: &mut [C64; 4]) {
+    let bk = b[K];
+    for i in (K + 1)..4 {
+        let t = piv[K] == i as f64;
+        let bi = b[i];
+        b[K] = if t { bi } else { b[K] };
+        b[i] = if t { bk } else { bi };
+    }
+    for i in (K + 1)..4 {
+        let t = b[K];
+        b[i] -= a[i][K] * t;
+    }
+}
+
+#[inline(always)]
+fn back_step<const K: usize>(a: &[[C64; 4]; 4], ns: &[f64; 4], b: &mut [C64; 4]) {
+    let mut s = b[K];
+    for j in (K + 1)..4 {
+        s -= a[K][j] * b[j];
+    }
+    let (c, d) = (a[K][K].re, a[K][K].im);
+    b[K] = C64::new((s.re * c + s.im * d) / ns[K], (s.im * c - s.re * d) / ns[K]);
+}
+
+#[inline(always)]
+fn lane_get(z: &[Z; 4], l: usize) -> [C64; 4] {
+    let mut o = [C64::new(0.0, 0.0); 4];
+    for d in 0..4 {
+        o[d] = C64::new(z[d].re.0[l], z[d].im.0[l]);
+    }
+    o
+}
+
+#[inline(always)]
+fn lane_put(z: &mut [Z; 4], l: usize, v: &[C64; 4]) {
+    for d in 0..4 {
+        z[d].re.0[l] = v[d].re;
+        z[d].im.0[l] = v[d].im;
+    }
+}
+
+/// Lane loop 1: H = K - w^2 M + j w (C + Omega G) of every lane (`dynamic_stiffness`), its
+/// factors (stored in `lu` for further right-hand sides if `KEEP`) and the solution q of the
+/// first right-hand side f.
+#[inline(always)]
+fn factor_solve_lanes<const KEEP: bool>(b: &Batch, gi: &GroupIn, f: &[Z; 4], lu: &mut LaneLu, q: &mut [Z; 4]) {
+    for l in 0..L {
+        let mut kl = [0.0; 8];
+        let mut cl = [0.0; 8];
+        for c in 0..8 {
+            kl[c] = gi.k[c].0[l];
+            cl[c] = gi.c[c].0[l];
+        }
+        let h = dynamic_stiffness(&b.rotor, &b.m, &b.g, &kl, &cl, gi.spin.0[l], gi.w.0[l]);
+        let (e, total) = eliminate(h);
+        if KEEP {
+            for i in 0..4 {
+                for j in 0..4 {
+                    lu.h[i][j].re.0[l] = e.a[i][j].re;
+                    lu.h[i][j].im.0[l] = e.a[i][j].im;
+                }
+                lu.ns[i].0[l] = e.ns[i];
+                lu.piv[i].0[l] = e.piv[i];
+            }
+        }
+        lu.bad[l] = e.bad;
+        lu.finite[l] = total.is_finite();
+        let mut x = lane_get(f, l);
+        substitute(&e.a, &e.ns, &e.piv, &mut x);
+        lane_put(q, l, &x);
+    }
+}
+
+#[inline(always)]
+fn substitute_lane(a: &[[C64; 4]; 4], ns: &[f64; 4], piv: &[f64; 4], f: &[Z; 4], q: &mut [Z; 4], l: usize) {
+    let mut x = lane_get(f, l);
+    substitute(a, ns, piv, &mut x);
+    lane_put(q, l, &x);
+}
+
+/// Right-hand sides per call of lane loop 2.
+const MAX_RHS: usize = 3;
+
+/// Lane loop 2: the solutions q[t] of R further right-hand sides f[t] with the factors of lane
+/// loop 1 (R independent substitutions in one body, for the instruction-level parallelism).
+#[inline(always)]
+fn solve_lanes<const R: usize>(lu: &LaneLu, f: &[[Z; 4]; MAX_RHS], q: &mut [[Z; 4]; MAX_RHS]) {
+    for l in 0..L {
+        let mut a = [[C64::new(0.0, 0.0); 4]; 4];
+        let mut ns = [0.0; 4];
+        let mut piv = [0.0; 4];
+        for i in 0..4 {
+            for j in 0..4 {
+                a[i][j] = C64::new(lu.h[i][j].re.0[l], lu.h[i][j].im.0[l]);
+            }
+            ns[i] = lu.ns[i].0[l];
+            piv[i] = lu.piv[i].0[l];
+        }
+        // written out (not a loop over t): the lane loop must stay the innermost loop
+        substitute_lane(&a, &ns, &piv, &f[0], &mut q[0], l);
+        if R > 1 {
+            substitute_lane(&a, &ns, &piv, &f[1], &mut q[1], l);
+        }
+        if R > 2 {
+            substitute_lane(&a, &ns, &piv, &f[2], &mut q[2], l);
+        }
+    }
+}
+
+/// Right-hand side `r` of the points `idx` as lanes.
+#[inline(always)]
+fn load_force(b: &Batch, idx: &[usize; L], r: usize, f: &mut [Z; 4]) {
+    if b.fbc {
+        for d in 0..4 {
+            let v = b.force[4 * r + d];
+            f[d] = Z { re: V::splat(v.re), im: V::splat(v.im) };
+        }
+    } else {
+        for l in 0..L {
+            let o = (idx[l] * b.nrhs + r) * 4;
+            let src = &b.force[o..o + 4];
+            for d in 0..4 {
+                f[d].re.0[l] = src[d].re;
+                f[d].im.0[l] = src[d].im;
+            }
+        }
+    }
+}
+
+/// Solution `r` of the first `nl` lanes into the points g0.. of `out` (NaN for singular lanes).
+#[inline(always)]
+fn store(out: &mut [C64], bad: &[bool; L], g0: usize, nl: usize, nrhs: usize, r: usize, q: &[Z; 4]) {
+    let stride = 4 * nrhs;
+    let dst = &mut out[g0 * stride..(g0 + nl) * stride];
+    for (l, p) in dst.chunks_exact_mut(stride).enumerate() {
+        let p = &mut p[4 * r..4 * r + 4];
+        for d in 0..4 {
+            p[d] = C64::new(q[d].re.0[l], q[d].im.0[l]);
+        }
+        if bad[l] {
+            p.fill(C64::new(f64::NAN, f64::NAN));
+        }
+    }
+}
+
+/// Points `start..start + out.len() / (4 nrhs)`, L at a time: gathers the inputs of a group into
+/// lanes, runs the lane loops `factor_solve` and `solve` (compiled for the instruction set of the
+/// caller) and scatters the solutions. Tail lanes repeat the last point and are not stored.
+/// Returns the number of singular points.
+#[inline(always)]
+fn forced_chunk<Fs, So>(b: &Batch, start: usize, out: &mut [C64], factor_solve: Fs, solve: So) -> usize
+where
+    Fs: Fn(&Batch, &GroupIn, &[Z; 4], &mut LaneLu, &mut [Z; 4], bool),
+    So: Fn(&LaneLu, &[[Z; 4]; MAX_RHS], &mut [[Z; 4]; MAX_RHS], usize),
+{
+    let nrhs = b.nrhs;
+    let stride = 4 * nrhs;
+    let npts = out.len() / stride;
+    let mut gi = GroupIn { w: V::zero(), spin: V::zero(), k: [V::zero(); 8], c: [V::zero(); 8] };
+    for c in 0..8 {
+        if b.kbc {
+            gi.k[c] = V::splat(b.kb[c]);
+        }
+        if b.cbc {
+            gi.c[c] = V::splat(b.cb[c]);
+        }
+    }
+    let mut lu = LaneLu::new();
+    let mut f = [[Z::zero(); 4]; MAX_RHS];
+    let mut q = [[Z::zero(); 4]; MAX_RHS];
+    let mut nbad = 0;
+    for g0 in (0..npts).step_by(L) {
+        let nl = L.min(npts - g0);
+        let mut idx = [0usize; L];
+        for l in 0..L {
+            idx[l] = start + g0 + l.min(nl - 1);
+        }
+        if nl == L {
+            gi.w.0.copy_from_slice(&b.w[start + g0..start + g0 + L]);
+            gi.spin.0.copy_from_slice(&b.spin[start + g0..start + g0 + L]);
+        } else {
+            for l in 0..L {
+                gi.w.0[l] = b.w[idx[l]];
+                gi.spin.0[l] = b.spin[idx[l]];
+            }
+        }
+        for (per_point, src, dst) in [(!b.kbc, b.kb, &mut gi.k), (!b.cbc, b.cb, &mut gi.c)] {
+            if per_point {
+                for l in 0..L {
+                    let row = &src[8 * idx[l]..8 * idx[l] + 8];
+                    for c in 0..8 {
+                        dst[c].0[l] = row[c];
+                    }
+                }
+            }
+        }
+        load_force(b, &idx, 0, &mut f[0]);
+        factor_solve(b, &gi, &f[0], &mut lu, &mut q[0], nrhs > 1);
+        // NaN or inf in H (or an overflowing sum): the per-point path, whose handling is the rule
+        if !lu.finite.iter().all(|&x| x) {
+            for l in 0..nl {
+                let t = g0 + l;
+                nbad += b.point(start + t, &mut out[t * stride..(t + 1) * stride]) as usize;
+            }
+            continue;
+        }
+        store(out, &lu.bad, g0, nl, nrhs, 0, &q[0]);
+        let mut r = 1;
+        while r < nrhs {
+            let m = MAX_RHS.min(nrhs - r);
+            for t in 0..m {
+                load_force(b, &idx, r + t, &mut f[t]);
+            }
+            solve(&lu, &f, &mut q, m);
+            for t in 0..m {
+                store(out, &lu.bad, g0, nl, nrhs, r + t, &q[t]);
+            }
+            r += m;
+        }
+        nbad += lu.bad[..nl].iter().filter(|&&x| x).count();
+    }
+    nbad
+}
+
+// The lane loops are separate functions per instruction set. They are called from closures
+// written inside the chunk functions: a `#[target_feature]` function's `#[inline(never)]` holds
+// at call sites compiled with the same features, and inlined into the group loop the lane loops
+// would be unrolled instead of vectorized.
+
+#[inline(never)]
+fn factor_solve_baseline<const KEEP: bool>(b: &Batch, gi: &GroupIn, f: &[Z; 4], lu: &mut LaneLu, q: &mut [Z; 4]) {
+    factor_solve_lanes::<KEEP>(b, gi, f, lu, q)
+}
+
+#[inline(never)]
+fn solve_baseline<const R: usize>(lu: &LaneLu, f: &[[Z; 4]; MAX_RHS], q: &mut [[Z; 4]; MAX_RHS]) {
+    solve_lanes::<R>(lu, f, q)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+#[inline(never)]
+fn factor_solve_avx2<const KEEP: bool>(b: &Batch, gi: &GroupIn, f: &[Z; 4], lu: &mut LaneLu, q: &mut [Z; 4]) {
+    factor_solve_lanes::<KEEP>(b, gi, f, lu, q)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+#[inline(never)]
+fn solve_avx2<const R: usize>(lu: &LaneLu, f: &[[Z; 4]; MAX_RHS], q: &mut [[Z; 4]; MAX_RHS]) {
+    solve_lanes::<R>(lu, f, q)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512dq,avx2,fma")]
+#[inline(never)]
+fn factor_solve_avx512<const KEEP: bool>(b: &Batch, gi: &GroupIn, f: &[Z; 4], lu: &mut LaneLu, q: &mut [Z; 4]) {
+    factor_solve_lanes::<KEEP>(b, gi, f, lu, q)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512dq,avx2,fma")]
+#[inline(never)]
+fn solve_avx512<const R: usize>(lu: &LaneLu, f: &[[Z; 4]; MAX_RHS], q: &mut [[Z; 4]; MAX_RHS]) {
+    solve_lanes::<R>(lu, f, q)
+}
+
+/// `forced_chunk` with the lane loops `$factor_solve::<KEEP>` and `$solve::<R>`, called from
+/// closures of the calling function.
+macro_rules! chunk_with {
+    ($b:expr, $start:expr, $out:expr, $factor_solve:ident, $solve:ident) => {{
+        let factor_solve = |b: &Batch, gi: &GroupIn, f: &[Z; 4], lu: &mut LaneLu, q: &mut [Z; 4], keep: bool| {
+            if keep {
+                $factor_solve::<true>(b, gi, f, lu, q)
+            } else {
+                $factor_solve::<false>(b, gi, f, lu, q)
+            }
+        };
+        let solve = |lu: &LaneLu, f: &[[Z; 4]; MAX_RHS], q: &mut [[Z; 4]; MAX_RHS], m: usize| match m {
+            1 => $solve::<1>(lu, f, q),
+            2 => $solve::<2>(lu, f, q),
+            _ => $solve::<3>(lu, f, q),
+        };
+        forced_chunk($b, $start, $out, factor_solve, solve)
+    }};
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512dq,avx2,fma")]
+fn forced_chunk_avx512(b: &Batch, start: usize, out: &mut [C64]) -> usize {
+    chunk_with!(b, start, out, factor_solve_avx512, solve_avx512)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn forced_chunk_avx2(b: &Batch, start: usize, out: &mut [C64]) -> usize {
+    chunk_with!(b, start, out, factor_solve_avx2, solve_avx2)
+}
+
+fn forced_chunk_baseline(b: &Batch, start: usize, out: &mut [C64]) -> usize {
+    chunk_with!(b, start, out, factor_solve_baseline, solve_baseline)
+}
+
+/// Runtime dispatch to the widest SIMD the CPU has (same operations, same results).
+fn forced_chunk_dispatch(b: &Batch, start: usize, out: &mut [C64]) -> usize {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::is_x86_feature_detected!("avx512f") && std::is_x86_feature_detected!("avx512dq") {
+            // SAFETY: the CPU supports the features the function is compiled for.
+            return unsafe { forced_chunk_avx512(b, start, out) };
+        }
+        if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
+            // SAFETY: as above.
+            return unsafe { forced_chunk_avx2(b, start, out) };
+        }
+    }
+    forced_chunk_baseline(b, start, out)
 }
 
 #[allow(clippy::too_many_arguments)]
-fn forced_kernel(rotor: &Rotor, kb: &[f64], cb: &[f64], spin: &[f64], w: &[f64], force: &[C64], nrhs: usize, out: &mut [C64]) -> usize {
-    let n = w.len();
-    let broadcast = force.len() == nrhs * 4 && n != 1;
-    let kbc = kb.len() == 8;
-    let cbc = cb.len() == 8;
-    let m = rotor.mass_matrix();
-    let g = rotor.gyro_matrix();
-    out.par_chunks_mut(nrhs * 4)
-        .with_min_len(256)
+fn forced_kernel(rotor: &Rotor, kb: &[f64], cb: &[f64], spin: &[f64], w: &[f64], force: &[C64], nrhs: usize, gain: &[f64], out: &mut [C64]) -> usize {
+    let b = Batch::new(rotor, kb, cb, spin, w, force, nrhs);
+    if w.len() < SERIAL_BELOW {
+        let ns = forced_chunk_dispatch(&b, 0, out);
+        apply_gain(gain, 0, nrhs, out);
+        return ns;
+    }
+    out.par_chunks_mut(CHUNK * 4 * nrhs)
         .enumerate()
-        .map(|(i, o)| {
-            let f = if broadcast { &force[..] } else { &force[i * nrhs * 4..(i + 1) * nrhs * 4] };
-            o.copy_from_slice(f);
-            let ki = if kbc { 0 } else { 8 * i };
-            let ci = if cbc { 0 } else { 8 * i };
-            let mut h = dynamic_stiffness(rotor, &m, &g, &kb[ki..ki + 8], &cb[ci..ci + 8], spin[i], w[i]);
-            if solve4(&mut h, o) { 0usize } else { 1usize }
+        .map(|(j, o)| {
+            let ns = forced_chunk_dispatch(&b, j * CHUNK, o);
+            apply_gain(gain, j * CHUNK, nrhs, o);
+            ns
         })
         .sum()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn cfg(cases: u32) -> ProptestConfig {
+        ProptestConfig { cases, failure_persistence: None, ..ProptestConfig::default() }
+    }
+
+    /// Every point alone through `dynamic_stiffness` + `solve4` (the former per-point kernel).
+    fn per_point(b: &Batch, out: &mut [C64]) -> usize {
+        let s = 4 * b.nrhs;
+        (0..b.w.len()).map(|i| b.point(i, &mut out[i * s..(i + 1) * s]) as usize).sum()
+    }
+
+    /// The lane kernel without SIMD dispatch (the path of CPUs without AVX2).
+    fn lanes_baseline(b: &Batch, out: &mut [C64]) -> usize {
+        forced_chunk_baseline(b, 0, out)
+    }
+
+    /// Largest |lane - reference| / max_point |reference| over all points, and whether every
+    /// value is equal (`==`, or NaN in both).
+    fn compare(lanes: &[C64], reference: &[C64], stride: usize) -> (f64, bool) {
+        let mut worst = 0.0f64;
+        let mut equal = true;
+        for (pa, pb) in lanes.chunks(stride).zip(reference.chunks(stride)) {
+            let scale = pb.iter().fold(0.0f64, |m, z| m.max(z.norm()));
+            for (x, y) in pa.iter().zip(pb) {
+                let nan = (x.re.is_nan(), x.im.is_nan(), y.re.is_nan(), y.im.is_nan());
+                if nan.0 || nan.1 || nan.2 || nan.3 {
+                    if nan != (true, true, true, true) {
+                        worst = f64::INFINITY;
+                        equal = false;
+                    }
+                    continue;
+                }
+                equal &= x == y;
+                let d = (x - y).norm();
+                worst = worst.max(if d == 0.0 { 0.0 } else { d / scale });
+            }
+        }
+        (worst, equal)
+    }
+
+    fn rotors() -> impl Strategy<Value = Rotor> {
+        (1.0f64..1000.0, 0.1f64..0.6, 0.0f64..1.5, 0.05f64..1.0, 0.05f64..1.0).prop_map(|(m, rg, ipr, l1, l2)| {
+            let it = m * (rg * (l1 + l2)).powi(2);
+            Rotor { m, it, ip: ipr * it, l1, l2 }
+        })
+    }
+
+    /// Bearing coefficients [bearing][i][j]: direct terms 10^lo..10^hi, cross terms up to half of
+    /// the smaller direct one.
+    fn coefficients(lo: f64, hi: f64) -> impl Strategy<Value = [f64; 8]> {
+        (proptest::collection::vec(lo..hi, 4), proptest::collection::vec(-0.5f64..0.5, 4)).prop_map(|(d, x)| {
+            let mut v = [0.0; 8];
+            for b in 0..2 {
+                let (dx, dy) = (10f64.powf(d[2 * b]), 10f64.powf(d[2 * b + 1]));
+                v[4 * b] = dx;
+                v[4 * b + 3] = dy;
+                v[4 * b + 1] = x[2 * b] * dx.min(dy);
+                v[4 * b + 2] = x[2 * b + 1] * dx.min(dy);
+            }
+            v
+        })
+    }
+
+    /// One batch's inputs: bearings shared or per point (scaled point by point), forces shared or
+    /// per point, w from 0 to 5 times the bounce frequency, Omega/w in [-2, 2].
+    #[derive(Debug, Clone)]
+    struct Inputs {
+        rotor: Rotor,
+        kb: Vec<f64>,
+        cb: Vec<f64>,
+        spin: Vec<f64>,
+        w: Vec<f64>,
+        force: Vec<C64>,
+        nrhs: usize,
+    }
+
+    fn inputs(max_n: usize) -> impl Strategy<Value = Inputs> {
+        (1usize..max_n, 1usize..5, rotors(), coefficients(5.0, 8.0), coefficients(1.0, 4.5), any::<[bool; 3]>(), any::<u64>()).prop_map(
+            |(n, nrhs, rotor, k, c, shared, seed)| {
+                // small deterministic generator for the per-point values
+                let mut state = seed | 1;
+                let mut unit = move || {
+                    state ^= state << 13;
+                    state ^= state >> 7;
+                    state ^= state << 17;
+                    (state >> 11) as f64 / (1u64 << 53) as f64
+                };
+                let wn = (2.0 * (k[0] + k[3] + k[4] + k[7]) / 4.0 / rotor.m).sqrt();
+                let w: Vec<f64> = (0..n).map(|_| 5.0 * wn * unit()).collect();
+                let spin: Vec<f64> = w.iter().map(|&x| x * (4.0 * unit() - 2.0)).collect();
+                let per_point = |v: &[f64; 8], unit: &mut dyn FnMut() -> f64| -> Vec<f64> {
+                    (0..n).flat_map(|_| v.map(|x| x * (0.5 + unit()))).collect()
+                };
+                let kb = if shared[0] { k.to_vec() } else { per_point(&k, &mut unit) };
+                let cb = if shared[1] { c.to_vec() } else { per_point(&c, &mut unit) };
+                let nf = if shared[2] { nrhs * 4 } else { n * nrhs * 4 };
+                let force = (0..nf).map(|_| C64::new(2.0 * unit() - 1.0, 2.0 * unit() - 1.0)).collect();
+                Inputs { rotor, kb, cb, spin, w, force, nrhs }
+            },
+        )
+    }
+
+    /// Lane kernel (dispatched and baseline) and per-point path on the same inputs:
+    /// (largest relative difference, all equal, singular counts equal, singular count).
+    fn run(p: &Inputs) -> (f64, bool, bool, usize) {
+        let n = p.w.len();
+        let mut lanes = vec![C64::new(0.0, 0.0); n * p.nrhs * 4];
+        let bad_lanes = forced_response(&p.rotor, &p.kb, &p.cb, &p.spin, &p.w, &p.force, p.nrhs, &mut lanes).unwrap();
+        let b = Batch::new(&p.rotor, &p.kb, &p.cb, &p.spin, &p.w, &p.force, p.nrhs);
+        let mut base = vec![C64::new(0.0, 0.0); lanes.len()];
+        let bad_base = lanes_baseline(&b, &mut base);
+        let mut reference = vec![C64::new(0.0, 0.0); lanes.len()];
+        let bad_ref = per_point(&b, &mut reference);
+        let (d1, e1) = compare(&lanes, &reference, 4 * p.nrhs);
+        let (d2, e2) = compare(&base, &reference, 4 * p.nrhs);
+        (d1.max(d2), e1 && e2, bad_lanes == bad_ref && bad_base == bad_ref, bad_ref)
+    }
+
+    /// Undamped rotor with equal isotropic bearings and l1 = l2: w = sqrt(2k/m) is its bounce
+    /// resonance, where H is singular.
+    fn resonant(m: f64, it: f64, ip: f64, l: f64, k: f64) -> (Rotor, [f64; 8], f64) {
+        let rotor = Rotor { m, it, ip, l1: l, l2: l };
+        (rotor, [k, 0.0, 0.0, k, k, 0.0, 0.0, k], (2.0 * k / m).sqrt())
+    }
+
+    proptest! {
+        #![proptest_config(cfg(300))]
+
+        /// The lane kernel equals the per-point solve on random rotors, bearings, speeds, tails
+        /// (n = 1..40), 1 to 4 right-hand sides, shared and per-point bearings and forces.
+        #[test]
+        fn lanes_equal_per_point_solve(p in inputs(41)) {
+            let (diff, _, same_count, _) = run(&p);
+            prop_assert!(diff <= 1e-12, "relative difference {diff:e}");
+            prop_assert!(same_count);
+        }
+
+        /// Stronger: the lanes perform the operations of `solve4` in the same order, so the
+        /// values are identical (up to the sign of zeros).
+        #[test]
+        fn lanes_are_the_per_point_values(p in inputs(41)) {
+            let (_, equal, _, _) = run(&p);
+            prop_assert!(equal);
+        }
+
+        /// Points exactly at an undamped resonance, mixed with regular points in the same groups
+        /// of 8: the same points are singular (NaN) in both paths, the others equal.
+        #[test]
+        fn singular_points_in_mixed_groups(m in 1.0f64..500.0, rg in 0.1f64..0.6, ipr in 0.0f64..1.5,
+                                           l in 0.05f64..0.8, lk in 5.0f64..8.0, n in 1usize..41,
+                                           nrhs in 1usize..5, which in any::<u64>(),
+                                           ratios in proptest::collection::vec(0.1f64..3.0, 40),
+                                           spins in proptest::collection::vec(-2.0f64..2.0, 40)) {
+            let it = m * (rg * 2.0 * l).powi(2);
+            let (rotor, k, wr) = resonant(m, it, ipr * it, l, 10f64.powf(lk));
+            let at = |i: usize| which >> (i % 64) & 1 == 1;
+            let w: Vec<f64> = (0..n).map(|i| if at(i) { wr } else { wr * ratios[i] }).collect();
+            let spin: Vec<f64> = (0..n).map(|i| w[i] * spins[i]).collect();
+            let force: Vec<C64> = (0..4 * nrhs).map(|j| C64::new(1.0 + j as f64, -0.5)).collect();
+            let p = Inputs { rotor, kb: k.to_vec(), cb: vec![0.0; 8], spin, w, force, nrhs };
+            let (diff, equal, same_count, bad) = run(&p);
+            prop_assert!(diff <= 1e-12, "relative difference {diff:e}");
+            prop_assert!(equal);
+            prop_assert!(same_count);
+            let resonant = (0..n).filter(|&i| at(i)).count();
+            prop_assert!(bad >= resonant, "{bad} singular points, {resonant} at the resonance");
+        }
+
+        /// NaN and inf inputs: the groups holding them take the per-point path, whose rules apply.
+        #[test]
+        fn non_finite_inputs_follow_the_per_point_rules(p in inputs(41), at in 0usize..40, what in 0usize..4) {
+            let mut p = p;
+            let n = p.w.len();
+            let i = at % n;
+            match what {
+                0 => p.w[i] = f64::NAN,
+                1 => p.spin[i] = f64::INFINITY,
+                2 => { let j = p.kb.len() - 1 - (i % p.kb.len()); p.kb[j] = f64::NAN; }
+                _ => p.w[i] = 1e200,
+            }
+            let (diff, equal, same_count, _) = run(&p);
+            prop_assert!(diff <= 1e-12, "relative difference {diff:e}");
+            prop_assert!(equal);
+            prop_assert!(same_count);
+        }
+    }
+
+    /// More points than SERIAL_BELOW: parallel chunks of CHUNK points, the last one partial.
+    #[test]
+    fn parallel_chunks_equal_per_point_solve() {
+        let n = 2 * CHUNK + CHUNK / 2 + 3;
+        let rotor = Rotor { m: 30.7, it: 0.62, ip: 0.062, l1: 0.146, l2: 0.137 };
+        let k = [3.2e6, 4e5, -3e5, 2.9e6, 3.5e6, 2e5, -2e5, 3.1e6];
+        let c = [2.1e3, 1e2, 1e2, 2.3e3, 2.2e3, 0.0, 0.0, 2.0e3];
+        let w: Vec<f64> = (0..n).map(|i| 1.0 + 1500.0 * i as f64 / n as f64).collect();
+        let kb: Vec<f64> = (0..n).flat_map(|i| k.map(|v| v * (1.0 + 1e-4 * i as f64))).collect();
+        let force: Vec<C64> = (0..8).map(|j| C64::new(j as f64, 1.0)).collect();
+        let p = Inputs { rotor, kb, cb: c.to_vec(), spin: w.clone(), w, force, nrhs: 2 };
+        let (diff, equal, same_count, _) = run(&p);
+        assert!(diff <= 1e-12 && equal && same_count);
+    }
+
+    /// The lane path takes the whole H from `dynamic_stiffness`; this pins down the singular
+    /// example of the integration tests inside a full group of 8.
+    #[test]
+    fn resonance_is_singular_in_every_lane() {
+        let (rotor, k, wr) = resonant(20.0, 0.5, 0.0, 0.2, 1e6);
+        let w = [wr; 8];
+        let force = [C64::new(1.0, 0.0), C64::new(0.0, 0.0), C64::new(0.0, 0.0), C64::new(0.0, 0.0)];
+        let mut q = [C64::new(0.0, 0.0); 32];
+        let bad = forced_response(&rotor, &k, &[0.0; 8], &w, &w, &force, 1, &mut q).unwrap();
+        assert_eq!(bad, 8);
+        assert!(q.iter().all(|z| z.re.is_nan() && z.im.is_nan()));
+    }
 }

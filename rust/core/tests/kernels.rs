@@ -129,6 +129,27 @@ proptest! {
         prop_assert_eq!(a, b);
     }
 
+    /// A gain per point equals the force scaled point by point (imbalance: F = e Omega^2).
+    #[test]
+    fn scaled_forced_response_equals_scaled_force(r in rotors(), (k, cc) in bearings(), n in 1usize..3000) {
+        let w = speeds_for(&r, &k, n.max(2));
+        let n = w.len();
+        let e = [c(0.3, -0.1), c(0.2, 0.4), c(-0.01, 0.0), c(0.02, 0.05)];
+        let gain: Vec<f64> = w.iter().map(|v| v * v).collect();
+        let mut a = vec![c(0.0, 0.0); 4 * n];
+        forced::forced_response_scaled(&r, &k, &cc, &w, &w, &e, 1, &gain, &mut a).unwrap();
+        let f: Vec<C64> = gain.iter().flat_map(|&g| e.iter().map(move |&v| v * g)).collect();
+        let mut b = vec![c(0.0, 0.0); 4 * n];
+        forced::forced_response(&r, &k, &cc, &w, &w, &f, 1, &mut b).unwrap();
+        for i in 0..n {
+            let scale = (0..4).map(|d| b[4 * i + d].norm()).fold(0.0, f64::max);
+            for d in 0..4 {
+                prop_assert!((a[4 * i + d] - b[4 * i + d]).norm() <= 1e-13 * scale);
+            }
+        }
+        prop_assert!(forced::forced_response_scaled(&r, &k, &cc, &w, &w, &e, 1, &gain[1..], &mut a).is_err());
+    }
+
     /// Exact responses of 2-4 runs identify the bearings they came from (both solvers), and the
     /// two solvers agree.
     #[test]
