@@ -1,7 +1,19 @@
-"""Forward imbalance-response throughput: rotorid core (batched assembly + 4x4 complex solves)
-vs NumPy assembling H(Omega) for every speed and calling batched np.linalg.solve.
+"""Forward imbalance-response throughput: rotorid core (batched assembly + 4x4 complex solves) vs
+the best NumPy for the same work.
 
-    python benches/bench_forward.py [--speeds 100000]
+    python benches/bench_forward.py [--speeds 100000] [--repeat 7] [--quick] [--threads 2]
+
+Work: the synchronous response of the NSF rig to imbalance set B at every speed: assemble
+H = K - w^2 M + j w (C + spin G) and solve H q = F (4x4 complex) per speed, constant bearings.
+Timed in the same process, best of ``repeat`` interleaved rounds of two back-to-back calls:
+  rotorid._core.forced_response   the raw core call (coefficients (1, 8), forces (n, 1, 4) prepared)
+  rotorid.imbalance_response      the public API (checks, forces from the imbalance, core call)
+  NumPy (benches/baselines.py), from the same inputs as the core call:
+    numpy solve:    H (n, 4, 4) and batched np.linalg.solve, unblocked / blocked / threaded;
+    numpy explicit: the entries of H from one real matmul, Gaussian elimination unrolled over the
+                    points (static pivoting on the direct terms), unblocked / blocked / threaded.
+  The fastest is "best NumPy". Every variant's q is compared with the core's first.
+Target: best NumPy / core >= 8x; public API throughput >= 90 % of the core's.
 """
 
 import argparse
@@ -11,41 +23,75 @@ import sys
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(__file__))
-from common import best_of, blas_info, quiet_blas  # noqa: E402
+from baselines import numpy_forward  # noqa: E402
+from common import (BLOCK_CANDIDATES, Blocks, best_of_each, check_api, numpy_variants,  # noqa: E402
+                    print_header, quick_args, quiet_blas, rel_diff, report)
 
 import rotorid  # noqa: E402
-from rotorid.model import assemble  # noqa: E402
+from rotorid import _core  # noqa: E402
 
-
-def numpy_forward(rotor, bearings, imb, rpm):
-    om = rpm * np.pi / 30
-    M, G = rotor.matrices()
-    K = assemble(bearings.k, rotor.l1, rotor.l2)
-    C = assemble(bearings.c, rotor.l1, rotor.l2)
-    H = (K[None] - (om ** 2)[:, None, None] * M[None] + 1j * (om ** 2)[:, None, None] * G[None]
-         + 1j * om[:, None, None] * C[None])
-    F = imb.generalized(rotor)[None, :] * (om ** 2)[:, None]
-    return np.linalg.solve(H, F[..., None])[..., 0]
+TARGET = 8.0
 
 
 def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--speeds", type=int, default=100_000)
-    ap.add_argument("--repeat", type=int, default=5)
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--speeds", type=int, default=None, help="default 100,000 (20,000 with --quick)")
+    ap.add_argument("--repeat", type=int, default=None, help="default 7 (3 with --quick)")
+    quick_args(ap)
     args = ap.parse_args()
+    n = args.speeds or (20_000 if args.quick else 100_000)
+    repeat = args.repeat or (3 if args.quick else 7)
     _blas = quiet_blas()  # noqa: F841  (kept alive for the whole run)
+    print_header("forward imbalance response", f"{n:,} speeds, 100-10,000 rpm (NSF rig, imbalance B): "
+                 "assemble and solve a 4x4 complex system per speed", args.threads)
+
     rig = rotorid.nsf_rig()
-    rpm = np.linspace(100, 10000, args.speeds)
+    rotor, bearings = rig.rotor, rig.bearings
+    rpm = np.linspace(100, 10000, n)
+    om = rpm * np.pi / 30
     imb = rig.imbalances["B"]
-    ours = rotorid.imbalance_response(rig.rotor, rig.bearings, imb, speed_rpm=rpm).q
-    ref = numpy_forward(rig.rotor, rig.bearings, imb, rpm)
-    print(f"speeds: {args.speeds}; BLAS: {blas_info()}")
-    print(f"max relative difference: {np.abs(ours - ref).max() / np.abs(ref).max():.2e}")
-    t_r = best_of(lambda: rotorid.imbalance_response(rig.rotor, rig.bearings, imb, speed_rpm=rpm), args.repeat)
-    t_n = best_of(lambda: numpy_forward(rig.rotor, rig.bearings, imb, rpm), args.repeat)
-    print(f"rotorid.imbalance_response   {1e3 * t_r:9.2f} ms  {args.speeds / t_r:.3e} speeds/s")
-    print(f"numpy (assemble + solve)     {1e3 * t_n:9.2f} ms  {args.speeds / t_n:.3e} speeds/s")
-    print(f"ratio numpy / rotorid: {t_n / t_r:.1f}x")
+    p = rotor.core_params()
+    kb = np.ascontiguousarray(bearings.k.reshape(8))
+    cb = np.ascontiguousarray(bearings.c.reshape(8))
+    k1, c1 = kb.reshape(1, 8), cb.reshape(1, 8)
+    F = np.ascontiguousarray(imb.generalized(rotor)[None, :] * (om ** 2)[:, None])   # (n, 4)
+    F3 = F[:, None, :]
+    blocks = Blocks(args.threads)
+
+    def core():
+        return _core.forced_response(p, k1, c1, om, om, F3)
+
+    def api():
+        return rotorid.imbalance_response(rotor, bearings, imb, speed_rpm=rpm)
+
+    variants, notes = {}, []
+    for method in ("solve", "explicit"):
+        v, note = numpy_variants(
+            blocks, f"numpy {method}",
+            lambda m=method: numpy_forward(p, kb, cb, om, om, F, m),
+            lambda b, t, m=method: numpy_forward(p, kb, cb, om, om, F, m, blocks, b, t),
+            BLOCK_CANDIDATES, max(2, repeat // 2), args.threads)
+        variants.update(v)
+        notes.append(note)
+
+    q_core, nsing = core()
+    q_core = q_core[:, 0]
+    print("agreement with rotorid's core (max |difference| / max |q|; max per-speed relative difference):")
+    resp = check_api("public API", api)
+    rows = ([("public API", resp.q)] if resp is not None else []) + [(label, fn()) for label, fn in variants.items()]
+    for label, q in rows:
+        per = np.max(np.abs(q - q_core) / np.abs(q_core).max(axis=1, keepdims=True))
+        print(f"  {label:40s} {rel_diff(q, q_core):.1e}   {per:.1e}")
+    print(f"singular points reported by the core: {nsing}")
+    print("\n".join(notes))
+    print()
+
+    t = best_of_each({"core": core, **({"api": api} if resp is not None else {}), **variants}, repeat)
+    report(work=f"imbalance response at {n:,} speeds", n=n, unit="speeds",
+           core=("rotorid._core.forced_response", t["core"]),
+           api=("rotorid.imbalance_response (public API)", t["api"], None, None) if "api" in t else None,
+           numpy={k: t[k] for k in variants}, target_ratio=TARGET)
+    blocks.close()
 
 
 if __name__ == "__main__":

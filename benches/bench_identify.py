@@ -1,13 +1,20 @@
-"""Synchronous identification throughput: rotorid (Rust core) vs NumPy doing the same work.
+"""Synchronous identification throughput: rotorid (Rust core) vs the best NumPy for the same work.
 
-    python benches/bench_identify.py [--speeds 100000] [--runs 4]
+    python benches/bench_identify.py [--speeds 100000] [--runs 4] [--repeat 7] [--quick] [--threads 2]
 
 Work: identify the 16 bearing coefficients at every speed from 4 imbalance runs (NSF rig).
-Baselines, both vectorized over speeds, run in the same process:
-  numpy-report : the report's formulation, eq. 8-12 and 16-18: real 8R x 16 matrix per speed,
-                 P = (B^T B)^-1 B^T F via batched np.linalg.solve.
-  numpy-fast   : the fastest NumPy we could write: bearing reaction forces from the rotor
-                 equations, then per bearing the 2x2 complex normal equations solved in closed form.
+Timed in the same process, best of ``repeat`` interleaved rounds of two back-to-back calls:
+  rotorid._core.identify           the raw core call (k, c, cond, residual, amplitude; no standard errors)
+  ... with the API's options       the core call as identify_synchronous makes it (standard errors
+                                   when the runs are redundant; the runs as a list of arrays when
+                                   the installed core accepts one)
+  rotorid.identify_synchronous     the public API (checks, core call, uncertainty, flags)
+  NumPy (benches/baselines.py):    numpy_fast (the original all-at-once baseline) and the Gram-matrix
+                                   formulation unblocked, cache-blocked on 1 thread and on --threads
+                                   threads (block size tuned here); the fastest is "best NumPy".
+  numpy-report                     eq. 8-18 literally (reference only, not with --quick).
+Every NumPy variant's k and c are compared with the core's first (max relative difference).
+Target: best NumPy / core >= 10x; public API throughput >= 90 % of the core's.
 """
 
 import argparse
@@ -17,59 +24,94 @@ import sys
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(__file__))
-from baselines import numpy_fast, numpy_report  # noqa: E402
-from common import best_of, blas_info, quiet_blas, nsf_runs  # noqa: E402
+from baselines import numpy_fast, numpy_ident, numpy_report  # noqa: E402
+from common import (BLOCK_CANDIDATES, Blocks, best_of, best_of_each, check_api, nsf_runs,  # noqa: E402
+                    numpy_variants, print_header, quick_args, quiet_blas, rel_diff, report,
+                    runs_as_list_if_supported)
 
 import rotorid  # noqa: E402
 from rotorid import _core  # noqa: E402
 
 RPM = np.pi / 30
+TARGET = 10.0
 
 
 def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--speeds", type=int, default=100_000)
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--speeds", type=int, default=None, help="default 100,000 (20,000 with --quick)")
     ap.add_argument("--runs", type=int, default=4)
-    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--repeat", type=int, default=None, help="default 7 (3 with --quick)")
+    quick_args(ap)
     args = ap.parse_args()
+    n = args.speeds or (20_000 if args.quick else 100_000)
+    repeat = args.repeat or (3 if args.quick else 7)
     _blas = quiet_blas()  # noqa: F841  (kept alive for the whole run)
-    names = "ABCD"[: args.runs]
-    rig, rpm, runs = nsf_runs(args.speeds, names)
+    print_header("synchronous identification", f"{n:,} speeds x {args.runs} imbalance runs (NSF rig), 16 "
+                 "coefficients per speed", args.threads)
+
+    names = "ABCDEFGH"[: args.runs]
+    rig, rpm, runs = nsf_runs(n, names)
     rotor = rig.rotor
     om = rpm * RPM
-    qs = np.ascontiguousarray(np.stack([r.q for r in runs]))
-    e = np.stack([rig.imbalances[n].generalized(rotor) for n in names])
+    gain = om ** 2
+    qs = np.ascontiguousarray(np.stack([r.q for r in runs]))       # (R, n, 4)
+    e = np.stack([rig.imbalances[x].generalized(rotor) for x in names])
     p = rotor.core_params()
-    n = args.speeds
+    q4 = qs[None]
+    e3 = np.ascontiguousarray(e[None], dtype=complex)
+    redundant = args.runs > 2     # identify_synchronous asks for standard errors when runs are redundant
+    blocks = Blocks(args.threads)
 
-    def core(with_std=False):
-        return _core.identify(p, om, om, qs[None], e[None], om ** 2, with_std=with_std)
+    def core():
+        return _core.identify(p, om, om, q4, e3, gain, with_std=False)
+
+    q_api, q_form = runs_as_list_if_supported(
+        lambda q: _core.identify(p, om, om, q, e3, gain, with_std=redundant), q4)
+
+    def core_api_options():
+        return _core.identify(p, om, om, q_api, e3, gain, with_std=redundant)
+
+    def api():
+        return rotorid.identify_synchronous(rotor, runs)
+
+    variants, tuning = numpy_variants(
+        blocks, "numpy Gram",
+        lambda: numpy_ident(p, om, om, gain, qs, e),
+        lambda b, t: numpy_ident(p, om, om, gain, qs, e, blocks, b, t),
+        BLOCK_CANDIDATES, max(2, repeat // 2), args.threads)
+    variants = {"numpy_fast (original), unblocked": lambda: numpy_fast(rotor, om, qs, e), **variants}
 
     # same answer first
-    k_core = core()[0][0]
-    k_np, c_np = numpy_fast(rotor, om, qs, e)
-    P = numpy_report(rotor, om, qs, e)
-    ref = rig.bearings.k
-    print(f"speeds: {n}, runs: {args.runs}, threads: {os.cpu_count()} cores; BLAS: {blas_info()}")
-    well = slice(None)
-    print("max |K - truth| / |Kxx|:  core %.2e   numpy-fast %.2e   numpy-report %.2e" % (
-        np.abs(k_core[well] - ref).max() / 3e6, np.abs(k_np[well] - ref).max() / 3e6,
-        np.abs(P[:, :8] - rig.bearings.to_report_vector()[:8]).max() / 3e6))
+    k_core, c_core = core()[:2]
+    k_core, c_core = k_core[0], c_core[0]
+    print("agreement with rotorid's core (max |difference| / max |value|):")
+    ident = check_api("public API", api)
+    if ident is not None:
+        print(f"  {'public API':40s} k {rel_diff(ident.k, k_core):.1e}   c {rel_diff(ident.c, c_core):.1e}")
+    for label, fn in variants.items():
+        k, c = fn()
+        print(f"  {label:40s} k {rel_diff(k, k_core):.1e}   c {rel_diff(c, c_core):.1e}")
+    truth = rig.bearings.k
+    print(f"accuracy (max |K - truth| / |Kxx| = 3e6 N/m): core {np.abs(k_core - truth).max() / 3e6:.1e}, "
+          f"numpy Gram {np.abs(numpy_ident(p, om, om, gain, qs, e)[0] - truth).max() / 3e6:.1e}, "
+          f"numpy_fast {np.abs(numpy_fast(rotor, om, qs, e)[0] - truth).max() / 3e6:.1e}")
+    print(tuning)
+    print()
 
-    t_core = best_of(core, args.repeat)
-    t_core_std = best_of(lambda: core(True), args.repeat)
-    t_api = best_of(lambda: rotorid.identify_synchronous(rotor, runs), args.repeat)
-    t_fast = best_of(lambda: numpy_fast(rotor, om, qs, e), args.repeat)
-    t_rep = best_of(lambda: numpy_report(rotor, om, qs, e), max(1, args.repeat // 2))
-    rows = [("rotorid core (k, c, cond, residual)", t_core), ("rotorid core + standard errors", t_core_std),
-            ("rotorid.identify_synchronous (public API)", t_api), ("numpy-fast (bearing forces, 2x2 closed form)", t_fast),
-            ("numpy-report (16 unknowns, eq. 18)", t_rep)]
-    print(f"{'implementation':48s} {'time (ms)':>10s} {'speeds/s':>12s}")
-    for name, t in rows:
-        print(f"{name:48s} {1e3 * t:10.2f} {n / t:12.3e}")
-    print(f"ratio numpy-fast / rotorid core:   {t_fast / t_core:7.1f}x")
-    print(f"ratio numpy-report / rotorid core: {t_rep / t_core:7.1f}x")
-    print(f"ratio numpy-fast / rotorid API:    {t_fast / t_api:7.1f}x")
+    fns = {"core": core, "core_api": core_api_options, **({"api": api} if ident is not None else {}), **variants}
+    t = best_of_each(fns, repeat)
+    extra = []
+    if not args.quick:
+        extra.append(("numpy-report (16 unknowns, eq. 18; reference)",
+                      best_of(lambda: numpy_report(rotor, om, qs, e), 1, warmup=0)))
+    api_label = f"rotorid._core.identify with the API's options (with_std={redundant}, {q_form})"
+    report(work=f"identify {n:,} speeds from {args.runs} runs", n=n, unit="speeds",
+           core=("rotorid._core.identify (k, c, cond, residual, amplitude)", t["core"]),
+           api=(("rotorid.identify_synchronous (public API)", t["api"], t["core_api"], api_label)
+                if "api" in t else None),
+           extra_rows=extra if "api" in t else [(api_label, t["core_api"]), *extra],
+           numpy={k: t[k] for k in variants}, target_ratio=TARGET)
+    blocks.close()
 
 
 if __name__ == "__main__":

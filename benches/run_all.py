@@ -1,0 +1,106 @@
+"""Run every NumPy-comparison bench in sequence (each in its own process) and print a summary
+table for the README.
+
+    python benches/run_all.py [--quick] [--threads 2] [--only identify,modal] [--quiet]
+
+Each bench ends with a ``SUMMARY {json}`` line (common.report); this script collects them. The
+CSV-loading bench (bench_csv.py, against pandas) is not part of the set: run it on its own.
+"""
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+
+sys.path.insert(0, os.path.dirname(__file__))
+from common import cpu_info, rotorid_threads  # noqa: E402
+
+BENCHES = ("identify", "impact", "forward", "modal", "runout")
+
+
+def _ms(v):
+    if v is None:
+        return ""
+    if v >= 100:
+        return f"{v:.0f} ms"
+    if v >= 10:
+        return f"{v:.1f} ms"
+    return f"{v:.2f} ms"
+
+
+def _x(v):
+    if v is None:
+        return ""
+    return f"{v:.1f}x" if v >= 1 else f"{v:.2f}x"
+
+
+def run(name, passthrough, quiet):
+    path = os.path.join(os.path.dirname(os.path.abspath(__file__)), f"bench_{name}.py")
+    t0 = time.perf_counter()
+    proc = subprocess.Popen([sys.executable, path, *passthrough], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                            text=True, bufsize=1)
+    summary = None
+    for line in proc.stdout:
+        if line.startswith("SUMMARY "):
+            summary = json.loads(line[len("SUMMARY "):])
+        elif not quiet:
+            print(line, end="", flush=True)
+    rc = proc.wait()
+    if not quiet:
+        print(f"[bench_{name}.py: exit {rc}, {time.perf_counter() - t0:.1f} s]\n", flush=True)
+    if rc != 0 or summary is None:
+        return dict(work=f"bench_{name}.py", failed=f"exit {rc}" if rc else "no SUMMARY line")
+    return summary
+
+
+def table(rows):
+    head = ("work", "rotorid core", "public API", "best NumPy (which)", "NumPy / core", "NumPy / API",
+            "API / core", "target", "met?")
+    out = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for r in rows:
+        if "failed" in r:
+            out.append(f"| {r['work']} | failed ({r['failed']}) |" + " |" * (len(head) - 2))
+            continue
+        api_pct = "" if r.get("api_pct") is None else f"{r['api_pct']:.0f} % (>= 90 %)"
+        target = f"{r['value']} ({r['target']})" if r.get("target") else ""
+        met = "" if r.get("met") is None else ("yes" if r["met"] else "**no**")
+        api = "failed" if r.get("api_failed") and r.get("api_ms") is None else _ms(r.get("api_ms"))
+        out.append("| " + " | ".join([
+            r["work"], _ms(r["core_ms"]), api, f"{_ms(r['numpy_ms'])} ({r['numpy_which']})",
+            _x(r["np_over_core"]), _x(r.get("np_over_api")), api_pct, target, met]) + " |")
+    return "\n".join(out)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="pass --quick to every bench")
+    ap.add_argument("--threads", type=int, default=None, help="threads of the threaded NumPy variants")
+    ap.add_argument("--only", default="", help=f"comma-separated subset of {','.join(BENCHES)}")
+    ap.add_argument("--quiet", action="store_true", help="print only the summary table")
+    args = ap.parse_args()
+    names = [b.strip() for b in args.only.split(",") if b.strip()] or list(BENCHES)
+    bad = [b for b in names if b not in BENCHES]
+    if bad:
+        ap.error(f"unknown bench(es) {bad}; choose from {', '.join(BENCHES)}")
+    passthrough = (["--quick"] if args.quick else []) + (["--threads", str(args.threads)] if args.threads else [])
+    rows = [run(name, passthrough, args.quiet) for name in names]
+    ci = cpu_info()
+    import numpy as np
+
+    print(f"Machine: {ci['model']}, {ci['usable_cpus']} usable CPUs, SIMD {' '.join(ci['simd'])}; NumPy "
+          f"{np.__version__}; rotorid core threads {rotorid_threads()}; NumPy baselines on 1 or "
+          f"{args.threads or 2} threads{'; --quick sizes' if args.quick else ''}.\n")
+    print(table(rows))
+    for r in rows:
+        if r.get("api_failed"):
+            print(f"\n{r['work']}: public API failed ({r['api_failed']})")
+    print("\nNumPy / core and NumPy / API: best NumPy time / rotorid time (higher is better for rotorid). "
+          "API / core: public API throughput as % of the core call's. Modal target is per core; "
+          "run-out target is effective bandwidth as % of this machine's copy bandwidth.")
+    return 0 if all("failed" not in r for r in rows) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
