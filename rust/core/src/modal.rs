@@ -77,7 +77,7 @@ pub fn balance(a: &mut StateMatrix) -> [f64; 8] {
 }
 
 /// Eigenvalues of a state matrix: Householder reduction to Hessenberg form and Francis
-/// double-shift QR without accumulating transformations ([`crate::eig8`], on the stack; ~1.7x
+/// double-shift QR without accumulating transformations ([`crate::eig8`], on the stack; ~1.6x
 /// faster than nalgebra's real Schur decomposition, which also forms the orthogonal factor, see
 /// benches/small_algebra.rs), with nalgebra's Schur as the fallback when that QR iteration does
 /// not converge within its budget. None if neither converges.
