@@ -108,7 +108,7 @@ const START: [[C64; 4]; 2] = [
 /// equal to this one, projected out so that a repeated eigenvalue gets independent shapes.
 /// The shift starts at 1e-12 and grows (1e-10, 1e-8) while the shifted matrix is singular to
 /// working precision (a pivot below 1e-15 of its largest entry: seen for heavily damped modes,
-/// where the mass and stiffness terms cancel). None if no shift gives three steps.
+/// where the mass and stiffness terms cancel). None if no shift gives two steps.
 fn mode_shape(m: &[[f64; 4]; 4], cg: &[[f64; 4]; 4], k: &[[f64; 4]; 4], lam: C64, start: [C64; 4], avoid: &[[C64; 4]]) -> Option<[C64; 4]> {
     'shift: for shift in [1e-12, 1e-10, 1e-8] {
         let lam_s = lam * (1.0 + shift);
@@ -119,7 +119,9 @@ fn mode_shape(m: &[[f64; 4]; 4], cg: &[[f64; 4]; 4], k: &[[f64; 4]; 4], lam: C64
             }
         }
         let mut v = start;
-        for _ in 0..3 {
+        // two steps: the first leaves the other directions at ~shift relative, the second at
+        // ~shift^2 (the projection against `avoid` is repeated before each)
+        for _ in 0..2 {
             for u in avoid {
                 // u has unit 2-norm
                 let dot: C64 = (0..4).map(|d| u[d].conj() * v[d]).sum();
@@ -190,19 +192,36 @@ fn modal_kernel(rotor: &Rotor, kb: &[f64], cb: &[f64], spin: &[f64], lam: &mut [
                 Some(s) => s,
                 None => return 1usize,
             };
-            let mut idx: Vec<usize> = (0..8).filter(|&t| s[t].im > 1e-9 * s[t].norm().max(1e-300)).collect();
-            idx.sort_by(|&x, &y| s[x].im.partial_cmp(&s[y].im).unwrap_or(std::cmp::Ordering::Equal));
+            // eigenvalues with positive imaginary part, by damped frequency (no allocation per point)
+            let mut idx = [0usize; 8];
+            let mut nidx = 0;
+            for t in 0..8 {
+                if s[t].im > 1e-9 * s[t].norm().max(1e-300) {
+                    idx[nidx] = t;
+                    nidx += 1;
+                }
+            }
+            let idx = &mut idx[..nidx];
+            idx.sort_unstable_by(|&x, &y| s[x].im.partial_cmp(&s[y].im).unwrap_or(std::cmp::Ordering::Equal).then(x.cmp(&y)));
             let mut cg = c;
             for r in 0..4 {
                 for col in 0..4 {
                     cg[r][col] += spin[i] * g[r][col];
                 }
             }
-            let mut found: Vec<[C64; 4]> = Vec::with_capacity(4);
+            let mut found = [[C64::new(0.0, 0.0); 4]; 4];
             for (mi, &t) in idx.iter().take(4).enumerate() {
                 lo[mi] = s[t];
                 // shapes of earlier modes with the same eigenvalue (to rounding) are projected out
-                let same: Vec<[C64; 4]> = (0..mi).filter(|&o| (lo[o] - s[t]).norm() <= 1e-9 * s[t].norm()).map(|o| found[o]).collect();
+                let mut same = [[C64::new(0.0, 0.0); 4]; 4];
+                let mut nsame = 0;
+                for o in 0..mi {
+                    if (lo[o] - s[t]).norm() <= 1e-9 * s[t].norm() {
+                        same[nsame] = found[o];
+                        nsame += 1;
+                    }
+                }
+                let same = &same[..nsame];
                 let v = match mode_shape(&m, &cg, &k, s[t], START[mi % 2], &same) {
                     Some(v) => v,
                     None => {
@@ -213,7 +232,7 @@ fn modal_kernel(rotor: &Rotor, kb: &[f64], cb: &[f64], spin: &[f64], lam: &mut [
                         return 1usize;
                     }
                 };
-                found.push(v);
+                found[mi] = v;
                 let best = (0..4).fold(0, |b, d| if v[d].norm() > v[b].norm() { d } else { b });
                 let piv = v[best];
                 let scale = if piv.norm() > 0.0 { 1.0 / piv } else { C64::new(1.0, 0.0) };
