@@ -254,8 +254,8 @@ def _diagnose_singular(qs, labels):
             "linearly dependent (one is a complex multiple of another, or the data repeat a run)")
 
 
-#: flag bits of _finish, in the order their reasons are joined
-_SINGULAR, _ILL, _UNCERTAIN, _LOW = 1, 2, 4, 8
+#: flag bit "singular" (the core's identify::FLAG_SINGULAR); bit i is reason i of _BASE_REASONS
+_SINGULAR = 1
 _BASE_REASONS = ("singular", "ill-conditioned", "uncertain", "low amplitude")
 
 
@@ -274,17 +274,12 @@ def _finish(axis_name, axis, amp, k, c, cond, resid, ks, cs, cond_max, min_rel_a
             bias_k=None, bias_c=None, estimator="ls", rel_std=None):
     """Result object with per-point flags. ``amp``: rms response amplitude over runs and coordinates;
     ``rel_std``: the relative standard error of ``ks``, ``cs`` when the core computed it."""
-    peak = amp.max() if amp.size else 0.0
-    rel = amp / peak if peak > 0 else np.zeros_like(amp)
-    worst = np.maximum(cond[:, 0], cond[:, 1])
-    finite = np.isfinite(worst)  # the core returns inf (singular) or NaN (bad input)
     if rel_std is None:
         rel_std = _core.relative_std(*(np.ascontiguousarray(a, dtype=float).reshape(-1, 8) for a in (k, c, ks, cs)))
-    # bit i of the code is reason i of _BASE_REASONS (bool arrays viewed as 0/1 bytes)
-    code = (~finite).view(np.uint8)
-    code |= (finite & (worst > cond_max)).view(np.uint8) << 1
-    code |= (finite & (rel_std > max_rel_std)).view(np.uint8) << 2
-    code |= (rel < min_rel_amplitude).view(np.uint8) << 3
+    # bit i of the code is reason i of _BASE_REASONS, set in one pass by the core
+    code, rel = _core.flag_codes(np.ascontiguousarray(cond), np.ascontiguousarray(amp),
+                                 np.ascontiguousarray(rel_std, dtype=float), float(cond_max),
+                                 float(min_rel_amplitude), float(max_rel_std))
     reasons = list(_BASE_REASONS)
     if extra_flags is not None:
         try:

@@ -366,6 +366,34 @@ fn relative_std<'py>(
     to_py(py, out, &[n])
 }
 
+/// Flag codes of an identification in one pass (see identify::flag_codes): cond (n, 2), amp and
+/// rel_std (n,) -> (code uint8 (n,), amp / max amp (n,)).
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+fn flag_codes<'py>(
+    py: Python<'py>,
+    cond: PyReadonlyArrayDyn<'py, f64>,
+    amp: PyReadonlyArrayDyn<'py, f64>,
+    rel_std: PyReadonlyArrayDyn<'py, f64>,
+    cond_max: f64,
+    min_rel_amplitude: f64,
+    max_rel_std: f64,
+) -> PyResult<(Bound<'py, PyArrayDyn<u8>>, Bound<'py, PyArrayDyn<f64>>)> {
+    let n = amp.len();
+    check_shape("cond", cond.shape(), &[n, 2])?;
+    check_shape("rel_std", rel_std.shape(), &[n])?;
+    let (cs, am, rs) = (slice(&cond, "cond")?, slice(&amp, "amp")?, slice(&rel_std, "rel_std")?);
+    let (code, rel) = py.detach(|| {
+        guarded(|| {
+            let mut code = vec![0u8; n];
+            let mut rel = out_buf(n);
+            identify::flag_codes(cs, am, rs, cond_max, min_rel_amplitude, max_rel_std, &mut rel, &mut code).map(|_| (code, rel))
+        })
+    })?
+    .map_err(core_err)?;
+    Ok((to_py(py, code, &[n])?, to_py(py, rel, &[n])?))
+}
+
 /// Batched eigen-analysis (see modal.rs). Returns (lam (n, 4), shapes (n, 4, 4), n_failed).
 #[pyfunction]
 #[pyo3(name = "modal")]
@@ -518,6 +546,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(py_identify, m)?)?;
     m.add_function(wrap_pyfunction!(py_modal, m)?)?;
     m.add_function(wrap_pyfunction!(relative_std, m)?)?;
+    m.add_function(wrap_pyfunction!(flag_codes, m)?)?;
     m.add_function(wrap_pyfunction!(lti_run, m)?)?;
     m.add_function(wrap_pyfunction!(angle_resample, m)?)?;
     m.add_function(wrap_pyfunction!(runout_subtract, m)?)?;

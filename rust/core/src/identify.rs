@@ -835,3 +835,49 @@ pub fn relative_std(k: &[f64], c: &[f64], k_std: &[f64], c_std: &[f64], out: &mu
     });
     Ok(())
 }
+
+/// Flag bits of [`flag_codes`], in the order the reasons are reported.
+pub const FLAG_SINGULAR: u8 = 1;
+pub const FLAG_ILL_CONDITIONED: u8 = 2;
+pub const FLAG_UNCERTAIN: u8 = 4;
+pub const FLAG_LOW_AMPLITUDE: u8 = 8;
+
+/// Why each point should not be trusted, as bits, in one pass: singular (a condition number that
+/// is inf or NaN), ill-conditioned (cond > `cond_max`), uncertain (`rel_std` > `max_rel_std`),
+/// low amplitude (amp / max(amp) < `min_rel_amplitude`). `cond`: (n, 2); `amp`, `rel_std`: (n,);
+/// `rel_amp` receives amp / max(amp) (0 when every amplitude is 0); `code`: (n,).
+pub fn flag_codes(
+    cond: &[f64],
+    amp: &[f64],
+    rel_std: &[f64],
+    cond_max: f64,
+    min_rel_amplitude: f64,
+    max_rel_std: f64,
+    rel_amp: &mut [f64],
+    code: &mut [u8],
+) -> Result<(), CoreError> {
+    let n = code.len();
+    expect_len("cond", cond, product("cond", &[n, 2])?)?;
+    expect_len("amp", amp, n)?;
+    expect_len("rel_std", rel_std, n)?;
+    expect_len("rel_amp", rel_amp, n)?;
+    let peak = amp.iter().cloned().fold(f64::NEG_INFINITY, max_nan);
+    let inv = if peak > 0.0 { 1.0 / peak } else { 0.0 };
+    code.par_iter_mut().zip(rel_amp.par_iter_mut()).with_min_len(8192).enumerate().for_each(|(i, (o, r))| {
+        let worst = max_nan(cond[2 * i], cond[2 * i + 1]);
+        let finite = worst.is_finite();
+        *r = amp[i] * inv;
+        let mut bits = if finite { 0 } else { FLAG_SINGULAR };
+        if finite && worst > cond_max {
+            bits |= FLAG_ILL_CONDITIONED;
+        }
+        if finite && rel_std[i] > max_rel_std {
+            bits |= FLAG_UNCERTAIN;
+        }
+        if *r < min_rel_amplitude {
+            bits |= FLAG_LOW_AMPLITUDE;
+        }
+        *o = bits;
+    });
+    Ok(())
+}

@@ -543,3 +543,22 @@ fn order_argument_errors_name_the_argument() {
     assert_eq!(err(timesim::lti_run(2, 0, &[0.0; 4], &[], &[], &[], &[0.0; 2], &mut [])), "m");
     assert_eq!(err(timesim::lti_run(2, 1, &[0.0; 3], &[0.0; 2], &[0.0; 2], &[0.0; 2], &[0.0; 2], &mut [0.0; 4])), "phi");
 }
+
+#[test]
+fn flag_codes_match_their_definition() {
+    use rotorid_core::identify::{flag_codes, FLAG_ILL_CONDITIONED, FLAG_LOW_AMPLITUDE, FLAG_SINGULAR, FLAG_UNCERTAIN};
+    let _ = FLAG_UNCERTAIN;
+    let cond = [1.0, 2.0, f64::INFINITY, 1.0, 5e4, 1.0, 1.0, f64::NAN, 10.0, 10.0];
+    let amp = [1.0, 2.0, 4.0, 0.1, 3.0];
+    // point 1 is uncertain too, but a singular point carries that reason alone; a NaN relative
+    // standard error (unknown) flags nothing
+    let rel_std = [0.01, 0.5, 0.01, 0.01, f64::NAN];
+    let (mut rel, mut code) = ([0.0; 5], [0u8; 5]);
+    flag_codes(&cond, &amp, &rel_std, 1e4, 0.08, 0.1, &mut rel, &mut code).unwrap();
+    assert_eq!(rel, [0.25, 0.5, 1.0, 0.025, 0.75]);
+    assert_eq!(code, [0, FLAG_SINGULAR, FLAG_ILL_CONDITIONED, FLAG_SINGULAR | FLAG_LOW_AMPLITUDE, 0]);
+    let (mut rel0, mut code0) = ([9.0; 2], [9u8; 2]);
+    flag_codes(&[1.0; 4], &[0.0, 0.0], &[0.0; 2], 1e4, 0.08, 0.1, &mut rel0, &mut code0).unwrap();
+    assert_eq!((rel0, code0), ([0.0; 2], [FLAG_LOW_AMPLITUDE; 2]));
+    assert!(flag_codes(&cond[..9], &amp, &rel_std, 1e4, 0.08, 0.1, &mut rel, &mut code).is_err());
+}
