@@ -277,8 +277,9 @@ def _finish(axis_name, axis, amp, k, c, cond, resid, ks, cs, cond_max, min_rel_a
     if rel_std is None:
         rel_std = _core.relative_std(*(np.ascontiguousarray(a, dtype=float).reshape(-1, 8) for a in (k, c, ks, cs)))
     # bit i of the code is reason i of _BASE_REASONS, set in one pass by the core
+    unknown = rel_std.ndim == 1 and rel_std.strides == (0,) and np.isnan(rel_std[:1]).all()  # the NaN view of _solve
     code, rel = _core.flag_codes(np.ascontiguousarray(cond), np.ascontiguousarray(amp),
-                                 np.ascontiguousarray(rel_std, dtype=float), float(cond_max),
+                                 None if unknown else np.ascontiguousarray(rel_std, dtype=float), float(cond_max),
                                  float(min_rel_amplitude), float(max_rel_std))
     reasons = list(_BASE_REASONS)
     if extra_flags is not None:
@@ -451,7 +452,7 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
         # unknown: read-only NaN views (no memory, no pass over it)
         ks = cs = np.broadcast_to(np.nan, k.shape)
         rel_std = np.broadcast_to(np.nan, k.shape[:2])
-    if not np.any(np.isfinite(cond)):
+    if not np.fmin.reduce(cond, axis=None) < np.inf:  # no finite condition number (one pass, NaN skipped)
         raise IdentifiabilityError(_diagnose_singular(np.stack(qs), labels))
     ks, cs = ks[0], cs[0]
     rel_std = None if rel_std is None else rel_std[0]
@@ -617,9 +618,9 @@ def identify_impact(rotor: RigidRotor, tests, *, method: str = "forces", identic
     covs = _run_covs(at_b, labels)
     dofs = None if covs is None else _run_dofs(at_b)
     w = 2 * np.pi * f
-    spin = np.full_like(w, speed * RPM)
+    spin = np.array([speed * RPM])  # one running speed and a unit gain, broadcast by the core
     e = np.stack([t.excitation() for t in tests])  # (R, 4), per unit force
     sigma = np.full_like(w, tests[0].sigma) if tests[0].sigma else None
-    return _solve(rotor, "freq_hz", f, w, spin, qs, e, np.ones_like(w), sigma, identical=identical, method=method,
+    return _solve(rotor, "freq_hz", f, w, spin, qs, e, np.ones(1), sigma, identical=identical, method=method,
                   labels=labels, cond_max=cond_max, min_rel_amplitude=min_rel_amplitude, what="impact responses",
                   covs=covs, dofs=dofs, max_rel_std=max_rel_std, extra_flags=extra_flags, estimator=estimator)

@@ -270,8 +270,11 @@ fn py_identify<'py>(
         return Err(PyValueError::new_err("at least one run is needed"));
     }
     check_shape("w", w.shape(), &[n])?;
-    check_shape("spin", spin.shape(), &[n])?;
-    check_shape("gain", gain.shape(), &[n])?;
+    for (name, a) in [("spin", &spin), ("gain", &gain)] {
+        if a.shape() != [n] && a.shape() != [1] {
+            return Err(PyValueError::new_err(format!("{name} has shape {:?}, expected ({n},) or (1,)", a.shape())));
+        }
+    }
     let es = e.shape().to_vec();
     if es.len() != 3 || es[1] != runs || es[2] != 4 || !(es[0] == 1 || es[0] == batch) {
         return Err(PyValueError::new_err(format!("e has shape {es:?}, expected (1 or {batch}, {runs}, 4)")));
@@ -366,23 +369,29 @@ fn relative_std<'py>(
     to_py(py, out, &[n])
 }
 
-/// Flag codes of an identification in one pass (see identify::flag_codes): cond (n, 2), amp and
-/// rel_std (n,) -> (code uint8 (n,), amp / max amp (n,)).
+/// Flag codes of an identification in one pass (see identify::flag_codes): cond (n, 2), amp (n,),
+/// rel_std (n,) or None (unknown) -> (code uint8 (n,), amp / max amp (n,)).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
 fn flag_codes<'py>(
     py: Python<'py>,
     cond: PyReadonlyArrayDyn<'py, f64>,
     amp: PyReadonlyArrayDyn<'py, f64>,
-    rel_std: PyReadonlyArrayDyn<'py, f64>,
+    rel_std: Option<PyReadonlyArrayDyn<'py, f64>>,
     cond_max: f64,
     min_rel_amplitude: f64,
     max_rel_std: f64,
 ) -> PyResult<(Bound<'py, PyArrayDyn<u8>>, Bound<'py, PyArrayDyn<f64>>)> {
     let n = amp.len();
     check_shape("cond", cond.shape(), &[n, 2])?;
-    check_shape("rel_std", rel_std.shape(), &[n])?;
-    let (cs, am, rs) = (slice(&cond, "cond")?, slice(&amp, "amp")?, slice(&rel_std, "rel_std")?);
+    if let Some(r) = &rel_std {
+        check_shape("rel_std", r.shape(), &[n])?;
+    }
+    let rs: &[f64] = match &rel_std {
+        Some(r) => slice(r, "rel_std")?,
+        None => &[],
+    };
+    let (cs, am) = (slice(&cond, "cond")?, slice(&amp, "amp")?);
     let (code, rel) = py.detach(|| {
         guarded(|| {
             let mut code = vec![0u8; n];

@@ -12,7 +12,7 @@
 //! - `identify_report`: the report's 16-unknown real formulation (eq. 8-12, 16-18) solved with
 //!   faer's QR. Kept as the reference; it equals the default exactly for two runs.
 
-use crate::error::{expect_len, product, CoreError};
+use crate::error::{expect_len, expect_len_or_broadcast, product, CoreError};
 use crate::lanes::{Z, L, V};
 use crate::model::{Rotor, C64};
 use faer::linalg::solvers::SolveLstsq;
@@ -242,7 +242,7 @@ pub struct IdentProblem<'a> {
     pub rotor: Rotor,
     /// vibration frequency w at each point (= spin speed for synchronous identification), rad/s
     pub w: &'a [f64],
-    /// spin speed Omega at each point, rad/s
+    /// spin speed Omega at each point, rad/s, (n,) or (1,) for one running speed
     pub spin: &'a [f64],
     /// responses: `batch * runs` blocks (batch-major), each (n, 4) in the order [x1, x2, y1, y2].
     /// Blocks rather than one array so that separately stored runs are used where they are,
@@ -250,7 +250,7 @@ pub struct IdentProblem<'a> {
     pub q: &'a [&'a [C64]],
     /// excitation base vectors, (batch_e, runs, 4) with batch_e in {1, batch}
     pub e: &'a [C64],
-    /// gain applied to e at each point (Omega^2 for imbalance, 1 for unit-force FRFs), (n,)
+    /// gain applied to e at each point (Omega^2 for imbalance, 1 for unit-force FRFs), (n,) or (1,)
     pub gain: &'a [f64],
     /// real part of the Laplace variable s = sigma + j w at each point, (n,) or empty for s = j w
     /// (an exponential window exp(-sigma t) on force and response gives FRFs at sigma + j w)
@@ -273,8 +273,8 @@ impl IdentProblem<'_> {
         if self.runs == 0 {
             return Err(CoreError::value("runs", "must be at least 1"));
         }
-        expect_len("spin", self.spin, n)?;
-        expect_len("gain", self.gain, n)?;
+        expect_len_or_broadcast("spin", self.spin, 1, n)?;
+        expect_len_or_broadcast("gain", self.gain, 1, n)?;
         expect_len("q (blocks)", self.q, product("q", &[self.batch, self.runs])?)?;
         let block = product("q", &[n, 4])?;
         if let Some(bad) = self.q.iter().position(|b| b.len() != block) {
@@ -421,8 +421,8 @@ fn forces_chunk(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize
         for l in 0..L {
             bi[l] = (b, i);
             w.0[l] = p.w[i];
-            spin.0[l] = p.spin[i];
-            gain.0[l] = p.gain[i];
+            spin.0[l] = p.spin[if p.spin.len() == 1 { 0 } else { i }];
+            gain.0[l] = p.gain[if p.gain.len() == 1 { 0 } else { i }];
             sig.0[l] = sigma_at(p, i);
             if l + 1 < nl {
                 i += 1;
@@ -729,7 +729,8 @@ fn report_all(p: &IdentProblem, out: IdentOut) -> usize {
                     bad |= !(v.re.is_finite() && v.im.is_finite());
                     qq += v.norm_sqr();
                 }
-                let rv = rhs_point(&kc, excitation(p, b, r), p.gain[i], p.w[i], sigma_at(p, i), p.spin[i], &q);
+                let (gi, si) = (if p.gain.len() == 1 { 0 } else { i }, if p.spin.len() == 1 { 0 } else { i });
+                let rv = rhs_point(&kc, excitation(p, b, r), p.gain[gi], p.w[i], sigma_at(p, i), p.spin[si], &q);
                 // Q of eq. 8 (4 x 16 complex), columns in eq. 9 order
                 let lq = [-l1 * q[0], l2 * q[1], -l1 * q[2], l2 * q[3]];
                 let mut qm = [[C64::new(0.0, 0.0); 16]; 4];
@@ -844,7 +845,8 @@ pub const FLAG_LOW_AMPLITUDE: u8 = 8;
 
 /// Why each point should not be trusted, as bits, in one pass: singular (a condition number that
 /// is inf or NaN), ill-conditioned (cond > `cond_max`), uncertain (`rel_std` > `max_rel_std`),
-/// low amplitude (amp / max(amp) < `min_rel_amplitude`). `cond`: (n, 2); `amp`, `rel_std`: (n,);
+/// low amplitude (amp / max(amp) < `min_rel_amplitude`). `cond`: (n, 2); `amp`: (n,); `rel_std`:
+/// (n,), or empty when the standard errors are unknown (no point is then "uncertain");
 /// `rel_amp` receives amp / max(amp) (0 when every amplitude is 0); `code`: (n,).
 pub fn flag_codes(
     cond: &[f64],
@@ -859,7 +861,9 @@ pub fn flag_codes(
     let n = code.len();
     expect_len("cond", cond, product("cond", &[n, 2])?)?;
     expect_len("amp", amp, n)?;
-    expect_len("rel_std", rel_std, n)?;
+    if !rel_std.is_empty() {
+        expect_len("rel_std", rel_std, n)?;
+    }
     expect_len("rel_amp", rel_amp, n)?;
     let peak = amp.iter().cloned().fold(f64::NEG_INFINITY, max_nan);
     let inv = if peak > 0.0 { 1.0 / peak } else { 0.0 };
@@ -871,7 +875,7 @@ pub fn flag_codes(
         if finite && worst > cond_max {
             bits |= FLAG_ILL_CONDITIONED;
         }
-        if finite && rel_std[i] > max_rel_std {
+        if finite && !rel_std.is_empty() && rel_std[i] > max_rel_std {
             bits |= FLAG_UNCERTAIN;
         }
         if *r < min_rel_amplitude {

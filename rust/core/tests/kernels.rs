@@ -206,6 +206,30 @@ proptest! {
         }
     }
 
+    /// One running speed and one gain for every frequency (impacts): broadcast equals repeated.
+    #[test]
+    fn broadcast_spin_and_gain_equal_repeated_values(r in rotors(), (k, cc) in bearings(), sr in 0.0f64..2.0,
+                                                     e in proptest::collection::vec(-1.0f64..1.0, 16)) {
+        let w = speeds_for(&r, &k, 37);
+        let spin = sr * w[10];
+        let e = cplx_vec(&e);
+        let mut q = Vec::new();
+        for run in 0..2 {
+            let mut out = vec![c(0.0, 0.0); w.len() * 4];
+            forced::forced_response(&r, &k, &cc, &vec![spin; w.len()], &w, &e[4 * run..4 * run + 4], 1, &mut out).unwrap();
+            q.extend(out);
+        }
+        let qb = blocks(&q, w.len());
+        let (full_spin, ones) = (vec![spin; w.len()], vec![1.0; w.len()]);
+        let a = IdentProblem { rotor: r, w: &w, spin: &full_spin, q: &qb, e: &e, gain: &ones, sigma: &[], batch: 1, runs: 2, identical: false };
+        let b = IdentProblem { spin: &[spin], gain: &[1.0], ..a };
+        for report in [false, true] {
+            let (ia, ib) = (run_identify(&a, report).unwrap(), run_identify(&b, report).unwrap());
+            prop_assert!(ia.k.iter().zip(&ib.k).all(|(x, y)| x == y || (x.is_nan() && y.is_nan())));
+            prop_assert!(ia.c.iter().zip(&ib.c).all(|(x, y)| x == y || (x.is_nan() && y.is_nan())));
+        }
+    }
+
     /// Identical bearings identified under `identical = true` (8 unknowns) are recovered too.
     #[test]
     fn identical_bearings(r in rotors(), (k, cc) in bearings(), e in proptest::collection::vec(-1.0f64..1.0, 16)) {
@@ -495,8 +519,8 @@ fn identification_argument_errors_name_the_argument() {
         (IdentProblem { q: &qb[..1], ..base }, "q (blocks)"),
         (IdentProblem { q: &uneven, ..base }, "q"),
         (IdentProblem { e: &e[..5], ..base }, "e"),
-        (IdentProblem { gain: &gain[..1], ..base }, "gain"),
-        (IdentProblem { spin: &w[..1], ..base }, "spin"),
+        (IdentProblem { gain: &gain[..0], ..base }, "gain"),
+        (IdentProblem { spin: &[100.0, 200.0, 300.0], ..base }, "spin"),
         (IdentProblem { sigma: &[0.0], ..base }, "sigma"),
         (IdentProblem { sigma: &[0.0, f64::NAN], ..base }, "sigma"),
         (IdentProblem { w: &[100.0, 0.0], ..base }, "w"),
