@@ -837,6 +837,33 @@ pub fn relative_std(k: &[f64], c: &[f64], k_std: &[f64], c_std: &[f64], out: &mu
     Ok(())
 }
 
+/// Largest value, NaN if any value is NaN (as NumPy's `max`), -inf when empty. Eight independent
+/// accumulators whose update is exactly `maxpd`, so the loop vectorizes; NaN is tracked apart.
+fn max_propagating_nan(a: &[f64]) -> f64 {
+    let mut acc = [f64::NEG_INFINITY; 8];
+    let mut nan = [false; 8];
+    let chunks = a.chunks_exact(8);
+    let rest = chunks.remainder();
+    for c in chunks {
+        for l in 0..8 {
+            acc[l] = if acc[l] > c[l] { acc[l] } else { c[l] };
+            nan[l] |= c[l].is_nan();
+        }
+    }
+    let mut top = f64::NEG_INFINITY;
+    for &v in rest.iter().chain(acc.iter()) {
+        if v.is_nan() {
+            return f64::NAN;
+        }
+        top = top.max(v);
+    }
+    if nan.iter().any(|&x| x) {
+        f64::NAN
+    } else {
+        top
+    }
+}
+
 /// Flag bits of [`flag_codes`], in the order the reasons are reported.
 pub const FLAG_SINGULAR: u8 = 1;
 pub const FLAG_ILL_CONDITIONED: u8 = 2;
@@ -865,23 +892,27 @@ pub fn flag_codes(
         expect_len("rel_std", rel_std, n)?;
     }
     expect_len("rel_amp", rel_amp, n)?;
-    let peak = amp.iter().cloned().fold(f64::NEG_INFINITY, max_nan);
-    let inv = if peak > 0.0 { 1.0 / peak } else { 0.0 };
-    code.par_iter_mut().zip(rel_amp.par_iter_mut()).with_min_len(8192).enumerate().for_each(|(i, (o, r))| {
-        let worst = max_nan(cond[2 * i], cond[2 * i + 1]);
-        let finite = worst.is_finite();
-        *r = amp[i] * inv;
-        let mut bits = if finite { 0 } else { FLAG_SINGULAR };
-        if finite && worst > cond_max {
-            bits |= FLAG_ILL_CONDITIONED;
+    let peak = max_propagating_nan(amp);
+    let has_std = !rel_std.is_empty();
+    // branch-free per point (the comparisons are false for NaN), so the loop vectorizes
+    let one = |i: usize, o: &mut u8, r: &mut f64| {
+        let (c0, c1) = (cond[2 * i], cond[2 * i + 1]);
+        let finite = c0.is_finite() & c1.is_finite();
+        let worst = if c0 > c1 { c0 } else { c1 };
+        // every amplitude 0, or one NaN (no peak): relative amplitude 0 everywhere
+        let rel = if peak > 0.0 { amp[i] / peak } else { 0.0 };
+        *r = rel;
+        let rs = if has_std { rel_std[i] } else { f64::NAN };
+        *o = (!finite as u8) * FLAG_SINGULAR
+            | ((finite & (worst > cond_max)) as u8) * FLAG_ILL_CONDITIONED
+            | ((finite & (rs > max_rel_std)) as u8) * FLAG_UNCERTAIN
+            | ((rel < min_rel_amplitude) as u8) * FLAG_LOW_AMPLITUDE;
+    };
+    const PAR_CHUNK: usize = 1 << 16;
+    code.par_chunks_mut(PAR_CHUNK).zip(rel_amp.par_chunks_mut(PAR_CHUNK)).enumerate().for_each(|(j, (oc, rc))| {
+        for (t, (o, r)) in oc.iter_mut().zip(rc.iter_mut()).enumerate() {
+            one(j * PAR_CHUNK + t, o, r);
         }
-        if finite && !rel_std.is_empty() && rel_std[i] > max_rel_std {
-            bits |= FLAG_UNCERTAIN;
-        }
-        if *r < min_rel_amplitude {
-            bits |= FLAG_LOW_AMPLITUDE;
-        }
-        *o = bits;
     });
     Ok(())
 }

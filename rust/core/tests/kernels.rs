@@ -586,3 +586,23 @@ fn flag_codes_match_their_definition() {
     assert_eq!((rel0, code0), ([0.0; 2], [FLAG_LOW_AMPLITUDE; 2]));
     assert!(flag_codes(&cond[..9], &amp, &rel_std, 1e4, 0.08, 0.1, &mut rel, &mut code).is_err());
 }
+
+#[test]
+fn flag_codes_peak_propagates_nan_like_numpy() {
+    use rotorid_core::identify::flag_codes;
+    for n in [1usize, 7, 8, 9, 23, 64] {
+        for nan_at in [None, Some(0), Some(n - 1), Some(n / 2)] {
+            let mut amp: Vec<f64> = (0..n).map(|i| 1.0 + (i * 37 % 11) as f64).collect();
+            if let Some(j) = nan_at {
+                amp[j] = f64::NAN;
+            }
+            let top = amp.iter().cloned().fold(0.0f64, f64::max);
+            let (mut rel, mut code) = (vec![0.0; n], vec![0u8; n]);
+            flag_codes(&vec![1.0; 2 * n], &amp, &[], 1e4, 0.0, 0.1, &mut rel, &mut code).unwrap();
+            for i in 0..n {
+                let want = if nan_at.is_some() { 0.0 } else { amp[i] / top };
+                assert_eq!(rel[i], want, "n {n}, NaN at {nan_at:?}, point {i}");
+            }
+        }
+    }
+}
