@@ -192,3 +192,22 @@ def test_resampling_grids_beyond_the_bound_are_refused_before_allocation():
     with pytest.raises(RotoridError, match="points_per_rev"):
         signals.revolution_signature(np.zeros((4, 1000)), 1000.0, np.arange(0.0, 1.0, 0.1), 0.0, 0.9,
                                      points_per_rev=2 ** 40)
+
+
+def test_revolution_signature_checks_only_the_samples_it_reads():
+    """A NaN in the signature's revolutions is refused (channel and sample named); one elsewhere in
+    a long record does not cost a pass over the whole record and does not matter."""
+    from rotorid import signals
+
+    fs = 10000.0
+    t = np.arange(20000) / fs
+    x = np.stack([np.cos(2 * np.pi * 50 * t), np.sin(2 * np.pi * 50 * t)])
+    kp = np.arange(0.001, 1.99, 0.02)
+    ref = signals.revolution_signature(x, fs, kp, 0.1, 0.5)
+    bad = x.copy()
+    bad[1, 3000] = np.nan
+    with pytest.raises(RotoridError, match="channel 1, sample 3000"):
+        signals.revolution_signature(bad, fs, kp, 0.1, 0.5)
+    far = x.copy()
+    far[1, 9000] = np.inf
+    np.testing.assert_array_equal(signals.revolution_signature(far, fs, kp, 0.1, 0.5), ref)

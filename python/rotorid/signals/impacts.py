@@ -119,7 +119,7 @@ def revolution_signature(x, fs_hz: float, kp_times, t_start: float, t_stop: floa
     from .._validate import index, number, real_array
     from .order import MAX_POINTS_PER_REV
 
-    x = real_array("x", x, ndim=2)
+    x = real_array("x", x, ndim=2, finite=False)  # only the samples of the signature are checked, below
     kpt = real_array("kp_times", kp_times, ndim=1)
     fs_hz = _fs(fs_hz)
     t_start = number("t_start", t_start)
@@ -136,6 +136,14 @@ def revolution_signature(x, fs_hz: float, kp_times, t_start: float, t_stop: floa
         raise RotoridError(f"{int(inside[-1]) - int(inside[0])} revolutions between t_start and t_stop at "
                            f"points_per_rev = {points_per_rev} are {size:.3g} resampled values, more than "
                            f"{MAX_RESAMPLED:.3g}: shorten t_start..t_stop or lower points_per_rev")
+    # the samples the signature reads (with the cubic stencil's reach), not the whole record
+    i_a = max(0, int(np.floor((kpt[inside[0]] - t0_s) * fs_hz)) - 2)
+    i_b = min(x.shape[1], int(np.ceil((kpt[inside[-1]] - t0_s) * fs_hz)) + 3)
+    window = x[:, i_a:i_b]
+    if not np.isfinite(window).all():
+        bad = np.argwhere(~np.isfinite(window))[0]
+        raise RotoridError(f"x contains NaN or inf in the revolutions of the run-out signature (channel {int(bad[0])}, "
+                           f"sample {i_a + int(bad[1])})")
     res = _core.angle_resample(np.ascontiguousarray(x, dtype=float), fs_hz, t0_s, np.ascontiguousarray(kpt),
                                int(inside[0]), int(inside[-1]), int(points_per_rev))
     return res.mean(axis=1)
