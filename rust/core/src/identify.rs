@@ -864,6 +864,9 @@ fn max_propagating_nan(a: &[f64]) -> f64 {
     }
 }
 
+/// Points per parallel task of [`flag_codes`].
+const PAR_CHUNK: usize = 1 << 16;
+
 /// Flag bits of [`flag_codes`], in the order the reasons are reported.
 pub const FLAG_SINGULAR: u8 = 1;
 pub const FLAG_ILL_CONDITIONED: u8 = 2;
@@ -893,26 +896,27 @@ pub fn flag_codes(
     }
     expect_len("rel_amp", rel_amp, n)?;
     let peak = max_propagating_nan(amp);
-    let has_std = !rel_std.is_empty();
-    // branch-free per point (the comparisons are false for NaN), so the loop vectorizes
-    let one = |i: usize, o: &mut u8, r: &mut f64| {
-        let (c0, c1) = (cond[2 * i], cond[2 * i + 1]);
-        let finite = c0.is_finite() & c1.is_finite();
-        let worst = if c0 > c1 { c0 } else { c1 };
-        // every amplitude 0, or one NaN (no peak): relative amplitude 0 everywhere
-        let rel = if peak > 0.0 { amp[i] / peak } else { 0.0 };
-        *r = rel;
-        let rs = if has_std { rel_std[i] } else { f64::NAN };
-        *o = (!finite as u8) * FLAG_SINGULAR
-            | ((finite & (worst > cond_max)) as u8) * FLAG_ILL_CONDITIONED
-            | ((finite & (rs > max_rel_std)) as u8) * FLAG_UNCERTAIN
-            | ((rel < min_rel_amplitude) as u8) * FLAG_LOW_AMPLITUDE;
-    };
-    const PAR_CHUNK: usize = 1 << 16;
-    code.par_chunks_mut(PAR_CHUNK).zip(rel_amp.par_chunks_mut(PAR_CHUNK)).enumerate().for_each(|(j, (oc, rc))| {
-        for (t, (o, r)) in oc.iter_mut().zip(rc.iter_mut()).enumerate() {
-            one(j * PAR_CHUNK + t, o, r);
+    // branch-free per point (the comparisons are false for NaN) over zipped slices (no bounds
+    // checks), so the loop vectorizes; an empty rel_std is unknown (NaN) everywhere
+    let nan_std = vec![f64::NAN; if rel_std.is_empty() { PAR_CHUNK.min(n) } else { 0 }];
+    let pass = |cond: &[f64], amp: &[f64], rs: &[f64], rel: &mut [f64], code: &mut [u8]| {
+        for ((((c, &a), &s), r), o) in cond.chunks_exact(2).zip(amp).zip(rs).zip(rel.iter_mut()).zip(code.iter_mut()) {
+            let (c0, c1) = (c[0], c[1]);
+            let finite = c0.is_finite() & c1.is_finite();
+            let worst = if c0 > c1 { c0 } else { c1 };
+            // every amplitude 0, or one NaN (no peak): relative amplitude 0 everywhere
+            let ra = if peak > 0.0 { a / peak } else { 0.0 };
+            *r = ra;
+            *o = (!finite as u8) * FLAG_SINGULAR
+                | ((finite & (worst > cond_max)) as u8) * FLAG_ILL_CONDITIONED
+                | ((finite & (s > max_rel_std)) as u8) * FLAG_UNCERTAIN
+                | ((ra < min_rel_amplitude) as u8) * FLAG_LOW_AMPLITUDE;
         }
+    };
+    code.par_chunks_mut(PAR_CHUNK).zip(rel_amp.par_chunks_mut(PAR_CHUNK)).enumerate().for_each(|(j, (oc, rc))| {
+        let (lo, hi) = (j * PAR_CHUNK, j * PAR_CHUNK + oc.len());
+        let rs = if rel_std.is_empty() { &nan_std[..oc.len()] } else { &rel_std[lo..hi] };
+        pass(&cond[2 * lo..2 * hi], &amp[lo..hi], rs, rc, oc);
     });
     Ok(())
 }
