@@ -7,6 +7,7 @@ batch axis, see ``identify_synchronous_batch``).
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -73,10 +74,10 @@ class Identification:
     estimator: str = "ls"
     flag_reasons: tuple = ()
 
-    @property
+    @functools.cached_property
     def flag(self) -> np.ndarray:
         """Why each point is flagged (object array of str, "" where ok; reasons joined by "; ",
-        "singular" alone)."""
+        "singular" alone); built from ``flag_code`` on first use."""
         return _flag_strings(self.flag_code, self.flag_reasons)
 
     def interval(self, level: float = 0.95):
@@ -271,15 +272,15 @@ def _flag_strings(code, reasons):
 
 def _finish(axis_name, axis, amp, k, c, cond, resid, ks, cs, cond_max, min_rel_amplitude, method, labels,
             std_source="none", dof=None, cov=None, max_rel_std=MAX_REL_STD, extra_flags=None, ks_res=None, cs_res=None,
-            bias_k=None, bias_c=None, estimator="ls", rel_std=None):
+            bias_k=None, bias_c=None, estimator="ls", rel_std=None, std_known=True):
     """Result object with per-point flags. ``amp``: rms response amplitude over runs and coordinates;
-    ``rel_std``: the relative standard error of ``ks``, ``cs`` when the core computed it."""
+    ``rel_std``: the relative standard error of ``ks``, ``cs`` when the core computed it;
+    ``std_known=False``: there are no standard errors (no point can be "uncertain")."""
     if rel_std is None:
         rel_std = _core.relative_std(*(np.ascontiguousarray(a, dtype=float).reshape(-1, 8) for a in (k, c, ks, cs)))
     # bit i of the code is reason i of _BASE_REASONS, set in one pass by the core
-    unknown = rel_std.ndim == 1 and rel_std.strides == (0,) and np.isnan(rel_std[:1]).all()  # the NaN view of _solve
     code, rel = _core.flag_codes(np.ascontiguousarray(cond), np.ascontiguousarray(amp),
-                                 None if unknown else np.ascontiguousarray(rel_std, dtype=float), float(cond_max),
+                                 np.ascontiguousarray(rel_std, dtype=float) if std_known else None, float(cond_max),
                                  float(min_rel_amplitude), float(max_rel_std))
     reasons = list(_BASE_REASONS)
     if extra_flags is not None:
@@ -448,6 +449,7 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
             raise RotoridError(f"{what} reach {big:.3g} (m or m/N): the computation overflows; no rotor responds that "
                                "much (a unit error?)")
         raise RotoridError(f"{what} contain NaN or inf")
+    std_known = ks is not None or covs is not None  # residual-based, or propagated below
     if ks is None:
         # unknown: read-only NaN views (no memory, no pass over it)
         ks = cs = np.broadcast_to(np.nan, k.shape)
@@ -504,7 +506,7 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
             extra_flags = list(extra_flags or []) + [(rejected, "identical bearings rejected by the data")]
     return _finish(axis_name, axis, amp[0], k[0], c[0], cond[0], resid[0], ks, cs, cond_max, min_rel_amplitude,
                    method, labels, source, dof, cov, max_rel_std, extra_flags, ks_res, cs_res, bias_k, bias_c,
-                   estimator, rel_std)
+                   estimator, rel_std, std_known)
 
 
 def identify_synchronous_batch(rotor: RigidRotor, speed_rpm, q, imbalances, *, method: str = "forces",
