@@ -132,15 +132,7 @@ pub fn forced_response(
     nrhs: usize,
     out: &mut [C64],
 ) -> Result<usize, CoreError> {
-    let n = w.len();
-    if nrhs == 0 {
-        return Err(CoreError::value("nrhs", "must be at least 1 (one force vector per point)"));
-    }
-    expect_len("spin", spin, n)?;
-    expect_len_or_broadcast("k", kb, 8, product("k", &[n, 8])?)?;
-    expect_len_or_broadcast("c", cb, 8, product("c", &[n, 8])?)?;
-    expect_len_or_broadcast("force", force, 4 * nrhs, product("force", &[n, nrhs, 4])?)?;
-    expect_len("out", out, product("out", &[n, nrhs, 4])?)?;
+    check_forced(kb, cb, spin, w, force, nrhs, out)?;
     Ok(forced_kernel(rotor, kb, cb, spin, w, force, nrhs, &[], out))
 }
 
@@ -160,16 +152,22 @@ pub fn forced_response_scaled(
     out: &mut [C64],
 ) -> Result<usize, CoreError> {
     expect_len("gain", gain, w.len())?;
+    check_forced(kb, cb, spin, w, force, nrhs, out)?;
+    Ok(forced_kernel(rotor, kb, cb, spin, w, force, nrhs, gain, out))
+}
+
+/// The argument checks shared by [`forced_response`] and [`forced_response_scaled`].
+fn check_forced(kb: &[f64], cb: &[f64], spin: &[f64], w: &[f64], force: &[C64], nrhs: usize, out: &[C64]) -> Result<(), CoreError> {
+    let n = w.len();
     if nrhs == 0 {
         return Err(CoreError::value("nrhs", "must be at least 1 (one force vector per point)"));
     }
-    let n = w.len();
     expect_len("spin", spin, n)?;
     expect_len_or_broadcast("k", kb, 8, product("k", &[n, 8])?)?;
     expect_len_or_broadcast("c", cb, 8, product("c", &[n, 8])?)?;
     expect_len_or_broadcast("force", force, 4 * nrhs, product("force", &[n, nrhs, 4])?)?;
     expect_len("out", out, product("out", &[n, nrhs, 4])?)?;
-    Ok(forced_kernel(rotor, kb, cb, spin, w, force, nrhs, gain, out))
+    Ok(())
 }
 
 /// Scale the outputs of the points starting at `start` by their gains (none if `gain` is empty).
@@ -681,18 +679,14 @@ fn forced_chunk_baseline(b: &Batch, start: usize, out: &mut [C64]) -> usize {
 
 /// Runtime dispatch to the widest SIMD the CPU has (same operations, same results).
 fn forced_chunk_dispatch(b: &Batch, start: usize, out: &mut [C64]) -> usize {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::is_x86_feature_detected!("avx512f") && std::is_x86_feature_detected!("avx512dq") {
-            // SAFETY: the CPU supports the features the function is compiled for.
-            return unsafe { forced_chunk_avx512(b, start, out) };
-        }
-        if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
-            // SAFETY: as above.
-            return unsafe { forced_chunk_avx2(b, start, out) };
-        }
+    match crate::lanes::simd() {
+        // SAFETY: simd() reports the CPU has the features these versions are compiled for.
+        #[cfg(target_arch = "x86_64")]
+        crate::lanes::Simd::Avx512 => unsafe { forced_chunk_avx512(b, start, out) },
+        #[cfg(target_arch = "x86_64")]
+        crate::lanes::Simd::Avx2 => unsafe { forced_chunk_avx2(b, start, out) },
+        _ => forced_chunk_baseline(b, start, out),
     }
-    forced_chunk_baseline(b, start, out)
 }
 
 #[allow(clippy::too_many_arguments)]

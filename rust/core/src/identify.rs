@@ -619,18 +619,14 @@ fn forces_chunk_avx2(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> 
 
 /// Runtime dispatch to the widest SIMD the CPU has (same arithmetic, same results up to rounding).
 fn forces_chunk_dispatch(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::is_x86_feature_detected!("avx512f") && std::is_x86_feature_detected!("avx512dq") {
-            // SAFETY: the CPU supports the features the function is compiled for.
-            return unsafe { forces_chunk_avx512(p, kc, start, out) };
-        }
-        if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
-            // SAFETY: as above.
-            return unsafe { forces_chunk_avx2(p, kc, start, out) };
-        }
+    match crate::lanes::simd() {
+        // SAFETY: simd() reports the CPU has the features these versions are compiled for.
+        #[cfg(target_arch = "x86_64")]
+        crate::lanes::Simd::Avx512 => unsafe { forces_chunk_avx512(p, kc, start, out) },
+        #[cfg(target_arch = "x86_64")]
+        crate::lanes::Simd::Avx2 => unsafe { forces_chunk_avx2(p, kc, start, out) },
+        _ => forces_chunk(p, kc, start, out),
     }
-    forces_chunk(p, kc, start, out)
 }
 
 /// Fast bearing-force solver. Returns the number of points whose input contained NaN/inf.

@@ -5,6 +5,32 @@ use std::ops::{Add, AddAssign, Mul, Neg, Sub};
 
 pub const L: usize = 8;
 
+/// The widest instruction set the kernels have a compiled version for, on this CPU.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Simd {
+    /// AVX-512 F + DQ (with AVX2 and FMA)
+    Avx512,
+    /// AVX2 + FMA
+    Avx2,
+    /// the build's baseline (SSE2 on x86-64, or another architecture)
+    Baseline,
+}
+
+/// Detect once which compiled version every SIMD kernel dispatches to. A kernel may call its
+/// `#[target_feature]` version for the level returned here: the CPU has those features.
+pub fn simd() -> Simd {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::is_x86_feature_detected!("avx512f") && std::is_x86_feature_detected!("avx512dq") {
+            return Simd::Avx512;
+        }
+        if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
+            return Simd::Avx2;
+        }
+    }
+    Simd::Baseline
+}
+
 #[derive(Clone, Copy, Debug)]
 pub struct V(pub [f64; L]);
 

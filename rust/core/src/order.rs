@@ -259,16 +259,12 @@ fn runout_block_avx2(ctx: &Runout, first: usize, outs: &mut [&mut [f64]]) -> usi
 
 /// Runtime dispatch to the widest SIMD the CPU has (inline `floor`, vector weights).
 fn runout_block_dispatch(ctx: &Runout, first: usize, outs: &mut [&mut [f64]]) -> usize {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::is_x86_feature_detected!("avx512f") && std::is_x86_feature_detected!("avx512dq") {
-            // SAFETY: the CPU supports the features the function is compiled for.
-            return unsafe { runout_block_avx512(ctx, first, outs) };
-        }
-        if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
-            // SAFETY: as above.
-            return unsafe { runout_block_avx2(ctx, first, outs) };
-        }
+    match crate::lanes::simd() {
+        // SAFETY: simd() reports the CPU has the features these versions are compiled for.
+        #[cfg(target_arch = "x86_64")]
+        crate::lanes::Simd::Avx512 => unsafe { runout_block_avx512(ctx, first, outs) },
+        #[cfg(target_arch = "x86_64")]
+        crate::lanes::Simd::Avx2 => unsafe { runout_block_avx2(ctx, first, outs) },
+        _ => runout_block(ctx, first, outs),
     }
-    runout_block(ctx, first, outs)
 }
