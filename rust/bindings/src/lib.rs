@@ -3,6 +3,7 @@
 //! core crate, whose argument errors (`CoreError`) become `ValueError` here; any Rust panic would
 //! become a `RuntimeError` (a panic never crosses into Python).
 
+use rotorid_core::study::{self, Excitation, ImpactErrors, Method, Study, SyncErrors};
 use rotorid_core::{forced, identify, modal, order, timesim, CoreError, Rotor, C64};
 use numpy::{PyArray1, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyMemoryError, PyRuntimeError, PyTypeError, PyValueError};
@@ -548,6 +549,202 @@ fn runout_subtract<'py>(
     Ok((to_py(py, out.0, &[nch, i1 - i0])?, out.1))
 }
 
+/// Arrays of a study call, borrowed for the duration of the call.
+struct StudyArgs<'py> {
+    rotor: Rotor,
+    w: PyReadonlyArrayDyn<'py, f64>,
+    kb: PyReadonlyArrayDyn<'py, f64>,
+    cb: PyReadonlyArrayDyn<'py, f64>,
+    probes_z: [f64; 4],
+    u: Option<PyReadonlyArrayDyn<'py, C64>>,
+    planes_z: PyReadonlyArrayDyn<'py, f64>,
+    dirs: Option<PyReadonlyArrayDyn<'py, u8>>,
+    spin: f64,
+    errors: Vec<f64>,
+    method: Method,
+    seed: u64,
+}
+
+impl StudyArgs<'_> {
+    fn study(&self) -> PyResult<Study<'_>> {
+        let w = slice(&self.w, "w")?;
+        let planes = slice(&self.planes_z, "planes_z")?;
+        let e = &self.errors;
+        let excitation = match (&self.u, &self.dirs) {
+            (Some(u), None) => {
+                if planes.len() != 2 || e.len() != 9 {
+                    return Err(PyValueError::new_err("imbalance study: planes_z must hold 2 values and errors 9"));
+                }
+                Excitation::Imbalance {
+                    u: slice(u, "u")?,
+                    planes_z: [planes[0], planes[1]],
+                    errors: SyncErrors {
+                        amplitude_rel: e[0],
+                        phase_rad: e[1],
+                        noise_m: e[2],
+                        keyphasor_rad: e[3],
+                        delay_s: e[4],
+                        probe_position_m: e[5],
+                        mass_rel: e[6],
+                        angle_rad: e[7],
+                        speed_rel: e[8],
+                    },
+                }
+            }
+            (None, Some(d)) => {
+                if e.len() != 5 {
+                    return Err(PyValueError::new_err("impact study: errors must hold 5 values"));
+                }
+                Excitation::Impact {
+                    planes_z: planes,
+                    dirs: slice(d, "dirs")?,
+                    spin: self.spin,
+                    errors: ImpactErrors { frf_rel: e[0], force_cal_rel: e[1], impact_position_m: e[2], delay_s: e[3], probe_position_m: e[4] },
+                }
+            }
+            _ => return Err(PyValueError::new_err("a study takes either imbalances u or impact directions dirs")),
+        };
+        Ok(Study {
+            rotor: self.rotor,
+            w,
+            kb: slice(&self.kb, "kb")?,
+            cb: slice(&self.cb, "cb")?,
+            probes_z: self.probes_z,
+            excitation,
+            method: self.method,
+            seed: self.seed,
+        })
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn study_args<'py>(
+    rotor: PyReadonlyArrayDyn<'py, f64>,
+    w: PyReadonlyArrayDyn<'py, f64>,
+    kb: PyReadonlyArrayDyn<'py, f64>,
+    cb: PyReadonlyArrayDyn<'py, f64>,
+    probes_z: PyReadonlyArrayDyn<'py, f64>,
+    u: Option<PyReadonlyArrayDyn<'py, C64>>,
+    planes_z: PyReadonlyArrayDyn<'py, f64>,
+    dirs: Option<PyReadonlyArrayDyn<'py, u8>>,
+    spin: f64,
+    errors: PyReadonlyArrayDyn<'py, f64>,
+    method: &str,
+    seed: u64,
+) -> PyResult<StudyArgs<'py>> {
+    let z = slice(&probes_z, "probes_z")?;
+    if z.len() != 4 {
+        return Err(PyValueError::new_err(format!("probes_z has {} values, expected 4", z.len())));
+    }
+    let method = match method {
+        "forces" => Method::Forces,
+        "report" => Method::Report,
+        m => return Err(PyValueError::new_err(format!("method must be 'forces' or 'report', got {m:?}"))),
+    };
+    Ok(StudyArgs {
+        rotor: rotor_of(&rotor)?,
+        probes_z: [z[0], z[1], z[2], z[3]],
+        errors: slice(&errors, "errors")?.to_vec(),
+        w,
+        kb,
+        cb,
+        u,
+        planes_z,
+        dirs,
+        spin,
+        method,
+        seed,
+    })
+}
+
+type Stats<'py> = (
+    Bound<'py, PyArrayDyn<u32>>,
+    Bound<'py, PyArrayDyn<u32>>,
+    Bound<'py, PyArrayDyn<u32>>,
+    Bound<'py, PyArrayDyn<f64>>,
+    Bound<'py, PyArrayDyn<f64>>,
+);
+
+/// Monte Carlo study (see study/mod.rs): trials t0..t1 at points p0..p1 simulated, perturbed,
+/// identified and accumulated. Returns (counts (np, 16, BINS), finite, nonfinite, sum, sumsq
+/// (np, 16)). Imbalance: u (runs, 2) complex, planes_z (2,), errors (9,); impacts: dirs (runs,)
+/// u8, planes_z (runs,), spin, errors (5,).
+#[pyfunction]
+#[pyo3(signature = (rotor, w, kb, cb, probes_z, planes_z, errors, t0, t1, p0, p1, *, u=None, dirs=None, spin=0.0, method="forces", seed=0))]
+#[allow(clippy::too_many_arguments)]
+fn study_accumulate<'py>(
+    py: Python<'py>,
+    rotor: PyReadonlyArrayDyn<'py, f64>,
+    w: PyReadonlyArrayDyn<'py, f64>,
+    kb: PyReadonlyArrayDyn<'py, f64>,
+    cb: PyReadonlyArrayDyn<'py, f64>,
+    probes_z: PyReadonlyArrayDyn<'py, f64>,
+    planes_z: PyReadonlyArrayDyn<'py, f64>,
+    errors: PyReadonlyArrayDyn<'py, f64>,
+    t0: u64,
+    t1: u64,
+    p0: usize,
+    p1: usize,
+    u: Option<PyReadonlyArrayDyn<'py, C64>>,
+    dirs: Option<PyReadonlyArrayDyn<'py, u8>>,
+    spin: f64,
+    method: &str,
+    seed: u64,
+) -> PyResult<Stats<'py>> {
+    let args = study_args(rotor, w, kb, cb, probes_z, u, planes_z, dirs, spin, errors, method, seed)?;
+    let s = args.study()?;
+    let np = p1.saturating_sub(p0);
+    check_alloc("study", np.checked_mul(study::NCOEF * (study::BINS + 6)), 4)?;
+    let st = py.detach(|| guarded(|| study::accumulate(&s, t0, t1, p0, p1)))?.map_err(core_err)?;
+    let m = [np, study::NCOEF];
+    Ok((
+        to_py(py, st.counts, &[np, study::NCOEF, study::BINS])?,
+        to_py(py, st.finite, &m)?,
+        to_py(py, st.nonfinite, &m)?,
+        to_py(py, st.sum, &m)?,
+        to_py(py, st.sumsq, &m)?,
+    ))
+}
+
+/// The measured values of trials t0..t1 of a study, before identification: (q (trials, runs,
+/// n, 4) at the channels, w_told (trials, n)). Same arguments as `study_accumulate`.
+#[pyfunction]
+#[pyo3(signature = (rotor, w, kb, cb, probes_z, planes_z, errors, t0, t1, *, u=None, dirs=None, spin=0.0, seed=0))]
+#[allow(clippy::too_many_arguments)]
+fn study_realize<'py>(
+    py: Python<'py>,
+    rotor: PyReadonlyArrayDyn<'py, f64>,
+    w: PyReadonlyArrayDyn<'py, f64>,
+    kb: PyReadonlyArrayDyn<'py, f64>,
+    cb: PyReadonlyArrayDyn<'py, f64>,
+    probes_z: PyReadonlyArrayDyn<'py, f64>,
+    planes_z: PyReadonlyArrayDyn<'py, f64>,
+    errors: PyReadonlyArrayDyn<'py, f64>,
+    t0: u64,
+    t1: u64,
+    u: Option<PyReadonlyArrayDyn<'py, C64>>,
+    dirs: Option<PyReadonlyArrayDyn<'py, u8>>,
+    spin: f64,
+    seed: u64,
+) -> PyResult<(Bound<'py, PyArrayDyn<C64>>, Bound<'py, PyArrayDyn<f64>>)> {
+    let args = study_args(rotor, w, kb, cb, probes_z, u, planes_z, dirs, spin, errors, "forces", seed)?;
+    let s = args.study()?;
+    let (nt, n, runs) = (t1.saturating_sub(t0) as usize, s.w.len(), s.runs());
+    let total = nt.checked_mul(runs).and_then(|v| v.checked_mul(n * 4));
+    check_alloc("study_realize", total, 16)?;
+    let total = total.unwrap_or(0);
+    let (q, wt) = py
+        .detach(|| {
+            guarded(|| {
+                let mut q = vec![C64::new(0.0, 0.0); total];
+                let mut wt = vec![0.0; nt * n];
+                study::realize(&s, t0, t1, &mut q, &mut wt).map(|_| (q, wt))
+            })
+        })?
+        .map_err(core_err)?;
+    Ok((to_py(py, q, &[nt, runs, n, 4])?, to_py(py, wt, &[nt, n])?))
+}
+
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     LOADED_BY.get_or_init(std::process::id);
@@ -559,6 +756,11 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(lti_run, m)?)?;
     m.add_function(wrap_pyfunction!(angle_resample, m)?)?;
     m.add_function(wrap_pyfunction!(runout_subtract, m)?)?;
+    m.add_function(wrap_pyfunction!(study_accumulate, m)?)?;
+    m.add_function(wrap_pyfunction!(study_realize, m)?)?;
+    m.add("STUDY_BINS", study::BINS)?;
+    m.add("STUDY_E0", study::E0)?;
+    m.add("STUDY_SUB", study::stats::SUB)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

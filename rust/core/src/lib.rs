@@ -32,6 +32,7 @@ pub mod lanes;
 pub mod modal;
 pub mod model;
 pub mod order;
+pub mod study;
 pub mod timesim;
 
 pub use error::CoreError;
