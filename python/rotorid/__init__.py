@@ -7,7 +7,7 @@ imbalance responses and impacts (after De Santiago & San Andrés, TRC-RD-1-01, 2
 # turn imported only inside the functions that use them. tests/test_startup.py guards this.
 TYPE_CHECKING = False  # (not typing.TYPE_CHECKING: importing typing alone costs ~10 ms)
 if TYPE_CHECKING:
-    from . import io, pipeline, rawsim, signals  # noqa: F401  (submodules of the raw-data chain)
+    from . import io, pipeline, rawsim, signals, studies  # noqa: F401  (submodules)
     from .errors import IdentifiabilityError, RotoridError
     from .identify import Identification, identify_impact, identify_synchronous, identify_synchronous_batch
     from .kcm import KCMFit, fit_kcm
@@ -47,7 +47,7 @@ _LAZY_NAMES = {
 }
 # submodules that an eager ``import rotorid`` used to leave as attributes of the package
 _LAZY_SUBMODULES = frozenset(("io", "pipeline", "rawsim", "signals", "errors", "identify", "kcm", "phasecal", "modal",
-                              "model", "recording", "simulate", "units", "_core", "_corecall", "_validate"))
+                              "model", "recording", "simulate", "units", "studies", "_core", "_corecall", "_validate"))
 
 
 def __getattr__(name):
@@ -73,6 +73,6 @@ __all__ = [
     "ProbeResolution", "REPORT_ORDER", "RigidRotor", "Rig", "RotoridError", "SyncResponse",
     "bearings_to_probes", "critical_speeds", "identify_synchronous", "identify_synchronous_batch",
     "imbalance_response", "modal_analysis", "nsf_rig", "probes_to_bearings",
-    "Recording", "load_recording", "save_recording", "io", "pipeline", "rawsim", "signals", "KCMFit", "fit_kcm", "PhaseCalibration", "calibrate_phase",
+    "Recording", "load_recording", "save_recording", "io", "pipeline", "rawsim", "signals", "studies", "KCMFit", "fit_kcm", "PhaseCalibration", "calibrate_phase",
 ]
 __version__ = "0.1.0"

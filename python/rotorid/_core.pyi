@@ -49,3 +49,55 @@ def modal(
     spin: npt.NDArray[np.float64],  # (n,)
 ) -> tuple[npt.NDArray[np.complex128], npt.NDArray[np.complex128], int]:
     """Eigenvalues with Im > 0 sorted by frequency (n, 4), mode shapes (n, 4, 4), n_failed."""
+
+STUDY_BINS: int  # bins of each study histogram
+STUDY_E0: float  # errors below E0 are binned linearly
+STUDY_SUB: int  # bins per octave above E0
+
+def study_accumulate(
+    rotor: npt.NDArray[np.float64],
+    w: npt.NDArray[np.float64],  # (n,) speeds (imbalance) or frequencies (impacts), rad/s
+    kb: npt.NDArray[np.float64],  # (n, 8) or (1, 8) true coefficients [bearing][i][j]
+    cb: npt.NDArray[np.float64],
+    probes_z: npt.NDArray[np.float64],  # (4,) nominal axial positions of x1, x2, y1, y2
+    planes_z: npt.NDArray[np.float64],  # (2,) imbalance planes, or (runs,) impact planes
+    errors: npt.NDArray[np.float64],  # (9,) imbalance or (5,) impact standard deviations
+    t0: int,
+    t1: int,
+    p0: int,
+    p1: int,
+    *,
+    u: npt.NDArray[np.complex128] | None = None,  # (runs, 2) m r e^{-j phi} per plane
+    dirs: npt.NDArray[np.uint8] | None = None,  # (runs,) 0 = x, 1 = y
+    spin: float = 0.0,  # running speed of impact tests, rad/s
+    method: str = "forces",
+    seed: int = 0,
+) -> tuple[
+    npt.NDArray[np.uint32],  # counts (p1 - p0, 16, STUDY_BINS)
+    npt.NDArray[np.uint32],  # finite errors (p1 - p0, 16)
+    npt.NDArray[np.uint32],  # non-finite errors
+    npt.NDArray[np.float64],  # sum of errors
+    npt.NDArray[np.float64],  # sum of squared errors
+]:
+    """Trials t0..t1 of a Monte Carlo study at points p0..p1, accumulated (docs/studies.md)."""
+
+def study_realize(
+    rotor: npt.NDArray[np.float64],
+    w: npt.NDArray[np.float64],
+    kb: npt.NDArray[np.float64],
+    cb: npt.NDArray[np.float64],
+    probes_z: npt.NDArray[np.float64],
+    planes_z: npt.NDArray[np.float64],
+    errors: npt.NDArray[np.float64],
+    t0: int,
+    t1: int,
+    *,
+    u: npt.NDArray[np.complex128] | None = None,
+    dirs: npt.NDArray[np.uint8] | None = None,
+    spin: float = 0.0,
+    seed: int = 0,
+) -> tuple[npt.NDArray[np.complex128], npt.NDArray[np.float64]]:
+    """Measured values (trials, runs, n, 4) at the channels and the told point frequencies (trials, n)."""
+
+def study_bin_edges() -> npt.NDArray[np.float64]:
+    """Bin edges of the study histograms, (STUDY_BINS + 1,), from -inf to +inf."""

@@ -745,6 +745,15 @@ fn study_realize<'py>(
     Ok((to_py(py, q, &[nt, runs, n, 4])?, to_py(py, wt, &[nt, n])?))
 }
 
+/// Edges of the study histograms' bins: (BINS + 1,), bin b holds [edges[b], edges[b + 1]), the end
+/// bins reach to -inf and +inf.
+#[pyfunction]
+fn study_bin_edges(py: Python<'_>) -> PyResult<Bound<'_, PyArrayDyn<f64>>> {
+    let mut e: Vec<f64> = (0..study::BINS).map(|b| study::bin_edges(b).0).collect();
+    e.push(f64::INFINITY);
+    to_py(py, e, &[study::BINS + 1])
+}
+
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     LOADED_BY.get_or_init(std::process::id);
@@ -758,6 +767,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(runout_subtract, m)?)?;
     m.add_function(wrap_pyfunction!(study_accumulate, m)?)?;
     m.add_function(wrap_pyfunction!(study_realize, m)?)?;
+    m.add_function(wrap_pyfunction!(study_bin_edges, m)?)?;
     m.add("STUDY_BINS", study::BINS)?;
     m.add("STUDY_E0", study::E0)?;
     m.add("STUDY_SUB", study::stats::SUB)?;
