@@ -655,6 +655,7 @@ def _owned_calls(tmp):
 
     matplotlib.use("Agg")
     from rotorid import config, demo, example, pipeline, plot, units
+    from rotorid.studies import sensitivity
 
     rig = rotorid.nsf_rig()
     rotor, brg = rig.rotor, rig.bearings
@@ -763,18 +764,32 @@ def _owned_calls(tmp):
                                                         log=lambda *a: None), args=["step_rpm", "resolution", "out"]),
         "demo.impact": Call(demo.impact, dict(out=str(tmp / "demo"), speed_rpm=1000.0, log=lambda *a: None),
                             args=["out", "speed_rpm"]),
+        "demo.cross_coupling": Call(demo.cross_coupling, dict(out=str(tmp / "demo5"), speed_rpm=[3000.0, 4000.0],
+                                                              resolution=None, log=lambda *a: None),
+                                    args=["out", "speed_rpm", "resolution"]),
+        "sensitivity.cross_coupling_ratio": Call(sensitivity.cross_coupling_ratio, dict(bearings=brg, definition="rms"),
+                                                 extras=values),
+        "sensitivity.scale_cross_coupling": Call(sensitivity.scale_cross_coupling, dict(
+            bearings=brg, a=0.05, definition="rms"), extras=values),
+        "sensitivity.cross_coupling_sensitivity": Call(sensitivity.cross_coupling_sensitivity, dict(
+            ratios=(0.013, 0.1), speed_rpm=[3000.0, 4000.0, 5000.0], resolution=None, trials=1, seed=0,
+            imbalances="ABCD", rig=None, at="bearings", definition="rms"), extras=values),
+        "sensitivity.speed_range_errors": Call(sensitivity.speed_range_errors, dict(
+            ratios=(0.013, 0.1), speed_rpm=[1000.0, 3000.0, 4000.0, 5000.0], resolution=None, trials=1, seed=0,
+            imbalances="ABCD", rig=None, at="bearings", definition="rms", bands=None), extras=values),
     }
 
 
 OWNED_NAMES = [
     "BearingCoefficients", "Identification.interval", "Imbalance", "ImpactResponse", "ProbeResolution", "Recording",
     "Recording.segment", "RigidRotor", "SegmentedRecording", "SegmentedRecording.from_arrays", "SyncResponse",
-    "bearings_to_probes", "config.load_config", "config.parse_config", "critical_speeds", "demo.impact",
-    "demo.synchronous", "example.copy_example", "half_sine_pulse", "identify_impact", "identify_synchronous",
-    "identify_synchronous_batch", "imbalance_chain", "imbalance_response", "impact_chain", "impact_frf",
+    "bearings_to_probes", "config.load_config", "config.parse_config", "critical_speeds", "demo.cross_coupling",
+    "demo.impact", "demo.synchronous", "example.copy_example", "half_sine_pulse", "identify_impact",
+    "identify_synchronous", "identify_synchronous_batch", "imbalance_chain", "imbalance_response", "impact_chain", "impact_frf",
     "impact_segments", "impact_time_response", "impact_vector", "modal_analysis", "plot.bode", "plot.campbell",
-    "plot.coefficients", "probes_to_bearings", "run_config", "units.factor", "units.from_si", "units.quantity_of",
-    "units.to_si"]
+    "plot.coefficients", "probes_to_bearings", "run_config", "sensitivity.cross_coupling_ratio",
+    "sensitivity.cross_coupling_sensitivity", "sensitivity.scale_cross_coupling", "sensitivity.speed_range_errors",
+    "units.factor", "units.from_si", "units.quantity_of", "units.to_si"]
 
 
 def test_the_sweeps_list_every_call(tmp_path):

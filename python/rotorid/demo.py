@@ -126,6 +126,9 @@ def synchronous(out: str, *, step_rpm: float = 50.0, resolution: ProbeResolution
     bands.to_csv(os.path.join(out, "figure4_band_errors.csv"), index=False, float_format="%.4g")
     files.append(os.path.join(out, "figure4_band_errors.csv"))
 
+    fig5 = cross_coupling(out, speed_rpm=rpm, resolution=res, log=log)
+    files += fig5["files"]
+
     log("Table 5 - critical speeds of the NSF rig (damping ratio = -Re/Im = log decrement / 2 pi):")
     for _, r in cs.iterrows():
         log(f"  {r.speed_rpm:7.0f} cpm ({r.freq_hz:6.1f} Hz, {r.whirl:8s})  zeta {r.damping_ratio_wd:.3f}   "
@@ -137,7 +140,69 @@ def synchronous(out: str, *, step_rpm: float = 50.0, resolution: ProbeResolution
         log("    " + bands_exact.to_string(index=False).replace("\n", "\n    "))
         log("  measured responses:")
         log("    " + bands.to_string(index=False).replace("\n", "\n    "))
-    return dict(critical_speeds=cs, exact=exact, measured=ident, band_errors=bands, files=files)
+    log(fig5["summary"])
+    return dict(critical_speeds=cs, exact=exact, measured=ident, band_errors=bands,
+                cross_coupling=fig5["sensitivity"], speed_bands=fig5["speed_bands"], files=files)
+
+
+#: trials of the Figure 5 study when the measurement model adds noise (rounding alone is deterministic)
+FIG5_NOISE_TRIALS = 5
+_FIG5_LINES = (("xy1", "Kxy, bearing 1", "tab:blue", "o"), ("xy2", "Kxy, bearing 2", "tab:orange", "s"),
+               ("yx1", "Kyx, bearing 1", "tab:green", "^"), ("yx2", "Kyx, bearing 2", "tab:red", "v"))
+
+
+def cross_coupling(out: str, *, speed_rpm, resolution: ProbeResolution | None = None, log=print):
+    """Report Figure 5: error of the identified cross-coupled stiffnesses vs the ratio a (eq. 20-22),
+    and the median errors in speed bands scaled by the first critical speed.
+
+    Writes ``figure5_cross_coupling.png``/``.csv`` and ``figure5_speed_bands.csv`` to ``out``; the
+    study itself is :mod:`rotorid.studies.sensitivity`. Returns dict(sensitivity, speed_bands,
+    files, summary)."""
+    from .studies.sensitivity import cross_coupling_sensitivity, speed_range_errors
+
+    _validate.instance("resolution", resolution, ProbeResolution, allow_none=True, what="rotorid.ProbeResolution")
+    log = _log(log)
+    out = _out_dir(out)
+    res = resolution if resolution is not None else ProbeResolution()
+    trials = FIG5_NOISE_TRIALS if res.noise_m > 0 else 1
+    sens = cross_coupling_sensitivity(speed_rpm=speed_rpm, resolution=res, trials=trials, seed=2001)
+    bands = speed_range_errors(speed_rpm=speed_rpm, resolution=res, trials=trials, seed=2001)
+    files = []
+    p = os.path.join(out, "figure5_cross_coupling.csv")
+    sens.to_csv(p, index=False, float_format="%.6g")
+    files.append(p)
+    p = os.path.join(out, "figure5_speed_bands.csv")
+    bands.to_csv(p, index=False, float_format="%.6g")
+    files.append(p)
+
+    plt = plot._plt()
+    fig, ax = plt.subplots(figsize=(8, 5.5))
+    n, n_hi, cut = int(sens.n.iloc[0]), int(sens.n_above.iloc[0]), sens.attrs["cutoff_rpm"]
+    for key, label, color, marker in _FIG5_LINES:
+        ax.plot(100 * sens.a, 100 * sens[f"E_{key}"], color=color, marker=marker,
+                label=f"{label}: all speeds (n = {n})")
+        ax.plot(100 * sens.a, 100 * sens[f"E_{key}_above"], color=color, marker=marker, ls="--", mfc="none",
+                label=f"{label}: speeds ≥ {cut:.0f} rpm (n = {n_hi})")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("Cross-coupled to direct stiffness ratio a (%), eq. 20")
+    ax.set_ylabel("Total relative error E (%), eq. 21-22")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7, ncol=2)
+    ax.set_title(f"Figure 5: identification of the cross-coupled stiffnesses vs a (sets A-D; 1X vectors rounded to "
+                 f"{res.amplitude_m * 1e6:.4g} µm and {res.phase_deg:g}°"
+                 + (f", noise {res.noise_m * 1e6:g} µm, {trials} trials" if res.noise_m else "") + ")", fontsize=9)
+    p = os.path.join(out, "figure5_cross_coupling.png")
+    plot.finish(fig, p)
+    files.append(p)
+
+    def worst(row, suffix):
+        return 100 * max(row[f"E_{k[0]}{suffix}"] for k in _FIG5_LINES)
+
+    parts = ", ".join(f"{100 * r.a:g} %: {worst(r, ''):.3g} % ({worst(r, '_above'):.3g} %)" for _, r in sens.iterrows())
+    summary = (f"Figure 5 - largest E of Kxy1, Kxy2, Kyx1, Kyx2 (eq. 21-22) over {n} speeds (over the {n_hi} at or "
+               f"above 0.6 of the first critical, {cut:.0f} rpm) by ratio a: {parts}")
+    return dict(sensitivity=sens, speed_bands=bands, files=files, summary=summary)
 
 
 def impact(out: str, *, speed_rpm: float = 1000.0, log=print):
