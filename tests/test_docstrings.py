@@ -7,7 +7,8 @@ import warnings
 import pytest
 
 MODULES = ["rotorid.signals.keyphasor", "rotorid.signals.order", "rotorid.identify", "rotorid.kcm",
-           "rotorid.phasecal", "rotorid.config", "rotorid.tables", "rotorid.io"]
+           "rotorid.phasecal", "rotorid.config", "rotorid.tables", "rotorid.io", "rotorid.studies.errors",
+           "rotorid.studies.monte_carlo", "rotorid.studies.sensitivity"]
 
 
 @pytest.mark.parametrize("name", MODULES)
