@@ -24,7 +24,8 @@ from .errors import ImpactErrors, SyncErrors
 
 #: trials per core call; a fixed size, so that the sums merge in the same order on any machine
 TRIAL_BLOCK = 1024
-#: points per core call (the histograms of one call: POINT_BLOCK x 16 x 1024 x 4 bytes = 32 MB)
+#: points per core call (the histograms of one call: POINT_BLOCK x 16 x 1024 x 4 bytes = 32 MB per
+#: worker); the points are processed one range after the other
 POINT_BLOCK = 512
 #: at most this many trials (a study of more is a mistake, not a plan)
 MAX_TRIALS = 10 ** 9
@@ -53,10 +54,10 @@ class _Spec:
     method: str
     seed: int
 
-    def accumulate(self, t0, t1, p0, p1):
+    def accumulate(self, t0, t1, p0, p1, counts=None):
         return _core.study_accumulate(self.rotor_params, self.w, self.kb, self.cb, self.probes_z, self.planes_z,
                                       self.errors, t0, t1, p0, p1, u=self.u, dirs=self.dirs, spin=self.spin,
-                                      method=self.method, seed=self.seed)
+                                      method=self.method, seed=self.seed, counts=counts)
 
     def realize(self, t0, t1):
         return _core.study_realize(self.rotor_params, self.w, self.kb, self.cb, self.probes_z, self.planes_z,
@@ -250,83 +251,123 @@ def _client(client):
 
 
 def _tasks(trials, n):
+    """The study's tasks, (t0, t1, p0, p1): point ranges of POINT_BLOCK, each cut into trial blocks
+    of TRIAL_BLOCK (the merge order of the sums)."""
     return [(t0, min(t0 + TRIAL_BLOCK, trials), p0, min(p0 + POINT_BLOCK, n))
             for p0 in range(0, n, POINT_BLOCK) for t0 in range(0, trials, TRIAL_BLOCK)]
 
 
-def _execute(spec: _Spec, trials: int, progress: bool, client, what: str):
-    """Run every task and merge in task order: counts (n, 16, BINS) uint32, finite, nonfinite,
-    sum, sumsq."""
+#: local worker threads (None: one per CPU); each adds its tasks' counts into its own array
+LOCAL_WORKERS = None
+
+
+def _execute(spec: _Spec, trials: int, progress: bool, client, what: str, percentiles, keep_histograms):
+    """Run every task, one point range after the other, and merge: percentiles (P, n, 16) read
+    from the merged histograms of each range, counts (n, 16, BINS) uint32 if kept (else None),
+    finite, nonfinite, sum, sumsq (n, 16). The counts are integers (merged in any order); the
+    sums are merged in task order, so the result is the same on any number of threads or workers.
+    Memory: the histograms of one point range per worker, whatever the trial count."""
     import concurrent.futures as cf
     import os
+    import threading
 
     n = spec.w.size
-    tasks = _tasks(trials, n)
-    counts = np.zeros((n, 16, _core.STUDY_BINS), np.uint32)
+    bins = _core.STUDY_BINS
+    pct = np.full((len(percentiles), n, 16), np.nan)
+    counts_all = np.zeros((n, 16, bins), np.uint32) if keep_histograms else None
     finite = np.zeros((n, 16), np.int64)
     nonfinite = np.zeros((n, 16), np.int64)
     s1 = np.zeros((n, 16))
     s2 = np.zeros((n, 16))
     bar = _Progress(trials * n, progress, what)
+    cl = _client(client)
+    ranges = [(p0, min(p0 + POINT_BLOCK, n)) for p0 in range(0, n, POINT_BLOCK)]
+    blocks = [(t0, min(t0 + TRIAL_BLOCK, trials)) for t0 in range(0, trials, TRIAL_BLOCK)]
 
-    def merge(task, res):
-        t0, t1, p0, p1 = task
-        c, f, nf, a, b = res
-        counts[p0:p1] += c
+    def merge_sums(p0, p1, t0, t1, f, nf, a, b):
         finite[p0:p1] += f
         nonfinite[p0:p1] += nf
         s1[p0:p1] += a
         s2[p0:p1] += b
         bar.step((t1 - t0) * (p1 - p0))
 
-    cl = _client(client)
-    if cl is None:
-        workers = max(1, min(len(tasks), os.cpu_count() or 1))
-        window = 2 * workers
-        with cf.ThreadPoolExecutor(workers) as ex:
-            pending = []
-            for task in tasks:
-                pending.append((task, ex.submit(_run_task, spec, *task)))
-                if len(pending) >= window:
-                    t, f = pending.pop(0)
-                    merge(t, f.result())
-            for t, f in pending:
-                merge(t, f.result())
-    else:
-        try:
-            workers = max(1, len(cl.scheduler_info(n_workers=-1).get("workers", {})))
-        except Exception:
-            workers = 1
-        window = 2 * workers
-        spec_f = cl.scatter(spec, broadcast=True)
-        pending = []
-        try:
-            for task in tasks:
-                pending.append((task, cl.submit(_run_task, spec_f, *task, pure=False)))
-                if len(pending) >= window:
-                    t, f = pending.pop(0)
-                    merge(t, f.result(timeout=3600))
-                    f.release()
-            for t, f in pending:
-                merge(t, f.result(timeout=3600))
+    for p0, p1 in ranges:
+        shape = (p1 - p0, 16, bins)
+        if cl is None:
+            accs, lock = {}, threading.Lock()
+
+            def task(t0, t1, p0=p0, p1=p1, shape=shape):
+                tid = threading.get_ident()
+                with lock:
+                    acc = accs.get(tid)
+                    if acc is None:
+                        acc = accs[tid] = np.zeros(shape, np.uint32)
+                return spec.accumulate(t0, t1, p0, p1, counts=acc)[1:]
+
+            workers = max(1, min(len(blocks), LOCAL_WORKERS or os.cpu_count() or 1))
+            with cf.ThreadPoolExecutor(workers) as ex:
+                pending = []
+                for t0, t1 in blocks:
+                    pending.append((t0, t1, ex.submit(task, t0, t1)))
+                    if len(pending) >= 2 * workers:
+                        a0, a1, f = pending.pop(0)
+                        merge_sums(p0, p1, a0, a1, *f.result())
+                for a0, a1, f in pending:
+                    merge_sums(p0, p1, a0, a1, *f.result())
+            counts = None
+            for acc in accs.values():
+                if counts is None:
+                    counts = acc
+                else:
+                    counts += acc
+        else:
+            counts = np.zeros(shape, np.uint32)
+
+            def merge(t0, t1, res):
+                counts[...] += res[0]
+                merge_sums(p0, p1, t0, t1, *res[1:])
+
+            _run_on_cluster(cl, spec, blocks, p0, p1, merge)
+        pct[:, p0:p1] = percentiles_from_counts(counts, percentiles)
+        if counts_all is not None:
+            counts_all[p0:p1] = counts
+    return pct, counts_all, finite, nonfinite, s1, s2
+
+
+def _run_on_cluster(cl, spec, blocks, p0, p1, merge):
+    """The trial blocks of one point range on a Dask cluster, merged in block order."""
+    try:
+        workers = max(1, len(cl.scheduler_info(n_workers=-1).get("workers", {})))
+    except Exception:
+        workers = 1
+    window = 2 * workers
+    spec_f = cl.scatter(spec, broadcast=True)
+    pending = []
+    try:
+        for t0, t1 in blocks:
+            pending.append((t0, t1, cl.submit(_run_task, spec_f, t0, t1, p0, p1, pure=False)))
+            if len(pending) >= window:
+                a0, a1, f = pending.pop(0)
+                merge(a0, a1, f.result(timeout=3600))
                 f.release()
-        except RotoridError:
-            raise
-        except Exception as exc:
-            raise RotoridError(f"the Dask cluster failed to run the study: {type(exc).__name__}: {exc}") from None
-    return counts, finite, nonfinite, s1, s2
+        for a0, a1, f in pending:
+            merge(a0, a1, f.result(timeout=3600))
+            f.release()
+    except RotoridError:
+        raise
+    except Exception as exc:
+        raise RotoridError(f"the Dask cluster failed to run the study: {type(exc).__name__}: {exc}") from None
 
 
-def _summarize(kind, axis_name, axis, trials, seed, errors, method, runs, percentiles, keep_histograms, merged):
-    counts, finite, nonfinite, s1, s2 = merged
+def _summarize(kind, axis_name, axis, trials, seed, errors, method, runs, percentiles, merged):
+    pct, counts, finite, nonfinite, s1, s2 = merged
     with np.errstate(invalid="ignore", divide="ignore"):
         mean = np.where(finite > 0, s1 / np.maximum(finite, 1), np.nan)
         rms = np.where(finite > 0, np.sqrt(s2 / np.maximum(finite, 1)), np.nan)
     singular = nonfinite / np.maximum(finite + nonfinite, 1)
-    pct = percentiles_from_counts(counts, percentiles)
     return StudyResult(kind=kind, axis_name=axis_name, axis=axis, trials=trials, seed=seed, errors=errors,
                        percentiles=percentiles, pct=pct, mean=mean, rms=rms, singular=singular, method=method,
-                       runs=tuple(runs), counts=counts if keep_histograms else None)
+                       runs=tuple(runs), counts=counts)
 
 
 # --------------------------------------------------------------------------------------------
@@ -489,9 +530,8 @@ def synchronous_study(rotor: RigidRotor, bearings: BearingCoefficients, imbalanc
     spec = _Spec(kind="imbalance", rotor_params=rotor.core_params(), w=rpm * RPM, kb=kb, cb=cb, probes_z=probes_z,
                  planes_z=np.array([-rotor.d[0], rotor.d[1]]), errors=errors.core_array(), u=u, dirs=None, spin=0.0,
                  method=method, seed=seed)
-    merged = _execute(spec, trials, progress, client, "synchronous study")
-    res = _summarize("synchronous", "speed_rpm", rpm, trials, seed, errors, method, labels, percentiles,
-                     keep_histograms, merged)
+    merged = _execute(spec, trials, progress, client, "synchronous study", percentiles, keep_histograms)
+    res = _summarize("synchronous", "speed_rpm", rpm, trials, seed, errors, method, labels, percentiles, merged)
     if coverage_trials:
         res.coverage = _sync_coverage(spec, rotor, imbalances, rpm, errors, at, method, coverage_trials, level,
                                       _report_truth(kb, cb))
@@ -565,10 +605,9 @@ def impact_study(rotor: RigidRotor, bearings: BearingCoefficients, tests, freq_h
     spec = _Spec(kind="impact", rotor_params=rotor.core_params(), w=2 * np.pi * f, kb=kb, cb=cb, probes_z=probes_z,
                  planes_z=np.array(planes, float), errors=errors.core_array(), u=None,
                  dirs=np.array(dirs, np.uint8), spin=spin_rpm * RPM, method=method, seed=seed)
-    merged = _execute(spec, trials, progress, client, "impact study")
+    merged = _execute(spec, trials, progress, client, "impact study", percentiles, keep_histograms)
     labels = [f"{'xy'[d]} at {p:g} m" for p, d in zip(planes, dirs)]
-    res = _summarize("impact", "freq_hz", f, trials, seed, errors, method, labels, percentiles, keep_histograms,
-                     merged)
+    res = _summarize("impact", "freq_hz", f, trials, seed, errors, method, labels, percentiles, merged)
     if coverage_trials:
         res.coverage = _impact_coverage(spec, rotor, f, spin_rpm, planes, dirs, errors, at, method, coverage_trials,
                                         level, _report_truth(kb, cb))

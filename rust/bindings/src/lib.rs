@@ -670,7 +670,7 @@ type Stats<'py> = (
 /// (np, 16)). Imbalance: u (runs, 2) complex, planes_z (2,), errors (9,); impacts: dirs (runs,)
 /// u8, planes_z (runs,), spin, errors (5,).
 #[pyfunction]
-#[pyo3(signature = (rotor, w, kb, cb, probes_z, planes_z, errors, t0, t1, p0, p1, *, u=None, dirs=None, spin=0.0, method="forces", seed=0))]
+#[pyo3(signature = (rotor, w, kb, cb, probes_z, planes_z, errors, t0, t1, p0, p1, *, u=None, dirs=None, spin=0.0, method="forces", seed=0, counts=None))]
 #[allow(clippy::too_many_arguments)]
 fn study_accumulate<'py>(
     py: Python<'py>,
@@ -690,20 +690,42 @@ fn study_accumulate<'py>(
     spin: f64,
     method: &str,
     seed: u64,
+    counts: Option<Bound<'py, PyArrayDyn<u32>>>,
 ) -> PyResult<Stats<'py>> {
     let args = study_args(rotor, w, kb, cb, probes_z, u, planes_z, dirs, spin, errors, method, seed)?;
     let s = args.study()?;
     let np = p1.saturating_sub(p0);
-    check_alloc("study", np.checked_mul(study::NCOEF * (study::BINS + 6)), 4)?;
-    let st = py.detach(|| guarded(|| study::accumulate(&s, t0, t1, p0, p1)))?.map_err(core_err)?;
     let m = [np, study::NCOEF];
-    Ok((
-        to_py(py, st.counts, &[np, study::NCOEF, study::BINS])?,
-        to_py(py, st.finite, &m)?,
-        to_py(py, st.nonfinite, &m)?,
-        to_py(py, st.sum, &m)?,
-        to_py(py, st.sumsq, &m)?,
-    ))
+    match counts {
+        // add into the caller's running counts (no allocation per call); the rest is fresh
+        Some(arr) => {
+            let mut rw = arr.try_readwrite().map_err(|_| PyValueError::new_err("counts must be a writable array not in use elsewhere"))?;
+            check_shape("counts", rw.shape(), &[np, study::NCOEF, study::BINS])?;
+            let cs = rw.as_slice_mut().map_err(|_| PyValueError::new_err("counts must be a C-contiguous uint32 array"))?;
+            check_alloc("study", np.checked_mul(study::NCOEF * 6), 4)?;
+            let (mut fin, mut nonf, mut sm, mut sq) = (vec![0u32; np * 16], vec![0u32; np * 16], vec![0.0; np * 16], vec![0.0; np * 16]);
+            py.detach(|| {
+                guarded(|| {
+                    let out = study::StatsMut { counts: cs, finite: &mut fin, nonfinite: &mut nonf, sum: &mut sm, sumsq: &mut sq };
+                    study::accumulate_into(&s, t0, t1, p0, p1, out)
+                })
+            })?
+            .map_err(core_err)?;
+            drop(rw);
+            Ok((arr, to_py(py, fin, &m)?, to_py(py, nonf, &m)?, to_py(py, sm, &m)?, to_py(py, sq, &m)?))
+        }
+        None => {
+            check_alloc("study", np.checked_mul(study::NCOEF * (study::BINS + 6)), 4)?;
+            let st = py.detach(|| guarded(|| study::accumulate(&s, t0, t1, p0, p1)))?.map_err(core_err)?;
+            Ok((
+                to_py(py, st.counts, &[np, study::NCOEF, study::BINS])?,
+                to_py(py, st.finite, &m)?,
+                to_py(py, st.nonfinite, &m)?,
+                to_py(py, st.sum, &m)?,
+                to_py(py, st.sumsq, &m)?,
+            ))
+        }
+    }
 }
 
 /// The measured values of trials t0..t1 of a study, before identification: (q (trials, runs,

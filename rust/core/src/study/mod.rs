@@ -351,12 +351,14 @@ fn realize_block(s: &Study, ex: &Exact, d: &TrialDraws, trial: u64, p0: usize, n
                 sc.n2[..len].fill(0.0);
             }
             let (ph, kp) = (e.phase_rad / std::f64::consts::TAU, d.kp / std::f64::consts::TAU);
-            for k in 0..np {
-                for j in 0..per {
-                    let i = k * per + j;
-                    sc.turns[i] = ph * sc.n2[i] + kp - w[k] * tau_turns[j % 4];
-                    sc.amp[i] = 1.0 + e.amplitude_rel * sc.n1[i];
+            for (k, (tr, n2)) in sc.turns[..len].chunks_exact_mut(per).zip(sc.n2[..len].chunks_exact(per)).enumerate() {
+                let off = tau_turns.map(|t| kp - w[k] * t);
+                for (j, (t, &nv)) in tr.iter_mut().zip(n2).enumerate() {
+                    *t = ph * nv + off[j & 3];
                 }
+            }
+            for (a, &nv) in sc.amp[..len].iter_mut().zip(&sc.n1[..len]) {
+                *a = 1.0 + e.amplitude_rel * nv;
             }
             if e.phase_rad > 0.0 || e.keyphasor_rad > 0.0 || e.delay_s > 0.0 {
                 fill_sincos(&sc.turns[..len], &mut sc.sin[..len], &mut sc.cos[..len]);
@@ -520,6 +522,24 @@ fn references(s: &Study, p: usize) -> ([f64; NCOEF], [f64; NCOEF]) {
 /// it draws the errors, builds the measured values, identifies, and adds the 16 relative errors
 /// to its points' statistics. Memory: the statistics and a few blocks, whatever the trial count.
 pub fn accumulate(s: &Study, t0: u64, t1: u64, p0: usize, p1: usize) -> Result<StudyStats, CoreError> {
+    let mut st = StudyStats::new(p1.saturating_sub(p0));
+    let StudyStats { counts, finite, nonfinite, sum, sumsq, .. } = &mut st;
+    accumulate_into(s, t0, t1, p0, p1, StatsMut { counts, finite, nonfinite, sum, sumsq })?;
+    Ok(st)
+}
+
+/// Statistics to add to, (points, 16[, BINS]) row-major (e.g. a caller's running totals: the
+/// counts of many calls can go into one array without a new allocation per call).
+pub struct StatsMut<'a> {
+    pub counts: &'a mut [u32],
+    pub finite: &'a mut [u32],
+    pub nonfinite: &'a mut [u32],
+    pub sum: &'a mut [f64],
+    pub sumsq: &'a mut [f64],
+}
+
+/// [`accumulate`] adding into existing statistics of the points `p0..p1`.
+pub fn accumulate_into(s: &Study, t0: u64, t1: u64, p0: usize, p1: usize, out: StatsMut) -> Result<(), CoreError> {
     s.check()?;
     if t1 < t0 {
         return Err(CoreError::value("trials", "end before start"));
@@ -529,13 +549,17 @@ pub fn accumulate(s: &Study, t0: u64, t1: u64, p0: usize, p1: usize) -> Result<S
         return Err(CoreError::value("points", format!("range {p0}..{p1} must be non-empty and within 0..{n}")));
     }
     let np = p1 - p0;
-    product("statistics", &[np, NCOEF, BINS])?;
-    let mut st = StudyStats::new(np);
+    expect_len("counts", out.counts, product("counts", &[np, NCOEF, BINS])?)?;
+    for (name, len) in [("finite", out.finite.len()), ("nonfinite", out.nonfinite.len()), ("sum", out.sum.len()), ("sumsq", out.sumsq.len())] {
+        if len != np * NCOEF {
+            return Err(CoreError::length(name, len, (np * NCOEF).to_string()));
+        }
+    }
     let ex = exact_responses(s)?;
     let e_nom = nominal_excitation(s);
     let (hist_blk, rest) = (POINT_BLOCK * NCOEF * BINS, POINT_BLOCK * NCOEF);
-    let StudyStats { counts, finite, nonfinite, sum, sumsq, .. } = &mut st;
-    let res: Result<(), CoreError> = counts
+    let StatsMut { counts, finite, nonfinite, sum, sumsq } = out;
+    counts
         .par_chunks_mut(hist_blk)
         .zip(finite.par_chunks_mut(rest))
         .zip(nonfinite.par_chunks_mut(rest))
@@ -545,9 +569,7 @@ pub fn accumulate(s: &Study, t0: u64, t1: u64, p0: usize, p1: usize) -> Result<S
         .try_for_each(|(b, ((((cnt, fin), nonf), sm), sq))| {
             let blk = BlockOut { counts: cnt, finite: fin, nonfinite: nonf, sum: sm, sumsq: sq };
             run_block_dispatch(s, &ex, &e_nom, t0, t1, p0 + b * POINT_BLOCK, blk)
-        });
-    res?;
-    Ok(st)
+        })
 }
 
 /// Statistics of one block of points.
@@ -619,7 +641,9 @@ fn run_block(s: &Study, ex: &Exact, e_nom: &[C64], t0: u64, t1: u64, bp0: usize,
         stats::add_block(&errs, &bins, &mut hist, HIST_STRIDE, out.finite, out.nonfinite, out.sum, out.sumsq);
     }
     for (dst, src) in out.counts.chunks_exact_mut(BINS).zip(hist.chunks_exact(HIST_STRIDE)) {
-        dst.copy_from_slice(&src[..BINS]);
+        for (d, v) in dst.iter_mut().zip(&src[..BINS]) {
+            *d += v;
+        }
     }
     Ok(())
 }
