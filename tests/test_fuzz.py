@@ -650,11 +650,25 @@ def _nan_in_nan_out(out, kw):
     assert np.all(np.isfinite(out) | ~np.isfinite(np.asarray(kw["value"], float)))
 
 
+def _study_finite(out, kw):
+    """A study's percentiles, mean and rms are finite wherever some trial gave a finite estimate
+    (NaN is documented only for points where every trial was singular)."""
+    some = out.singular < 1
+    for name in ("pct", "mean", "rms"):
+        v = getattr(out, name)
+        assert np.all(np.isfinite(v[..., some])), name
+
+
+def _no_check(out, kw):
+    """Objects (error models, designs): built or refused; their numbers are checked elsewhere."""
+
+
 def _owned_calls(tmp):
     import matplotlib
 
     matplotlib.use("Agg")
     from rotorid import config, demo, example, pipeline, plot, units
+    from rotorid import studies
     from rotorid.studies import sensitivity
 
     rig = rotorid.nsf_rig()
@@ -767,6 +781,35 @@ def _owned_calls(tmp):
         "demo.cross_coupling": Call(demo.cross_coupling, dict(out=str(tmp / "demo5"), speed_rpm=[3000.0, 4000.0],
                                                               resolution=None, log=lambda *a: None),
                                     args=["out", "speed_rpm", "resolution"]),
+        "studies.synchronous_study": Call(studies.synchronous_study, dict(
+            rotor=rotor, bearings=brg, imbalances=[rig.imbalances[s] for s in "AB"], speed_rpm=[4000.0, 5000.0],
+            errors=studies.SyncErrors(phase_deg=0.1), trials=4, seed=0, at="probes", method="forces",
+            percentiles=(5.0, 50.0, 95.0), coverage_trials=1, level=0.95, client=None, progress=False,
+            keep_histograms=False), nan_ok=True, check=_study_finite),
+        "studies.impact_study": Call(studies.impact_study, dict(
+            rotor=rotor, bearings=brg, tests=[(0.0, "x"), (0.0, "y")], freq_hz=[30.0, 60.0],
+            errors=studies.ImpactErrors(coherence=0.98, impacts=3), speed_rpm=1000.0, trials=4, seed=0, at="probes",
+            method="forces", percentiles=(5.0, 95.0), coverage_trials=1, level=0.9, client=None, progress=False,
+            keep_histograms=False), nan_ok=True, check=_study_finite),
+        "studies.SyncErrors": Call(studies.SyncErrors, dict(
+            amplitude_rel=0.01, phase_deg=0.1, noise_m=1e-8, keyphasor_deg=0.1, channel_delay_s=1e-6,
+            probe_position_m=1e-4, trial_mass_rel=0.01, trial_angle_deg=0.5, speed_rel=0.001), check=_no_check),
+        "studies.ImpactErrors": Call(studies.ImpactErrors, dict(
+            coherence=0.95, impacts=5, force_calibration_rel=0.01, impact_position_m=1e-3, channel_delay_s=1e-6,
+            probe_position_m=1e-4), check=_no_check),
+        "studies.frf_random_error": Call(studies.frf_random_error, dict(coherence=0.9, impacts=4)),
+        "studies.dwell_noise_m": Call(studies.dwell_noise_m, dict(probe_noise_m=1e-6, dwell_s=2.0, fs_hz=5000.0)),
+        "studies.percentiles_from_counts": Call(studies.percentiles_from_counts, dict(
+            counts=np.ones((2, 16, 1024), np.uint32), percentiles=(5.0, 50.0))),
+        "studies.TrialMassRig": Call(studies.TrialMassRig, dict(holes=4, masses_kg=(0.003,), max_response_m=1e-3),
+                                     check=_no_check),
+        "studies.design_trial_masses": Call(studies.design_trial_masses, dict(
+            rotor=rotor, bearings=brg, rig=studies.TrialMassRig(holes=2, masses_kg=(0.004,)), speed_rpm=[4000.0, 5000.0],
+            dwell_s=1.0, probe_noise_m=1e-7, fs_hz=2000.0, errors=None, runs=(2,), screen_keep=1, trials=4, seed=0,
+            at="probes", compare=None), check=_no_check),
+        "studies.design_impact_plan": Call(studies.design_impact_plan, dict(
+            rotor=rotor, bearings=brg, planes_m=[0.0], freq_hz=[40.0, 80.0], speed_rpm=1000.0, impacts_total=4,
+            coherence=0.95, errors=None, tests=(2,), trials=4, seed=0, at="probes", compare=None), check=_no_check),
         "sensitivity.cross_coupling_ratio": Call(sensitivity.cross_coupling_ratio, dict(bearings=brg, definition="rms"),
                                                  extras=values),
         "sensitivity.scale_cross_coupling": Call(sensitivity.scale_cross_coupling, dict(
@@ -785,11 +828,14 @@ OWNED_NAMES = [
     "Recording.segment", "RigidRotor", "SegmentedRecording", "SegmentedRecording.from_arrays", "SyncResponse",
     "bearings_to_probes", "config.load_config", "config.parse_config", "critical_speeds", "demo.cross_coupling",
     "demo.impact", "demo.synchronous", "example.copy_example", "half_sine_pulse", "identify_impact",
-    "identify_synchronous", "identify_synchronous_batch", "imbalance_chain", "imbalance_response", "impact_chain", "impact_frf",
-    "impact_segments", "impact_time_response", "impact_vector", "modal_analysis", "plot.bode", "plot.campbell",
-    "plot.coefficients", "probes_to_bearings", "run_config", "sensitivity.cross_coupling_ratio",
+    "identify_synchronous", "identify_synchronous_batch", "imbalance_chain", "imbalance_response", "impact_chain",
+    "impact_frf", "impact_segments", "impact_time_response", "impact_vector", "modal_analysis", "plot.bode",
+    "plot.campbell", "plot.coefficients", "probes_to_bearings", "run_config", "sensitivity.cross_coupling_ratio",
     "sensitivity.cross_coupling_sensitivity", "sensitivity.scale_cross_coupling", "sensitivity.speed_range_errors",
-    "units.factor", "units.from_si", "units.quantity_of", "units.to_si"]
+    "studies.ImpactErrors", "studies.SyncErrors", "studies.TrialMassRig", "studies.design_impact_plan",
+    "studies.design_trial_masses", "studies.dwell_noise_m", "studies.frf_random_error", "studies.impact_study",
+    "studies.percentiles_from_counts", "studies.synchronous_study", "units.factor", "units.from_si",
+    "units.quantity_of", "units.to_si"]
 
 
 def test_the_sweeps_list_every_call(tmp_path):

@@ -26,12 +26,13 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .._validate import index, instance, number, real_array
+from .._validate import choice, index, instance, mapping, number, real_array
+from .._validate import seed as check_seed
 from ..errors import RotoridError
 from ..model import BearingCoefficients, Imbalance, RigidRotor
 from ..simulate import RPM, _check_model
-from .errors import ImpactErrors, SyncErrors
-from .monte_carlo import StudyResult, impact_study, synchronous_study
+from .errors import ImpactErrors, SyncErrors, frf_random_error
+from .monte_carlo import StudyResult, _check_range, impact_study, synchronous_study
 
 
 def dwell_noise_m(probe_noise_m: float, dwell_s: float, fs_hz: float) -> float:
@@ -94,6 +95,19 @@ class TrialMassRig:
             for a in self.angles_deg():
                 out.append(Imbalance((m1, m2), (0.0, float(a))))
         return [replace(r, name=_describe(r)) for r in out]
+
+
+def _sizes(name, value):
+    """Set sizes to consider: 2 and/or 3."""
+    if isinstance(value, (bool, np.bool_, str, bytes)) or value is None:
+        raise RotoridError(f"{name} must be 2, 3 or a list of them, got {value!r}")
+    try:
+        vals = np.atleast_1d(np.asarray(value, dtype=object)).ravel().tolist()
+    except Exception:
+        raise RotoridError(f"{name} must be 2, 3 or a list of them, got {value!r}") from None
+    if not vals:
+        raise RotoridError(f"{name} must be 2, 3 or a list of them, got {value!r}")
+    return tuple(sorted({index(name, v, 2, 3) for v in vals}))
 
 
 def _describe(imb: Imbalance) -> str:
@@ -206,7 +220,7 @@ def _screen(rotor, runs, unit, rpm, noise, amp_rel, phase_rad, size, at):
 def design_trial_masses(rotor: RigidRotor, bearings: BearingCoefficients, rig: TrialMassRig, speed_rpm, *,
                         dwell_s: float = 2.0, probe_noise_m: float = 0.5e-6, fs_hz: float = 5000.0,
                         errors: SyncErrors | None = None, runs=(2, 3), screen_keep: int = 20, trials: int = 200,
-                        seed: int = 0, at: str = "probes", compare=None, progress: bool = False) -> DesignResult:
+                        seed: int = 0, at: str = "probes", compare=None) -> DesignResult:
     """Rank trial-mass sets for an imbalance test on ``rig`` and recommend the best pair and triple.
 
     Parameters
@@ -253,11 +267,18 @@ def design_trial_masses(rotor: RigidRotor, bearings: BearingCoefficients, rig: T
     errors = SyncErrors() if errors is None else instance("errors", errors, SyncErrors,
                                                          what="rotorid.studies.SyncErrors")
     rpm = real_array("speed_rpm", np.atleast_1d(speed_rpm), ndim=1, positive=True)
-    if rpm.size > 2000:
-        raise RotoridError(f"speed_rpm has {rpm.size} speeds; a design needs a few dozen (at most 2000)")
-    sizes = tuple(sorted(set(int(index("runs", s, 2, 3)) for s in np.atleast_1d(runs))))
+    if not 0 < rpm.size <= 2000:
+        raise RotoridError(f"speed_rpm has {rpm.size} speeds; a design needs a few dozen (1 to 2000)")
+    _check_range("speed_rpm", rpm, 1e-3, 1e6, "rpm")
+    sizes = _sizes("runs", runs)
     screen_keep = index("screen_keep", screen_keep, 1, 1000)
     trials = index("trials", trials, 1, 100_000)
+    seed = check_seed("seed", seed)
+    choice("at", at, {"bearings", "probes"})
+    compare = mapping("compare", compare)
+    for name, design in compare.items():
+        if not isinstance(design, (list, tuple)) or not all(isinstance(r, Imbalance) for r in design):
+            raise RotoridError(f"compare[{name!r}] must be a list of rotorid.Imbalance")
     noise = float(np.hypot(errors.noise_m, dwell_noise_m(probe_noise_m, dwell_s, fs_hz)))
     errs = replace(errors, noise_m=noise)
     cands = rig.runs()
@@ -289,9 +310,7 @@ def design_trial_masses(rotor: RigidRotor, bearings: BearingCoefficients, rig: T
         studies[f"recommended ({size} runs)"] = best_study
         nruns[f"recommended ({size} runs)"] = size
     ranking = pd.DataFrame(rows).sort_values(["runs", "expected_error"]).reset_index(drop=True)
-    for name, design in (compare or {}).items():
-        if not isinstance(design, (list, tuple)) or not all(isinstance(r, Imbalance) for r in design):
-            raise RotoridError(f"compare[{name!r}] must be a list of rotorid.Imbalance")
+    for name, design in compare.items():
         studies[name] = synchronous_study(rotor, bearings, list(design), rpm, errs, trials=trials, seed=seed, at=at)
         nruns[name] = len(design)
     comp_rows = [dict(design=name, runs=nruns[name], **expected_error(st, bearings)) for name, st in studies.items()]
@@ -327,8 +346,20 @@ def design_impact_plan(rotor: RigidRotor, bearings: BearingCoefficients, planes_
     impacts_total = index("impacts_total", impacts_total, 2, 100_000)
     base = ImpactErrors() if errors is None else instance("errors", errors, ImpactErrors,
                                                          what="rotorid.studies.ImpactErrors")
-    sizes = tuple(sorted(set(int(index("tests", s, 2, 3)) for s in np.atleast_1d(tests))))
+    sizes = _sizes("tests", tests)
     trials = index("trials", trials, 1, 100_000)
+    seed = check_seed("seed", seed)
+    choice("at", at, {"bearings", "probes"})
+    number("speed_rpm", speed_rpm, nonneg=True)
+    f = real_array("freq_hz", np.atleast_1d(freq_hz), ndim=1, positive=True)
+    if f.size == 0 or f.size > 2000:
+        raise RotoridError(f"freq_hz must hold 1 to 2000 frequencies, got {f.size}")
+    _check_range("freq_hz", f, 1e-4, 1e6, "Hz")
+    frf_random_error(coherence, 1)  # coherence checked before anything runs
+    compare = mapping("compare", compare)
+    for name, plan in compare.items():
+        if not isinstance(plan, (list, tuple)) or not plan:
+            raise RotoridError(f"compare[{name!r}] must be a list of (plane_m, direction) tests")
     options = [(float(p), d) for p in np.unique(planes) for d in ("x", "y")]
     rows, best, studies = [], {}, {}
     for size in sizes:
@@ -340,11 +371,7 @@ def design_impact_plan(rotor: RigidRotor, bearings: BearingCoefficients, planes_
         for plan in itertools.combinations(options, size):
             if len({d for _, d in plan}) < 2 and len({p for p, _ in plan}) < 2:
                 continue
-            try:
-                st = impact_study(rotor, bearings, list(plan), freq_hz, errs, speed_rpm=speed_rpm, trials=trials,
-                                  seed=seed, at=at)
-            except RotoridError:
-                continue
+            st = impact_study(rotor, bearings, list(plan), f, errs, speed_rpm=speed_rpm, trials=trials, seed=seed, at=at)
             ee = expected_error(st, bearings)
             name = " + ".join(f"{d} at {p * 1e3:g} mm" for p, d in plan)
             rows.append(dict(tests=size, impacts_per_test=per, design=name, expected_error=ee["all"],
@@ -355,10 +382,9 @@ def design_impact_plan(rotor: RigidRotor, bearings: BearingCoefficients, planes_
         raise RotoridError("no impact plan from these planes identifies the coefficients")
     ranking = pd.DataFrame(rows).sort_values(["tests", "expected_error"]).reset_index(drop=True)
     comp_rows = [dict(design=k, **expected_error(v, bearings)) for k, v in studies.items()]
-    for name, plan in (compare or {}).items():
+    for name, plan in compare.items():
         errs = replace(base, coherence=coherence, impacts=max(1, impacts_total // max(len(plan), 1)))
-        st = impact_study(rotor, bearings, list(plan), freq_hz, errs, speed_rpm=speed_rpm, trials=trials, seed=seed,
-                          at=at)
+        st = impact_study(rotor, bearings, list(plan), f, errs, speed_rpm=speed_rpm, trials=trials, seed=seed, at=at)
         studies[name] = st
         comp_rows.append(dict(design=name, **expected_error(st, bearings)))
     comparison = pd.DataFrame(comp_rows).rename(columns={"all": "expected_error"})

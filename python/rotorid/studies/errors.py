@@ -102,7 +102,11 @@ def frf_random_error(coherence: float, impacts: int) -> float:
     n = number("impacts", impacts, positive=True)
     if n != int(n) or n > 1e6:
         raise RotoridError(f"impacts must be a whole number of impacts per test (1 to 1e6), got {impacts!r}")
-    return float(np.sqrt((1 - g) / (2 * n * g)))
+    eps = float(np.sqrt((1 - g) / (2 * n * g)))
+    if not eps <= MAX_REL:
+        raise RotoridError(f"coherence {g:g} with {int(n)} impacts gives an FRF error of {eps:.3g} (relative): "
+                           "such FRFs carry no information (coherence too low)")
+    return eps
 
 
 @dataclass(frozen=True)

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import _core
+from .._corecall import core
 from .._validate import choice, index, instance, number, real_array, seed as check_seed
 from ..errors import IdentifiabilityError, RotoridError
 from ..model import REPORT_ORDER, BearingCoefficients, Imbalance, RigidRotor
@@ -55,12 +56,12 @@ class _Spec:
     seed: int
 
     def accumulate(self, t0, t1, p0, p1, counts=None):
-        return _core.study_accumulate(self.rotor_params, self.w, self.kb, self.cb, self.probes_z, self.planes_z,
+        return core.study_accumulate(self.rotor_params, self.w, self.kb, self.cb, self.probes_z, self.planes_z,
                                       self.errors, t0, t1, p0, p1, u=self.u, dirs=self.dirs, spin=self.spin,
                                       method=self.method, seed=self.seed, counts=counts)
 
     def realize(self, t0, t1):
-        return _core.study_realize(self.rotor_params, self.w, self.kb, self.cb, self.probes_z, self.planes_z,
+        return core.study_realize(self.rotor_params, self.w, self.kb, self.cb, self.probes_z, self.planes_z,
                                    self.errors, t0, t1, u=self.u, dirs=self.dirs, spin=self.spin, seed=self.seed)
 
 
@@ -191,6 +192,13 @@ def percentiles_from_counts(counts, percentiles) -> np.ndarray:
     rank, then linear interpolation inside it (the end bins, open on one side, give their finite
     edge). NaN where a histogram is empty."""
     edges = bin_edges()
+    counts = np.asarray(counts)
+    if counts.ndim < 1 or counts.shape[-1] != edges.size - 1 or counts.dtype.kind not in "iu":
+        raise RotoridError(f"counts must be integer histograms with {edges.size - 1} bins on the last axis "
+                           f"(rotorid.studies.bin_edges()), got {counts.dtype} {counts.shape}")
+    if counts.dtype.kind == "i" and counts.size and counts.min() < 0:
+        raise RotoridError("counts must be >= 0")
+    percentiles = _check_percentiles(percentiles)
     lo_e = edges[:-1].copy()
     hi_e = edges[1:].copy()
     lo_e[0] = hi_e[0]  # the open end bins: their finite edge
@@ -391,6 +399,12 @@ def _common(trials, seed, method, percentiles, coverage_trials, level, progress,
     return trials, seed, percentiles, coverage_trials, level
 
 
+def _check_range(name, a, lo, hi, unit):
+    if a.min() < lo or a.max() > hi:
+        raise RotoridError(f"{name} must be between {lo:g} and {hi:g} {unit}, got {a.min():g} to {a.max():g} "
+                           "(a unit error?)")
+
+
 def _probes_z(rotor, at):
     choice("at", at, {"bearings", "probes"})
     if at == "probes":
@@ -517,8 +531,9 @@ def synchronous_study(rotor: RigidRotor, bearings: BearingCoefficients, imbalanc
             isinstance(i, Imbalance) for i in imbalances):
         raise RotoridError("imbalances must be a list of two or more rotorid.Imbalance (one per run)")
     rpm = real_array("speed_rpm", np.atleast_1d(speed_rpm), ndim=1, positive=True)
-    if rpm.size > MAX_POINTS:
-        raise RotoridError(f"speed_rpm has {rpm.size} speeds, at most {MAX_POINTS} per study")
+    if not 0 < rpm.size <= MAX_POINTS:
+        raise RotoridError(f"speed_rpm has {rpm.size} speeds: 1 to {MAX_POINTS} per study")
+    _check_range("speed_rpm", rpm, 1e-3, 1e6, "rpm")
     from ..identify import check_imbalance_independence
 
     labels = [i.name or f"run {n}" for n, i in enumerate(imbalances)]
@@ -585,6 +600,8 @@ def impact_study(rotor: RigidRotor, bearings: BearingCoefficients, tests, freq_h
     trials, seed, percentiles, coverage_trials, level = _common(trials, seed, method, percentiles, coverage_trials,
                                                                 level, progress, keep_histograms)
     spin_rpm = number("speed_rpm", speed_rpm, nonneg=True)
+    if spin_rpm > 1e6:
+        raise RotoridError(f"speed_rpm = {spin_rpm:g} is beyond 1e6 rpm (a unit error?)")
     if not isinstance(tests, (list, tuple)) or len(tests) < 2:
         raise RotoridError("tests must be a list of two or more (plane_m, direction) pairs, e.g. [(0.0, 'x'), (0.0, 'y')]")
     planes, dirs = [], []
@@ -597,8 +614,9 @@ def impact_study(rotor: RigidRotor, bearings: BearingCoefficients, tests, freq_h
         raise IdentifiabilityError("the impact tests are all in one direction at one plane: they are not independent "
                                    "(impact in x and in y, or at two planes)")
     f = real_array("freq_hz", np.atleast_1d(freq_hz), ndim=1, positive=True)
-    if f.size > MAX_POINTS:
-        raise RotoridError(f"freq_hz has {f.size} frequencies, at most {MAX_POINTS} per study")
+    if not 0 < f.size <= MAX_POINTS:
+        raise RotoridError(f"freq_hz has {f.size} frequencies: 1 to {MAX_POINTS} per study")
+    _check_range("freq_hz", f, 1e-4, 1e6, "Hz")
     probes_z = _probes_z(rotor, at)
     n = f.size
     kb, cb = _core_coeffs(bearings, n, freq_hz=f, broadcast=False)
