@@ -8,7 +8,8 @@ import pytest
 
 MODULES = ["rotorid.signals.keyphasor", "rotorid.signals.order", "rotorid.identify", "rotorid.kcm",
            "rotorid.phasecal", "rotorid.config", "rotorid.tables", "rotorid.io", "rotorid.studies.errors",
-           "rotorid.studies.monte_carlo", "rotorid.studies.sensitivity"]
+           "rotorid.studies.monte_carlo", "rotorid.studies.sensitivity", "rotorid.studies.design",
+           "rotorid.studies.config", "rotorid.studies.run", "rotorid.studies.report"]
 
 
 @pytest.mark.parametrize("name", MODULES)

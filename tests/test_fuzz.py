@@ -53,7 +53,7 @@ def test_readers_fail_only_with_rotorid_errors(tmp_path, ext, data, cut, flip):
 
 
 @FUZZ
-@given(argv=st.lists(st.sampled_from(["demo", "identify", "imbalance", "impact", "example", "check", "--out",
+@given(argv=st.lists(st.sampled_from(["demo", "identify", "imbalance", "impact", "example", "check", "study", "--out",
                                       "--overwrite", "--step-rpm", "-1", "0", "nan", "x.toml", "/proc/x",
                                       "--noise-um", "1e309", ""]), max_size=5))
 def test_cli_never_tracebacks(tmp_path, capsys, monkeypatch, argv):

@@ -1,4 +1,5 @@
-"""Command line: ``rotorid demo --out DIR`` runs the report's numerical experiments on the NSF rig."""
+"""Command line: ``rotorid demo --out DIR`` runs the report's numerical experiments on the NSF rig;
+``identify``, ``check``, ``study`` and ``example`` work from TOML configs (docs/config.md)."""
 
 from __future__ import annotations
 
@@ -34,6 +35,13 @@ def main(argv=None):
                    "(stale ones are removed); without it such a folder is refused")
     c = sub.add_parser("check", help="validate a TOML config (keys, types, units, files) without processing anything")
     c.add_argument("config", help="TOML config file (every key: docs/config.md)")
+    s = sub.add_parser("study", help="Monte Carlo study of a test's accuracy (and trial-mass design) from a TOML config")
+    s.add_argument("config", help="study config (TOML; every key: docs/config.md, examples: rotorid example)")
+    s.add_argument("--out", default=None, help="output directory (default: [output] dir of the config)")
+    s.add_argument("--overwrite", action="store_true", help="replace the results of an earlier study in the folder")
+    s.add_argument("--trials", type=int, default=None, help="number of simulated tests (overrides the config)")
+    s.add_argument("--seed", type=int, default=None, help="seed of the random numbers (overrides the config)")
+    s.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
     e = sub.add_parser("example", help="write the bundled example data set (raw recordings + configs) to a directory")
     e.add_argument("--out", default="rotorid_example")
     e.add_argument("--overwrite", action="store_true", help="replace files of the example already in the folder")
@@ -48,11 +56,30 @@ def main(argv=None):
             print(f"rotorid: error: {exc}", file=sys.stderr)
             return 2
         return 0
+    if args.cmd == "study":
+        from .errors import RotoridError
+        from .studies.run import run_study_config
+
+        try:
+            run_study_config(args.config, out_dir=args.out, overwrite=args.overwrite, trials=args.trials,
+                             seed=args.seed, progress=not args.quiet)
+        except RotoridError as exc:
+            print(f"rotorid: error: {exc}", file=sys.stderr)
+            return 2
+        return 0
     if args.cmd == "check":
         from .config import load_config
         from .errors import RotoridError
 
         try:
+            from .config import read_toml
+            from .studies.config import is_study_config, parse_study_config
+
+            data, src, _ = read_toml(args.config)
+            if is_study_config(data):
+                scfg = parse_study_config(data, source=src)
+                print(f"{args.config}: valid ({scfg.study.kind} study{' with a test design' if scfg.design else ''})")
+                return 0
             cfg = load_config(args.config)
         except RotoridError as exc:
             print(f"rotorid: error: {exc}", file=sys.stderr)

@@ -1141,9 +1141,10 @@ def _is_model(tp) -> bool:
     return isinstance(tp, type) and issubclass(tp, BaseModel)
 
 
-def _type_at(loc):
-    """The declared type at a location (model class, list[...], dict[...], ...) or None."""
-    tp = Config
+def _type_at(loc, root=None):
+    """The declared type at a location (model class, list[...], dict[...], ...) or None, in the
+    schema ``root`` (default: the identification config)."""
+    tp = Config if root is None else root
     for el in loc:
         tp = _unwrap(tp)
         if _is_model(tp):
@@ -1220,7 +1221,7 @@ _TYPE_WANTS = {
 }
 
 
-def _message(e) -> str:
+def _message(e, root=None) -> str:
     typ, loc, ctx = e["type"], tuple(e["loc"]), e.get("ctx") or {}
     inp = e.get("input")
     if typ == "rotorid":
@@ -1232,7 +1233,7 @@ def _message(e) -> str:
         return _keyed(full, ctx["msg"])
     if typ == "extra_forbidden" and loc:
         parent, key = loc[:-1], loc[-1]
-        model = _type_at(parent)
+        model = _type_at(parent, root)
         allowed = list(_field_map(model)) if _is_model(model) else []
         hint = _suggest(str(key), allowed)
         if not parent:
@@ -1240,7 +1241,7 @@ def _message(e) -> str:
         return f"{_where(parent)} unknown key {str(key)!r}{hint}"
     if typ == "missing" and loc:
         parent, key = loc[:-1], loc[-1]
-        model = _type_at(parent)
+        model = _type_at(parent, root)
         f = _field_map(model).get(key) if _is_model(model) and isinstance(key, str) else None
         desc = f" ({f.description})" if f is not None and f.description else ""
         return _join(_where(parent), f"missing required key {str(key)!r}{desc}")
@@ -1250,7 +1251,7 @@ def _message(e) -> str:
         return _keyed(loc, f"must have {what} {n} entr{'y' if n == 1 else 'ies'}, got {ctx.get('actual_length')}")
     want = _TYPE_WANTS.get(typ)
     if want == "must be an array":
-        target = _type_at(loc)
+        target = _type_at(loc, root)
         if typing.get_origin(target) is list and _is_model(_unwrap(typing.get_args(target)[0])):
             name = ".".join(str(x) for x in loc if isinstance(x, str))
             want = f"must be an array of tables ([[{name}]])"
@@ -1260,7 +1261,9 @@ def _message(e) -> str:
     return _keyed(loc, f"{want}, got {_describe(inp)}")
 
 
-def _messages(exc: ValidationError) -> list:
+def _messages(exc: ValidationError, root=None) -> list:
+    """One line per problem of a failed validation against the schema ``root`` (default: the
+    identification config)."""
     errors = exc.errors(include_url=False)
     missing = {}  # several missing keys of one table -> one message
     for e in errors:
@@ -1275,7 +1278,7 @@ def _messages(exc: ValidationError) -> list:
                 keys = ", ".join(repr(str(k)) for k in missing[parent])
                 out.append(_one_line(_join(_where(parent), f"missing required keys {keys}")))
             continue
-        out.append(_one_line(_message(e)))
+        out.append(_one_line(_message(e, root)))
     return out
 
 
@@ -1402,42 +1405,11 @@ def parse_config(data, *, source="<config>", base_dir=".", check_files=False) ->
     return cfg
 
 
-def load_config(path, *, check_files=True) -> Config:
-    """Read, validate and check a TOML config file before any processing.
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-        The config file (UTF-8 TOML). Paths in it are relative to its folder.
-    check_files : bool
-        Check that every referenced recording (and keyphasor times file) exists (default True).
-
-    Returns
-    -------
-    Config
-
-    Raises
-    ------
-    ConfigError
-        One line, e.g. ``rig.toml: [imbalance.runs][0] file 'run_S0.tdms' not found (looked in
-        /lab/day1)``, for a missing, unreadable, non-UTF-8 or invalid TOML file and for every
-        problem :func:`parse_config` finds.
-
-    Examples
-    --------
-    >>> from pathlib import Path
-    >>> import rotorid
-    >>> from rotorid.config import load_config
-    >>> cfg = load_config(Path(rotorid.__file__).parent / "data" / "example" / "imbalance.toml")
-    >>> [r.name for r in cfg.imbalance.runs], cfg.imbalance.runs[0].mass_kg()
-    (['S0', 'C0', 'S90', 'C90'], (0.005, 0.005))
-    >>> cfg.channels_for(None)["Prox DE X"]["unit"], cfg.rotor().l1
-    ('mil', 0.189)
-    """
-    from ._validate import flag
+def read_toml(path):
+    """Read a UTF-8 TOML config file: (table, name for messages, folder of the file). Every failure
+    (missing, a folder, unreadable, not UTF-8, not TOML) is one ConfigError line naming the file."""
     from ._validate import path as _path
 
-    check_files = flag("check_files", check_files)
     src = os.fspath(path) if isinstance(path, (str, bytes, os.PathLike)) else path
     src = src.decode(errors="replace") if isinstance(src, bytes) else src
     p = _path("path", src)
@@ -1471,4 +1443,43 @@ def load_config(path, *, check_files=True) -> Config:
         raise ConfigError.from_problems(src, [f"not valid TOML: {msg}{hint}"]) from None
     except RecursionError:
         raise ConfigError.from_problems(src, ["not valid TOML: nested too deeply"]) from None
+    return data, src, where
+
+
+def load_config(path, *, check_files=True) -> Config:
+    """Read, validate and check a TOML config file before any processing.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The config file (UTF-8 TOML). Paths in it are relative to its folder.
+    check_files : bool
+        Check that every referenced recording (and keyphasor times file) exists (default True).
+
+    Returns
+    -------
+    Config
+
+    Raises
+    ------
+    ConfigError
+        One line, e.g. ``rig.toml: [imbalance.runs][0] file 'run_S0.tdms' not found (looked in
+        /lab/day1)``, for a missing, unreadable, non-UTF-8 or invalid TOML file and for every
+        problem :func:`parse_config` finds.
+
+    Examples
+    --------
+    >>> from pathlib import Path
+    >>> import rotorid
+    >>> from rotorid.config import load_config
+    >>> cfg = load_config(Path(rotorid.__file__).parent / "data" / "example" / "imbalance.toml")
+    >>> [r.name for r in cfg.imbalance.runs], cfg.imbalance.runs[0].mass_kg()
+    (['S0', 'C0', 'S90', 'C90'], (0.005, 0.005))
+    >>> cfg.channels_for(None)["Prox DE X"]["unit"], cfg.rotor().l1
+    ('mil', 0.189)
+    """
+    from ._validate import flag
+
+    check_files = flag("check_files", check_files)
+    data, src, where = read_toml(path)
     return parse_config(data, source=src, base_dir=where, check_files=check_files)

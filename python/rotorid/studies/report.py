@@ -1,0 +1,130 @@
+"""Files of a study: tables, figures and a summary, written through a ResultsFolder (atomic, never
+over a user's files without ``overwrite``)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .. import plot
+from ..errors import RotoridError
+from ..model import REPORT_ORDER
+from .monte_carlo import StudyResult
+
+GROUPS = (("Direct stiffness", (0, 1, 6, 7)), ("Cross-coupled stiffness", (2, 3, 4, 5)),
+          ("Direct damping", (8, 9, 14, 15)), ("Cross-coupled damping", (10, 11, 12, 13)))
+#: the files a study may write (checked before anything is computed)
+PATTERNS = ["study_*", "design_*"]
+
+
+def _errors_text(errors) -> str:
+    from dataclasses import fields
+
+    parts = [f"{f.name} {getattr(errors, f.name):g}" for f in fields(errors) if getattr(errors, f.name)]
+    return ", ".join(parts) if parts else "no errors"
+
+
+def plot_percentiles(res: StudyResult, *, path=None, title=None):
+    """The central band (lowest to highest percentile) and the median of each coefficient's
+    relative error (%) against speed or frequency, one panel per coefficient group; symmetric-log
+    y axis (linear within ±0.1 %). Points where every trial was singular are left out.
+
+    Examples
+    --------
+    >>> import numpy as np, rotorid
+    >>> from rotorid.studies import SyncErrors, synchronous_study
+    >>> from rotorid.studies.report import plot_percentiles
+    >>> rig = rotorid.nsf_rig()
+    >>> res = synchronous_study(rig.rotor, rig.bearings, [rig.imbalances[s] for s in "AB"],
+    ...                         np.linspace(3000, 6000, 7), SyncErrors(phase_deg=0.2), trials=50)
+    >>> fig = plot_percentiles(res)
+    """
+    if not isinstance(res, StudyResult):
+        raise RotoridError(f"res must be a rotorid.studies.StudyResult, got {type(res).__name__}")
+    plt = plot._plt()
+    lo, hi = min(res.percentiles), max(res.percentiles)
+    plo, phi = res.percentile(lo) * 100, res.percentile(hi) * 100
+    med = res.percentile(50) * 100
+    x = res.axis
+    fig, axes = plt.subplots(2, 2, figsize=(12, 8), sharex=True)
+    for ax, (name, idx) in zip(axes.ravel(), GROUPS):
+        for j, o in enumerate(idx):
+            color = f"C{j}"
+            ax.fill_between(x, plo[:, o], phi[:, o], color=color, alpha=0.18, linewidth=0)
+            ax.plot(x, med[:, o], color=color, label=f"{REPORT_ORDER[o]} (median, {lo:g}-{hi:g} % band)")
+        ax.axhline(0, color="k", linewidth=0.8)
+        ax.set_yscale("symlog", linthresh=0.1)
+        ax.set_title(name, fontsize=11)
+        ax.set_ylabel("Relative error (%)")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=9, loc="best")
+    for ax in axes[1]:
+        ax.set_xlabel("Rotor speed (rpm)" if res.axis_name == "speed_rpm" else "Frequency (Hz)")
+    fig.suptitle(title or f"{res.kind.capitalize()} study, {res.trials} trials: {_errors_text(res.errors)}",
+                 fontsize=11)
+    return plot.finish(fig, path)
+
+
+def plot_coverage(res: StudyResult, *, path=None, title=None):
+    """Coverage of the identification's confidence intervals per coefficient against the axis, with
+    the nominal level."""
+    if not isinstance(res, StudyResult) or res.coverage is None:
+        raise RotoridError("res must be a StudyResult with coverage (coverage_trials > 0)")
+    plt = plot._plt()
+    fig, ax = plt.subplots(figsize=(10, 5))
+    for gi, (name, idx) in enumerate(GROUPS):
+        ax.plot(res.axis, np.nanmean(res.coverage[:, list(idx)], axis=1), marker="o", markersize=3,
+                label=f"{name} (mean of 4)", color=f"C{gi}")
+    ax.axhline(res.level, color="k", linestyle="--", label=f"nominal {res.level:g}")
+    ax.set_ylim(0, 1.02)
+    ax.set_xlabel("Rotor speed (rpm)" if res.axis_name == "speed_rpm" else "Frequency (Hz)")
+    ax.set_ylabel("Coverage of the intervals")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=9)
+    ax.set_title(title or f"Interval coverage over {res.coverage_trials} trials (random and systematic errors as "
+                          "simulated; the intervals know only the per-vector ones)", fontsize=10)
+    return plot.finish(fig, path)
+
+
+def write_study(res: StudyResult, folder, *, bands=None, design=None, settings=None) -> list:
+    """Write ``study_errors.csv``, ``study_bands.csv``, ``study_percentiles.png``,
+    ``study_coverage.png`` (with coverage), ``study_summary.txt`` and, with a ``design``
+    (DesignResult), ``design_ranking.csv`` and ``design_comparison.csv`` into the ResultsFolder
+    ``folder``. Returns the file names."""
+    names = []
+
+    def put(name, write):
+        with folder.atomic(name) as tmp:
+            write(tmp)
+        names.append(name)
+
+    put("study_errors.csv", lambda p: res.to_dataframe().to_csv(p, index=False, float_format="%.6g"))
+    band = res.band_summary(bands)
+    put("study_bands.csv", lambda p: band.to_csv(p, index=False, float_format="%.6g"))
+    put("study_percentiles.png", lambda p: plot_percentiles(res, path=p))
+    if res.coverage is not None:
+        put("study_coverage.png", lambda p: plot_coverage(res, path=p))
+    if design is not None:
+        put("design_ranking.csv", lambda p: design.ranking.to_csv(p, index=False, float_format="%.6g"))
+        put("design_comparison.csv", lambda p: design.comparison.to_csv(p, index=False, float_format="%.6g"))
+
+    def summary(p):
+        import pandas as pd
+
+        with open(p, "w", encoding="utf-8") as fh:
+            fh.write(f"rotorid {res.kind} study: {res.trials} trials, seed {res.seed}, method {res.method}\n")
+            fh.write(f"runs/tests: {', '.join(res.runs)}\n")
+            fh.write(f"errors (standard deviations): {_errors_text(res.errors)}\n")
+            for k, v in (settings or {}).items():
+                fh.write(f"{k}: {v}\n")
+            fh.write("\nMedian over each band of the half-width (p_hi - p_lo)/2 of the relative errors:\n")
+            with pd.option_context("display.width", 160, "display.float_format", "{:.4g}".format):
+                fh.write(band.to_string(index=False) + "\n")
+            if design is not None:
+                fh.write("\nTest design (expected coefficient error, fraction of the direct coefficients):\n")
+                with pd.option_context("display.width", 200, "display.float_format", "{:.4g}".format):
+                    fh.write(design.comparison.to_string(index=False) + "\n")
+                for size, runs in design.best.items():
+                    fh.write(f"recommended {size} runs: {' + '.join(r.name for r in runs)}\n")
+
+    put("study_summary.txt", summary)
+    return names

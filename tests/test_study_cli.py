@@ -1,0 +1,150 @@
+"""``rotorid study CONFIG``: the example configs run end to end, results are reproducible, an
+earlier study is not overwritten without --overwrite, and every bad config is one line, exit 2."""
+
+import os
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import rotorid.example as ex
+from rotorid.cli import main
+from rotorid.studies.config import load_study_config, parse_study_config
+
+EXAMPLES = {k: os.path.join(ex.path(), f"study_{k}.toml") for k in ("imbalance", "impact")}
+
+
+def _run(capsys, *argv):
+    code = main(["study", *argv])
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+@pytest.mark.parametrize("kind", ["imbalance", "impact"])
+def test_example_configs_run_and_write_their_files(tmp_path, capsys, kind):
+    code, out, err = _run(capsys, EXAMPLES[kind], "--out", str(tmp_path / "r"), "--trials", "200", "-q")
+    assert code == 0, err
+    files = set(os.listdir(tmp_path / "r"))
+    want = {"study_errors.csv", "study_bands.csv", "study_percentiles.png", "study_coverage.png", "study_summary.txt",
+            "rotorid-manifest.json"}
+    if kind == "imbalance":
+        want |= {"design_ranking.csv", "design_comparison.csv"}
+    assert want <= files, files
+    df = pd.read_csv(tmp_path / "r" / "study_errors.csv")
+    cfg = load_study_config(EXAMPLES[kind])
+    n = cfg.imbalance.speeds().size if kind == "imbalance" else cfg.impact.freqs().size
+    assert len(df) == 16 * n
+    assert set(df.coefficient) == set(rotorid_names()) and np.isfinite(df.p50).all()
+    assert "wrote" in out and err == ""
+
+
+def rotorid_names():
+    from rotorid.model import REPORT_ORDER
+
+    return REPORT_ORDER
+
+
+def test_same_seed_same_tables_and_no_overwrite(tmp_path, capsys):
+    a, b = tmp_path / "a", tmp_path / "b"
+    for d in (a, b):
+        assert _run(capsys, EXAMPLES["impact"], "--out", str(d), "--trials", "100", "--seed", "3", "-q")[0] == 0
+    assert (a / "study_errors.csv").read_bytes() == (b / "study_errors.csv").read_bytes()
+    before = (a / "study_errors.csv").read_bytes()
+    code, out, err = _run(capsys, EXAMPLES["impact"], "--out", str(a), "--trials", "100", "--seed", "4", "-q")
+    assert code == 2 and err.count("\n") == 1 and "--overwrite" in err
+    assert (a / "study_errors.csv").read_bytes() == before
+    code, _, _ = _run(capsys, EXAMPLES["impact"], "--out", str(a), "--trials", "100", "--seed", "4", "-q", "--overwrite")
+    assert code == 0 and (a / "study_errors.csv").read_bytes() != before
+
+
+BASE = {"rig": {"builtin": "nsf"}, "study": {"kind": "imbalance", "trials": 10},
+        "imbalance": {"sets": ["A", "B"], "speeds_rpm": [3000, 4000]}}
+
+
+def _toml(d):
+    from rotorid.config import _toml as dump
+
+    lines = []
+    for sec, tab in d.items():
+        simple = {k: v for k, v in tab.items() if not isinstance(v, dict)}
+        lines.append(f"[{sec}]")
+        lines += [f"{k} = {dump(v)}" for k, v in simple.items()]
+        for k, v in tab.items():
+            if isinstance(v, dict):
+                lines.append(f"[{sec}.{k}]")
+                lines += [f"{kk} = {dump(vv)}" for kk, vv in v.items()]
+    return "\n".join(lines) + "\n"
+
+
+def _edit(**changes):
+    import copy
+
+    d = copy.deepcopy(BASE)
+    for path, v in changes.items():
+        sec, _, key = path.partition("__")
+        if key:
+            d.setdefault(sec, {})[key] = v
+        else:
+            d[sec] = v
+    return d
+
+
+@pytest.mark.parametrize("cfg, key", [
+    (_edit(study__trails=5), "trails"),
+    (_edit(study__trials=0), "trials"),
+    (_edit(study__percentiles=[5, 120]), "percentiles"),
+    (_edit(study__level=1.0), "level"),
+    (_edit(imbalance__sets=["A", "Q"]), "'Q'"),
+    (_edit(imbalance__sets=["A"]), "two or more"),
+    (_edit(imbalance__speeds_rpm=[3000, -1]), "speeds_rpm"),
+    (_edit(imbalance__errors={"phase_deg": -1}), "phase_deg"),
+    (_edit(imbalance__errors={"noise_um": "0.1 um"}), "noise_um"),
+    (_edit(study__kind="impact"), "[impact]"),
+    ({**_edit(), "impact": {"speed_rpm": 1000, "freq_hz": [10], "tests": [], "errors": {"coherence": 1.5}}},
+     "coherence"),
+    ({k: v for k, v in _edit().items() if k != "rig"}, "no rotor"),
+])
+def test_bad_study_configs_are_one_line(tmp_path, capsys, cfg, key):
+    p = tmp_path / "s.toml"
+    p.write_text(_toml(cfg), encoding="utf-8")
+    code, out, err = _run(capsys, str(p), "--out", str(tmp_path / "o"), "-q")
+    assert code == 2 and err.startswith("rotorid: error: ") and err.count("\n") == 1, err
+    assert key in err, err
+    assert not (tmp_path / "o").exists()
+
+
+def test_missing_config_and_bad_overrides(tmp_path, capsys):
+    code, _, err = _run(capsys, str(tmp_path / "none.toml"))
+    assert code == 2 and "not found" in err
+    code, _, err = _run(capsys, EXAMPLES["impact"], "--out", str(tmp_path / "o"), "--trials", "0")
+    assert code == 2 and "--trials" in err
+
+
+def test_example_configs_parse_and_document_every_key():
+    text = open(os.path.join(os.path.dirname(__file__), "..", "docs", "config.md"), encoding="utf-8").read()
+    from rotorid.studies import config as sc
+
+    for model in (sc.StudySection, sc.ImbalanceStudySection, sc.SyncErrorsSection, sc.ImpactStudySection,
+                  sc.ImpactErrorsSection, sc.DesignSection, sc.BearingsSection, sc.TrialRun, sc.ImpactPlan):
+        for name, f in model.model_fields.items():
+            if isinstance(f.annotation, type) and issubclass(f.annotation, sc._Model):
+                assert f".{name}]`" in text, f"{model.__name__}.{name} (a table) is not documented"
+                continue
+            assert f"`{f.alias or name}`" in text, f"{model.__name__}.{name} is not documented in docs/config.md"
+    cfg = parse_study_config(BASE)
+    assert cfg.imbalance.speeds().tolist() == [3000.0, 4000.0]
+
+
+def test_check_recognises_study_configs(capsys, tmp_path):
+    assert main(["check", EXAMPLES["imbalance"]]) == 0
+    assert "imbalance study with a test design" in capsys.readouterr().out
+    p = tmp_path / "s.toml"
+    p.write_text(_toml(_edit(study__trials=-1)), encoding="utf-8")
+    assert main(["check", str(p)]) == 2
+    assert "trials" in capsys.readouterr().err
+
+
+def test_documented_examples_are_the_bundled_ones():
+    docs = os.path.join(os.path.dirname(__file__), "..", "docs", "examples")
+    for kind, path in EXAMPLES.items():
+        assert open(os.path.join(docs, f"study_{kind}.toml"), "rb").read() == open(path, "rb").read()
