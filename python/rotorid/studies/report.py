@@ -59,8 +59,10 @@ def plot_percentiles(res: StudyResult, *, path=None, title=None):
         ax.legend(fontsize=9, loc="best")
     for ax in axes[1]:
         ax.set_xlabel("Rotor speed (rpm)" if res.axis_name == "speed_rpm" else "Frequency (Hz)")
-    fig.suptitle(title or f"{res.kind.capitalize()} study, {res.trials} trials: {_errors_text(res.errors)}",
-                 fontsize=11)
+    import textwrap
+
+    text = title or f"{res.kind.capitalize()} study, {res.trials} trials; errors (std): {_errors_text(res.errors)}"
+    fig.suptitle("\n".join(textwrap.wrap(text, 130)), fontsize=11)
     return plot.finish(fig, path)
 
 
