@@ -55,14 +55,23 @@ class _Spec:
     method: str
     seed: int
 
+    def _arrays(self):
+        """The arrays as the core takes them: C-contiguous and aligned (a spec shipped to a Dask
+        worker may arrive as views into a receive buffer that are neither)."""
+        def c(a):
+            return None if a is None else np.require(a, requirements=["C", "A"])
+
+        return (c(self.rotor_params), c(self.w), c(self.kb), c(self.cb), c(self.probes_z), c(self.planes_z),
+                c(self.errors), c(self.u), c(self.dirs))
+
     def accumulate(self, t0, t1, p0, p1, counts=None):
-        return core.study_accumulate(self.rotor_params, self.w, self.kb, self.cb, self.probes_z, self.planes_z,
-                                      self.errors, t0, t1, p0, p1, u=self.u, dirs=self.dirs, spin=self.spin,
-                                      method=self.method, seed=self.seed, counts=counts)
+        rp, w, kb, cb, pz, plz, err, u, dirs = self._arrays()
+        return core.study_accumulate(rp, w, kb, cb, pz, plz, err, t0, t1, p0, p1, u=u, dirs=dirs, spin=self.spin,
+                                     method=self.method, seed=self.seed, counts=counts)
 
     def realize(self, t0, t1):
-        return core.study_realize(self.rotor_params, self.w, self.kb, self.cb, self.probes_z, self.planes_z,
-                                   self.errors, t0, t1, u=self.u, dirs=self.dirs, spin=self.spin, seed=self.seed)
+        rp, w, kb, cb, pz, plz, err, u, dirs = self._arrays()
+        return core.study_realize(rp, w, kb, cb, pz, plz, err, t0, t1, u=u, dirs=dirs, spin=self.spin, seed=self.seed)
 
 
 def _run_task(spec: _Spec, t0: int, t1: int, p0: int, p1: int):
@@ -269,36 +278,56 @@ def _tasks(trials, n):
 LOCAL_WORKERS = None
 
 
+class _Totals:
+    """Per-point totals of a study, added to in task order: finite and non-finite counts, sums of
+    the errors and of their squares; and the progress bar."""
+
+    def __init__(self, n, bar):
+        self.finite = np.zeros((n, 16), np.int64)
+        self.nonfinite = np.zeros((n, 16), np.int64)
+        self.s1 = np.zeros((n, 16))
+        self.s2 = np.zeros((n, 16))
+        self.bar = bar
+
+    def add(self, p0, p1, t0, t1, f, nf, a, b):
+        self.finite[p0:p1] += f
+        self.nonfinite[p0:p1] += nf
+        self.s1[p0:p1] += a
+        self.s2[p0:p1] += b
+        self.bar.step((t1 - t0) * (p1 - p0))
+
+
 def _execute(spec: _Spec, trials: int, progress: bool, client, what: str, percentiles, keep_histograms):
     """Run every task, one point range after the other, and merge: percentiles (P, n, 16) read
     from the merged histograms of each range, counts (n, 16, BINS) uint32 if kept (else None),
     finite, nonfinite, sum, sumsq (n, 16). The counts are integers (merged in any order); the
     sums are merged in task order, so the result is the same on any number of threads or workers.
     Memory: the histograms of one point range per worker, whatever the trial count."""
+    n = spec.w.size
+    pct = np.full((len(percentiles), n, 16), np.nan)
+    counts_all = np.zeros((n, 16, _core.STUDY_BINS), np.uint32) if keep_histograms else None
+    tot = _Totals(n, _Progress(trials * n, progress, what))
+    cl = _client(client)
+    try:
+        _ranges(spec, trials, cl, counts_all, pct, percentiles, tot)
+    finally:
+        if cl is not None and isinstance(client, str):
+            cl.close()  # a client rotorid opened from an address; a user's client stays open
+    return pct, counts_all, tot.finite, tot.nonfinite, tot.s1, tot.s2
+
+
+def _ranges(spec, trials, cl, counts_all, pct, percentiles, tot):
+    """Every point range in turn: its trial blocks on local threads (counts added into one array
+    per worker thread) or on the cluster ``cl``, then its percentiles."""
     import concurrent.futures as cf
     import os
     import threading
 
     n = spec.w.size
     bins = _core.STUDY_BINS
-    pct = np.full((len(percentiles), n, 16), np.nan)
-    counts_all = np.zeros((n, 16, bins), np.uint32) if keep_histograms else None
-    finite = np.zeros((n, 16), np.int64)
-    nonfinite = np.zeros((n, 16), np.int64)
-    s1 = np.zeros((n, 16))
-    s2 = np.zeros((n, 16))
-    bar = _Progress(trials * n, progress, what)
-    cl = _client(client)
+    spec_f = None if cl is None else cl.scatter(spec, broadcast=True, hash=False)  # once, kept to the end
     ranges = [(p0, min(p0 + POINT_BLOCK, n)) for p0 in range(0, n, POINT_BLOCK)]
     blocks = [(t0, min(t0 + TRIAL_BLOCK, trials)) for t0 in range(0, trials, TRIAL_BLOCK)]
-
-    def merge_sums(p0, p1, t0, t1, f, nf, a, b):
-        finite[p0:p1] += f
-        nonfinite[p0:p1] += nf
-        s1[p0:p1] += a
-        s2[p0:p1] += b
-        bar.step((t1 - t0) * (p1 - p0))
-
     for p0, p1 in ranges:
         shape = (p1 - p0, 16, bins)
         if cl is None:
@@ -319,9 +348,9 @@ def _execute(spec: _Spec, trials: int, progress: bool, client, what: str, percen
                     pending.append((t0, t1, ex.submit(task, t0, t1)))
                     if len(pending) >= 2 * workers:
                         a0, a1, f = pending.pop(0)
-                        merge_sums(p0, p1, a0, a1, *f.result())
+                        tot.add(p0, p1, a0, a1, *f.result())
                 for a0, a1, f in pending:
-                    merge_sums(p0, p1, a0, a1, *f.result())
+                    tot.add(p0, p1, a0, a1, *f.result())
             counts = None
             for acc in accs.values():
                 if counts is None:
@@ -331,25 +360,24 @@ def _execute(spec: _Spec, trials: int, progress: bool, client, what: str, percen
         else:
             counts = np.zeros(shape, np.uint32)
 
-            def merge(t0, t1, res):
-                counts[...] += res[0]
-                merge_sums(p0, p1, t0, t1, *res[1:])
+            def merge(t0, t1, res, p0=p0, p1=p1, counts=counts):
+                counts += res[0]
+                tot.add(p0, p1, t0, t1, *res[1:])
 
-            _run_on_cluster(cl, spec, blocks, p0, p1, merge)
+            _run_on_cluster(cl, spec_f, blocks, p0, p1, merge)
         pct[:, p0:p1] = percentiles_from_counts(counts, percentiles)
         if counts_all is not None:
             counts_all[p0:p1] = counts
-    return pct, counts_all, finite, nonfinite, s1, s2
 
 
-def _run_on_cluster(cl, spec, blocks, p0, p1, merge):
-    """The trial blocks of one point range on a Dask cluster, merged in block order."""
+def _run_on_cluster(cl, spec_f, blocks, p0, p1, merge):
+    """The trial blocks of one point range on a Dask cluster (``spec_f``: the scattered spec),
+    merged in block order."""
     try:
         workers = max(1, len(cl.scheduler_info(n_workers=-1).get("workers", {})))
     except Exception:
         workers = 1
     window = 2 * workers
-    spec_f = cl.scatter(spec, broadcast=True)
     pending = []
     try:
         for t0, t1 in blocks:
