@@ -17,7 +17,7 @@ import time
 sys.path.insert(0, os.path.dirname(__file__))
 from common import cpu_info, rotorid_threads  # noqa: E402
 
-BENCHES = ("identify", "impact", "forward", "modal", "runout")
+BENCHES = ("identify", "impact", "forward", "modal", "runout", "study")
 
 
 def _ms(v):
