@@ -583,9 +583,39 @@ struct BlockOut<'a> {
 
 /// All trials t0..t1 at the block of points starting at `bp0`, in trial order.
 #[inline(always)]
-fn run_block(s: &Study, ex: &Exact, e_nom: &[C64], t0: u64, t1: u64, bp0: usize, out: BlockOut) -> Result<(), CoreError> {
-    let runs = s.runs();
+fn run_block(s: &Study, ex: &Exact, e_nom: &[C64], t0: u64, t1: u64, bp0: usize, mut out: BlockOut) -> Result<(), CoreError> {
     let bnp = out.finite.len() / NCOEF;
+    // the block's histograms with a padded stride: at a stride of exactly BINS u32 (4 KiB) the
+    // same bin of every histogram maps to one L1 cache set, and the increments thrash it. The
+    // buffer is the thread's own, kept between calls: a fresh 2 MB per block and call cost more in
+    // page faults than the increments themselves.
+    // (taken out of the thread-local and put back: the work must not run inside a closure, which
+    // would not inherit the caller's #[target_feature] SIMD level)
+    let mut hist = HIST.with(|cell| cell.take());
+    hist.clear();
+    hist.resize(bnp * NCOEF * HIST_STRIDE, 0);
+    let res = run_trials(s, ex, e_nom, t0, t1, bp0, bnp, &mut hist, &mut out);
+    if res.is_ok() {
+        for (dst, src) in out.counts.chunks_exact_mut(BINS).zip(hist.chunks_exact(HIST_STRIDE)) {
+            for (d, v) in dst.iter_mut().zip(&src[..BINS]) {
+                *d += v;
+            }
+        }
+    }
+    HIST.with(|cell| cell.replace(hist));
+    res
+}
+
+thread_local! {
+    /// Each thread's histogram buffer (see [`run_block`]).
+    static HIST: std::cell::RefCell<Vec<u32>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// The trials of [`run_block`], counting into `hist` (padded stride) and adding to `out`'s sums.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn run_trials(s: &Study, ex: &Exact, e_nom: &[C64], t0: u64, t1: u64, bp0: usize, bnp: usize, hist: &mut [u32], out: &mut BlockOut) -> Result<(), CoreError> {
+    let runs = s.runs();
     let mut sc = Scratch::default();
     let mut q = vec![C64::new(0.0, 0.0); runs * bnp * 4];
     let mut w_told = vec![0.0; bnp];
@@ -604,9 +634,6 @@ fn run_block(s: &Study, ex: &Exact, e_nom: &[C64], t0: u64, t1: u64, bp0: usize,
         Excitation::Impact { spin, .. } => [spin],
         _ => [0.0],
     };
-    // the block's histograms with a padded stride: at a stride of exactly BINS u32 (4 KiB) the
-    // same bin of every histogram maps to one L1 cache set, and the increments thrash it
-    let mut hist = vec![0u32; bnp * NCOEF * HIST_STRIDE];
     for trial in t0..t1 {
         let d = trial_draws(s, trial);
         realize_block(s, ex, &d, trial, bp0, bnp, &mut q, &mut w_told, &mut sc);
@@ -638,12 +665,7 @@ fn run_block(s: &Study, ex: &Exact, e_nom: &[C64], t0: u64, t1: u64, bp0: usize,
             errs[j] = (errs[j] - truth[j]) * inv_ref[j];
             bins[j] = stats::bin(errs[j]);
         }
-        stats::add_block(&errs, &bins, &mut hist, HIST_STRIDE, out.finite, out.nonfinite, out.sum, out.sumsq);
-    }
-    for (dst, src) in out.counts.chunks_exact_mut(BINS).zip(hist.chunks_exact(HIST_STRIDE)) {
-        for (d, v) in dst.iter_mut().zip(&src[..BINS]) {
-            *d += v;
-        }
+        stats::add_block(&errs, &bins, hist, HIST_STRIDE, out.finite, out.nonfinite, out.sum, out.sumsq);
     }
     Ok(())
 }
