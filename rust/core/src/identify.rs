@@ -605,28 +605,9 @@ fn forces_chunk(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize
     nbad
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512dq,avx2,fma")]
-fn forces_chunk_avx512(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize {
-    forces_chunk(p, kc, start, out)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-fn forces_chunk_avx2(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize {
-    forces_chunk(p, kc, start, out)
-}
-
-/// Runtime dispatch to the widest SIMD the CPU has (same arithmetic, same results up to rounding).
-fn forces_chunk_dispatch(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize {
-    match crate::lanes::simd() {
-        // SAFETY: simd() reports the CPU has the features these versions are compiled for.
-        #[cfg(target_arch = "x86_64")]
-        crate::lanes::Simd::Avx512 => unsafe { forces_chunk_avx512(p, kc, start, out) },
-        #[cfg(target_arch = "x86_64")]
-        crate::lanes::Simd::Avx2 => unsafe { forces_chunk_avx2(p, kc, start, out) },
-        _ => forces_chunk(p, kc, start, out),
-    }
+crate::lanes::simd_dispatch! {
+    /// [`forces_chunk`] at the widest SIMD level of this CPU.
+    fn forces_chunk_dispatch(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize => forces_chunk
 }
 
 /// Fast bearing-force solver. Returns the number of points whose input contained NaN/inf.

@@ -31,6 +31,36 @@ pub fn simd() -> Simd {
     Simd::Baseline
 }
 
+/// Define `$name` calling `$kernel` compiled for AVX-512 (F, DQ), for AVX2 + FMA, or for the
+/// build's baseline, whichever [`simd`] reports for this CPU: the same source and operations, with
+/// wider registers (and fused multiply-adds) where available.
+macro_rules! simd_dispatch {
+    ($(#[$m:meta])* fn $name:ident($($arg:ident: $ty:ty),* $(,)?) -> $ret:ty => $kernel:ident) => {
+        $(#[$m])*
+        fn $name($($arg: $ty),*) -> $ret {
+            #[cfg(target_arch = "x86_64")]
+            #[target_feature(enable = "avx512f,avx512dq,avx2,fma")]
+            fn avx512($($arg: $ty),*) -> $ret {
+                $kernel($($arg),*)
+            }
+            #[cfg(target_arch = "x86_64")]
+            #[target_feature(enable = "avx2,fma")]
+            fn avx2($($arg: $ty),*) -> $ret {
+                $kernel($($arg),*)
+            }
+            match $crate::lanes::simd() {
+                // SAFETY: simd() reports the CPU has the features these versions are compiled for.
+                #[cfg(target_arch = "x86_64")]
+                $crate::lanes::Simd::Avx512 => unsafe { avx512($($arg),*) },
+                #[cfg(target_arch = "x86_64")]
+                $crate::lanes::Simd::Avx2 => unsafe { avx2($($arg),*) },
+                _ => $kernel($($arg),*),
+            }
+        }
+    };
+}
+pub(crate) use simd_dispatch;
+
 #[derive(Clone, Copy, Debug)]
 pub struct V(pub [f64; L]);
 

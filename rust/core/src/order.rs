@@ -245,26 +245,7 @@ fn runout_block(ctx: &Runout, first: usize, outs: &mut [&mut [f64]]) -> usize {
     nonfinite
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512dq,avx2,fma")]
-fn runout_block_avx512(ctx: &Runout, first: usize, outs: &mut [&mut [f64]]) -> usize {
-    runout_block(ctx, first, outs)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-fn runout_block_avx2(ctx: &Runout, first: usize, outs: &mut [&mut [f64]]) -> usize {
-    runout_block(ctx, first, outs)
-}
-
-/// Runtime dispatch to the widest SIMD the CPU has (inline `floor`, vector weights).
-fn runout_block_dispatch(ctx: &Runout, first: usize, outs: &mut [&mut [f64]]) -> usize {
-    match crate::lanes::simd() {
-        // SAFETY: simd() reports the CPU has the features these versions are compiled for.
-        #[cfg(target_arch = "x86_64")]
-        crate::lanes::Simd::Avx512 => unsafe { runout_block_avx512(ctx, first, outs) },
-        #[cfg(target_arch = "x86_64")]
-        crate::lanes::Simd::Avx2 => unsafe { runout_block_avx2(ctx, first, outs) },
-        _ => runout_block(ctx, first, outs),
-    }
+crate::lanes::simd_dispatch! {
+    /// [`runout_block`] at the widest SIMD level of this CPU (inline `floor`, vector weights).
+    fn runout_block_dispatch(ctx: &Runout, first: usize, outs: &mut [&mut [f64]]) -> usize => runout_block
 }

@@ -670,27 +670,7 @@ fn run_trials(s: &Study, ex: &Exact, e_nom: &[C64], t0: u64, t1: u64, bp0: usize
     Ok(())
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512dq,avx2,fma")]
-fn run_block_avx512(s: &Study, ex: &Exact, e_nom: &[C64], t0: u64, t1: u64, bp0: usize, out: BlockOut) -> Result<(), CoreError> {
-    run_block(s, ex, e_nom, t0, t1, bp0, out)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-fn run_block_avx2(s: &Study, ex: &Exact, e_nom: &[C64], t0: u64, t1: u64, bp0: usize, out: BlockOut) -> Result<(), CoreError> {
-    run_block(s, ex, e_nom, t0, t1, bp0, out)
-}
-
-/// Runtime dispatch to the widest SIMD the CPU has (same operations, same results up to the
-/// rounding of fused multiply-adds).
-fn run_block_dispatch(s: &Study, ex: &Exact, e_nom: &[C64], t0: u64, t1: u64, bp0: usize, out: BlockOut) -> Result<(), CoreError> {
-    match crate::lanes::simd() {
-        // SAFETY: simd() reports the CPU has the features these versions are compiled for.
-        #[cfg(target_arch = "x86_64")]
-        crate::lanes::Simd::Avx512 => unsafe { run_block_avx512(s, ex, e_nom, t0, t1, bp0, out) },
-        #[cfg(target_arch = "x86_64")]
-        crate::lanes::Simd::Avx2 => unsafe { run_block_avx2(s, ex, e_nom, t0, t1, bp0, out) },
-        _ => run_block(s, ex, e_nom, t0, t1, bp0, out),
-    }
+crate::lanes::simd_dispatch! {
+    /// [`run_block`] at the widest SIMD level of this CPU.
+    fn run_block_dispatch(s: &Study, ex: &Exact, e_nom: &[C64], t0: u64, t1: u64, bp0: usize, out: BlockOut) -> Result<(), CoreError> => run_block
 }
