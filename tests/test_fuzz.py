@@ -893,7 +893,8 @@ def _cli(argv, capsys):
 
 
 @API
-@given(name=st.sampled_from(["imbalance.toml", "impact.toml", "imbalance_1x_table.toml"]), edits=_EDITS)
+@given(name=st.sampled_from(["imbalance.toml", "impact.toml", "imbalance_1x_table.toml", "study_imbalance.toml",
+                             "study_impact.toml"]), edits=_EDITS)
 def test_cli_check_of_damaged_configs_answers_in_one_line(tmp_path, capsys, name, edits):
     p = tmp_path / "c.toml"
     p.write_text(_damaged(_example_config(name), edits), encoding="utf-8")

@@ -61,6 +61,20 @@ BASE = {"rig": {"builtin": "nsf"}, "study": {"kind": "imbalance", "trials": 10},
         "imbalance": {"sets": ["A", "B"], "speeds_rpm": [3000, 4000]}}
 
 
+IMPACT = """[rig]
+builtin = "nsf"
+[study]
+kind = "impact"
+trials = 10
+[impact]
+speed_rpm = 1000
+freq_hz = [10, 20]
+tests = [{ plane_mm = 0, direction = "x" }, { plane_mm = 0, direction = "y" }]
+[impact.errors]
+coherence = 0.9
+"""
+
+
 def _toml(d):
     from rotorid.config import _toml as dump
 
@@ -98,15 +112,17 @@ def _edit(**changes):
     (_edit(imbalance__sets=["A"]), "two or more"),
     (_edit(imbalance__speeds_rpm=[3000, -1]), "speeds_rpm"),
     (_edit(imbalance__errors={"phase_deg": -1}), "phase_deg"),
-    (_edit(imbalance__errors={"noise_um": "0.1 um"}), "noise_um"),
+    (_edit(imbalance__errors={"noise_um": "0.1 um"}), "units are in the key names"),
+    (_edit(imbalance__errors={"noise": 0.1}), "'noise_um'"),
+    (_edit(study__percentiles=[50]), "percentiles"),
     (_edit(study__kind="impact"), "[impact]"),
-    ({**_edit(), "impact": {"speed_rpm": 1000, "freq_hz": [10], "tests": [], "errors": {"coherence": 1.5}}},
-     "coherence"),
+    (IMPACT.replace("coherence = 0.9", "coherence = 1.5"), "[impact.errors] coherence"),
+    (IMPACT.replace('direction = "y"', 'direction = "z"'), "[impact.tests][1] direction"),
     ({k: v for k, v in _edit().items() if k != "rig"}, "no rotor"),
 ])
 def test_bad_study_configs_are_one_line(tmp_path, capsys, cfg, key):
     p = tmp_path / "s.toml"
-    p.write_text(_toml(cfg), encoding="utf-8")
+    p.write_text(cfg if isinstance(cfg, str) else _toml(cfg), encoding="utf-8")
     code, out, err = _run(capsys, str(p), "--out", str(tmp_path / "o"), "-q")
     assert code == 2 and err.startswith("rotorid: error: ") and err.count("\n") == 1, err
     assert key in err, err
@@ -115,7 +131,7 @@ def test_bad_study_configs_are_one_line(tmp_path, capsys, cfg, key):
 
 def test_missing_config_and_bad_overrides(tmp_path, capsys):
     code, _, err = _run(capsys, str(tmp_path / "none.toml"))
-    assert code == 2 and "not found" in err
+    assert code == 2 and "not found" in err and "none.toml" in err and err.count("\n") == 1
     code, _, err = _run(capsys, EXAMPLES["impact"], "--out", str(tmp_path / "o"), "--trials", "0")
     assert code == 2 and "--trials" in err
 
@@ -148,3 +164,20 @@ def test_documented_examples_are_the_bundled_ones():
     docs = os.path.join(os.path.dirname(__file__), "..", "docs", "examples")
     for kind, path in EXAMPLES.items():
         assert open(os.path.join(docs, f"study_{kind}.toml"), "rb").read() == open(path, "rb").read()
+
+
+def test_progress_bar_unless_quiet_and_a_band_without_the_median(tmp_path, capsys):
+    cfg = _edit(study__percentiles=[10, 90], study__coverage_trials=0)
+    p = tmp_path / "s.toml"
+    p.write_text(_toml(cfg), encoding="utf-8")
+    code, out, err = _run(capsys, str(p), "--out", str(tmp_path / "o"))
+    assert code == 0 and "synchronous study [" in err and "100.0 %" in err, err
+    files = set(os.listdir(tmp_path / "o"))
+    assert {"study_errors.csv", "study_percentiles.png", "study_summary.txt"} <= files
+    assert "study_coverage.png" not in files
+    assert list(pd.read_csv(tmp_path / "o" / "study_errors.csv").columns[2:4]) == ["p10", "p90"]
+    summary = (tmp_path / "o" / "study_summary.txt").read_text(encoding="utf-8")
+    assert "percentiles: 10, 90" in summary and "speeds: 2 from 3000 to 4000 rpm" in summary
+    assert len(pd.read_csv(tmp_path / "o" / "study_bands.csv")) == 2  # one band per point, none repeated
+    code, out, err = _run(capsys, str(p), "--out", str(tmp_path / "o"), "--overwrite", "--quiet")
+    assert code == 0 and err == ""

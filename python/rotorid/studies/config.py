@@ -14,17 +14,40 @@ Examples
 
 from __future__ import annotations
 
+import re
 import typing
 from typing import Annotated, Optional, Union
 
 import numpy as np
 from pydantic import Field, PlainValidator, ValidationError, model_validator
+from pydantic_core import PydanticCustomError
 
 from ..config import (ConfigError, RigSection, RotorSection, Text, _choice, _describe, _err, _messages, _Model,
-                      _number, _number_list, _pair, read_toml)
+                      _number_check, _number_list, _pair, read_toml)
 
 #: at most this many points on a study axis
 MAX_AXIS = 100_000
+#: at most this many percentiles (as ``synchronous_study`` takes them)
+MAX_PERCENTILES = 99
+
+_WITH_UNIT = re.compile(r"\s*[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?\s*[^\W\d]")
+
+
+def _number(*, integer=False, **bounds):
+    """A number with bounds (``rotorid.config``'s check); a string like "10 us" is told that the
+    unit belongs in the key's name (``channel_delay_us = 10``)."""
+    check = _number_check(integer=integer, **bounds)
+
+    def checked(v):
+        try:
+            return check(v)
+        except PydanticCustomError as exc:
+            if isinstance(v, str) and _WITH_UNIT.match(v):
+                raise _err(exc.context["msg"] + " (units are in the key names: write the number alone, in the "
+                           "key's unit)") from None
+            raise
+
+    return Annotated[int if integer else float, PlainValidator(checked)]
 
 
 def _matrix2(v):
@@ -195,7 +218,8 @@ class ImpactErrorsSection(_Model):
         return ImpactErrors(coherence=self.coherence, impacts=self.impacts,
                             force_calibration_rel=self.force_calibration_rel,
                             impact_position_m=self.impact_position_mm * 1e-3,
-                            channel_delay_s=self.channel_delay_us * 1e-6, probe_position_m=self.probe_position_mm * 1e-3)
+                            channel_delay_s=self.channel_delay_us * 1e-6,
+                            probe_position_m=self.probe_position_mm * 1e-3)
 
 
 class ImpactPlan(_Model):
@@ -229,7 +253,8 @@ class StudySection(_Model):
     kind: _choice("imbalance", "impact") = Field(description='"imbalance" or "impact"')
     trials: _number(integer=True, ge=1, le=10 ** 9) = Field(1000, description="simulated tests")
     seed: _number(integer=True, ge=0, lt=2 ** 63) = Field(0, description="seed of the random numbers")
-    percentiles: _number_list(ge=0, unique=True) = Field((5.0, 50.0, 95.0), description="percentiles, 0-100")
+    percentiles: _number_list(ge=0, le=100, unique=True) = Field(
+        (5.0, 50.0, 95.0), description="two or more percentiles, 0-100 (the band: lowest to highest)")
     coverage_trials: _number(integer=True, ge=0, le=100_000) = Field(
         100, description="trials identified through the public API to measure interval coverage")
     level: _number(gt=0, lt=1) = Field(0.95, description="confidence level of the intervals")
@@ -238,9 +263,11 @@ class StudySection(_Model):
 
     @model_validator(mode="after")
     def _pct(self):
-        bad = [p for p in self.percentiles if p > 100]
-        if bad:
-            raise _err(f"percentiles must be between 0 and 100, got {bad[0]:g}", table=True)
+        if len(self.percentiles) < 2:
+            raise _err("must list two or more values (the band of the errors runs from the lowest to the "
+                       f"highest), got {len(self.percentiles)}", "percentiles")
+        if len(self.percentiles) > MAX_PERCENTILES:
+            raise _err(f"must list at most {MAX_PERCENTILES} values, got {len(self.percentiles)}", "percentiles")
         return self
 
 
@@ -334,7 +361,7 @@ def load_study_config(path) -> StudyConfig:
 
     Examples
     --------
-    >>> import rotorid, os
+    >>> import os, rotorid.example
     >>> from rotorid.studies.config import load_study_config
     >>> cfg = load_study_config(os.path.join(rotorid.example.path(), "study_imbalance.toml"))
     >>> cfg.study.kind, cfg.imbalance.sets

@@ -157,8 +157,10 @@ class StudyResult:
         spread = 0.5 * (self.pct[hi_i] - self.pct[lo_i])
         groups = dict(K_direct=[0, 1, 6, 7], K_cross=[2, 3, 4, 5], C_direct=[8, 9, 14, 15], C_cross=[10, 11, 12, 13])
         rows = []
+        last = max(hi for _, hi in bands)
         for lo, hi in bands:
-            s = (self.axis >= lo) & (self.axis <= hi)
+            # [lo, hi): a point on the edge between two bands counts once (the last band is closed)
+            s = (self.axis >= lo) & ((self.axis < hi) | ((hi == last) & (self.axis <= hi)) | (self.axis == lo))
             if not s.any():
                 continue
             row = {f"{self.axis_name}_from": lo, f"{self.axis_name}_to": hi, "points": int(s.sum())}
