@@ -850,6 +850,38 @@ pub const FLAG_ILL_CONDITIONED: u8 = 2;
 pub const FLAG_UNCERTAIN: u8 = 4;
 pub const FLAG_LOW_AMPLITUDE: u8 = 8;
 
+/// Thresholds of [`flag_codes`] and the peak amplitude.
+struct FlagLimits {
+    peak: f64,
+    cond_max: f64,
+    min_rel_amplitude: f64,
+    max_rel_std: f64,
+}
+
+/// The flags of a run of points: branch-free per point (the comparisons are false for NaN) over
+/// zipped slices (no bounds checks), so the loop vectorizes.
+#[inline(always)]
+fn flag_pass(lim: &FlagLimits, cond: &[f64], amp: &[f64], rs: &[f64], rel: &mut [f64], code: &mut [u8]) {
+    let peak = lim.peak;
+    let has_peak = peak > 0.0; // every amplitude 0, or one NaN (no peak): relative amplitude 0
+    for ((((c, &a), &s), r), o) in cond.chunks_exact(2).zip(amp).zip(rs).zip(rel.iter_mut()).zip(code.iter_mut()) {
+        let (c0, c1) = (c[0], c[1]);
+        let finite = c0.is_finite() & c1.is_finite();
+        let worst = if c0 > c1 { c0 } else { c1 };
+        let ra = if has_peak { a / peak } else { 0.0 };
+        *r = ra;
+        *o = (!finite as u8) * FLAG_SINGULAR
+            | ((finite & (worst > lim.cond_max)) as u8) * FLAG_ILL_CONDITIONED
+            | ((finite & (s > lim.max_rel_std)) as u8) * FLAG_UNCERTAIN
+            | ((ra < lim.min_rel_amplitude) as u8) * FLAG_LOW_AMPLITUDE;
+    }
+}
+
+crate::lanes::simd_dispatch! {
+    /// [`flag_pass`] at the widest SIMD level of this CPU.
+    fn flag_pass_dispatch(lim: &FlagLimits, cond: &[f64], amp: &[f64], rs: &[f64], rel: &mut [f64], code: &mut [u8]) -> () => flag_pass
+}
+
 /// Why each point should not be trusted, as bits, in one pass: singular (a condition number that
 /// is inf or NaN), ill-conditioned (cond > `cond_max`), uncertain (`rel_std` > `max_rel_std`),
 /// low amplitude (amp / max(amp) < `min_rel_amplitude`). `cond`: (n, 2); `amp`: (n,); `rel_std`:
@@ -873,23 +905,10 @@ pub fn flag_codes(
     }
     expect_len("rel_amp", rel_amp, n)?;
     let peak = max_propagating_nan(amp);
-    // branch-free per point (the comparisons are false for NaN) over zipped slices (no bounds
-    // checks), so the loop vectorizes; an empty rel_std is unknown (NaN) everywhere
+    // an empty rel_std is unknown (NaN) everywhere
     let nan_std = vec![f64::NAN; if rel_std.is_empty() { PAR_CHUNK.min(n) } else { 0 }];
-    let pass = |cond: &[f64], amp: &[f64], rs: &[f64], rel: &mut [f64], code: &mut [u8]| {
-        for ((((c, &a), &s), r), o) in cond.chunks_exact(2).zip(amp).zip(rs).zip(rel.iter_mut()).zip(code.iter_mut()) {
-            let (c0, c1) = (c[0], c[1]);
-            let finite = c0.is_finite() & c1.is_finite();
-            let worst = if c0 > c1 { c0 } else { c1 };
-            // every amplitude 0, or one NaN (no peak): relative amplitude 0 everywhere
-            let ra = if peak > 0.0 { a / peak } else { 0.0 };
-            *r = ra;
-            *o = (!finite as u8) * FLAG_SINGULAR
-                | ((finite & (worst > cond_max)) as u8) * FLAG_ILL_CONDITIONED
-                | ((finite & (s > max_rel_std)) as u8) * FLAG_UNCERTAIN
-                | ((ra < min_rel_amplitude) as u8) * FLAG_LOW_AMPLITUDE;
-        }
-    };
+    let lim = FlagLimits { peak, cond_max, min_rel_amplitude, max_rel_std };
+    let pass = |cond: &[f64], amp: &[f64], rs: &[f64], rel: &mut [f64], code: &mut [u8]| flag_pass_dispatch(&lim, cond, amp, rs, rel, code);
     code.par_chunks_mut(PAR_CHUNK).zip(rel_amp.par_chunks_mut(PAR_CHUNK)).enumerate().for_each(|(j, (oc, rc))| {
         let (lo, hi) = (j * PAR_CHUNK, j * PAR_CHUNK + oc.len());
         let rs = if rel_std.is_empty() { &nan_std[..oc.len()] } else { &rel_std[lo..hi] };
