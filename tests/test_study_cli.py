@@ -181,3 +181,14 @@ def test_progress_bar_unless_quiet_and_a_band_without_the_median(tmp_path, capsy
     assert len(pd.read_csv(tmp_path / "o" / "study_bands.csv")) == 2  # one band per point, none repeated
     code, out, err = _run(capsys, str(p), "--out", str(tmp_path / "o"), "--overwrite", "--quiet")
     assert code == 0 and err == ""
+
+
+def test_unreachable_scheduler_is_one_line_within_seconds(tmp_path, capsys):
+    import time
+
+    t = time.monotonic()
+    code, _, err = _run(capsys, EXAMPLES["impact"], "--out", str(tmp_path / "o"), "--trials", "20", "-q",
+                        "--scheduler", "tcp://127.0.0.1:1")
+    assert code == 2 and err.count("\n") == 1 and "scheduler" in err, err
+    assert time.monotonic() - t < 30
+    assert not (tmp_path / "o").exists()  # nothing written for a study that did not run

@@ -42,6 +42,8 @@ def main(argv=None):
     s.add_argument("--trials", type=int, default=None, help="number of simulated tests (overrides the config)")
     s.add_argument("--seed", type=int, default=None, help="seed of the random numbers (overrides the config)")
     s.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
+    s.add_argument("--scheduler", default=None, help="run on a Dask cluster: its scheduler address, e.g. "
+                   "tcp://10.0.0.5:8786 (needs rotorid[dask]; default: this machine's cores)")
     e = sub.add_parser("example", help="write the bundled example data set (raw recordings + configs) to a directory")
     e.add_argument("--out", default="rotorid_example")
     e.add_argument("--overwrite", action="store_true", help="replace files of the example already in the folder")
@@ -62,7 +64,7 @@ def main(argv=None):
 
         try:
             run_study_config(args.config, out_dir=args.out, overwrite=args.overwrite, trials=args.trials,
-                             seed=args.seed, progress=not args.quiet)
+                             seed=args.seed, progress=not args.quiet, scheduler=args.scheduler)
         except RotoridError as exc:
             print(f"rotorid: error: {exc}", file=sys.stderr)
             return 2

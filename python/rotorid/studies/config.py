@@ -260,6 +260,7 @@ class StudySection(_Model):
     level: _number(gt=0, lt=1) = Field(0.95, description="confidence level of the intervals")
     method: _choice("forces", "report") = "forces"
     at: _choice("probes", "bearings") = "probes"
+    scheduler: Optional[Text] = Field(None, description="Dask scheduler address (tcp://host:port); none: this machine")
 
     @model_validator(mode="after")
     def _pct(self):

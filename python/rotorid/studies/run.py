@@ -7,10 +7,13 @@ import os
 from ..errors import RotoridError
 
 
-def run_study_config(path, *, out_dir=None, overwrite=False, trials=None, seed=None, progress=True, log=print):
+def run_study_config(path, *, out_dir=None, overwrite=False, trials=None, seed=None, progress=True, scheduler=None,
+                     log=print):
     """Run the Monte Carlo study (and the test design, with ``[design]``) of the study config at
     ``path`` and write its tables, figures and summary to ``out_dir`` (default: ``[output] dir``,
-    else ``study_<kind>`` beside the config). ``trials`` and ``seed`` override the config. Returns
+    else ``study_<kind>`` beside the config). ``trials`` and ``seed`` override the config;
+    ``scheduler`` (a Dask scheduler address, or ``[study] scheduler``) runs the study on that
+    cluster, with the same results as on this machine. Returns
     (StudyResult, DesignResult or None, list of file names).
 
     Examples
@@ -40,10 +43,14 @@ def run_study_config(path, *, out_dir=None, overwrite=False, trials=None, seed=N
         if not os.path.isabs(out_dir):
             out_dir = os.path.join(os.path.dirname(os.path.abspath(os.fspath(path))), out_dir)
     folder = ResultsFolder(out_dir, patterns=PATTERNS, overwrite=overwrite, command="rotorid study")
-    os.makedirs(folder.path, exist_ok=True)
     rotor, bearings, rig = cfg.system()
+    if scheduler is None:
+        scheduler = st.scheduler
+    elif not isinstance(scheduler, str) or not scheduler.strip():
+        raise RotoridError(f"--scheduler must be a Dask scheduler address (e.g. tcp://host:8786), got {scheduler!r}")
     common = dict(trials=trials, seed=seed, at=st.at, method=st.method, percentiles=st.percentiles,
-                  coverage_trials=min(st.coverage_trials, trials), level=st.level, progress=progress)
+                  coverage_trials=min(st.coverage_trials, trials), level=st.level, progress=progress,
+                  client=scheduler)
     design = None
     if st.kind == "imbalance":
         from .monte_carlo import synchronous_study
@@ -73,6 +80,10 @@ def run_study_config(path, *, out_dir=None, overwrite=False, trials=None, seed=N
         sec = cfg.impact
         tests = [(t.plane_mm * 1e-3, t.direction) for t in sec.tests]
         res = impact_study(rotor, bearings, tests, sec.freqs(), sec.errors.build(), speed_rpm=sec.speed_rpm, **common)
+    try:
+        os.makedirs(folder.path, exist_ok=True)  # only now: a study that fails leaves no empty folder behind
+    except OSError as exc:
+        raise RotoridError(f"cannot create the output folder {folder.path!r}: {exc}") from None
     files = write_study(res, folder, design=design, settings={"config": os.fspath(path)})
     folder.finish()
     med = res.band_summary()
