@@ -80,10 +80,6 @@ def run_study_config(path, *, out_dir=None, overwrite=False, trials=None, seed=N
         sec = cfg.impact
         tests = [(t.plane_mm * 1e-3, t.direction) for t in sec.tests]
         res = impact_study(rotor, bearings, tests, sec.freqs(), sec.errors.build(), speed_rpm=sec.speed_rpm, **common)
-    try:
-        os.makedirs(folder.path, exist_ok=True)  # only now: a study that fails leaves no empty folder behind
-    except OSError as exc:
-        raise RotoridError(f"cannot create the output folder {folder.path!r}: {exc}") from None
     files = write_study(res, folder, design=design, settings={"config": os.fspath(path)})
     folder.finish()
     med = res.band_summary()
