@@ -25,12 +25,16 @@ whatever the trial count. ``block`` is the number of points (speeds x trials) pe
 explicit (speeds, trials). Every array of a block lives in a per-thread workspace (``_Workspace``):
 fresh temporaries of this size come from mmap and their page faults cost more than the arithmetic.
 
-Reference timings (AMD EPYC, 2 cores, 1 MiB L2, NumPy 2.4, quiet machine), 1000 trials x 1000
-speeds x 4 runs, histogram summary: 1 thread 0.96 s (block 8000 = 8 speeds x 1000 trials),
-2 threads 0.58 s (block 16000). About 30 % is drawing the 32 normals per trial-speed (~8.5 ns
-each), 25 % the identification, 20 % the statistics, 15 % the phase factors (sin by its Taylor
-series for small angles, cos = sqrt(1 - sin²)). (Measured with the earlier asinh-scaled bins; the
-log-linear bins read with np.frexp cost about the same.)
+Reference timings (AMD EPYC, 2 cores, AVX2, 512 KiB L2, NumPy 2.4, machine nearly idle), 1000 trials x
+1000 speeds x 4 runs, histogram summary: synchronous 1 thread 0.86 s (block 8000 = 8 speeds x 1000
+trials), 2 threads 0.54 s (block 16000); impact 0.77 s and 0.47 s. Of the 1-thread synchronous
+time: about 30 % drawing the 32 normals per trial-speed (SFC64 ziggurat, ~8.5 ns each: NumPy's
+fastest; Box-Muller costs more, np.sin/np.cos alone ~9.5 ns per value without AVX-512), 25 % the
+identification, 15 % the statistics (the bin index ~7 %: read from the float bits, see
+``_signed_magnitude``; the earlier np.frexp version was 8x slower, not for frexp itself but for
+its masked ``where=`` ufuncs and int-to-float casts, and made the statistics 30 % of the time), 10 %
+the percentiles, 8 % the phase factors (sin by its Taylor series for small angles, cos =
+sqrt(1 - sin^2)), the rest the perturbation and probes -> bearings.
 
 The impact study (``numpy_impact_study``) is the same work with FRFs: errors
 (1 + ε (n_re + j n_im)) with ε = sqrt((1 - γ²) / (2 n_d γ²)), identification at each frequency
@@ -128,7 +132,7 @@ class _Workspace:
         self.err = np.empty((16, nb, tb))
         self.e1 = np.empty((16, nb, tb))
         self.e2 = np.empty((16, nb, tb))
-        self.idx = np.empty((16, nb, tb), np.intp)
+        self.idx = np.empty((16, nb, tb), np.int64)
         self.sing = np.empty((nb, tb), bool)
         # identification: the full Gram matrix (lower triangle = conjugates), the bearing's
         # normalized 2x2 system, the two right-hand sides, the two unknowns and two temporaries
@@ -288,22 +292,38 @@ class _Study:
         return self.identify_errors(Q, sl, W)
 
 
-def _bin_index(e, x=None, t=None):
-    """The spec's bin of each error as a float array: magnitude m = floor(16 x) for x = |e|/E0 < 1,
-    else 16 + 16 E + t from np.frexp (x = 2^E (1 + t/16 + ...)), clamped to 511; 512 + m for
-    e >= 0, 511 - m below. ``x``, ``t``: optional work arrays."""
-    x = np.multiply(np.abs(e, out=x), 1.0 / E0, out=x)
-    mant, ex = np.frexp(x)
-    t = np.multiply(mant, 2 * SUB, out=t)          # 2m in [1, 2) -> 16 (2m) in [16, 32)
-    np.floor(t, out=t)
-    t += SUB * (ex - 1)                            # (16 + top bits) + 16 E, E = ex - 1
-    lin = np.floor(np.minimum(x, 1.0) * SUB)
-    np.copyto(t, lin, where=x < 1)
-    np.minimum(t, BINS // 2 - 1, out=t)
-    neg = e < 0
-    np.add(t, BINS // 2, out=t, where=~neg)
-    np.subtract(BINS // 2 - 1, t, out=t, where=neg)
-    return t
+_ABS = np.int64(0x7FFFFFFFFFFFFFFF)
+_ONE = np.uint32(1)
+_LOG0 = (1023 - 20) * SUB        # (bits of |e|) >> 48 - _LOG0 = 16 E + t for x = |e| / E0 = 2^E (1 + t/16 + ...)
+
+
+def _signed_magnitude(e, f1=None, f2=None, sg=None):
+    """m for e >= 0 and -1 - m for e < 0 (int64, the bin minus 512), m the spec's magnitude index
+    of x = |e| / E0, read from the bits of e as the core reads them: E0 = 2^-20 only shifts the
+    exponent, so (bits of |e|) >> 48 holds the octave and the top four mantissa bits; below E0
+    the linear floor(16 x). Twelve unmasked passes, each of one dtype, no branch: about 8x faster
+    than np.frexp followed by masked (``where=``) and mixed int/float ufuncs. ``f1``, ``f2``
+    (float64) and ``sg`` (int64): work arrays like e; the result is ``f1`` viewed as int64."""
+    f1 = np.add(e, 0.0, out=f1)                   # -0.0 -> +0.0 (the spec: e >= 0 is the upper half)
+    b = f1.view(np.int64)
+    sg = np.right_shift(b, 63, out=sg)            # -1 where e < 0, else 0
+    np.bitwise_and(b, _ABS, out=b)                # f1 = |e|
+    f2 = np.multiply(f1, SUB / E0, out=f2)        # 16 x
+    np.minimum(f2, SUB, out=f2)
+    lin = f2.view(np.int64)
+    np.copyto(lin, f2, casting="unsafe")          # floor(16 x) below 1, 16 above
+    np.right_shift(b, 48, out=b)
+    b -= _LOG0
+    np.maximum(b, 0, out=b)                       # 16 E + t above 1, 0 below
+    b += lin                                      # the magnitude index
+    np.minimum(b, BINS // 2 - 1, out=b)
+    np.bitwise_xor(b, sg, out=b)                  # m, or -1 - m below zero
+    return b
+
+
+def _bin_index(e):
+    """The spec's bin (int64) of each finite error: 512 + m for e >= 0, 511 - m below."""
+    return _signed_magnitude(np.asarray(e, float)) + BINS // 2
 
 
 def bin_edges():
@@ -315,19 +335,21 @@ def bin_edges():
 
 
 class _Accumulator:
-    """Streaming statistics of the spec: counts (n, 16, 1024) (a block's speeds are one contiguous
-    slice, counted in place by np.add.at), finite / non-finite counts, sums (16, n)."""
+    """Streaming statistics of the spec: counts (n, 16, 1024) uint32 as in the core (a block's
+    speeds are one contiguous slice, counted in place by np.add.at: its fast path needs the count
+    and the increment of one dtype, np.uint32(1) here, else it is 40x slower), finite / non-finite
+    counts, sums (16, n)."""
 
     def __init__(self, n):
-        self.counts = np.zeros((n, 16, BINS), np.int64)
+        self.counts = np.zeros((n, 16, BINS), np.uint32)
         self.finite = np.zeros((16, n), np.int64)
         self.nonfinite = np.zeros((16, n), np.int64)
         self.sum = np.zeros((16, n))
         self.sumsq = np.zeros((16, n))
 
     def add(self, sl, err, base, W=None):
-        """err (16, nb, tb) at speeds sl; base (16, nb, 1) flat offsets of (speed, coefficient);
-        W: the block's workspace (or None)."""
+        """err (16, nb, tb) at speeds sl; base (16, nb, 1) int64 flat offsets of (speed, coefficient)
+        plus the centre bin 512; W: the block's workspace (or None)."""
         s = err.sum(-1)
         if np.isfinite(s).all():                                 # then every error is finite
             ok = None
@@ -344,48 +366,49 @@ class _Accumulator:
             self.finite[:, sl] += nf
             self.nonfinite[:, sl] += err.shape[-1] - nf
         same = W is not None and W.err.shape == err.shape
-        u = _bin_index(e, W.e1 if same else None, W.e2 if same else None)
-        u += base                                                # flat (speed, coefficient, bin), exact
-        idx = W.idx if same else np.empty(u.shape, np.intp)
-        np.copyto(idx, u, casting="unsafe")
+        idx = _signed_magnitude(e, *((W.e1, W.e2, W.idx) if same else ()))
+        idx += base                                              # flat (speed, coefficient, bin)
         if ok is not None:
             idx = idx[ok]
-        np.add.at(self.counts[sl].reshape(-1), idx.reshape(-1), 1)
+        np.add.at(self.counts[sl].reshape(-1), idx.reshape(-1), _ONE)
 
 
-def percentiles_from_histogram(counts, q=PERCENTILES):
-    """Percentiles (len(q), ...) of histograms counts (..., 1024), linear inside the bin (in u):
+def percentiles_from_histogram(counts, q=PERCENTILES, rows_per_chunk=512):
+    """Percentiles (len(q), ...) of histograms counts (..., 1024), linear inside the bin:
     target rank q/100 N, the first bin whose cumulative count reaches it (and holds values),
-    u = bin start + (target - count below) / count of the bin x width; NaN where empty.
+    bin start + (target - count below) / count of the bin x width; NaN where empty.
 
-    All histograms at once: the cumulative counts of row r are offset by r (N_max + 1), which makes
-    one increasing array, and a single searchsorted finds every row's bin."""
-    c = np.asarray(counts, np.int64)
-    shp = c.shape[:-1]
-    c = c.reshape(-1, c.shape[-1])
-    rows = c.shape[0]
-    cum = np.cumsum(c, axis=1)
-    N = cum[:, -1].copy()
-    big = int(N.max()) + 1
-    off = np.arange(rows, dtype=np.int64) * big
-    cum += off[:, None]
-    flat = cum.reshape(-1)
-    out = np.full((len(q), rows), np.nan)
+    ``rows_per_chunk`` histograms at a time (their cumulative counts stay in cache). In a chunk the
+    cumulative counts of row r are offset by r (N_max + 1), which makes one increasing array, and
+    a single searchsorted finds every row's bin."""
+    c_all = np.asarray(counts)
+    shp = c_all.shape[:-1]
+    c_all = c_all.reshape(-1, c_all.shape[-1])
+    nbins = c_all.shape[1]
+    out = np.full((len(q), c_all.shape[0]), np.nan)
     edges = bin_edges()
     lo_e, hi_e = edges[:-1].copy(), edges[1:].copy()
     lo_e[0], hi_e[-1] = hi_e[0], lo_e[-1]
-    for i, qq in enumerate(q):
-        target = qq / 100.0 * N
-        k = np.maximum(np.ceil(target), 1).astype(np.int64)     # cum >= target <=> cum >= ceil(target)
-        pos = np.searchsorted(flat, k + off, side="left")
-        b = pos - np.arange(rows) * c.shape[1]
-        ok = (N > 0) & (b < c.shape[1])
-        b = np.where(ok, b, 0)
-        cb = c[np.arange(rows), b]
-        below = cum[np.arange(rows), b] - off - cb
-        with np.errstate(invalid="ignore", divide="ignore"):
-            frac = np.clip((target - below) / cb, 0.0, 1.0)
-        out[i] = np.where(ok, lo_e[b] + frac * (hi_e[b] - lo_e[b]), np.nan)
+    for r0 in range(0, c_all.shape[0], rows_per_chunk):
+        c = c_all[r0:r0 + rows_per_chunk]
+        rows = c.shape[0]
+        ar = np.arange(rows)
+        cum = np.cumsum(c, axis=1, dtype=np.int64)
+        N = cum[:, -1].copy()
+        off = ar * (int(N.max()) + 1)
+        cum += off[:, None]
+        flat = cum.reshape(-1)
+        for i, qq in enumerate(q):
+            target = qq / 100.0 * N
+            k = np.maximum(np.ceil(target), 1).astype(np.int64)     # cum >= target <=> cum >= ceil(target)
+            b = np.searchsorted(flat, k + off, side="left") - ar * nbins
+            ok = (N > 0) & (b < nbins)
+            b = np.where(ok, b, 0)
+            cb = c[ar, b].astype(float)
+            below = cum[ar, b] - off - cb
+            with np.errstate(invalid="ignore", divide="ignore"):
+                frac = np.clip((target - below) / cb, 0.0, 1.0)
+            out[i, r0:r0 + rows] = np.where(ok, lo_e[b] + frac * (hi_e[b] - lo_e[b]), np.nan)
     return out.reshape((len(q),) + shp)
 
 
@@ -409,7 +432,7 @@ def _run(study, T, block, threads, seed, summary, q=PERCENTILES, pool=None):
     def task(ci):
         sl = chunks[ci]
         m = sl.stop - sl.start
-        base = ((np.arange(16)[:, None] + 16 * np.arange(m)[None, :]) * BINS)[:, :, None].astype(float)
+        base = ((np.arange(16)[:, None] + 16 * np.arange(m)[None, :]) * BINS + BINS // 2)[:, :, None]
         keep = np.empty((16, m, T)) if exact is not None else None
         for t0 in range(0, T, tb):
             t1 = min(t0 + tb, T)
@@ -455,25 +478,40 @@ def _run(study, T, block, threads, seed, summary, q=PERCENTILES, pool=None):
 # ---------------------------------------------------------------------------------------------
 # the two studies
 
-# sin of a small angle: x P(x^2), the Taylor series to x^13 (remainder < |x|^15 / 15! < 1e-16 |x|
-# for |x| <= SMALL_ANGLE); cos = sqrt(1 - sin^2) (|x| < pi/2). Larger angles fall back to np.sin/np.cos.
+# sin of a small angle: x P(x^2), the Taylor series with as many terms as the largest |x| of the
+# block needs for double precision (the first omitted term below 2^-53 |x|: 5 terms for the 0.5 deg
+# phase errors, whose |x| stays under 0.06 rad; 7 at SMALL_ANGLE); cos = sqrt(1 - sin^2) (|x| < pi/2).
+# Larger angles fall back to np.sin/np.cos.
 SMALL_ANGLE = 0.2
-_SIN_COEF = tuple((-1.0) ** k / float(np.prod(np.arange(1, 2 * k + 2))) for k in range(7))
+_SIN_COEF = tuple((-1.0) ** k / float(np.prod(np.arange(1, 2 * k + 2))) for k in range(8))
+
+
+def _sin_terms(amax):
+    """Terms of the sine series for |x| <= amax: the first omitted term |x|^(2K+1)/(2K+1)! < 2^-53 |x|."""
+    k = 1
+    while k < len(_SIN_COEF) - 1 and amax ** (2 * k) * abs(_SIN_COEF[k]) >= 2.0 ** -53:
+        k += 1
+    return k
 
 
 def _sincos_into(phi, sin_out, cos_out, tmp1, tmp2):
     """sin and cos of phi (real array) into sin_out, cos_out; tmp1, tmp2: work arrays like phi."""
-    if np.abs(phi, out=tmp1).max(initial=0.0) > SMALL_ANGLE:
+    amax = max(float(phi.max(initial=0.0)), -float(phi.min(initial=0.0)))
+    if not amax <= SMALL_ANGLE:                   # (NaN too)
         np.sin(phi, out=sin_out)
         np.cos(phi, out=cos_out)
         return
+    coef = _SIN_COEF[:_sin_terms(amax)]
     x2 = np.multiply(phi, phi, out=tmp1)
-    acc = np.multiply(x2, _SIN_COEF[-1], out=tmp2)
-    for c in _SIN_COEF[-2:0:-1]:
-        acc += c
-        acc *= x2
-    acc += _SIN_COEF[0]
-    np.multiply(acc, phi, out=sin_out)
+    if len(coef) == 1:
+        np.copyto(sin_out, phi)
+    else:
+        acc = np.multiply(x2, coef[-1], out=tmp2)
+        for c in coef[-2:0:-1]:
+            acc += c
+            acc *= x2
+        acc += coef[0]
+        np.multiply(acc, phi, out=sin_out)
     np.multiply(sin_out, sin_out, out=x2)
     np.subtract(1.0, x2, out=x2)
     np.sqrt(x2, out=cos_out)
@@ -582,45 +620,64 @@ def _z_summary(a, b, se):
 
 
 def check_against_oracle(trials=1000, points=20, seed=11):
-    """Percentiles, means and rms of this baseline vs the spec's oracle (tests/study_oracle.py):
-    the same statistics with different random numbers, so they agree within Monte Carlo error.
-    z = difference / (sqrt(2) x the oracle's bootstrap standard error); the control line compares
-    the oracle with itself under another seed."""
+    """Percentiles, means and rms of this baseline vs the spec's oracle (tests/study_oracle.py) and
+    vs rotorid's study: the same statistics with different random numbers, so they agree within
+    Monte Carlo error. z = difference / (sqrt(2) x the oracle's bootstrap standard error); the
+    control line compares the oracle with itself under another seed. rotorid with the oracle's
+    seed draws the oracle's random numbers (counter-based, docs/studies.md), so those two agree
+    to rounding (a percentile may move by one bin where a rounding difference crosses an edge)."""
     sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests"))
     import study_oracle as so
+    from rotorid.studies import ImpactErrors, SyncErrors, impact_study, synchronous_study
 
     p, kb, cb, om, u, planes, probes, rig = _nsf(points, 4)
-    w = 2 * np.pi * np.linspace(20.0, 200.0, points)
+    f_hz = np.linspace(20.0, 200.0, points)
+    w = 2 * np.pi * f_hz
     tests = [(0.0, "x"), (0.0, "y"), (0.05, "x"), (-0.08, "y")]
     spin = 3000 * np.pi / 30
+    imbs = [rig.imbalances[x] for x in "ABCD"]
     cases = [
         (f"synchronous, NSF rig, {points} speeds 1000-7000 rpm, 4 runs, amplitude 1 %, phase 0.5 deg",
          lambda sd: so.sync_errors(p, kb, cb, om, u, planes, probes, {"amplitude_rel": 0.01, "phase_deg": 0.5}, sd,
                                    range(trials)),
-         lambda: numpy_sync_study(p, kb, cb, om, u, planes, probes, 0.01, 0.5, trials, 4096, 1, 3)),
+         lambda: numpy_sync_study(p, kb, cb, om, u, planes, probes, 0.01, 0.5, trials, 4096, 1, 3),
+         lambda sd: synchronous_study(rig.rotor, rig.bearings, imbs, om * 30 / np.pi,
+                                      SyncErrors(amplitude_rel=0.01, phase_deg=0.5), trials=trials, seed=sd)),
         (f"impact, NSF rig at 3000 rpm, {points} frequencies 20-200 Hz, 4 tests, coherence 0.95, 5 impacts",
          lambda sd: so.impact_errors(p, kb, cb, spin, w, tests, probes, {"coherence": 0.95, "impacts": 5}, sd,
                                      range(trials)),
-         lambda: numpy_impact_study(p, kb, cb, spin, w, tests, probes, 0.95, 5, trials, 4096, 1, 3)),
+         lambda: numpy_impact_study(p, kb, cb, spin, w, tests, probes, 0.95, 5, trials, 4096, 1, 3),
+         lambda sd: impact_study(rig.rotor, rig.bearings, tests, f_hz, ImpactErrors(coherence=0.95, impacts=5),
+                                 speed_rpm=3000, trials=trials, seed=sd)),
     ]
     rng = np.random.default_rng(0)
-    for name, oracle, base in cases:
+    for name, oracle, base, ours in cases:
         err, err2 = oracle(seed), oracle(seed + 1)
         po, mo, ro, _ = so.summary(err)
-        po2, mo2, _, _ = so.summary(err2)
+        po2, mo2, ro2, _ = so.summary(err2)
         boots = np.array([np.percentile(err[rng.integers(0, trials, trials)], PERCENTILES, axis=0,
                                         method="inverted_cdf") for _ in range(200)])
         se = boots.std(0)
-        rb = base()
         sm = err.std(0) / np.sqrt(trials)
+        rb = base()
+        rr, rr_same = ours(seed + 2), ours(seed)
         print(name)
-        print(f"  5/50/95 percentiles, baseline vs oracle:     {_z_summary(rb['percentiles'], po, se)}")
-        print(f"  5/50/95 percentiles, oracle vs oracle seed+1: {_z_summary(po2, po, se)}")
-        print(f"  means, baseline vs oracle:                   {_z_summary(rb['mean'], mo, sm)}")
-        print(f"  means, oracle vs oracle seed+1:              {_z_summary(mo2, mo, sm)}")
-        d = np.abs(rb["rms"] / ro - 1)
-        print(f"  rms, baseline / oracle - 1: median {np.median(d):.4f}, max {d.max():.4f}; non-finite "
-              f"{int(rb['nonfinite'].sum())} / {int((~np.isfinite(err)).sum())}")
+        print(f"  5/50/95 percentiles, baseline vs oracle:      {_z_summary(rb['percentiles'], po, se)}")
+        print(f"  5/50/95 percentiles, baseline vs rotorid:     {_z_summary(rb['percentiles'], rr.pct, se)}")
+        print(f"  5/50/95 percentiles, oracle vs oracle seed+1: {_z_summary(po2, po, se)}  (control)")
+        print(f"  means, baseline vs oracle:                    {_z_summary(rb['mean'], mo, sm)}")
+        print(f"  means, baseline vs rotorid:                   {_z_summary(rb['mean'], rr.mean, sm)}")
+        print(f"  means, oracle vs oracle seed+1:               {_z_summary(mo2, mo, sm)}  (control)")
+        for lab, r in (("baseline / oracle", rb["rms"]), ("baseline / rotorid", rr.rms), ("oracle+1 / oracle", ro2)):
+            d = np.abs(r / ro - 1) if lab != "baseline / rotorid" else np.abs(rb["rms"] / rr.rms - 1)
+            print(f"  rms, {lab} - 1: median {np.median(d):.4f}, max {d.max():.4f}"
+                  + ("  (control)" if lab.startswith("oracle") else ""))
+        dp = np.abs(rr_same.pct - po) / np.maximum(np.abs(po), 1e-300)
+        print(f"  rotorid vs oracle, same seed (same random numbers): percentiles max rel. diff {dp.max():.1e}, "
+              f"means {np.abs(rr_same.mean - mo).max() / np.abs(mo).max():.1e}, "
+              f"rms {np.abs(rr_same.rms / ro - 1).max():.1e}")
+        print(f"  non-finite errors: baseline {int(rb['nonfinite'].sum())}, oracle {int((~np.isfinite(err)).sum())}, "
+              f"rotorid {int(np.round(rr.singular * trials).sum())}")
 
 
 def main():
