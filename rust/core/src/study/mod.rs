@@ -567,23 +567,14 @@ pub fn accumulate_into(s: &Study, t0: u64, t1: u64, p0: usize, p1: usize, out: S
         .zip(sumsq.par_chunks_mut(rest))
         .enumerate()
         .try_for_each(|(b, ((((cnt, fin), nonf), sm), sq))| {
-            let blk = BlockOut { counts: cnt, finite: fin, nonfinite: nonf, sum: sm, sumsq: sq };
+            let blk = StatsMut { counts: cnt, finite: fin, nonfinite: nonf, sum: sm, sumsq: sq };
             run_block_dispatch(s, &ex, &e_nom, t0, t1, p0 + b * POINT_BLOCK, blk)
         })
 }
 
-/// Statistics of one block of points.
-struct BlockOut<'a> {
-    counts: &'a mut [u32],
-    finite: &'a mut [u32],
-    nonfinite: &'a mut [u32],
-    sum: &'a mut [f64],
-    sumsq: &'a mut [f64],
-}
-
 /// All trials t0..t1 at the block of points starting at `bp0`, in trial order.
 #[inline(always)]
-fn run_block(s: &Study, ex: &Exact, e_nom: &[C64], t0: u64, t1: u64, bp0: usize, mut out: BlockOut) -> Result<(), CoreError> {
+fn run_block(s: &Study, ex: &Exact, e_nom: &[C64], t0: u64, t1: u64, bp0: usize, mut out: StatsMut) -> Result<(), CoreError> {
     let bnp = out.finite.len() / NCOEF;
     // the block's histograms with a padded stride: at a stride of exactly BINS u32 (4 KiB) the
     // same bin of every histogram maps to one L1 cache set, and the increments thrash it. The
@@ -614,7 +605,7 @@ thread_local! {
 /// The trials of [`run_block`], counting into `hist` (padded stride) and adding to `out`'s sums.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn run_trials(s: &Study, ex: &Exact, e_nom: &[C64], t0: u64, t1: u64, bp0: usize, bnp: usize, hist: &mut [u32], out: &mut BlockOut) -> Result<(), CoreError> {
+fn run_trials(s: &Study, ex: &Exact, e_nom: &[C64], t0: u64, t1: u64, bp0: usize, bnp: usize, hist: &mut [u32], out: &mut StatsMut) -> Result<(), CoreError> {
     let runs = s.runs();
     let mut sc = Scratch::default();
     let mut q = vec![C64::new(0.0, 0.0); runs * bnp * 4];
@@ -672,5 +663,5 @@ fn run_trials(s: &Study, ex: &Exact, e_nom: &[C64], t0: u64, t1: u64, bp0: usize
 
 crate::lanes::simd_dispatch! {
     /// [`run_block`] at the widest SIMD level of this CPU.
-    fn run_block_dispatch(s: &Study, ex: &Exact, e_nom: &[C64], t0: u64, t1: u64, bp0: usize, out: BlockOut) -> Result<(), CoreError> => run_block
+    fn run_block_dispatch(s: &Study, ex: &Exact, e_nom: &[C64], t0: u64, t1: u64, bp0: usize, out: StatsMut) -> Result<(), CoreError> => run_block
 }
