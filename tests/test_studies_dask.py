@@ -55,6 +55,14 @@ def test_cluster_and_local_runs_are_identical(cluster, small_tasks):
     _same(li, ri)
     other = synchronous_study(RIG.rotor, RIG.bearings, RUNS, RPM, errors, client=client, trials=300, seed=22)
     assert not np.array_equal(other.pct, local.pct)
+    assert not np.array_equal(other.mean, local.mean)
+    # the user's client stays open and stays the default; the scattered spec is released
+    assert client.status == "running"
+    assert distributed.default_client() is client
+    deadline = time.monotonic() + 10
+    while client.who_has() and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not client.who_has()
 
 
 def test_a_scheduler_address_works_and_its_client_is_closed(cluster, small_tasks):
@@ -65,6 +73,14 @@ def test_a_scheduler_address_works_and_its_client_is_closed(cluster, small_tasks
     remote = synchronous_study(RIG.rotor, RIG.bearings, RUNS, RPM, errors, trials=100, seed=2,
                                client=c.scheduler_address)
     _same(local, remote)
+    f = np.linspace(20, 150, 17)
+    tests = [(0.0, "x"), (0.1, "x")]
+    li = impact_study(RIG.rotor, RIG.bearings, tests, f, ImpactErrors(coherence=0.97), speed_rpm=500, trials=100,
+                      seed=3)
+    ri = impact_study(RIG.rotor, RIG.bearings, tests, f, ImpactErrors(coherence=0.97), speed_rpm=500, trials=100,
+                      seed=3, client=c.scheduler_address)
+    _same(li, ri)
+    assert distributed.default_client() is cluster[1]  # the address's client no longer the default
     if before is not None:
         deadline = time.monotonic() + 10
         while len(c.scheduler.clients) > before and time.monotonic() < deadline:
@@ -72,14 +88,23 @@ def test_a_scheduler_address_works_and_its_client_is_closed(cluster, small_tasks
         assert len(c.scheduler.clients) <= before
 
 
-def test_local_threads_change_nothing(monkeypatch):
+@pytest.mark.parametrize("workers", [2, 3])
+def test_local_threads_change_nothing(monkeypatch, workers):
     errors = SyncErrors(amplitude_rel=0.005, phase_deg=0.2)
     monkeypatch.setattr(mc, "TRIAL_BLOCK", 32)
+    monkeypatch.setattr(mc, "POINT_BLOCK", 8)
     monkeypatch.setattr(mc, "LOCAL_WORKERS", 1)
     one = synchronous_study(RIG.rotor, RIG.bearings, RUNS, RPM, errors, trials=200, seed=5, keep_histograms=True)
-    monkeypatch.setattr(mc, "LOCAL_WORKERS", 3)
-    three = synchronous_study(RIG.rotor, RIG.bearings, RUNS, RPM, errors, trials=200, seed=5, keep_histograms=True)
-    _same(one, three)
+    f = np.linspace(20, 150, 17)
+    ie = ImpactErrors(coherence=0.95, impacts=5)
+    one_i = impact_study(RIG.rotor, RIG.bearings, [(0.0, "x"), (0.0, "y")], f, ie, speed_rpm=1000, trials=200, seed=5,
+                         keep_histograms=True)
+    monkeypatch.setattr(mc, "LOCAL_WORKERS", workers)
+    many = synchronous_study(RIG.rotor, RIG.bearings, RUNS, RPM, errors, trials=200, seed=5, keep_histograms=True)
+    many_i = impact_study(RIG.rotor, RIG.bearings, [(0.0, "x"), (0.0, "y")], f, ie, speed_rpm=1000, trials=200,
+                          seed=5, keep_histograms=True)
+    _same(one, many)
+    _same(one_i, many_i)
 
 
 @pytest.mark.parametrize("address", ["tcp://127.0.0.1:1", "not-an-address"])
@@ -94,3 +119,11 @@ def test_unreachable_scheduler_is_a_clear_error_within_seconds(address):
 def test_not_a_client(client):
     with pytest.raises(RotoridError, match="client|scheduler"):
         synchronous_study(RIG.rotor, RIG.bearings, RUNS, RPM, trials=10, client=client)
+
+
+def test_a_closed_client_is_an_error(cluster):
+    c, _ = cluster
+    closed = distributed.Client(c.scheduler_address, set_as_default=False)
+    closed.close()
+    with pytest.raises(RotoridError, match="closed"):
+        synchronous_study(RIG.rotor, RIG.bearings, RUNS, RPM, trials=10, client=closed)

@@ -259,6 +259,9 @@ def _client(client):
             from dask.distributed import Client
         except ImportError:
             raise RotoridError("a scheduler address needs dask.distributed (pip install 'rotorid[dask]')") from None
+        if not client.strip():
+            # never Client(""): depending on the dask version an empty address may start a local cluster
+            raise RotoridError("the Dask scheduler address is empty (e.g. 'tcp://scheduler:8786')")
         try:
             return Client(client, timeout="10s")
         except Exception as exc:  # OSError, TimeoutError, ValueError (a malformed address), ...
@@ -266,6 +269,8 @@ def _client(client):
     if type(client).__name__ != "Client" or not hasattr(client, "submit"):
         raise RotoridError(f"client must be a dask.distributed.Client or a scheduler address, got "
                            f"{type(client).__name__}")
+    if getattr(client, "status", None) in ("closing", "closed"):
+        raise RotoridError(f"the Dask client is {client.status}: pass an open client or a scheduler address")
     return client
 
 
