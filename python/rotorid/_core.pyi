@@ -31,6 +31,7 @@ def identify(
     method: str = "forces",  # or "report"
     with_std: bool = True,
     sigma: npt.NDArray[np.float64] | None = None,  # (n,): solve at s = sigma + j w (exponential windows)
+    q_ped: npt.NDArray[np.complex128] | None = None,  # as q: pedestal motion at the bearings (inertia sees q + q_ped)
 ) -> tuple[
     npt.NDArray[np.float64],  # k (batch, n, 2, 2, 2)
     npt.NDArray[np.float64],  # c (batch, n, 2, 2, 2)
@@ -49,6 +50,49 @@ def modal(
     spin: npt.NDArray[np.float64],  # (n,)
 ) -> tuple[npt.NDArray[np.complex128], npt.NDArray[np.complex128], int]:
     """Eigenvalues with Im > 0 sorted by frequency (n, 4), mode shapes (n, 4, 4), n_failed."""
+
+# Flexible pedestals: pedestals = [m [ped][x, y] (4); k [ped][i][j] (8); c [ped][i][j] (8)] (20,)
+
+def forced_response_pedestal(
+    rotor: npt.NDArray[np.float64],
+    k: npt.NDArray[np.float64],  # (n or 1, 8) bearing coefficients
+    c: npt.NDArray[np.float64],  # (n or 1, 8)
+    pedestals: npt.NDArray[np.float64],  # (20,)
+    spin: npt.NDArray[np.float64],  # (n,)
+    w: npt.NDArray[np.float64],  # (n,)
+    force: npt.NDArray[np.complex128],  # (n or 1, nrhs, 4)
+    gain: npt.NDArray[np.float64] | None = None,  # (n,)
+) -> tuple[npt.NDArray[np.complex128], npt.NDArray[np.complex128], int]:
+    """Journal (absolute) and pedestal motion at the bearings, each (n, nrhs, 4), n_singular."""
+
+def effective_coefficients(
+    k: npt.NDArray[np.float64],  # (n or 1, 8)
+    c: npt.NDArray[np.float64],  # (n or 1, 8)
+    pedestals: npt.NDArray[np.float64],  # (20,)
+    w: npt.NDArray[np.float64],  # (n,)
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.complex128], int]:
+    """Series bearing + pedestal: K_eff, C_eff (n, 8), transfer T = (Z + D)^-1 Z (n, 8), n_singular."""
+
+def modal_pedestal(
+    rotor: npt.NDArray[np.float64],
+    k: npt.NDArray[np.float64],  # (n, 8)
+    c: npt.NDArray[np.float64],  # (n, 8)
+    pedestals: npt.NDArray[np.float64],  # (20,)
+    spin: npt.NDArray[np.float64],  # (n,)
+) -> tuple[npt.NDArray[np.complex128], npt.NDArray[np.complex128], int]:
+    """8-DOF eigenvalues (n, 8), shapes (n, 8, 8) over [x1, x2, y1, y2, xp1, xp2, yp1, yp2], n_failed."""
+
+def bearing_forces(
+    rotor: npt.NDArray[np.float64],
+    w: npt.NDArray[np.float64],
+    spin: npt.NDArray[np.float64],
+    q: npt.NDArray[np.complex128],  # (batch, runs, n, 4)
+    e: npt.NDArray[np.complex128],  # (1 or batch, runs, 4)
+    gain: npt.NDArray[np.float64],
+    sigma: npt.NDArray[np.float64] | None = None,
+    q_ped: npt.NDArray[np.complex128] | None = None,
+) -> npt.NDArray[np.complex128]:
+    """Bearing reactions from the rotor equations, (batch, runs, n, 4) as [f1x, f2x, f1y, f2y]."""
 
 STUDY_BINS: int  # bins of each study histogram
 STUDY_E0: float  # errors below E0 are binned linearly

@@ -368,15 +368,84 @@ def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", ide
     check_imbalance_independence(rotor, [r.imbalance for r in runs], labels, identical=identical)
     rpm = runs[0].speed_rpm
     _check_same_axis("speed_rpm", [r.speed_rpm for r in runs], labels, "runs", "speeds", "interpolate the 1X vectors first")
-    at_b = [r.at_bearings(rotor) for r in runs]
-    qs = [np.ascontiguousarray(r.q, dtype=complex) for r in at_b]  # the runs as they are: no copy, no stack
     om = rpm * RPM
     e = np.stack([r.imbalance.generalized(rotor) for r in runs])  # (R, 4), scaled by Omega^2 below
+    if _has_pedestal(runs, labels):
+        if shared_cov is not None:
+            raise RotoridError("shared_cov is not supported with pedestal motion")
+        qs, qps, covs, dofs, flags = _pedestal_inputs(rotor, runs, labels, "speed_rpm", rpm)
+        return _solve(rotor, "speed_rpm", rpm, om, om, qs, e, om ** 2, None, identical=identical, method=method,
+                      labels=labels, cond_max=cond_max, min_rel_amplitude=min_rel_amplitude, what="responses",
+                      covs=covs, dofs=dofs, max_rel_std=max_rel_std, estimator=estimator, extra_flags=flags,
+                      q_ped=qps)
+    at_b = [r.at_bearings(rotor) for r in runs]
+    qs = [np.ascontiguousarray(r.q, dtype=complex) for r in at_b]  # the runs as they are: no copy, no stack
     covs = _run_covs(at_b, labels)
     return _solve(rotor, "speed_rpm", rpm, om, om, qs, e, om ** 2, None, identical=identical, method=method,
                   labels=labels, cond_max=cond_max, min_rel_amplitude=min_rel_amplitude, what="responses",
                   covs=covs, dofs=None if covs is None else _run_dofs(at_b), max_rel_std=max_rel_std,
                   estimator=estimator, shared_cov=_shared(rotor, runs, shared_cov))
+
+
+#: pedestal motion above this multiple of the relative motion: a point is flagged (and warned about)
+PEDESTAL_RATIO_MAX = 1.0
+
+
+def _has_pedestal(runs, labels):
+    """True when every run carries pedestal motion, False when none does; a mix is an error."""
+    have = [r.pedestal is not None for r in runs]
+    if any(have) and not all(have):
+        without = [lab for lab, h in zip(labels, have) if not h]
+        raise RotoridError(f"{', '.join(without)} carry no pedestal motion while the other runs do: identify with "
+                           "pedestal motion on every run (accelerometer channels px1, py1, px2, py2) or on none")
+    return all(have)
+
+
+def _pedestal_frame(rotor, run, label=""):
+    """(q_rel, p, joint_cov) of a run at the bearings: relative motion, pedestal motion, and the
+    (n, 16, 16) covariance of [Re q_rel, Im q_rel, Re p, Im p] (None without covariances)."""
+    from .simulate import joint_cov
+
+    if run.pedestal is None:
+        raise RotoridError(f"{label or 'the run'} carries no pedestal motion")
+    rb = run.at_bearings(rotor)
+    q = rb.frf() if hasattr(rb, "frf") else rb.q
+    jc = joint_cov(rb)
+    if (run.cov is None) != (run.pedestal_cov is None):
+        import warnings
+
+        warnings.warn(f"{label}: only one of cov (probes) and pedestal_cov (accelerometers) is given; the "
+                      "uncertainty needs both and falls back to the residual of redundant runs (or is unknown)")
+    return np.ascontiguousarray(q, dtype=complex), np.ascontiguousarray(rb.pedestal, dtype=complex), jc
+
+
+def _pedestal_inputs(rotor, runs, labels, axis_name, axis):
+    """Relative and pedestal motion at the bearings, joint covariances and dofs, and the flag of
+    points where the pedestal moves more than the journal in its housing (with a warning)."""
+    import warnings
+
+    frames = [_pedestal_frame(rotor, r, lab) for r, lab in zip(runs, labels)]
+    qs = [f[0] for f in frames]
+    qps = [f[1] for f in frames]
+    jcs = [f[2] for f in frames]
+    covs = np.stack(jcs) if all(c is not None for c in jcs) else None
+    dofs = _run_dofs(runs) if covs is not None else None
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.stack([np.sqrt(np.sum(np.abs(p) ** 2, 1) / np.sum(np.abs(q) ** 2, 1)) for q, p in zip(qs, qps)])
+    worst = np.nanmax(np.where(np.isfinite(ratio), ratio, np.nan), axis=0) if np.isfinite(ratio).any() else \
+        np.zeros(axis.size)
+    big = worst > PEDESTAL_RATIO_MAX
+    flags = []
+    if big.any():
+        j = int(np.nanargmax(worst))
+        r = int(np.nanargmax(ratio[:, j]))
+        unit = "rpm" if axis_name == "speed_rpm" else "Hz"
+        warnings.warn(f"pedestal motion is up to {worst[j]:.3g} times the motion relative to the pedestals ({labels[r]} "
+                      f"at {axis[j]:g} {unit}; {int(big.sum())} of {axis.size} points above 1): there the bearing "
+                      "forces hang on small differences and the identification is poorly conditioned; those points "
+                      "are flagged 'pedestal motion dominates'")
+        flags.append((big, "pedestal motion dominates"))
+    return qs, qps, covs, dofs, flags
 
 
 def _check_same_axis(name, axes, labels, what, unit, advice):
@@ -430,7 +499,7 @@ def _run_dofs(runs):
 
 def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, method, labels, cond_max,
            min_rel_amplitude, what, covs=None, dofs=None, max_rel_std=MAX_REL_STD, extra_flags=None,
-           estimator="ls", shared_cov=None):
+           estimator="ls", shared_cov=None, q_ped=None):
     """One core call for the whole axis, uncertainty, then flags; shared by both methods."""
     from .uncertainty import propagate, std_from_cov
 
@@ -442,7 +511,7 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
     redundant = nruns * (2 if identical else 1) > 2
     k, c, cond, resid, amp, ks, cs, rel_std, nbad = _core.identify(
         rotor.core_params(), w, spin, list(qs), np.ascontiguousarray(e[None], dtype=complex),
-        gain, identical=identical, method=method, with_std=redundant, sigma=sigma)
+        gain, identical=identical, method=method, with_std=redundant, sigma=sigma, q_ped=q_ped)
     if nbad:
         qs = np.stack(qs)
         big = float(np.nanmax(np.abs(qs))) if np.isfinite(qs).all() else None
@@ -472,7 +541,7 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
         from .model import _REPORT_TO_BIJ
 
         cov, b = propagate(rotor, w, spin, np.stack(qs), e, gain, sigma, covs, identical=identical, method=method,
-                           bias=True, shared=shared_cov)
+                           bias=True, shared=shared_cov, q_ped=None if q_ped is None else np.stack(q_ped))
         rel_std = None  # the standard errors change: recomputed in _finish
         n = axis.size
         bk = np.zeros((n, 8))
@@ -616,14 +685,20 @@ def identify_impact(rotor: RigidRotor, tests, *, method: str = "forces", identic
             raise RotoridError(f"sigma (exponential window decay) of {labels[i]} ({t.sigma:g} 1/s) differs from "
                                f"{labels[0]} ({tests[0].sigma:g} 1/s): window all tests alike")
     check_impact_independence(tests, labels, identical=identical)
-    at_b = [t.at_bearings(rotor) for t in tests]
-    qs = [np.ascontiguousarray(t.frf(), dtype=complex) for t in at_b]  # (n, 4) per unit force, per test
-    covs = _run_covs(at_b, labels)
-    dofs = None if covs is None else _run_dofs(at_b)
+    q_ped = None
+    if _has_pedestal(tests, labels):
+        qs, q_ped, covs, dofs, pflags = _pedestal_inputs(rotor, tests, labels, "freq_hz", f)
+        extra_flags = list(extra_flags or []) + pflags
+    else:
+        at_b = [t.at_bearings(rotor) for t in tests]
+        qs = [np.ascontiguousarray(t.frf(), dtype=complex) for t in at_b]  # (n, 4) per unit force, per test
+        covs = _run_covs(at_b, labels)
+        dofs = None if covs is None else _run_dofs(at_b)
     w = 2 * np.pi * f
     spin = np.array([speed * RPM])  # one running speed and a unit gain, broadcast by the core
     e = np.stack([t.excitation() for t in tests])  # (R, 4), per unit force
     sigma = np.full_like(w, tests[0].sigma) if tests[0].sigma else None
     return _solve(rotor, "freq_hz", f, w, spin, qs, e, np.ones(1), sigma, identical=identical, method=method,
                   labels=labels, cond_max=cond_max, min_rel_amplitude=min_rel_amplitude, what="impact responses",
-                  covs=covs, dofs=dofs, max_rel_std=max_rel_std, extra_flags=extra_flags, estimator=estimator)
+                  covs=covs, dofs=dofs, max_rel_std=max_rel_std, extra_flags=extra_flags, estimator=estimator,
+                  q_ped=q_ped)

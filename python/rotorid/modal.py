@@ -25,8 +25,8 @@ class ModalResult:
     """Modes with positive damped frequency at each speed, sorted by frequency (NaN when fewer)."""
 
     speed_rpm: np.ndarray      # (n,)
-    eigenvalues: np.ndarray    # (n, 4) complex, rad/s
-    shapes: np.ndarray         # (n, 4 modes, 4 dofs [x1, x2, y1, y2]) complex
+    eigenvalues: np.ndarray    # (n, modes) complex, rad/s: 4 modes, 8 with flexible pedestals
+    shapes: np.ndarray         # (n, modes, dofs [x1, x2, y1, y2 (, xp1, xp2, yp1, yp2)]) complex
 
     @property
     def freq_hz(self):
@@ -49,7 +49,7 @@ class ModalResult:
     def forward_fraction(self):
         """Per mode, the share of the forward-whirl circle in the orbit at the bearing with the
         larger motion: 1 = pure forward, 0 = pure backward (rotation x -> y is forward)."""
-        s = self.shapes
+        s = self.shapes[..., :4]  # the rotor's (absolute) motion
         x = s[..., [0, 1]]
         y = s[..., [2, 3]]
         fwd = np.abs(x + 1j * y)
@@ -71,7 +71,7 @@ class ModalResult:
 
         rows = []
         for i, rpm in enumerate(self.speed_rpm):
-            for m in range(4):
+            for m in range(self.eigenvalues.shape[1]):
                 if np.isfinite(self.eigenvalues[i, m]):
                     rows.append(dict(speed_rpm=rpm, mode=m + 1, freq_hz=self.freq_hz[i, m],
                                      freq_cpm=60 * self.freq_hz[i, m], damping_ratio=self.damping_ratio[i, m],
@@ -87,26 +87,53 @@ def _check(rotor, bearings):
                            "frequency-dependent coefficients make it a nonlinear eigenproblem")
 
 
-def modal_analysis(rotor: RigidRotor, bearings: BearingCoefficients, *, speed_rpm) -> ModalResult:
-    """Damped natural frequencies, damping and whirl direction at each running speed (batched)."""
+def modal_analysis(rotor: RigidRotor, bearings: BearingCoefficients, *, speed_rpm, pedestals=None) -> ModalResult:
+    """Damped natural frequencies, damping and whirl direction at each running speed (batched).
+
+    With ``pedestals`` (rotorid.Pedestals, masses > 0) the coupled 8-DOF system: up to 8 modes,
+    shapes over [x1, x2, y1, y2, xp1, xp2, yp1, yp2] (absolute motions).
+
+    Examples
+    --------
+    >>> import rotorid
+    >>> rig = rotorid.nsf_rig()
+    >>> m = rotorid.modal_analysis(rig.rotor, rig.bearings, speed_rpm=[3000.0], pedestals=rotorid.example_pedestals())
+    >>> m.eigenvalues.shape
+    (1, 8)
+    """
     _check(rotor, bearings)
+    pedestals = _check_pedestals(pedestals)
     rpm = np.atleast_1d(real_array("speed_rpm", speed_rpm, nonneg=True))
     if rpm.ndim != 1 or rpm.size == 0:
         raise RotoridError(f"speed_rpm must be a non-empty 1-D array, got shape {rpm.shape}")
-    return _modal(rotor, bearings, rpm)
+    return _modal(rotor, bearings, rpm, pedestals)
 
 
-def _modal(rotor, bearings, rpm):
+def _check_pedestals(pedestals):
+    from .simulate import _check_pedestals as check
+
+    pedestals = check(pedestals)
+    if pedestals is not None and np.any(pedestals.mass_kg <= 0):
+        raise RotoridError("modal analysis with pedestals needs every pedestal mass > 0 (a massless pedestal adds "
+                           f"no degree of freedom), got mass_kg = {pedestals.mass_kg.tolist()}")
+    return pedestals
+
+
+def _modal(rotor, bearings, rpm, pedestals=None):
     n = rpm.size
     k, c = _core_coeffs(bearings, n, speed_rpm=rpm)
-    lam, shapes, nfail = _core.modal(rotor.core_params(), k, c, np.ascontiguousarray(rpm * RPM))
+    if pedestals is not None:
+        lam, shapes, nfail = _core.modal_pedestal(rotor.core_params(), k, c, pedestals.core_params(),
+                                                  np.ascontiguousarray(rpm * RPM))
+    else:
+        lam, shapes, nfail = _core.modal(rotor.core_params(), k, c, np.ascontiguousarray(rpm * RPM))
     if nfail:
         raise RotoridError(f"eigen-solver failed at {nfail} speed(s)")
     return ModalResult(rpm, lam, shapes)
 
 
 def critical_speeds(rotor: RigidRotor, bearings: BearingCoefficients, *, max_rpm: float = 20000.0,
-                    n_grid: int = 400, order: float = 1.0):
+                    n_grid: int = 400, order: float = 1.0, pedestals=None):
     """Speeds where a damped natural frequency equals ``order`` x running speed (1X by default).
 
     Returns a pandas DataFrame with columns speed_rpm, freq_hz, damping_ratio, damping_ratio_wd,
@@ -115,6 +142,7 @@ def critical_speeds(rotor: RigidRotor, bearings: BearingCoefficients, *, max_rpm
     import pandas as pd
 
     _check(rotor, bearings)
+    pedestals = _check_pedestals(pedestals)
     from ._validate import number
 
     max_rpm = number("max_rpm", max_rpm, positive=True)
@@ -127,10 +155,10 @@ def critical_speeds(rotor: RigidRotor, bearings: BearingCoefficients, *, max_rpm
         lo = max(lo, bearings.axis[0])
         max_rpm = min(max_rpm, bearings.axis[-1])
     grid = np.linspace(lo, max_rpm, int(n_grid))
-    res = _modal(rotor, bearings, grid)
+    res = _modal(rotor, bearings, grid, pedestals)
     g = 60 * res.freq_hz - order * grid[:, None]
     rows = []
-    for m in range(4):
+    for m in range(res.eigenvalues.shape[1]):
         gm = g[:, m]
         idx = np.nonzero(np.isfinite(gm[:-1]) & np.isfinite(gm[1:]) & (np.sign(gm[:-1]) != np.sign(gm[1:])))[0]
         for i in idx:
@@ -138,7 +166,7 @@ def critical_speeds(rotor: RigidRotor, bearings: BearingCoefficients, *, max_rpm
             ga = gm[i]
             for _ in range(60):
                 mid = 0.5 * (a + b)
-                gmid = 60 * _modal(rotor, bearings, np.array([mid])).freq_hz[0, m] - order * mid
+                gmid = 60 * _modal(rotor, bearings, np.array([mid]), pedestals).freq_hz[0, m] - order * mid
                 if np.sign(gmid) == np.sign(ga):
                     a, ga = mid, gmid
                 else:
@@ -146,7 +174,7 @@ def critical_speeds(rotor: RigidRotor, bearings: BearingCoefficients, *, max_rpm
                 if b - a < 1e-9 * b:
                     break
             s = 0.5 * (a + b)
-            r = _modal(rotor, bearings, np.array([s]))
+            r = _modal(rotor, bearings, np.array([s]), pedestals)
             rows.append(dict(speed_rpm=s, freq_hz=r.freq_hz[0, m], damping_ratio=r.damping_ratio[0, m],
                              damping_ratio_wd=r.damping_ratio_wd[0, m], log_decrement=r.log_decrement[0, m],
                              whirl=r.whirl[0, m], mode=m + 1))

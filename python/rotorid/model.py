@@ -204,13 +204,16 @@ class Imbalance:
 
 @dataclass(frozen=True)
 class Rig:
-    """A rotor with its bearings and named imbalance sets (and impact tests, if any)."""
+    """A rotor with its bearings and named imbalance sets (and impact tests, if any), on rigid
+    pedestals or on flexible ones (``pedestals``)."""
 
     rotor: RigidRotor
     bearings: BearingCoefficients
     imbalances: dict
     impacts: dict = field(default_factory=dict)
     name: str = ""
+    #: flexible pedestals (rotorid.Pedestals) or None for rigid ones
+    pedestals: object = None
 
 
 def nsf_rig() -> Rig:

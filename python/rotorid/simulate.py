@@ -122,6 +122,70 @@ def bearings_to_probes(rotor: RigidRotor, q_bearings):
     return _apply_planes(bearings_to_probes_matrix(rotor), q_bearings)
 
 
+def _pedestal_transform(T):
+    """Probe readings relative to the pedestals -> relative motion at the bearings:
+    q_rel_b = T (q_probe + p) - p = T q_probe + (T - I) p (each probe rides on its pedestal)."""
+    return T, T - np.eye(2)
+
+
+def _check_pedestal(obj, n):
+    """Validate the pedestal motion fields of a response (q shape (n, 4))."""
+    if obj.pedestal is None:
+        if obj.pedestal_cov is not None:
+            raise RotoridError("pedestal_cov given without pedestal (the pedestal motion it is the covariance of)")
+        return
+    obj.pedestal = complex_array("pedestal (pedestal motion [xp1, xp2, yp1, yp2])", obj.pedestal, shape=(n, 4))
+    obj.pedestal_cov = check_cov("pedestal_cov", obj.pedestal_cov, n)
+
+
+def _with_pedestal_at(resp, rotor, where):
+    """(q, cov, pedestal_cross) of a pedestal-carrying response moved to ``where``; the pedestal
+    motion itself is measured at the bearings and does not move."""
+    to_b = where == "bearings"
+    T = probes_to_bearings_matrix(rotor) if to_b else bearings_to_probes_matrix(rotor)
+    A, B = _pedestal_transform(T)
+    p = resp.pedestal
+    q = _apply_planes(A, resp.q) + _apply_planes(B, p)
+    if resp.cov is None or resp.pedestal_cov is None:
+        return q, None, None
+    joint = joint_cov(resp)                                  # (n, 16, 16) in resp's own frame
+    M = np.zeros((16, 16))
+    M[:8, :8] = _plane_matrix8(A)
+    M[:8, 8:] = _plane_matrix8(B)
+    M[8:, 8:] = np.eye(8)
+    out = M @ np.nan_to_num(joint) @ M.T
+    unknown = np.isnan(joint).any(axis=(1, 2))
+    out[unknown] = np.nan
+    return q, out[:, :8, :8], out[:, :8, 8:]
+
+
+def _plane_matrix8(T):
+    A4 = np.zeros((4, 4))
+    A4[0:2, 0:2] = T
+    A4[2:4, 2:4] = T
+    A8 = np.zeros((8, 8))
+    A8[:4, :4] = A4
+    A8[4:, 4:] = A4
+    return A8
+
+
+def joint_cov(resp):
+    """Covariance (n, 16, 16) of [Re q, Im q, Re p, Im p] of a response with pedestal motion (the
+    probe and accelerometer errors are independent unless the response was moved between planes,
+    which correlates them); None when either covariance is missing."""
+    if resp.pedestal is None or resp.cov is None or resp.pedestal_cov is None:
+        return None
+    n = resp.q.shape[0]
+    out = np.zeros((n, 16, 16))
+    out[:, :8, :8] = resp.cov
+    out[:, 8:, 8:] = resp.pedestal_cov
+    cross = getattr(resp, "_pedestal_cross", None)
+    if cross is not None:
+        out[:, :8, 8:] = cross
+        out[:, 8:, :8] = np.swapaxes(cross, 1, 2)
+    return out
+
+
 @dataclass
 class SyncResponse:
     """Synchronous (1X) response of one imbalance run.
@@ -131,6 +195,12 @@ class SyncResponse:
     "bearings" or "probes" (the rotor's s1, s2). ``cov`` (n, 8, 8), optional: the measurement
     covariance of each point's [Re q, Im q] (m², NaN where unknown), ``dof`` (n,) its degrees of
     freedom (inf when known exactly): the identification propagates them to the coefficients.
+
+    Flexible pedestals: ``pedestal`` (n, 4) complex, the pedestal (bearing housing) displacement
+    [xp1, xp2, yp1, yp2] in m at the bearings (from the accelerometers, see
+    :func:`rotorid.pedestal.displacement_from_acceleration`), with ``pedestal_cov`` (n, 8, 8) its
+    covariance. Then ``q`` is what probes mounted on the pedestals read: the rotor's motion
+    relative to them, and :attr:`absolute` is the rotor's motion in space.
     """
 
     speed_rpm: np.ndarray
@@ -140,13 +210,16 @@ class SyncResponse:
     name: str | None = field(default=None)
     cov: np.ndarray | None = None
     dof: np.ndarray | None = None
+    pedestal: np.ndarray | None = None
+    pedestal_cov: np.ndarray | None = None
 
     @classmethod
     def _unchecked(cls, **fields) -> "SyncResponse":
         """A response from values rotorid computed itself (speeds already validated, q from the
         core): the checks of ``__post_init__`` are skipped. Not for user data."""
         obj = cls.__new__(cls)
-        obj.__dict__.update(dict(imbalance=None, at="bearings", name=None, cov=None, dof=None) | fields)
+        obj.__dict__.update(dict(imbalance=None, at="bearings", name=None, cov=None, dof=None, pedestal=None,
+                                 pedestal_cov=None) | fields)
         return obj
 
     def __post_init__(self):
@@ -165,18 +238,44 @@ class SyncResponse:
         n = self.speed_rpm.size
         self.cov = check_cov("cov", self.cov, n)
         self.dof = check_dof("dof", self.dof, n)
+        _check_pedestal(self, n)
+
+    def _moved(self, rotor, where):
+        if self.at == where:
+            return self
+        if self.pedestal is not None:
+            q, cov, cross = _with_pedestal_at(self, rotor, where)
+            out = SyncResponse(self.speed_rpm, q, self.imbalance, where, self.name, cov, self.dof, self.pedestal,
+                               self.pedestal_cov)
+            out._pedestal_cross = cross
+            return out
+        T = probes_to_bearings_matrix(rotor) if where == "bearings" else bearings_to_probes_matrix(rotor)
+        return SyncResponse(self.speed_rpm, _apply_planes(T, self.q), self.imbalance, where, self.name,
+                            _cov_transform(T, self.cov), self.dof)
 
     def at_bearings(self, rotor: RigidRotor) -> "SyncResponse":
-        if self.at == "bearings":
-            return self
-        return SyncResponse(self.speed_rpm, probes_to_bearings(rotor, self.q), self.imbalance, "bearings", self.name,
-                            _cov_transform(probes_to_bearings_matrix(rotor), self.cov), self.dof)
+        """This response at the bearings (report eq. 19; with pedestal motion, the relative motion
+        at the bearings, the probes riding on the pedestals)."""
+        return self._moved(rotor, "bearings")
 
     def at_probes(self, rotor: RigidRotor) -> "SyncResponse":
-        if self.at == "probes":
-            return self
-        return SyncResponse(self.speed_rpm, bearings_to_probes(rotor, self.q), self.imbalance, "probes", self.name,
-                            _cov_transform(bearings_to_probes_matrix(rotor), self.cov), self.dof)
+        """This response at the probe planes (inverse of eq. 19)."""
+        return self._moved(rotor, "probes")
+
+    @property
+    def absolute(self):
+        """The rotor's motion in space at the same planes as ``q``: q + pedestal (q itself without
+        pedestal motion)."""
+        return self.q if self.pedestal is None else self.q + self.pedestal
+
+    @property
+    def pedestal_ratio(self):
+        """Pedestal motion relative to the journal's motion in its housing, (n,): rms over the four
+        coordinates of |pedestal| / |q| (None without pedestal motion)."""
+        if self.pedestal is None:
+            return None
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.sqrt(np.sum(np.abs(self.pedestal) ** 2, 1) / np.sum(np.abs(self.q) ** 2, 1))
 
     @property
     def amplitude(self):
@@ -199,6 +298,16 @@ class SyncResponse:
                 sa, sp = polar_std(self.q[:, j], self.cov, j)
                 data[f"{nm}_amp_std_um"] = 1e6 * sa
                 data[f"{nm}_phase_std_deg"] = np.rad2deg(sp)
+        if self.pedestal is not None:
+            from .pedestal import PEDESTAL_DOFS
+
+            for j, nm in enumerate(PEDESTAL_DOFS):
+                data[f"{nm}_amp_um"] = 1e6 * np.abs(self.pedestal[:, j])
+                data[f"{nm}_phase_deg"] = np.rad2deg(np.angle(self.pedestal[:, j]))
+                if self.pedestal_cov is not None:
+                    sa, sp = polar_std(self.pedestal[:, j], self.pedestal_cov, j)
+                    data[f"{nm}_amp_std_um"] = 1e6 * sa
+                    data[f"{nm}_phase_std_deg"] = np.rad2deg(sp)
         return pd.DataFrame(data)
 
 
@@ -220,19 +329,52 @@ def _core_coeffs(bearings: BearingCoefficients, n, speed_rpm=None, freq_hz=None,
     return k, c
 
 
+def _check_pedestals(pedestals):
+    from .pedestal import Pedestals
+
+    if pedestals is not None and not isinstance(pedestals, Pedestals):
+        raise RotoridError(f"pedestals must be a rotorid.Pedestals or None, got {type(pedestals).__name__}")
+    return pedestals
+
+
 def imbalance_response(rotor: RigidRotor, bearings: BearingCoefficients, imbalance: Imbalance, *,
-                       speed_rpm, at: str = "bearings") -> SyncResponse:
-    """Synchronous response to an imbalance set over speeds (eq. 13-14), batched in the core."""
+                       speed_rpm, at: str = "bearings", pedestals=None) -> SyncResponse:
+    """Synchronous response to an imbalance set over speeds (eq. 13-14), batched in the core.
+
+    With ``pedestals`` (a :class:`rotorid.Pedestals`) the bearings sit in flexible housings: the
+    response's ``q`` is then the rotor's motion relative to the pedestals (what probes mounted on
+    them read), ``pedestal`` the housings' motion, ``absolute`` the rotor's motion in space.
+
+    Examples
+    --------
+    >>> import numpy as np, rotorid
+    >>> rig = rotorid.nsf_rig()
+    >>> r = rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances["A"], speed_rpm=[3000.0],
+    ...                                pedestals=rotorid.example_pedestals())
+    >>> r.pedestal.shape
+    (1, 4)
+    """
     _check_model(rotor, bearings)
     if not isinstance(imbalance, Imbalance):
         raise RotoridError(f"imbalance must be a rotorid.Imbalance, got {type(imbalance).__name__}")
     choice("at", at, {"bearings", "probes"})
+    pedestals = _check_pedestals(pedestals)
     rpm = speeds_rpm("speed_rpm", speed_rpm)
     n = rpm.size
     om = rpm * RPM
     k, c = _core_coeffs(bearings, n, speed_rpm=rpm, broadcast=True)
     # F_i = e Omega_i^2: the core scales each point's solution, no (n, 4) force array is built
     e = np.ascontiguousarray(imbalance.generalized(rotor), dtype=complex).reshape(1, 1, 4)
+    if pedestals is not None:
+        qa, qp, nsing = _core.forced_response_pedestal(rotor.core_params(), k, c, pedestals.core_params(), om, om, e,
+                                                       gain=om ** 2)
+        if nsing:
+            bad = rpm[~np.all(np.isfinite(qa[:, 0, :]), axis=1)]
+            raise RotoridError(f"the rotor-bearing-pedestal system is singular (undamped resonance) at speed_rpm = "
+                               f"{bad[:5]}")
+        resp = SyncResponse._unchecked(speed_rpm=rpm, q=qa[:, 0, :] - qp[:, 0, :], imbalance=imbalance,
+                                       at="bearings", name=imbalance.name, pedestal=qp[:, 0, :])
+        return resp.at_probes(rotor) if at == "probes" else resp
     q, nsing = _core.forced_response(rotor.core_params(), k, c, om, om, e, gain=om ** 2)
     if nsing:
         bad = rpm[~np.all(np.isfinite(q[:, 0, :]), axis=1)]
@@ -279,7 +421,9 @@ class ProbeResolution:
         return amp * np.exp(1j * np.deg2rad(ph))
 
     def measure(self, response: SyncResponse, rng=None) -> SyncResponse:
-        return SyncResponse(response.speed_rpm, self.apply(response.q, rng), response.imbalance, response.at, response.name)
+        """The response as this instrument reports it (the pedestal motion, if any, unchanged)."""
+        return SyncResponse(response.speed_rpm, self.apply(response.q, rng), response.imbalance, response.at,
+                            response.name, pedestal=response.pedestal)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -310,6 +454,10 @@ class ImpactResponse:
     exp(-sigma t), the spectra are those of s = sigma + j w, and the identification accounts for it.
     ``cov`` (n, 8, 8), optional: covariance of the FRF's [Re, Im] per frequency ((m/N)², e.g.
     from the scatter of single impacts), ``dof`` (n,) its degrees of freedom.
+
+    Flexible pedestals: ``pedestal`` (n, 4), the pedestal displacement [xp1, xp2, yp1, yp2] per
+    unit force (m/N, the accelerometer FRFs divided by -w²), ``pedestal_cov`` its covariance;
+    ``q`` is then the motion relative to the pedestals (FRFs only: ``force=None``).
     """
 
     speed_rpm: float
@@ -323,6 +471,8 @@ class ImpactResponse:
     sigma: float = 0.0
     cov: np.ndarray | None = None
     dof: np.ndarray | None = None
+    pedestal: np.ndarray | None = None
+    pedestal_cov: np.ndarray | None = None
 
     def __post_init__(self):
         self.sigma = float(real_array("sigma", self.sigma, ndim=0, nonneg=True))
@@ -349,6 +499,15 @@ class ImpactResponse:
                                "(force=None) together with cov")
         self.cov = check_cov("cov", self.cov, n)
         self.dof = check_dof("dof", self.dof, n)
+        if self.pedestal is not None and self.force is not None:
+            raise RotoridError("pedestal motion is taken per unit force: give q and pedestal as FRFs (force=None)")
+        _check_pedestal(self, n)
+
+    @property
+    def absolute(self):
+        """The rotor's FRF in space at the planes of ``q``: q + pedestal (q without pedestal motion)."""
+        h = self.frf()
+        return h if self.pedestal is None else h + self.pedestal
 
     def frf(self) -> np.ndarray:
         """Response per unit force (m/N), (n, 4)."""
@@ -357,19 +516,26 @@ class ImpactResponse:
     def excitation(self) -> np.ndarray:
         return impact_vector(self.plane, self.direction)
 
-    def at_bearings(self, rotor: RigidRotor) -> "ImpactResponse":
-        if self.at == "bearings":
+    def _moved(self, rotor, where):
+        if self.at == where:
             return self
-        return ImpactResponse(self.speed_rpm, self.freq_hz, probes_to_bearings(rotor, self.q), self.force, self.plane,
-                              self.direction, "bearings", self.name, self.sigma,
-                              _cov_transform(probes_to_bearings_matrix(rotor), self.cov), self.dof)
+        if self.pedestal is not None:
+            q, cov, cross = _with_pedestal_at(self, rotor, where)
+            out = ImpactResponse(self.speed_rpm, self.freq_hz, q, None, self.plane, self.direction, where, self.name,
+                                 self.sigma, cov, self.dof, self.pedestal, self.pedestal_cov)
+            out._pedestal_cross = cross
+            return out
+        T = probes_to_bearings_matrix(rotor) if where == "bearings" else bearings_to_probes_matrix(rotor)
+        return ImpactResponse(self.speed_rpm, self.freq_hz, _apply_planes(T, self.q), self.force, self.plane,
+                              self.direction, where, self.name, self.sigma, _cov_transform(T, self.cov), self.dof)
+
+    def at_bearings(self, rotor: RigidRotor) -> "ImpactResponse":
+        """This test at the bearings (eq. 19; with pedestal motion, relative to the pedestals)."""
+        return self._moved(rotor, "bearings")
 
     def at_probes(self, rotor: RigidRotor) -> "ImpactResponse":
-        if self.at == "probes":
-            return self
-        return ImpactResponse(self.speed_rpm, self.freq_hz, bearings_to_probes(rotor, self.q), self.force, self.plane,
-                              self.direction, "probes", self.name, self.sigma,
-                              _cov_transform(bearings_to_probes_matrix(rotor), self.cov), self.dof)
+        """This test at the probe planes."""
+        return self._moved(rotor, "probes")
 
     def to_dataframe(self):
         import pandas as pd
@@ -379,6 +545,12 @@ class ImpactResponse:
         for j, nm in enumerate(DOFS):
             data[f"{nm}_amp_um_per_N"] = 1e6 * np.abs(h[:, j])
             data[f"{nm}_phase_deg"] = np.rad2deg(np.angle(h[:, j]))
+        if self.pedestal is not None:
+            from .pedestal import PEDESTAL_DOFS
+
+            for j, nm in enumerate(PEDESTAL_DOFS):
+                data[f"{nm}_amp_um_per_N"] = 1e6 * np.abs(self.pedestal[:, j])
+                data[f"{nm}_phase_deg"] = np.rad2deg(np.angle(self.pedestal[:, j]))
         return pd.DataFrame(data)
 
 
@@ -393,12 +565,24 @@ def _impact_coeffs(bearings, speed_rpm, freq_hz):
 
 
 def impact_frf(rotor: RigidRotor, bearings: BearingCoefficients, *, speed_rpm: float, freq_hz, plane: float = 0.0,
-               direction: str = "x", at: str = "bearings", name: str | None = None) -> ImpactResponse:
+               direction: str = "x", at: str = "bearings", name: str | None = None,
+               pedestals=None) -> ImpactResponse:
     """Response per unit impact force (m/N) over frequency at one running speed (eq. 26-28).
 
     Bearing coefficients may be constant, tabulated over freq_hz (frequency-dependent), or over
-    speed_rpm (taken at ``speed_rpm``)."""
+    speed_rpm (taken at ``speed_rpm``). With ``pedestals`` the FRFs are relative to the pedestals
+    and ``pedestal`` holds the pedestals' FRFs (see :func:`imbalance_response`).
+
+    Examples
+    --------
+    >>> import numpy as np, rotorid
+    >>> rig = rotorid.nsf_rig()
+    >>> h = rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=3000.0, freq_hz=np.arange(10.0, 100.0, 10.0))
+    >>> h.q.shape
+    (9, 4)
+    """
     _check_model(rotor, bearings)
+    pedestals = _check_pedestals(pedestals)
     choice("at", at, {"bearings", "probes"})
     speed = float(real_array("speed_rpm", speed_rpm, ndim=0, nonneg=True))
     f = np.atleast_1d(real_array("freq_hz", freq_hz))
@@ -408,6 +592,15 @@ def impact_frf(rotor: RigidRotor, bearings: BearingCoefficients, *, speed_rpm: f
     k, c = _impact_coeffs(bearings, speed, f)
     w = 2 * np.pi * f
     spin = np.full_like(w, speed * RPM)
+    if pedestals is not None:
+        qa, qp, nsing = _core.forced_response_pedestal(rotor.core_params(), k, c, pedestals.core_params(), spin, w,
+                                                       e.astype(complex)[None, None, :])
+        if nsing:
+            raise RotoridError("the rotor-bearing-pedestal system is singular at freq_hz = "
+                               f"{f[~np.isfinite(qa[:, 0, 0])][:5]}")
+        resp = ImpactResponse(speed, f, qa[:, 0, :] - qp[:, 0, :], None, float(plane), direction, "bearings", name,
+                              pedestal=qp[:, 0, :])
+        return resp.at_probes(rotor) if at == "probes" else resp
     q, nsing = _core.forced_response(rotor.core_params(), k, c, spin, w, e.astype(complex)[None, None, :])
     if nsing:
         raise RotoridError(f"the rotor-bearing system is singular at freq_hz = {f[~np.isfinite(q[:, 0, 0])][:5]}")

@@ -65,16 +65,21 @@ def _coefficients(**arrays):
     return out
 
 
-def _eval(rotor, w, spin, qb, e, gain, sigma, identical, method):
+def _eval(rotor, w, spin, qb, e, gain, sigma, identical, method, pb=None):
     k, c, *_ = _core.identify(rotor.core_params(), w, spin, np.ascontiguousarray(qb), np.ascontiguousarray(e[None],
-                              dtype=complex), gain, identical=identical, method=method, with_std=False, sigma=sigma)
+                              dtype=complex), gain, identical=identical, method=method, with_std=False, sigma=sigma,
+                              q_ped=None if pb is None else np.ascontiguousarray(pb))
     return report_vector(k, c)
 
 
-def propagate(rotor, w, spin, qs, e, gain, sigma, covs, *, identical, method, bias=False, shared=None):
+def propagate(rotor, w, spin, qs, e, gain, sigma, covs, *, identical, method, bias=False, shared=None, q_ped=None):
     """Covariance (n, 16, 16) of the report vector from run covariances ``covs`` (R, n, 8, 8) of
     the responses ``qs`` (R, n, 4) at the bearings. NaN at points where a run's covariance is
     unknown or the estimator is singular.
+
+    With pedestal motion ``q_ped`` (R, n, 4), ``qs`` is the relative motion and ``covs`` is
+    (R, n, 16, 16), the joint covariance of [Re q, Im q, Re q_ped, Im q_ped] of each run: the
+    accelerometers' errors reach the coefficients through the inertia term.
 
     With ``bias=True`` also the estimator's second-order bias (n, 16): the noise turns a nonlinear
     estimator's mean away from the truth (least squares with noisy regressors shrinks toward zero,
@@ -87,28 +92,42 @@ def propagate(rotor, w, spin, qs, e, gain, sigma, covs, *, identical, method, bi
 
     qs = complex_array("qs", qs, shape=(None, None, 4))
     R, n, _ = qs.shape
-    covs = real_array("covs", covs, shape=(R, n, 8, 8), finite=False)
+    ped = q_ped is not None
+    if ped:
+        q_ped = complex_array("q_ped", q_ped, shape=(R, n, 4))
+        if shared is not None:
+            raise RotoridError("shared covariances are not supported with pedestal motion")
+    m = 16 if ped else 8                                                 # real inputs per run and point
+    covs = real_array("covs", covs, shape=(R, n, m, m), finite=False)
     if shared is not None:
         shared = real_array("shared", shared, shape=(n, 8, 8), finite=False)
     bias = flag("bias", bias)
     scale = np.sqrt(np.mean(np.abs(qs) ** 2, axis=(0, 2)))
     h = _H_REL * np.where(scale > 0, scale, 1.0)
-    nb = 16 * R
+    nb = 2 * m * R
     qb = np.empty((nb, R, n, 4), dtype=complex)
     qb[:] = qs[None]
+    pb = None
+    if ped:
+        pb = np.empty((nb, R, n, 4), dtype=complex)
+        pb[:] = q_ped[None]
+
+    def target(comp):
+        return qb if comp < 8 else pb
+
     col = 0
     for r in range(R):
-        for comp in range(8):
-            d = h * (1j if comp >= 4 else 1.0)
-            qb[2 * col, r, :, comp % 4] += d
-            qb[2 * col + 1, r, :, comp % 4] -= d
+        for comp in range(m):
+            d = h * (1j if comp % 8 >= 4 else 1.0)
+            target(comp)[2 * col, r, :, comp % 4] += d
+            target(comp)[2 * col + 1, r, :, comp % 4] -= d
             col += 1
-    rv = _eval(rotor, w, spin, qb, e, gain, sigma, identical, method)   # (nb, n, 16)
-    J = (rv[0::2] - rv[1::2]) / (2.0 * h[None, :, None])                # (8R, n, 16)
-    J = np.transpose(J, (1, 2, 0))                                       # (n, 16, 8R)
-    S = np.zeros((n, 8 * R, 8 * R))
+    rv = _eval(rotor, w, spin, qb, e, gain, sigma, identical, method, pb)   # (nb, n, 16)
+    J = (rv[0::2] - rv[1::2]) / (2.0 * h[None, :, None])                # (mR, n, 16)
+    J = np.transpose(J, (1, 2, 0))                                       # (n, 16, mR)
+    S = np.zeros((n, m * R, m * R))
     for r in range(R):
-        S[:, 8 * r:8 * r + 8, 8 * r:8 * r + 8] = np.nan_to_num(covs[r], nan=0.0)
+        S[:, m * r:m * r + m, m * r:m * r + m] = np.nan_to_num(covs[r], nan=0.0)
         if shared is not None:
             for t in range(R):
                 if t != r:
@@ -119,18 +138,24 @@ def propagate(rotor, w, spin, qs, e, gain, sigma, covs, *, identical, method, bi
     if not bias:
         return cov
     # sigma points: +-l_k with l_k the scaled eigenvectors of each run's covariance
-    p0 = _eval(rotor, w, spin, qs[None], e, gain, sigma, identical, method)[0]
+    p0 = _eval(rotor, w, spin, qs[None], e, gain, sigma, identical, method, None if pb is None else q_ped[None])[0]
     qb[:] = qs[None]
+    if ped:
+        pb[:] = q_ped[None]
     col = 0
     for r in range(R):
         ev, V = np.linalg.eigh(np.nan_to_num(covs[r], nan=0.0))
-        L = V * np.sqrt(np.clip(ev, 0.0, None))[:, None, :]              # (n, 8, 8): columns l_k
-        for kk in range(8):
-            lk = L[:, :4, kk] + 1j * L[:, 4:, kk]                        # (n, 4) complex
+        L = V * np.sqrt(np.clip(ev, 0.0, None))[:, None, :]              # (n, m, m): columns l_k
+        for kk in range(m):
+            lk = L[:, :4, kk] + 1j * L[:, 4:8, kk]                       # (n, 4) complex
             qb[2 * col, r] += lk
             qb[2 * col + 1, r] -= lk
+            if ped:
+                lp = L[:, 8:12, kk] + 1j * L[:, 12:16, kk]
+                pb[2 * col, r] += lp
+                pb[2 * col + 1, r] -= lp
             col += 1
-    rs = _eval(rotor, w, spin, qb, e, gain, sigma, identical, method)
+    rs = _eval(rotor, w, spin, qb, e, gain, sigma, identical, method, pb)
     b = 0.5 * np.sum(rs[0::2] + rs[1::2] - 2.0 * p0[None], axis=0)
     b[unknown] = np.nan
     return cov, b

@@ -4,7 +4,7 @@
 //! become a `RuntimeError` (a panic never crosses into Python).
 
 use rotorid_core::study::{self, Excitation, ImpactErrors, Method, Study, SyncErrors};
-use rotorid_core::{forced, identify, modal, order, timesim, CoreError, Rotor, C64};
+use rotorid_core::{forced, identify, modal, order, pedestal, timesim, CoreError, Rotor, C64};
 use numpy::{PyArray1, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyMemoryError, PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -241,6 +241,22 @@ impl Responses<'_> {
     }
 }
 
+/// Pedestal motions laid out as the responses `resp` (same batch, runs and points), or None.
+fn pedestal_responses<'py>(q_ped: Option<&Bound<'py, PyAny>>, resp: &Responses<'py>) -> PyResult<Option<Responses<'py>>> {
+    let Some(qp) = q_ped else { return Ok(None) };
+    if qp.is_none() {
+        return Ok(None);
+    }
+    let pr = responses(qp).map_err(|e| PyValueError::new_err(format!("q_ped: {e}")))?;
+    if (pr.batch, pr.runs, pr.n) != (resp.batch, resp.runs, resp.n) {
+        return Err(PyValueError::new_err(format!(
+            "q_ped has (batch, runs, points) = ({}, {}, {}), q has ({}, {}, {})",
+            pr.batch, pr.runs, pr.n, resp.batch, resp.runs, resp.n
+        )));
+    }
+    Ok(Some(pr))
+}
+
 /// Batched identification (see identify.rs).
 /// q: (B, R, n, 4) complex, or a list of R arrays (n, 4) for B = 1; e: (1 or B, R, 4) complex;
 /// w, spin, gain: (n,). method: "forces" (default solver) or "report" (16-unknown real
@@ -249,7 +265,7 @@ impl Responses<'_> {
 /// standard error relative to the bearing's direct coefficients, see identify::relative_std)
 /// (B, n).
 #[pyfunction]
-#[pyo3(name = "identify", signature = (rotor, w, spin, q, e, gain, identical=false, method="forces", with_std=true, sigma=None))]
+#[pyo3(name = "identify", signature = (rotor, w, spin, q, e, gain, identical=false, method="forces", with_std=true, sigma=None, q_ped=None))]
 #[allow(clippy::too_many_arguments)]
 fn py_identify<'py>(
     py: Python<'py>,
@@ -263,6 +279,7 @@ fn py_identify<'py>(
     method: &str,
     with_std: bool,
     sigma: Option<PyReadonlyArrayDyn<'py, f64>>,
+    q_ped: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<IdentTuple<'py>> {
     let rot = rotor_of(&rotor)?;
     let resp = responses(q)?;
@@ -293,6 +310,11 @@ fn py_identify<'py>(
         None => &[],
     };
     let blocks = resp.blocks()?;
+    let ped = pedestal_responses(q_ped, &resp)?;
+    let ped_blocks = match &ped {
+        Some(pr) => pr.blocks()?,
+        None => Vec::new(),
+    };
     let prob = identify::IdentProblem {
         rotor: rot,
         w: slice(&w, "w")?,
@@ -301,6 +323,7 @@ fn py_identify<'py>(
         e: slice(&e, "e")?,
         gain: slice(&gain, "gain")?,
         sigma: sigma_sl,
+        q_ped: &ped_blocks,
         batch,
         runs,
         identical,
@@ -429,6 +452,176 @@ fn py_modal<'py>(
     })?
     .map_err(core_err)?;
     Ok((to_py(py, lam, &[n, 4])?, to_py(py, sh, &[n, 4, 4])?, nf))
+}
+
+fn pedestals_of(p: &PyReadonlyArrayDyn<'_, f64>) -> PyResult<pedestal::Pedestals> {
+    pedestal::Pedestals::from_slice(slice(p, "pedestals")?).map_err(core_err)
+}
+
+/// Forced response with flexible pedestals (see pedestal.rs): arguments as `forced_response`
+/// plus `pedestals` (20,). Returns (q_abs, q_ped, n_singular), each q (n, nrhs, 4).
+#[pyfunction]
+#[pyo3(signature = (rotor, k, c, pedestals, spin, w, force, gain=None))]
+#[allow(clippy::too_many_arguments)]
+fn forced_response_pedestal<'py>(
+    py: Python<'py>,
+    rotor: PyReadonlyArrayDyn<'py, f64>,
+    k: PyReadonlyArrayDyn<'py, f64>,
+    c: PyReadonlyArrayDyn<'py, f64>,
+    pedestals: PyReadonlyArrayDyn<'py, f64>,
+    spin: PyReadonlyArrayDyn<'py, f64>,
+    w: PyReadonlyArrayDyn<'py, f64>,
+    force: PyReadonlyArrayDyn<'py, C64>,
+    gain: Option<PyReadonlyArrayDyn<'py, f64>>,
+) -> PyResult<(Bound<'py, PyArrayDyn<C64>>, Bound<'py, PyArrayDyn<C64>>, usize)> {
+    let rot = rotor_of(&rotor)?;
+    let ped = pedestals_of(&pedestals)?;
+    let n = w.len();
+    for (name, a) in [("k", &k), ("c", &c)] {
+        let sh = a.shape();
+        if sh.len() != 2 || sh[1] != 8 || !(sh[0] == n || sh[0] == 1) {
+            return Err(PyValueError::new_err(format!("{name} has shape {sh:?}, expected ({n} or 1, 8)")));
+        }
+    }
+    check_shape("spin", spin.shape(), &[n])?;
+    let fs = force.shape().to_vec();
+    if fs.len() != 3 || fs[2] != 4 || !(fs[0] == n || fs[0] == 1) || fs[1] == 0 {
+        return Err(PyValueError::new_err(format!("force has shape {fs:?}, expected (n or 1, nrhs >= 1, 4)")));
+    }
+    let nrhs = fs[1];
+    if let Some(g) = &gain {
+        check_shape("gain", g.shape(), &[n])?;
+    }
+    check_alloc("forced_response_pedestal", n.checked_mul(nrhs).and_then(|v| v.checked_mul(10)), 16)?;
+    let (ks, cs, ss, ws, fsl) = (slice(&k, "k")?, slice(&c, "c")?, slice(&spin, "spin")?, slice(&w, "w")?, slice(&force, "force")?);
+    let gs: &[f64] = match &gain {
+        Some(g) => slice(g, "gain")?,
+        None => &[],
+    };
+    let (qa, qp, nsing) = py
+        .detach(|| {
+            guarded(|| {
+                let mut qa = vec![C64::new(0.0, 0.0); n * nrhs * 4];
+                let mut qp = vec![C64::new(0.0, 0.0); n * nrhs * 4];
+                pedestal::forced_response(&rot, ks, cs, &ped, ss, ws, fsl, nrhs, gs, &mut qa, &mut qp).map(|ns| (qa, qp, ns))
+            })
+        })?
+        .map_err(core_err)?;
+    Ok((to_py(py, qa, &[n, nrhs, 4])?, to_py(py, qp, &[n, nrhs, 4])?, nsing))
+}
+
+/// Effective (series) bearing + pedestal coefficients (see pedestal.rs). k, c: (n or 1, 8);
+/// w: (n,). Returns (k_eff (n, 8), c_eff (n, 8), transfer (n, 8) complex, n_singular).
+#[pyfunction]
+fn effective_coefficients<'py>(
+    py: Python<'py>,
+    k: PyReadonlyArrayDyn<'py, f64>,
+    c: PyReadonlyArrayDyn<'py, f64>,
+    pedestals: PyReadonlyArrayDyn<'py, f64>,
+    w: PyReadonlyArrayDyn<'py, f64>,
+) -> PyResult<(Bound<'py, PyArrayDyn<f64>>, Bound<'py, PyArrayDyn<f64>>, Bound<'py, PyArrayDyn<C64>>, usize)> {
+    let ped = pedestals_of(&pedestals)?;
+    let n = w.len();
+    check_alloc("effective_coefficients", n.checked_mul(32), 8)?;
+    let (ks, cs, ws) = (slice(&k, "k")?, slice(&c, "c")?, slice(&w, "w")?);
+    let (ke, ce, tr, nb) = py
+        .detach(|| {
+            guarded(|| {
+                let mut ke = vec![0.0; n * 8];
+                let mut ce = vec![0.0; n * 8];
+                let mut tr = vec![C64::new(0.0, 0.0); n * 8];
+                pedestal::effective_coefficients(ks, cs, &ped, ws, &mut ke, &mut ce, &mut tr).map(|nb| (ke, ce, tr, nb))
+            })
+        })?
+        .map_err(core_err)?;
+    Ok((to_py(py, ke, &[n, 8])?, to_py(py, ce, &[n, 8])?, to_py(py, tr, &[n, 8])?, nb))
+}
+
+/// Modal analysis of the rotor on flexible pedestals (see pedestal.rs). Returns
+/// (lam (n, 8), shapes (n, 8, 8), n_failed).
+#[pyfunction]
+fn modal_pedestal<'py>(
+    py: Python<'py>,
+    rotor: PyReadonlyArrayDyn<'py, f64>,
+    k: PyReadonlyArrayDyn<'py, f64>,
+    c: PyReadonlyArrayDyn<'py, f64>,
+    pedestals: PyReadonlyArrayDyn<'py, f64>,
+    spin: PyReadonlyArrayDyn<'py, f64>,
+) -> PyResult<(Bound<'py, PyArrayDyn<C64>>, Bound<'py, PyArrayDyn<C64>>, usize)> {
+    let rot = rotor_of(&rotor)?;
+    let ped = pedestals_of(&pedestals)?;
+    let n = spin.len();
+    check_shape("k", k.shape(), &[n, 8])?;
+    check_shape("c", c.shape(), &[n, 8])?;
+    let (ks, cs, ss) = (slice(&k, "k")?, slice(&c, "c")?, slice(&spin, "spin")?);
+    check_alloc("modal_pedestal", n.checked_mul(72), 16)?;
+    let (lam, sh, nf) = py
+        .detach(|| {
+            guarded(|| {
+                let mut lam = vec![C64::new(0.0, 0.0); n * 8];
+                let mut sh = vec![C64::new(0.0, 0.0); n * 64];
+                pedestal::modal(&rot, ks, cs, &ped, ss, &mut lam, &mut sh).map(|nf| (lam, sh, nf))
+            })
+        })?
+        .map_err(core_err)?;
+    Ok((to_py(py, lam, &[n, 8])?, to_py(py, sh, &[n, 8, 8])?, nf))
+}
+
+/// Bearing reaction forces from the rotor equations (see identify::bearing_forces): arguments as
+/// `identify`. Returns (B, R, n, 4) [f1x, f2x, f1y, f2y].
+#[pyfunction]
+#[pyo3(signature = (rotor, w, spin, q, e, gain, sigma=None, q_ped=None))]
+#[allow(clippy::too_many_arguments)]
+fn bearing_forces<'py>(
+    py: Python<'py>,
+    rotor: PyReadonlyArrayDyn<'py, f64>,
+    w: PyReadonlyArrayDyn<'py, f64>,
+    spin: PyReadonlyArrayDyn<'py, f64>,
+    q: &Bound<'py, PyAny>,
+    e: PyReadonlyArrayDyn<'py, C64>,
+    gain: PyReadonlyArrayDyn<'py, f64>,
+    sigma: Option<PyReadonlyArrayDyn<'py, f64>>,
+    q_ped: Option<&Bound<'py, PyAny>>,
+) -> PyResult<Bound<'py, PyArrayDyn<C64>>> {
+    let rot = rotor_of(&rotor)?;
+    let resp = responses(q)?;
+    let (batch, runs, n) = (resp.batch, resp.runs, resp.n);
+    let blocks = resp.blocks()?;
+    let ped = pedestal_responses(q_ped, &resp)?;
+    let ped_blocks = match &ped {
+        Some(pr) => pr.blocks()?,
+        None => Vec::new(),
+    };
+    let sigma_sl: &[f64] = match &sigma {
+        Some(sg) => slice(sg, "sigma")?,
+        None => &[],
+    };
+    let prob = identify::IdentProblem {
+        rotor: rot,
+        w: slice(&w, "w")?,
+        spin: slice(&spin, "spin")?,
+        q: &blocks,
+        e: slice(&e, "e")?,
+        gain: slice(&gain, "gain")?,
+        sigma: sigma_sl,
+        q_ped: &ped_blocks,
+        batch,
+        runs,
+        identical: false,
+    };
+    prob.check().map_err(core_err)?;
+    let total = batch.checked_mul(runs).and_then(|v| v.checked_mul(n)).and_then(|v| v.checked_mul(4));
+    check_alloc("bearing_forces", total, 16)?;
+    let total = total.unwrap_or(0);
+    let out = py
+        .detach(|| {
+            guarded(|| {
+                let mut out = vec![C64::new(0.0, 0.0); total];
+                identify::bearing_forces(&prob, &mut out).map(|_| out)
+            })
+        })?
+        .map_err(core_err)?;
+    to_py(py, out, &[batch, runs, n, 4])
 }
 
 /// Exact time stepping of a discretized LTI system with piecewise-linear input (see timesim.rs).
@@ -782,6 +975,10 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(forced_response, m)?)?;
     m.add_function(wrap_pyfunction!(py_identify, m)?)?;
     m.add_function(wrap_pyfunction!(py_modal, m)?)?;
+    m.add_function(wrap_pyfunction!(forced_response_pedestal, m)?)?;
+    m.add_function(wrap_pyfunction!(effective_coefficients, m)?)?;
+    m.add_function(wrap_pyfunction!(modal_pedestal, m)?)?;
+    m.add_function(wrap_pyfunction!(bearing_forces, m)?)?;
     m.add_function(wrap_pyfunction!(relative_std, m)?)?;
     m.add_function(wrap_pyfunction!(flag_codes, m)?)?;
     m.add_function(wrap_pyfunction!(lti_run, m)?)?;

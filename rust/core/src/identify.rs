@@ -255,6 +255,11 @@ pub struct IdentProblem<'a> {
     /// real part of the Laplace variable s = sigma + j w at each point, (n,) or empty for s = j w
     /// (an exponential window exp(-sigma t) on force and response gives FRFs at sigma + j w)
     pub sigma: &'a [f64],
+    /// pedestal motion at the bearings, laid out as `q` (`batch * runs` blocks of (n, 4)), or
+    /// empty for rigid pedestals. With it `q` is the journal's motion relative to its housing:
+    /// the bearing forces act on `q`, the rotor's inertia on the absolute motion `q + q_ped`
+    /// (`Q(q) P = E - s^2 M (q + q_ped) - s Omega G (q + q_ped)`).
+    pub q_ped: &'a [&'a [C64]],
     pub batch: usize,
     pub runs: usize,
     /// all bearing coefficients equal on both sides (8 unknowns instead of 16)
@@ -279,6 +284,12 @@ impl IdentProblem<'_> {
         let block = product("q", &[n, 4])?;
         if let Some(bad) = self.q.iter().position(|b| b.len() != block) {
             return Err(CoreError::length("q", self.q[bad].len(), format!("{block} in every block (block {bad} differs)")));
+        }
+        if !self.q_ped.is_empty() {
+            expect_len("q_ped (blocks)", self.q_ped, self.q.len())?;
+            if let Some(bad) = self.q_ped.iter().position(|b| b.len() != block) {
+                return Err(CoreError::length("q_ped", self.q_ped[bad].len(), format!("{block} in every block (block {bad} differs)")));
+            }
         }
         if self.e.len() != 4 * self.runs && self.e.len() != product("e", &[self.batch, self.runs, 4])? {
             return Err(CoreError::length("e", self.e.len(), format!("{} (shared) or {}", 4 * self.runs, 4 * self.runs * self.batch)));
@@ -382,6 +393,19 @@ fn load_q(p: &IdentProblem, b: usize, r: usize, i: usize) -> [C64; 4] {
     [blk[o], blk[o + 1], blk[o + 2], blk[o + 3]]
 }
 
+/// Absolute motion q + q_ped of (batch b, run r, point i); q itself without pedestals.
+#[inline(always)]
+fn load_abs(p: &IdentProblem, b: usize, r: usize, i: usize) -> [C64; 4] {
+    let mut q = load_q(p, b, r, i);
+    if !p.q_ped.is_empty() {
+        let blk = p.q_ped[b * p.runs + r];
+        for d in 0..4 {
+            q[d] += blk[i * 4 + d];
+        }
+    }
+    q
+}
+
 const CHUNK: usize = 1024;
 /// Below this many points one thread is faster than waking the pool.
 const SERIAL_BELOW: usize = 4096;
@@ -477,12 +501,25 @@ fn forces_chunk(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize
                     }
                 }
             }
+            // the inertia acts on the absolute motion: q + q_ped with flexible pedestals
+            let mut qa = q;
+            if !p.q_ped.is_empty() {
+                for l in 0..L {
+                    let (b, i) = bi[l];
+                    let blk = p.q_ped[b * p.runs + r];
+                    for dd in 0..4 {
+                        let v = blk[i * 4 + dd];
+                        qa[dd].re.0[l] += v.re;
+                        qa[dd].im.0[l] += v.im;
+                    }
+                }
+            }
             // R = E + w^2 M q - j w Omega G q (eq. 10 / 26), M and G sparse (eq. 3)
-            let m0 = q[0].scale(ml2) + q[1].scale(ml1);
-            let m1 = q[2].scale(ml2) + q[3].scale(ml1);
-            let m2 = (q[1] - q[0]).scale(it);
-            let m3 = (q[2] - q[3]).scale(it);
-            let (g2, g3) = (q[3] - q[2], q[1] - q[0]);
+            let m0 = qa[0].scale(ml2) + qa[1].scale(ml1);
+            let m1 = qa[2].scale(ml2) + qa[3].scale(ml1);
+            let m2 = (qa[1] - qa[0]).scale(it);
+            let m3 = (qa[2] - qa[3]).scale(it);
+            let (g2, g3) = (qa[3] - qa[2], qa[1] - qa[0]);
             let mut rv0 = e[0].scale(gain) + m0.scale(a2);
             let mut rv1 = e[1].scale(gain) + m1.scale(a2);
             let mut rv2 = e[2].scale(gain) + m2.scale(a2) - g2.jscale(wg);
@@ -707,7 +744,9 @@ fn report_all(p: &IdentProblem, out: IdentOut) -> usize {
                     qq += v.norm_sqr();
                 }
                 let (gi, si) = (if p.gain.len() == 1 { 0 } else { i }, if p.spin.len() == 1 { 0 } else { i });
-                let rv = rhs_point(&kc, excitation(p, b, r), p.gain[gi], p.w[i], sigma_at(p, i), p.spin[si], &q);
+                let qa = load_abs(p, b, r, i);
+                bad |= !qa.iter().all(|v| v.re.is_finite() && v.im.is_finite());
+                let rv = rhs_point(&kc, excitation(p, b, r), p.gain[gi], p.w[i], sigma_at(p, i), p.spin[si], &qa);
                 // Q of eq. 8 (4 x 16 complex), columns in eq. 9 order
                 let lq = [-l1 * q[0], l2 * q[1], -l1 * q[2], l2 * q[3]];
                 let mut qm = [[C64::new(0.0, 0.0); 16]; 4];
@@ -775,6 +814,30 @@ fn report_all(p: &IdentProblem, out: IdentOut) -> usize {
             0usize
         })
         .sum()
+}
+
+/// Bearing reaction forces from the rotor equations, per (batch, run, point):
+/// [f1x, f2x, f1y, f2y] (N, or N per newton of impact for unit-force FRFs), the force each
+/// bearing exerts on the journal's housing (and, reversed, on the rotor): rows 1 and 3 of eq. 3
+/// give f1x + f2x = R1, -l1 f1x + l2 f2x = R3, rows 2 and 4 f1y + f2y = R2, l1 f1y - l2 f2y = R4,
+/// with R = E - s^2 M q_abs - s Omega G q_abs and q_abs = q + q_ped. `out`: (batch, runs, n, 4).
+pub fn bearing_forces(p: &IdentProblem, out: &mut [C64]) -> Result<(), CoreError> {
+    p.check()?;
+    let n = p.points();
+    expect_len("out", out, product("out", &[p.batch, p.runs, n, 4])?)?;
+    let kc = Consts::new(&p.rotor);
+    out.par_chunks_mut(4).with_min_len(1024).enumerate().for_each(|(idx, f)| {
+        let (br, i) = (idx / n, idx % n);
+        let (b, r) = (br / p.runs, br % p.runs);
+        let (gi, si) = (if p.gain.len() == 1 { 0 } else { i }, if p.spin.len() == 1 { 0 } else { i });
+        let qa = load_abs(p, b, r, i);
+        let rv = rhs_point(&kc, excitation(p, b, r), p.gain[gi], p.w[i], sigma_at(p, i), p.spin[si], &qa);
+        f[0] = (rv[0] * kc.l2 - rv[2]) * kc.il;
+        f[1] = (rv[2] + rv[0] * kc.l1) * kc.il;
+        f[2] = (rv[1] * kc.l2 + rv[3]) * kc.il;
+        f[3] = (rv[1] * kc.l1 - rv[3]) * kc.il;
+    });
+    Ok(())
 }
 
 /// NaN-propagating maximum (as NumPy's `maximum`): a NaN anywhere makes the result NaN.

@@ -32,6 +32,7 @@ pub mod lanes;
 pub mod modal;
 pub mod model;
 pub mod order;
+pub mod pedestal;
 pub mod study;
 pub mod timesim;
 

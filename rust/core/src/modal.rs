@@ -28,20 +28,32 @@ pub fn state_matrix(minv: &Matrix4<f64>, k: &[[f64; 4]; 4], c: &[[f64; 4]; 4], g
     a
 }
 
-/// Balance a square matrix in place by a diagonal similarity D^-1 A D with powers of two (the
-/// scaling loop of LAPACK's dgebal, without permutations). Returns D.
+/// Balance a state matrix in place by a diagonal similarity D^-1 A D with powers of two (see
+/// [`balance_array`]). Returns D.
 pub fn balance(a: &mut StateMatrix) -> [f64; 8] {
-    let n = 8;
-    let mut d = [1.0; 8];
+    let mut rows: [[f64; 8]; 8] = std::array::from_fn(|r| std::array::from_fn(|c| a[(r, c)]));
+    let d = balance_array(&mut rows);
+    for r in 0..8 {
+        for c in 0..8 {
+            a[(r, c)] = rows[r][c];
+        }
+    }
+    d
+}
+
+/// Balance a square matrix (row-major) in place by a diagonal similarity D^-1 A D with powers of
+/// two (the scaling loop of LAPACK's dgebal, without permutations). Returns D.
+pub fn balance_array<const N: usize>(a: &mut [[f64; N]; N]) -> [f64; N] {
+    let mut d = [1.0; N];
     let radix = 2.0f64;
     for _ in 0..100 {
         let mut done = true;
-        for i in 0..n {
+        for i in 0..N {
             let (mut c, mut r) = (0.0, 0.0);
-            for j in 0..n {
+            for j in 0..N {
                 if j != i {
-                    c += a[(j, i)].abs();
-                    r += a[(i, j)].abs();
+                    c += a[j][i].abs();
+                    r += a[i][j].abs();
                 }
             }
             if c == 0.0 || r == 0.0 {
@@ -63,9 +75,9 @@ pub fn balance(a: &mut StateMatrix) -> [f64; 8] {
             if (cc + rr) < 0.95 * s {
                 done = false;
                 d[i] *= f;
-                for j in 0..n {
-                    a[(i, j)] /= f;
-                    a[(j, i)] *= f;
+                for j in 0..N {
+                    a[i][j] /= f;
+                    a[j][i] *= f;
                 }
             }
         }

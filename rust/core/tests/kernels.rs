@@ -160,7 +160,7 @@ proptest! {
         let q = imbalance_responses(&r, &k, &cc, &w, &e);
         let gain: Vec<f64> = w.iter().map(|v| v * v).collect();
         let qb = blocks(&q, w.len());
-        let p = IdentProblem { rotor: r, w: &w, spin: &w, q: &qb, e: &e, gain: &gain, sigma: &[], batch: 1, runs, identical: false };
+        let p = IdentProblem { rotor: r, w: &w, spin: &w, q: &qb, e: &e, gain: &gain, sigma: &[], q_ped: &[], batch: 1, runs, identical: false };
         let fast = run_identify(&p, false).unwrap();
         let (err, used) = impedance_error(&fast, &k, &cc, &w, 1e5);
         prop_assert!(used > 0);
@@ -192,11 +192,11 @@ proptest! {
         let gain: Vec<f64> = w.iter().map(|v| v * v).collect();
         let qab: Vec<C64> = qa.iter().chain(qb.iter()).cloned().collect();
         let qabb = blocks(&qab, w.len());
-        let pab = IdentProblem { rotor: r, w: &w, spin: &w, q: &qabb, e: &e, gain: &gain, sigma: &[], batch: 2, runs, identical: false };
+        let pab = IdentProblem { rotor: r, w: &w, spin: &w, q: &qabb, e: &e, gain: &gain, sigma: &[], q_ped: &[], batch: 2, runs, identical: false };
         let both = run_identify(&pab, false).unwrap();
         for (bi, qq) in [&qa, &qb].into_iter().enumerate() {
             let qqb = blocks(qq, w.len());
-            let p1 = IdentProblem { rotor: r, w: &w, spin: &w, q: &qqb, e: &e, gain: &gain, sigma: &[], batch: 1, runs, identical: false };
+            let p1 = IdentProblem { rotor: r, w: &w, spin: &w, q: &qqb, e: &e, gain: &gain, sigma: &[], q_ped: &[], batch: 1, runs, identical: false };
             let one = run_identify(&p1, false).unwrap();
             let o = bi * w.len() * 8;
             for t in 0..w.len() * 8 {
@@ -221,7 +221,7 @@ proptest! {
         }
         let qb = blocks(&q, w.len());
         let (full_spin, ones) = (vec![spin; w.len()], vec![1.0; w.len()]);
-        let a = IdentProblem { rotor: r, w: &w, spin: &full_spin, q: &qb, e: &e, gain: &ones, sigma: &[], batch: 1, runs: 2, identical: false };
+        let a = IdentProblem { rotor: r, w: &w, spin: &full_spin, q: &qb, e: &e, gain: &ones, sigma: &[], q_ped: &[], batch: 1, runs: 2, identical: false };
         let b = IdentProblem { spin: &[spin], gain: &[1.0], ..a };
         for report in [false, true] {
             let (ia, ib) = (run_identify(&a, report).unwrap(), run_identify(&b, report).unwrap());
@@ -244,7 +244,7 @@ proptest! {
         let q = imbalance_responses(&r, &k, &cc, &w, &e);
         let gain: Vec<f64> = w.iter().map(|v| v * v).collect();
         let qb = blocks(&q, w.len());
-        let p = IdentProblem { rotor: r, w: &w, spin: &w, q: &qb, e: &e, gain: &gain, sigma: &[], batch: 1, runs: 2, identical: true };
+        let p = IdentProblem { rotor: r, w: &w, spin: &w, q: &qb, e: &e, gain: &gain, sigma: &[], q_ped: &[], batch: 1, runs: 2, identical: true };
         let id = run_identify(&p, false).unwrap();
         let (err, used) = impedance_error(&id, &k, &cc, &w, 1e5);
         prop_assert!(used > 0);
@@ -512,7 +512,7 @@ fn identification_argument_errors_name_the_argument() {
     let uneven: [&[C64]; 2] = [&q[..8], &q[..7]];
     let e = vec![c(1e-4, 0.0); 2 * 4];
     let gain = [1e4, 4e4];
-    let base = IdentProblem { rotor: r, w: &w, spin: &w, q: &qb, e: &e, gain: &gain, sigma: &[], batch: 1, runs: 2, identical: false };
+    let base = IdentProblem { rotor: r, w: &w, spin: &w, q: &qb, e: &e, gain: &gain, sigma: &[], q_ped: &[], batch: 1, runs: 2, identical: false };
     assert!(run_identify(&base, false).is_ok());
     let cases: Vec<(IdentProblem, &str)> = vec![
         (IdentProblem { runs: 0, ..base }, "runs"),

@@ -1,0 +1,407 @@
+"""Flexible pedestals: the bearing housings as masses on springs and dampers (8-DOF model).
+
+The report's first imbalance tests gave "bearing parameters varying with no defined trend"
+because the pedestals moved; its remedy is to add the pedestal degrees of freedom and use the
+accelerometers on the bearing housings. rotorid models each pedestal b as a point mass moving with
+p_b = (xp_b, yp_b), on a stiffness K_p and damping C_p to ground (2 x 2, optionally
+cross-coupled). The bearing force acts on the journal's motion relative to its housing, the
+rotor's inertia on its absolute motion:
+
+    Q(q_rel) P = F_o + Omega^2 (M - j G)(q_rel + q_ped)          (imbalance; impacts alike)
+    (K_p - w^2 M_p + j w C_p) p_b = f_b                          (each pedestal)
+
+The physics (series impedance, forced response, 16-state modal analysis, identification on
+relative + pedestal motion, bearing forces) is in the Rust core (``rust/core/src/pedestal.rs``,
+``identify.rs``); this module holds the model object, the accelerometer conversion and the
+pedestal identification.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ._validate import real_array
+from .errors import IdentifiabilityError, RotoridError
+
+#: pedestal degrees of freedom, the order of ``SyncResponse.pedestal`` (as q = [x1, x2, y1, y2])
+PEDESTAL_DOFS = ("xp1", "xp2", "yp1", "yp2")
+#: accelerometer channel of each pedestal degree of freedom (recordings, 1X tables)
+ACCEL_CHANNELS = {"xp1": "px1", "xp2": "px2", "yp1": "py1", "yp2": "py2"}
+
+
+def _per_direction(name, value, *, nonneg=False):
+    """(2, 2) [pedestal, direction] from a scalar, (2,) per pedestal or (2, 2)."""
+    a = real_array(name, value, nonneg=nonneg)
+    if a.ndim == 0:
+        return np.full((2, 2), float(a))
+    if a.shape == (2,):
+        return np.repeat(a[:, None], 2, axis=1).astype(float)
+    if a.shape == (2, 2):
+        return a.astype(float)
+    raise RotoridError(f"{name} must be a number, 2 values (one per pedestal) or (2, 2) [pedestal, x/y], "
+                       f"got shape {a.shape}")
+
+
+def _matrix(name, value):
+    """(2, 2, 2) [pedestal, i, j] from (2, 2) [pedestal, direction] (uncoupled) or (2, 2, 2)."""
+    a = real_array(name, value)
+    if a.shape == (2, 2, 2):
+        return a.astype(float)
+    d = _per_direction(name, a)
+    out = np.zeros((2, 2, 2))
+    out[:, 0, 0] = d[:, 0]
+    out[:, 1, 1] = d[:, 1]
+    return out
+
+
+@dataclass(frozen=True)
+class Pedestals:
+    """Mass, stiffness and damping of the two pedestals (bearing housings), SI units.
+
+    ``mass_kg``: a number, one per pedestal (2,), or (2, 2) [pedestal, x/y] (the mass moving in
+    each direction). ``k`` (N/m) and ``c`` (N·s/m): a number, (2,), (2, 2) [pedestal, x/y]
+    (uncoupled), or (2, 2, 2) [pedestal, i, j] with cross-coupled terms. Pedestal 1 carries
+    bearing 1 (drive end). Stored normalized: ``mass_kg`` (2, 2), ``k`` and ``c`` (2, 2, 2).
+
+    Examples
+    --------
+    >>> import rotorid
+    >>> ped = rotorid.Pedestals(mass_kg=20.0, k=[[1.2e7, 2.0e7], [1.4e7, 2.2e7]], c=3.0e3)
+    >>> ped.k[0, 1, 1]
+    20000000.0
+    """
+
+    mass_kg: object
+    k: object
+    c: object = 0.0
+
+    def __post_init__(self):
+        object.__setattr__(self, "mass_kg", _per_direction("mass_kg (pedestal mass)", self.mass_kg, nonneg=True))
+        object.__setattr__(self, "k", _matrix("k (pedestal stiffness)", self.k))
+        object.__setattr__(self, "c", _matrix("c (pedestal damping)", self.c))
+        for b in range(2):
+            for i in range(2):
+                if not (self.k[b, i, i] > 0):
+                    raise RotoridError(f"k (pedestal stiffness) of pedestal {b + 1} in {'xy'[i]} must be > 0, got "
+                                       f"{self.k[b, i, i]:g} N/m (a pedestal without stiffness to ground floats)")
+
+    def core_params(self) -> np.ndarray:
+        """The 20 numbers the core takes: [m (4), k (8), c (8)]."""
+        return np.concatenate([self.mass_kg.ravel(), self.k.ravel(), self.c.ravel()])
+
+    def dynamic_stiffness(self, freq_hz) -> np.ndarray:
+        """D(w) = K_p - w² M_p + j w C_p, complex (n, 2, 2, 2) [point, pedestal, i, j]."""
+        w = 2 * np.pi * np.atleast_1d(real_array("freq_hz", freq_hz, nonneg=True))
+        m = np.zeros((2, 2, 2))
+        m[:, 0, 0] = self.mass_kg[:, 0]
+        m[:, 1, 1] = self.mass_kg[:, 1]
+        return self.k[None] - (w ** 2)[:, None, None, None] * m[None] + 1j * w[:, None, None, None] * self.c[None]
+
+    @property
+    def natural_freq_hz(self) -> np.ndarray:
+        """Undamped natural frequency of each pedestal on its own, (2, 2) [pedestal, x/y] (inf when
+        massless)."""
+        with np.errstate(divide="ignore"):
+            return np.sqrt(np.diagonal(self.k, axis1=1, axis2=2) / self.mass_kg) / (2 * np.pi)
+
+    def __repr__(self):
+        return (f"Pedestals(mass_kg={self.mass_kg.tolist()}, k={self.k.tolist()}, c={self.c.tolist()})")
+
+
+def example_pedestals() -> Pedestals:
+    """Flexible pedestals for numerical experiments on the NSF rig (not from the report).
+
+    20 kg housings on 2.0e7 (x) and 2.6e7 N/m (y) at bearing 1, 2.2e7 and 2.8e7 N/m at bearing 2,
+    2500 N·s/m to ground. With the Table 4 bearings the pedestals move 14-18 % of the journal's
+    motion in its housing around the critical speeds (3000-3700 rpm), 14 % at 500 rpm and 68 % at
+    8000 rpm; their own modes lie at 159-189 Hz (9500-11300 rpm), above the speed range.
+
+    Examples
+    --------
+    >>> import rotorid
+    >>> rotorid.example_pedestals().natural_freq_hz.round()
+    array([[159., 181.],
+           [167., 188.]])
+    """
+    return Pedestals(mass_kg=20.0, k=[[2.0e7, 2.6e7], [2.2e7, 2.8e7]], c=2500.0)
+
+
+def displacement_from_acceleration(accel, freq_hz, *, phase_deg=0.0, sensitivity=1.0):
+    """Displacement phasors (m) from acceleration phasors (m/s²) at ``freq_hz``: -a / w².
+
+    ``phase_deg``: the accelerometer's own phase lag at these frequencies (its calibration chart;
+    the measured phasor is a·exp(-j phase)), removed first; ``sensitivity``: a correction factor of
+    its calibration (measured / true). Both broadcast against ``accel``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from rotorid.pedestal import displacement_from_acceleration
+    >>> w = 2 * np.pi * 50.0
+    >>> complex(np.round(displacement_from_acceleration(-w**2 * 1e-6, 50.0) * 1e6, 12))
+    (1+0j)
+    """
+    from ._validate import complex_array
+
+    a = complex_array("accel", accel)
+    f = real_array("freq_hz", freq_hz, positive=True)
+    ph = real_array("phase_deg", phase_deg)
+    s = real_array("sensitivity", sensitivity, positive=True)
+    w = 2 * np.pi * f
+    try:
+        wb = np.broadcast_to(w[..., None] if (w.ndim == 1 and a.ndim == 2 and a.shape[0] == w.size) else w, a.shape)
+    except ValueError:
+        raise RotoridError(f"freq_hz has shape {f.shape}, which does not fit accel of shape {a.shape}") from None
+    return -a * np.exp(1j * np.deg2rad(ph)) / s / wb ** 2
+
+
+@dataclass
+class PedestalIdentification:
+    """Pedestal mass, stiffness and damping identified from the bearing forces and the measured
+    pedestal motion, per pedestal and direction.
+
+    ``mass_kg`` (2, 2) [pedestal, x/y]; ``k``, ``c`` (2, 2, 2) [pedestal, i, j] (cross terms 0
+    unless fitted); ``*_std`` their standard errors; ``dof`` residual degrees of freedom;
+    ``residual`` (2, 2) relative rms misfit of each fit; ``std_source`` "measurement covariance"
+    (weighted least squares with the propagated row covariances) or "residual" (ordinary least
+    squares, heteroscedasticity-consistent errors); ``points`` the number of (run, point) equations used.
+    """
+
+    mass_kg: np.ndarray
+    k: np.ndarray
+    c: np.ndarray
+    mass_std: np.ndarray
+    k_std: np.ndarray
+    c_std: np.ndarray
+    dof: np.ndarray
+    residual: np.ndarray
+    std_source: str
+    cross_coupled: bool
+    points: int
+    labels: list = field(default_factory=list)
+
+    def pedestals(self) -> Pedestals:
+        """The identified pedestals as a model (masses clipped at 0)."""
+        return Pedestals(np.clip(self.mass_kg, 0.0, None), self.k, self.c)
+
+    def interval(self, level: float = 0.95):
+        """{"mass_kg": (lo, hi), "k": (lo, hi), "c": (lo, hi)} at a confidence level (Student t)."""
+        from .uncertainty import t_quantile
+
+        t = t_quantile(level, self.dof)  # (2, 2)
+        out = {"mass_kg": (self.mass_kg - t * self.mass_std, self.mass_kg + t * self.mass_std)}
+        for nm in ("k", "c"):
+            v, s = getattr(self, nm), getattr(self, f"{nm}_std")
+            out[nm] = (v - t[:, :, None] * s, v + t[:, :, None] * s)
+        return out
+
+    def to_dataframe(self):
+        import pandas as pd
+
+        rows = []
+        iv = self.interval(0.95)
+        for b in range(2):
+            for i, d in enumerate("xy"):
+                row = dict(pedestal=b + 1, direction=d, mass_kg=self.mass_kg[b, i], mass_std=self.mass_std[b, i],
+                           mass_lo95=iv["mass_kg"][0][b, i], mass_hi95=iv["mass_kg"][1][b, i])
+                for nm in ("k", "c"):
+                    for j, e in enumerate("xy"):
+                        if i != j and not self.cross_coupled:
+                            continue
+                        key = f"{nm}_{d}{e}"
+                        row[key] = getattr(self, nm)[b, i, j]
+                        row[f"{key}_std"] = getattr(self, f"{nm}_std")[b, i, j]
+                        row[f"{key}_lo95"] = iv[nm][0][b, i, j]
+                        row[f"{key}_hi95"] = iv[nm][1][b, i, j]
+                row.update(dof=self.dof[b, i], residual=self.residual[b, i], std_source=self.std_source)
+                rows.append(row)
+        return pd.DataFrame(rows)
+
+
+def _design(w, p, b, i, cross):
+    """Real design matrix of pedestal b, direction i: unknowns [k_ii, m_i, c_ii (, k_ij, c_ij)];
+    rows [Re, Im] of each (run, point). ``p`` (R, n, 4) pedestal motion."""
+    own = p[..., 2 * i + b]                      # (R, n)
+    cols = [own, -(w ** 2) * own, 1j * w * own]
+    if cross:
+        other = p[..., 2 * (1 - i) + b]
+        cols += [other, 1j * w * other]
+    X = np.stack([c.ravel() for c in cols], -1)  # (R n, u) complex
+    return np.concatenate([X.real, X.imag], 0)
+
+
+def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_hz=None) -> PedestalIdentification:
+    """Each pedestal's mass, stiffness and damping from imbalance runs (or impact tests) that carry
+    pedestal motion.
+
+    The bearing force on each housing follows from the rotor equations with the absolute motion
+    (relative + pedestal), as in the bearing identification, and the pedestal obeys
+    f_b = (K_p - w² M_p + j w C_p) p_b. Over every run and speed (or frequency) this is a real
+    linear least-squares problem per pedestal and direction with the unknowns k, m, c (and the
+    cross-coupled k, c with ``cross_coupled=True``).
+
+    With measurement covariances on every run (``cov`` and ``pedestal_cov``) each equation is
+    weighted by the inverse of its propagated covariance (including the accelerometer noise, which
+    at low speed dominates: the displacement is a/w²) and the standard errors follow from that;
+    otherwise the fit is unweighted with heteroscedasticity-consistent (HC3) standard errors.
+    ``freq_range_hz`` = (lo, hi) restricts the points used.
+
+    Examples
+    --------
+    >>> import numpy as np, rotorid
+    >>> rig = rotorid.nsf_rig()
+    >>> ped = rotorid.example_pedestals()
+    >>> rpm = np.linspace(1000, 8000, 40)
+    >>> runs = [rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=rpm,
+    ...                                    pedestals=ped) for s in "AB"]
+    >>> fit = rotorid.identify_pedestals(rig.rotor, runs)
+    >>> bool(np.allclose(fit.k, ped.k, rtol=1e-6, atol=1.0))
+    True
+    """
+    from ._corecall import core as _core
+    from ._validate import flag
+    from .identify import _as_runs, _pedestal_frame, _run_label
+    from .model import RigidRotor
+    from .simulate import RPM, ImpactResponse, SyncResponse
+
+    if not isinstance(rotor, RigidRotor):
+        raise RotoridError(f"rotor must be a rotorid.RigidRotor, got {type(rotor).__name__}")
+    cross = flag("cross_coupled", cross_coupled)
+    runs = list(runs.values()) if isinstance(runs, dict) else _as_runs(runs)
+    if not runs:
+        raise IdentifiabilityError("no runs given")
+    labels = [_run_label(i, r) for i, r in enumerate(runs)]
+    kinds = {type(r) for r in runs}
+    if len(kinds) != 1 or not kinds <= {SyncResponse, ImpactResponse}:
+        raise RotoridError("runs must all be SyncResponse (imbalance) or all ImpactResponse (impacts)")
+    missing = [lab for lab, r in zip(labels, runs) if r.pedestal is None]
+    if missing:
+        raise RotoridError(f"{', '.join(missing)} carry no pedestal motion (accelerometer channels px1, py1, px2, "
+                           "py2): the pedestals cannot be identified without it")
+    impact = isinstance(runs[0], ImpactResponse)
+    if impact:
+        f = runs[0].freq_hz
+        w = 2 * np.pi * f
+        spin = np.array([runs[0].speed_rpm * RPM])
+        gain = np.ones(1)
+        e = np.stack([r.excitation() for r in runs]).astype(complex)
+        if any(r.force is not None for r in runs):
+            raise RotoridError("identify_pedestals needs FRFs (force=None) for impact tests")
+    else:
+        for i, r in enumerate(runs):
+            if r.imbalance is None:
+                raise RotoridError(f"{labels[i]} has no imbalance: the bearing forces need it")
+        rpm = runs[0].speed_rpm
+        f = rpm / 60.0
+        w = spin = rpm * RPM
+        gain = w ** 2
+        e = np.stack([r.imbalance.generalized(rotor) for r in runs])
+    for lab, r in zip(labels[1:], runs[1:]):
+        ax = r.freq_hz if impact else r.speed_rpm
+        ref = runs[0].freq_hz if impact else runs[0].speed_rpm
+        if ax.shape != ref.shape or not np.allclose(ax, ref, rtol=1e-9):
+            raise RotoridError(f"{lab} is not on the same {'frequencies' if impact else 'speeds'} as {labels[0]}")
+    frames = [_pedestal_frame(rotor, r, lab) for r, lab in zip(runs, labels)]
+    q = np.stack([fr[0] for fr in frames])
+    p = np.stack([fr[1] for fr in frames])
+    covs = [fr[2] for fr in frames]
+    have_cov = all(c is not None for c in covs)
+    sel = np.ones(w.size, bool)
+    if freq_range_hz is not None:
+        lo, hi = real_array("freq_range_hz", freq_range_hz, shape=(2,), nonneg=True)
+        sel = (f >= lo) & (f <= hi)
+        if sel.sum() < 3:
+            raise RotoridError(f"freq_range_hz = ({lo:g}, {hi:g}) keeps {int(sel.sum())} points; at least 3 needed")
+
+    def forces(qq, pp):
+        return _core.bearing_forces(rotor.core_params(), w, spin, np.ascontiguousarray(qq[None]),
+                                    np.ascontiguousarray(e[None], dtype=complex), gain, q_ped=np.ascontiguousarray(pp[None]))[0]
+
+    F = forces(q, p)                                              # (R, n, 4) [f1x, f2x, f1y, f2y]
+    R, n = q.shape[:2]
+    nu = 5 if cross else 3
+    if 2 * R * int(sel.sum()) <= nu:
+        raise IdentifiabilityError(f"{R} run(s) x {int(sel.sum())} point(s) give too few equations for {nu} unknowns")
+    if have_cov:
+        # d(residual)/d(measurement): the forces are affine in (q, p), so unit perturbations of the
+        # 16 real inputs per run less the excitation's part give the Jacobian exactly; the pedestal
+        # term D p is added per fit below
+        zero_q, zero_p = np.zeros_like(q), np.zeros_like(p)
+        F0 = forces(zero_q, zero_p)
+        J = np.empty((R, n, 16, 4), complex)
+        for comp in range(16):
+            dq, dp = zero_q.copy(), zero_p.copy()
+            (dq if comp < 8 else dp)[..., comp % 4] = 1j if comp % 8 >= 4 else 1.0
+            J[:, :, comp] = forces(dq, dp) - F0
+        S = np.nan_to_num(np.stack(covs))                         # (R, n, 16, 16)
+    mass = np.zeros((2, 2))
+    kk = np.zeros((2, 2, 2))
+    cc = np.zeros((2, 2, 2))
+    ms = np.zeros((2, 2))
+    ks = np.zeros((2, 2, 2))
+    cs = np.zeros((2, 2, 2))
+    dof = np.zeros((2, 2))
+    resid = np.zeros((2, 2))
+    for b in range(2):
+        for i in range(2):
+            col = 2 * i + b                                       # index of (b, i) in [x1, x2, y1, y2]
+            X = _design(w[None].repeat(R, 0)[:, sel], p[:, sel], b, i, cross)
+            y = np.concatenate([F[:, sel, col].ravel().real, F[:, sel, col].ravel().imag])
+            if not np.all(np.isfinite(X)) or not np.all(np.isfinite(y)):
+                raise RotoridError("runs contain NaN or inf")
+            scale = np.maximum(np.abs(X).max(axis=0), 1e-300)
+            Xs = X / scale
+            theta, *_ = np.linalg.lstsq(Xs, y, rcond=None)
+            if np.linalg.matrix_rank(Xs) < nu:
+                raise IdentifiabilityError(f"pedestal {b + 1} {'xy'[i]}: the equations are rank deficient (too few "
+                                           "distinct frequencies, or no pedestal motion in that direction)")
+            m_rows = y.size
+            if have_cov:
+                for _ in range(2):  # weights depend on the estimate (D p carries the pedestal noise)
+                    th = theta / scale
+                    D_own = th[0] - w ** 2 * th[1] + 1j * w * th[2]
+                    D_oth = (th[3] + 1j * w * th[4]) if cross else 0.0 * w
+                    # residual r = F_col - D_own p_own - D_oth p_oth: its 2 x 2 (Re, Im) covariance
+                    g = J[:, :, :, col].copy()                    # (R, n, 16)
+                    g[:, :, 8 + col] -= D_own[None]
+                    g[:, :, 12 + col] -= 1j * D_own[None]
+                    if cross:
+                        oc = 2 * (1 - i) + b
+                        g[:, :, 8 + oc] -= D_oth[None]
+                        g[:, :, 12 + oc] -= 1j * D_oth[None]
+                    G2 = np.stack([g.real, g.imag], -2)           # (R, n, 2, 16)
+                    V = G2 @ S @ np.swapaxes(G2, -1, -2)          # (R, n, 2, 2)
+                    Vs = V[:, sel].reshape(-1, 2, 2)
+                    Lc = np.linalg.cholesky(Vs + 1e-300 * np.eye(2))
+                    Li = np.linalg.inv(Lc)                        # whitening per (run, point)
+                    Xr = np.stack([Xs[:m_rows // 2], Xs[m_rows // 2:]], 1)   # (Rn, 2, u)
+                    yr = np.stack([y[:m_rows // 2], y[m_rows // 2:]], 1)     # (Rn, 2)
+                    Xw = (Li @ Xr).reshape(-1, nu)
+                    yw = (Li @ yr[..., None])[..., 0].ravel()
+                    theta, *_ = np.linalg.lstsq(Xw, yw, rcond=None)
+                covt = np.linalg.inv(Xw.T @ Xw)
+                rw = yw - Xw @ theta
+                chi2 = float(rw @ rw) / max(Xw.shape[0] - nu, 1)
+                # a misfit beyond the measurement errors (a wrong pedestal model) widens the errors
+                covt = covt * max(chi2, 1.0)
+                src = "measurement covariance"
+            else:
+                r = y - Xs @ theta
+                XtXi = np.linalg.inv(Xs.T @ Xs)
+                h = np.einsum("ij,jk,ik->i", Xs, XtXi, Xs)
+                meat = (Xs * (r / np.clip(1 - h, 1e-12, None))[:, None] ** 2).T @ Xs
+                covt = XtXi @ meat @ XtXi
+                src = "residual"
+            sd = np.sqrt(np.clip(np.diag(covt), 0, None)) / scale
+            th = theta / scale
+            kk[b, i, i], mass[b, i], cc[b, i, i] = th[0], th[1], th[2]
+            ks[b, i, i], ms[b, i], cs[b, i, i] = sd[0], sd[1], sd[2]
+            if cross:
+                kk[b, i, 1 - i], cc[b, i, 1 - i] = th[3], th[4]
+                ks[b, i, 1 - i], cs[b, i, 1 - i] = sd[3], sd[4]
+            dof[b, i] = m_rows - nu
+            fit = X @ th
+            resid[b, i] = np.sqrt(np.sum((y - fit) ** 2) / max(np.sum(y ** 2), 1e-300))
+    return PedestalIdentification(mass, kk, cc, ms, ks, cs, dof, resid, src, cross, R * int(sel.sum()), labels)

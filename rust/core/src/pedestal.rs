@@ -1,0 +1,421 @@
+//! The rigid rotor on bearings mounted in flexible pedestals (8 degrees of freedom).
+//!
+//! Each bearing housing (pedestal) b is a point mass on springs and dampers to ground, moving
+//! with p_b = (xp_b, yp_b). The bearing force acts on the relative motion r_b = q_b - p_b of the
+//! journal in its housing, on the rotor with one sign and on the pedestal with the other:
+//!
+//! ```text
+//!   rotor     M q'' + Omega G q' + A(K_b r + C_b r') = F            (report eq. 1, q absolute)
+//!   pedestal  M_p p_b'' + C_p p_b' + K_p p_b        = K_b r_b + C_b r_b'
+//! ```
+//!
+//! with A the map of the bearing forces onto the rotor's force and moment rows (eq. 3). At a
+//! vibration frequency w the bearing impedance Z_b = K_b + j w C_b and the pedestal dynamic
+//! stiffness D_b = K_p - w^2 M_p + j w C_p act in series, so the rotor sees
+//!
+//! ```text
+//!   Z_eff = (Z_b^-1 + D_b^-1)^-1 = D_b (Z_b + D_b)^-1 Z_b,    p_b = T_b q_b,   T_b = (Z_b + D_b)^-1 Z_b,
+//! ```
+//!
+//! (the form without inverses of Z_b or D_b holds when either is singular: a pedestal at its own
+//! undamped resonance, a bearing without stiffness). The forced response is the 4-DOF one with
+//! Z_eff; the modal analysis works on the full 16-state system.
+//!
+//! Pedestal parameters of one call: 20 numbers `[m (4): [pedestal][x, y]; k (8), c (8):
+//! [pedestal][i][j]]`, pedestal 1 at bearing 1.
+
+use crate::eig8;
+use crate::error::{expect_len, expect_len_or_broadcast, product, CoreError};
+use crate::forced;
+use crate::model::{assemble, Rotor, C64};
+use rayon::prelude::*;
+
+/// Mass, stiffness and damping of the two pedestals.
+#[derive(Clone, Copy, Debug)]
+pub struct Pedestals {
+    /// mass [pedestal][x, y], kg
+    pub m: [f64; 4],
+    /// stiffness [pedestal][i][j] to ground, N/m
+    pub k: [f64; 8],
+    /// damping [pedestal][i][j] to ground, N s/m
+    pub c: [f64; 8],
+}
+
+type C2 = [[C64; 2]; 2];
+
+impl Pedestals {
+    /// From `[m (4), k (8), c (8)]`; masses must be >= 0, every value finite.
+    pub fn from_slice(p: &[f64]) -> Result<Pedestals, CoreError> {
+        expect_len("pedestals", p, 20)?;
+        if p.iter().any(|v| !v.is_finite()) {
+            return Err(CoreError::value("pedestals", "must be finite"));
+        }
+        if p[..4].iter().any(|&m| m < 0.0) {
+            return Err(CoreError::value("pedestals", "masses must be >= 0"));
+        }
+        let mut out = Pedestals { m: [0.0; 4], k: [0.0; 8], c: [0.0; 8] };
+        out.m.copy_from_slice(&p[..4]);
+        out.k.copy_from_slice(&p[4..12]);
+        out.c.copy_from_slice(&p[12..20]);
+        Ok(out)
+    }
+
+    /// D_b(w) = K_p - w^2 M_p + j w C_p of pedestal `b`.
+    #[inline]
+    pub fn dynamic_stiffness(&self, b: usize, w: f64) -> C2 {
+        let mut d = [[C64::new(0.0, 0.0); 2]; 2];
+        for i in 0..2 {
+            for j in 0..2 {
+                let o = 4 * b + 2 * i + j;
+                let mass = if i == j { self.m[2 * b + i] } else { 0.0 };
+                d[i][j] = C64::new(self.k[o] - w * w * mass, w * self.c[o]);
+            }
+        }
+        d
+    }
+}
+
+#[inline]
+fn mul2(a: &C2, b: &C2) -> C2 {
+    let mut o = [[C64::new(0.0, 0.0); 2]; 2];
+    for i in 0..2 {
+        for j in 0..2 {
+            o[i][j] = a[i][0] * b[0][j] + a[i][1] * b[1][j];
+        }
+    }
+    o
+}
+
+/// (Z + D)^-1 Z and D (Z + D)^-1 Z; None when Z + D is singular (to 1e-14 of its scale).
+#[inline]
+pub fn series(z: &C2, d: &C2) -> Option<(C2, C2)> {
+    let s = [[z[0][0] + d[0][0], z[0][1] + d[0][1]], [z[1][0] + d[1][0], z[1][1] + d[1][1]]];
+    let det = s[0][0] * s[1][1] - s[0][1] * s[1][0];
+    let scale = s.iter().flatten().map(|v| v.norm_sqr()).sum::<f64>();
+    if !(det.norm() > 1e-14 * scale) || !det.is_finite() {
+        return None;
+    }
+    let inv = [[s[1][1] / det, -s[0][1] / det], [-s[1][0] / det, s[0][0] / det]];
+    let t = mul2(&inv, z);
+    Some((t, mul2(d, &t)))
+}
+
+/// Bearing impedance Z_b = K_b + j w C_b from 8 coefficients [bearing][i][j].
+#[inline]
+fn bearing_impedance(kb: &[f64], cb: &[f64], b: usize, w: f64) -> C2 {
+    let o = 4 * b;
+    [
+        [C64::new(kb[o], w * cb[o]), C64::new(kb[o + 1], w * cb[o + 1])],
+        [C64::new(kb[o + 2], w * cb[o + 2]), C64::new(kb[o + 3], w * cb[o + 3])],
+    ]
+}
+
+/// Effective (series) coefficients of bearing + pedestal at every point, as the rotor sees them:
+/// K_eff = Re Z_eff, C_eff = Im Z_eff / w, and the transfer T_b (p_b = T_b q_b).
+///
+/// `kb`, `cb`: (n, 8) or (1, 8); `w`: (n,) rad/s, non-zero. Outputs: `k_eff`, `c_eff` (n, 8),
+/// `transfer` (n, 8) complex [bearing][i][j]. Returns the number of points where Z + D is
+/// singular (NaN there).
+pub fn effective_coefficients(
+    kb: &[f64],
+    cb: &[f64],
+    ped: &Pedestals,
+    w: &[f64],
+    k_eff: &mut [f64],
+    c_eff: &mut [f64],
+    transfer: &mut [C64],
+) -> Result<usize, CoreError> {
+    let n = w.len();
+    expect_len_or_broadcast("k", kb, 8, product("k", &[n, 8])?)?;
+    expect_len_or_broadcast("c", cb, 8, n * 8)?;
+    expect_len("k_eff", k_eff, n * 8)?;
+    expect_len("c_eff", c_eff, n * 8)?;
+    expect_len("transfer", transfer, n * 8)?;
+    if w.iter().any(|&x| !(x.is_finite() && x != 0.0)) {
+        return Err(CoreError::value("w", "(vibration frequency) must be finite and non-zero"));
+    }
+    let bc = kb.len() == 8;
+    let nbad = (k_eff.par_chunks_mut(8), c_eff.par_chunks_mut(8), transfer.par_chunks_mut(8))
+        .into_par_iter()
+        .with_min_len(256)
+        .enumerate()
+        .map(|(i, (ke, ce, tr))| {
+            let o = if bc { 0 } else { 8 * i };
+            let (k8, c8) = (&kb[o..o + 8], &cb[o..o + 8]);
+            let mut bad = 0usize;
+            for b in 0..2 {
+                let z = bearing_impedance(k8, c8, b, w[i]);
+                let d = ped.dynamic_stiffness(b, w[i]);
+                match series(&z, &d) {
+                    Some((t, ze)) => {
+                        for r in 0..2 {
+                            for s in 0..2 {
+                                let q = 4 * b + 2 * r + s;
+                                ke[q] = ze[r][s].re;
+                                ce[q] = ze[r][s].im / w[i];
+                                tr[q] = t[r][s];
+                            }
+                        }
+                    }
+                    None => {
+                        bad = 1;
+                        for q in 4 * b..4 * b + 4 {
+                            ke[q] = f64::NAN;
+                            ce[q] = f64::NAN;
+                            tr[q] = C64::new(f64::NAN, f64::NAN);
+                        }
+                    }
+                }
+            }
+            bad
+        })
+        .sum();
+    Ok(nbad)
+}
+
+/// Forced response of the rotor on bearings in flexible pedestals: for every point i and force
+/// vector, the absolute rotor motion at the bearings q (solved with the series impedance) and the
+/// pedestal motion p = T q, both [x1, x2, y1, y2].
+///
+/// Arguments as [`forced::forced_response`] (`gain` empty or (n,)); `q_abs`, `q_ped`:
+/// (n, nrhs, 4). Returns the number of singular points (NaN output).
+#[allow(clippy::too_many_arguments)]
+pub fn forced_response(
+    rotor: &Rotor,
+    kb: &[f64],
+    cb: &[f64],
+    ped: &Pedestals,
+    spin: &[f64],
+    w: &[f64],
+    force: &[C64],
+    nrhs: usize,
+    gain: &[f64],
+    q_abs: &mut [C64],
+    q_ped: &mut [C64],
+) -> Result<usize, CoreError> {
+    let n = w.len();
+    let total = product("q", &[n, nrhs, 4])?;
+    expect_len("q_ped", q_ped, total)?;
+    let mut ke = vec![0.0; product("k_eff", &[n, 8])?];
+    let mut ce = vec![0.0; n * 8];
+    let mut tr = vec![C64::new(0.0, 0.0); n * 8];
+    effective_coefficients(kb, cb, ped, w, &mut ke, &mut ce, &mut tr)?;
+    let nsing = if gain.is_empty() {
+        forced::forced_response(rotor, &ke, &ce, spin, w, force, nrhs, q_abs)?
+    } else {
+        forced::forced_response_scaled(rotor, &ke, &ce, spin, w, force, nrhs, gain, q_abs)?
+    };
+    q_ped
+        .par_chunks_mut(4 * nrhs)
+        .zip(q_abs.par_chunks(4 * nrhs))
+        .enumerate()
+        .with_min_len(256)
+        .for_each(|(i, (po, qa))| {
+            let t = &tr[8 * i..8 * i + 8];
+            for r in 0..nrhs {
+                let q = &qa[4 * r..4 * r + 4];
+                for b in 0..2 {
+                    let (x, y) = (q[b], q[2 + b]);
+                    po[4 * r + b] = t[4 * b] * x + t[4 * b + 1] * y;
+                    po[4 * r + 2 + b] = t[4 * b + 2] * x + t[4 * b + 3] * y;
+                }
+            }
+        });
+    Ok(nsing)
+}
+
+/// Number of degrees of freedom of the coupled system: [x1, x2, y1, y2, xp1, xp2, yp1, yp2].
+pub const DOF: usize = 8;
+const NS: usize = 2 * DOF;
+
+/// Mass, stiffness and damping (+ Omega G) matrices of the coupled system, rows = equations.
+fn coupled_matrices(rotor: &Rotor, kb: &[f64], cb: &[f64], ped: &Pedestals, spin: f64) -> [[[f64; DOF]; DOF]; 3] {
+    let m = rotor.mass_matrix();
+    let g = rotor.gyro_matrix();
+    let ak = assemble(kb, rotor.l1, rotor.l2);
+    let ac = assemble(cb, rotor.l1, rotor.l2);
+    let mut mm = [[0.0; DOF]; DOF];
+    let mut kk = [[0.0; DOF]; DOF];
+    let mut cc = [[0.0; DOF]; DOF];
+    for r in 0..4 {
+        for s in 0..4 {
+            mm[r][s] = m[r][s];
+            kk[r][s] = ak[r][s];
+            kk[r][4 + s] = -ak[r][s];
+            cc[r][s] = ac[r][s] + spin * g[r][s];
+            cc[r][4 + s] = -ac[r][s];
+        }
+    }
+    // pedestal rows in the order [xp1, xp2, yp1, yp2]: row of (bearing b, direction i) is
+    // 4 + 2 i + b, column of (b, j) is 2 j + b (relative: rotor column, minus pedestal column)
+    for b in 0..2 {
+        for i in 0..2 {
+            let row = 4 + 2 * i + b;
+            mm[row][row] = ped.m[2 * b + i];
+            for j in 0..2 {
+                let o = 4 * b + 2 * i + j;
+                let col = 2 * j + b;
+                kk[row][col] -= kb[o];
+                kk[row][4 + col] += kb[o] + ped.k[o];
+                cc[row][col] -= cb[o];
+                cc[row][4 + col] += cb[o] + ped.c[o];
+            }
+        }
+    }
+    [mm, kk, cc]
+}
+
+/// Solve an N x N complex system in place by LU with partial pivoting; false on a zero pivot.
+fn solve_n<const N: usize>(a: &mut [[C64; N]; N], b: &mut [C64; N]) -> bool {
+    for k in 0..N {
+        let p = (k..N).fold(k, |p, i| if a[i][k].norm() > a[p][k].norm() { i } else { p });
+        if a[p][k].norm() == 0.0 {
+            return false;
+        }
+        a.swap(p, k);
+        b.swap(p, k);
+        let inv = 1.0 / a[k][k];
+        for i in k + 1..N {
+            let f = a[i][k] * inv;
+            for j in k + 1..N {
+                let t = a[k][j];
+                a[i][j] -= f * t;
+            }
+            let t = b[k];
+            b[i] -= f * t;
+        }
+    }
+    for k in (0..N).rev() {
+        let mut s = b[k];
+        for j in k + 1..N {
+            s -= a[k][j] * b[j];
+        }
+        b[k] = s / a[k][k];
+    }
+    true
+}
+
+/// Mode shape of eigenvalue `lam` by two steps of inverse iteration on
+/// D(s) = s^2 M + s C + K shifted by a relative 1e-12 (1e-10, 1e-8 if that is singular to
+/// working precision), projected against `avoid` (shapes of an equal eigenvalue).
+fn mode_shape(mats: &[[[f64; DOF]; DOF]; 3], lam: C64, seed: usize, avoid: &[[C64; DOF]]) -> Option<[C64; DOF]> {
+    let [mm, kk, cc] = mats;
+    'shift: for shift in [1e-12, 1e-10, 1e-8] {
+        let s = lam * (1.0 + shift);
+        let mut d0 = [[C64::new(0.0, 0.0); DOF]; DOF];
+        for r in 0..DOF {
+            for c in 0..DOF {
+                d0[r][c] = s * s * mm[r][c] + s * cc[r][c] + kk[r][c];
+            }
+        }
+        // a generic start vector (no rotor structure is orthogonal to it)
+        let mut v: [C64; DOF] = std::array::from_fn(|d| {
+            let t = (d as f64 + 1.0) * (0.61 + 0.17 * seed as f64);
+            C64::new(t.cos(), (1.3 * t).sin())
+        });
+        for _ in 0..2 {
+            for u in avoid {
+                let dot: C64 = (0..DOF).map(|d| u[d].conj() * v[d]).sum();
+                for d in 0..DOF {
+                    v[d] -= dot * u[d];
+                }
+            }
+            let mut a = d0;
+            if !solve_n(&mut a, &mut v) {
+                continue 'shift;
+            }
+            let nrm = v.iter().map(|z| z.norm_sqr()).sum::<f64>().sqrt();
+            if !(nrm > 0.0 && nrm.is_finite()) {
+                continue 'shift;
+            }
+            for z in v.iter_mut() {
+                *z /= nrm;
+            }
+        }
+        return Some(v);
+    }
+    None
+}
+
+/// Modal analysis of the coupled rotor-pedestal system at each spin speed: eigenvalues with
+/// positive imaginary part (up to 8, by damped natural frequency, NaN-padded) and their shapes
+/// over [x1, x2, y1, y2, xp1, xp2, yp1, yp2] (absolute motions), normalized to a unit largest
+/// component. Pedestal masses must be > 0. `kb`, `cb`: (n, 8); `lam`: (n, 8); `shapes`: (n, 8, 8).
+/// Returns the number of points where the eigen-solver failed (NaN output).
+pub fn modal(rotor: &Rotor, kb: &[f64], cb: &[f64], ped: &Pedestals, spin: &[f64], lam: &mut [C64], shapes: &mut [C64]) -> Result<usize, CoreError> {
+    let n = spin.len();
+    expect_len("k", kb, product("k", &[n, 8])?)?;
+    expect_len("c", cb, n * 8)?;
+    expect_len("lam", lam, product("lam", &[n, DOF])?)?;
+    expect_len("shapes", shapes, product("shapes", &[n, DOF * DOF])?)?;
+    if ped.m.iter().any(|&m| !(m > 0.0)) {
+        return Err(CoreError::value("pedestals", "masses must be > 0 for a modal analysis (a massless pedestal has no mode)"));
+    }
+    let nan = C64::new(f64::NAN, f64::NAN);
+    Ok(lam
+        .par_chunks_mut(DOF)
+        .zip(shapes.par_chunks_mut(DOF * DOF))
+        .enumerate()
+        .map(|(i, (lo, so))| {
+            for v in lo.iter_mut().chain(so.iter_mut()) {
+                *v = nan;
+            }
+            let mats = coupled_matrices(rotor, &kb[8 * i..8 * i + 8], &cb[8 * i..8 * i + 8], ped, spin[i]);
+            let [mm, kk, cc] = &mats;
+            // A = [[0, I], [-M^-1 K, -M^-1 C]]; M is the rotor's (invertible, l1 + l2 != 0) and a
+            // positive diagonal for the pedestals
+            let mut minv_k = [[C64::new(0.0, 0.0); DOF]; DOF];
+            let mut minv_c = [[C64::new(0.0, 0.0); DOF]; DOF];
+            for col in 0..DOF {
+                let mut bk: [C64; DOF] = std::array::from_fn(|r| C64::new(kk[r][col], 0.0));
+                let mut bc: [C64; DOF] = std::array::from_fn(|r| C64::new(cc[r][col], 0.0));
+                let mut m1: [[C64; DOF]; DOF] = std::array::from_fn(|r| std::array::from_fn(|c| C64::new(mm[r][c], 0.0)));
+                let mut m2 = m1;
+                if !solve_n(&mut m1, &mut bk) || !solve_n(&mut m2, &mut bc) {
+                    return 1usize;
+                }
+                for r in 0..DOF {
+                    minv_k[r][col] = bk[r];
+                    minv_c[r][col] = bc[r];
+                }
+            }
+            let mut a = [[0.0; NS]; NS];
+            for r in 0..DOF {
+                a[r][DOF + r] = 1.0;
+                for c in 0..DOF {
+                    a[DOF + r][c] = -minv_k[r][c].re;
+                    a[DOF + r][DOF + c] = -minv_c[r][c].re;
+                }
+            }
+            crate::modal::balance_array(&mut a);
+            let s = match eig8::eigenvalues(&a) {
+                Some(s) => s,
+                None => return 1usize,
+            };
+            let mut idx: Vec<usize> = (0..NS).filter(|&t| s[t].im > 1e-9 * s[t].norm().max(1e-300)).collect();
+            idx.sort_by(|&x, &y| s[x].im.partial_cmp(&s[y].im).unwrap_or(std::cmp::Ordering::Equal).then(x.cmp(&y)));
+            let mut found: Vec<[C64; DOF]> = Vec::with_capacity(DOF);
+            for (mi, &t) in idx.iter().take(DOF).enumerate() {
+                lo[mi] = s[t];
+                let same: Vec<[C64; DOF]> =
+                    (0..mi).filter(|&o| (lo[o] - s[t]).norm() <= 1e-9 * s[t].norm()).map(|o| found[o]).collect();
+                let v = match mode_shape(&mats, s[t], mi, &same) {
+                    Some(v) => v,
+                    None => {
+                        for v in lo.iter_mut().chain(so.iter_mut()) {
+                            *v = nan;
+                        }
+                        return 1usize;
+                    }
+                };
+                found.push(v);
+                let best = (0..DOF).fold(0, |b, d| if v[d].norm() > v[b].norm() { d } else { b });
+                let scale = if v[best].norm() > 0.0 { 1.0 / v[best] } else { C64::new(1.0, 0.0) };
+                for d in 0..DOF {
+                    so[DOF * mi + d] = v[d] * scale;
+                }
+            }
+            0usize
+        })
+        .sum())
+}
