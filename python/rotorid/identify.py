@@ -345,7 +345,8 @@ def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", ide
 
     ``shared_cov`` (n, 8, 8), optional: a covariance shared by every pair of runs, where the runs
     (at the same place as ``q``) had the same baseline run subtracted: its error is common to all
-    of them, which propagation must not treat as independent.
+    of them, which propagation must not treat as independent. With pedestal motion it is
+    (n, 16, 16), over [Re q, Im q, Re p, Im p].
 
     ``estimator``: "ls" (least squares, as the report) or "bias-corrected": least squares less its
     second-order errors-in-variables bias, estimated from the measurement covariance (sigma points
@@ -371,13 +372,11 @@ def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", ide
     om = rpm * RPM
     e = np.stack([r.imbalance.generalized(rotor) for r in runs])  # (R, 4), scaled by Omega^2 below
     if _has_pedestal(runs, labels):
-        if shared_cov is not None:
-            raise RotoridError("shared_cov is not supported with pedestal motion")
         qs, qps, covs, dofs, flags = _pedestal_inputs(rotor, runs, labels, "speed_rpm", rpm)
         return _solve(rotor, "speed_rpm", rpm, om, om, qs, e, om ** 2, None, identical=identical, method=method,
                       labels=labels, cond_max=cond_max, min_rel_amplitude=min_rel_amplitude, what="responses",
                       covs=covs, dofs=dofs, max_rel_std=max_rel_std, estimator=estimator, extra_flags=flags,
-                      q_ped=qps)
+                      q_ped=qps, shared_cov=_shared(rotor, runs, shared_cov, size=16))
     at_b = [r.at_bearings(rotor) for r in runs]
     qs = [np.ascontiguousarray(r.q, dtype=complex) for r in at_b]  # the runs as they are: no copy, no stack
     covs = _run_covs(at_b, labels)
@@ -406,8 +405,15 @@ def _pedestal_frame(rotor, run, label=""):
     (n, 16, 16) covariance of [Re q_rel, Im q_rel, Re p, Im p] (None without covariances)."""
     from .simulate import joint_cov
 
+    from .simulate import _check_pedestal
+
     if run.pedestal is None:
         raise RotoridError(f"{label or 'the run'} carries no pedestal motion")
+    try:
+        # checked again: fields set after construction skip __post_init__
+        _check_pedestal(run, run.q.shape[0])
+    except RotoridError as exc:
+        raise RotoridError(f"{label or 'the run'}: {exc}") from None
     rb = run.at_bearings(rotor)
     q = rb.frf() if hasattr(rb, "frf") else rb.q
     jc = joint_cov(rb)
@@ -429,6 +435,9 @@ def _pedestal_inputs(rotor, runs, labels, axis_name, axis):
     qps = [f[1] for f in frames]
     jcs = [f[2] for f in frames]
     covs = np.stack(jcs) if all(c is not None for c in jcs) else None
+    if covs is None and any(c is not None for c in jcs):
+        warnings.warn(f"only {sum(c is not None for c in jcs)} of {len(jcs)} runs carry measurement covariances (cov "
+                      "and pedestal_cov): the uncertainty falls back to the residual of redundant runs")
     dofs = _run_dofs(runs) if covs is not None else None
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.stack([np.sqrt(np.sum(np.abs(p) ** 2, 1) / np.sum(np.abs(q) ** 2, 1)) for q, p in zip(qs, qps)])
@@ -460,16 +469,19 @@ def _check_same_axis(name, axes, labels, what, unit, advice):
                                f"the same {unit} ({advice})")
 
 
-def _shared(rotor, runs, shared_cov):
-    """The shared covariance at the bearings (checked), or None."""
-    from .simulate import _cov_transform, check_cov, probes_to_bearings_matrix
+def _shared(rotor, runs, shared_cov, size: int = 8):
+    """The shared covariance at the bearings (checked), or None. With pedestal motion (``size``
+    16) it is the joint covariance of [Re q, Im q, Re p, Im p] common to the runs."""
+    from .simulate import _cov_transform, _joint_moved, check_cov, probes_to_bearings_matrix
 
     if shared_cov is None:
         return None
-    c = check_cov("shared_cov", shared_cov, runs[0].q.shape[0])
+    c = check_cov("shared_cov", shared_cov, runs[0].q.shape[0], size)
     if any(r.at != runs[0].at for r in runs):
         raise RotoridError("shared_cov needs all runs measured at the same place (probes or bearings)")
-    return _cov_transform(probes_to_bearings_matrix(rotor), c) if runs[0].at == "probes" else c
+    if runs[0].at != "probes":
+        return c
+    return _joint_moved(rotor, c, "bearings") if size == 16 else _cov_transform(probes_to_bearings_matrix(rotor), c)
 
 
 def _run_covs(runs, labels=None):
@@ -514,6 +526,8 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
         gain, identical=identical, method=method, with_std=redundant, sigma=sigma, q_ped=q_ped)
     if nbad:
         qs = np.stack(qs)
+        if q_ped is not None and not np.isfinite(np.stack(q_ped)).all():
+            raise RotoridError(f"the pedestal motion (accelerometers) of the {what} contains NaN or inf")
         big = float(np.nanmax(np.abs(qs))) if np.isfinite(qs).all() else None
         if big is not None:
             raise RotoridError(f"{what} reach {big:.3g} (m or m/N): the computation overflows; no rotor responds that "

@@ -31,6 +31,19 @@ PEDESTAL_DOFS = ("xp1", "xp2", "yp1", "yp2")
 ACCEL_CHANNELS = {"xp1": "px1", "xp2": "px2", "yp1": "py1", "yp2": "py2"}
 
 
+def dof_matrix(a) -> np.ndarray:
+    """A per-support array (2, 2, 2) [support b][i][j] as the 4 x 4 matrix over [x1, x2, y1, y2]
+    (entry at row 2 i + b, column 2 j + b): bearing or pedestal coefficients acting on the motion
+    at the supports."""
+    a = np.asarray(a)
+    out = np.zeros((4, 4), dtype=a.dtype)
+    for b in range(2):
+        for i in range(2):
+            for j in range(2):
+                out[2 * i + b, 2 * j + b] = a[b, i, j]
+    return out
+
+
 def _per_direction(name, value, *, nonneg=False):
     """(2, 2) [pedestal, direction] from a scalar, (2,) per pedestal or (2, 2)."""
     a = real_array(name, value, nonneg=nonneg)
@@ -90,6 +103,12 @@ class Pedestals:
     def core_params(self) -> np.ndarray:
         """The 20 numbers the core takes: [m (4), k (8), c (8)]."""
         return np.concatenate([self.mass_kg.ravel(), self.k.ravel(), self.c.ravel()])
+
+    def matrices(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(M_p, K_p, C_p), each 4 x 4 over [xp1, xp2, yp1, yp2] (the order of q)."""
+        m = np.zeros((2, 2, 2))
+        m[:, 0, 0], m[:, 1, 1] = self.mass_kg[:, 0], self.mass_kg[:, 1]
+        return dof_matrix(m), dof_matrix(self.k), dof_matrix(self.c)
 
     def dynamic_stiffness(self, freq_hz) -> np.ndarray:
         """D(w) = K_p - w² M_p + j w C_p, complex (n, 2, 2, 2) [point, pedestal, i, j]."""
@@ -197,7 +216,44 @@ class PedestalIdentification:
             out[nm] = (v - t[:, :, None] * s, v + t[:, :, None] * s)
         return out
 
-    def to_dataframe(self):
+    def summary(self, *, us: bool = False) -> str:
+        """One line per pedestal and direction: mass, direct stiffness and damping with their
+        standard errors (SI, or lb, lbf/in, lbf s/in with ``us``)."""
+        from .units import from_si
+
+        um, uk, uc = ("lb", "lbf/in", "lbf*s/in") if us else ("kg", "N/m", "N*s/m")
+        parts = []
+        for b in range(2):
+            for i, d in enumerate("xy"):
+                def f(v, s, unit):
+                    return f"{from_si(v, unit):.4g} ± {from_si(s, unit):.2g}"
+                parts.append(f"pedestal {b + 1} {d}: m {f(self.mass_kg[b, i], self.mass_std[b, i], um)} {um}, "
+                             f"k {f(self.k[b, i, i], self.k_std[b, i, i], uk)} {uk}, "
+                             f"c {f(self.c[b, i, i], self.c_std[b, i, i], uc)} {uc}")
+        return "pedestals identified (" + self.std_source + "): " + "; ".join(parts)
+
+    def to_dataframe(self, *, us: bool = False):
+        """One row per pedestal and direction: mass, stiffness, damping (direct, and cross terms
+        when fitted), each with its standard error and 95 % interval. SI columns (``mass_kg``,
+        ``k_xx`` N/m, ``c_xx`` N s/m) or, with ``us``, lb, lbf/in and lbf s/in (the columns named
+        with their unit)."""
+        df = self._frame()
+        if not us:
+            return df
+        from .units import from_si
+
+        ren = {}
+        for col in list(df.columns):
+            if col.startswith("mass_"):
+                df[col] = from_si(df[col], "lb")
+                ren[col] = col.replace("mass_kg", "mass").replace("mass", "mass_lb", 1)
+            elif col[:2] in ("k_", "c_"):
+                unit, tag = ("lbf/in", "lbf_per_in") if col[0] == "k" else ("lbf*s/in", "lbf_s_per_in")
+                df[col] = from_si(df[col], unit)
+                ren[col] = f"{col}_{tag}"
+        return df.rename(columns=ren)
+
+    def _frame(self):
         import pandas as pd
 
         rows = []
@@ -220,14 +276,15 @@ class PedestalIdentification:
         return pd.DataFrame(rows)
 
 
-def _design(w, p, b, i, cross):
+def _design(s, p, b, i, cross):
     """Real design matrix of pedestal b, direction i: unknowns [k_ii, m_i, c_ii (, k_ij, c_ij)];
-    rows [Re, Im] of each (run, point). ``p`` (R, n, 4) pedestal motion."""
+    rows [Re, Im] of each (run, point). ``s`` (R, n) = sigma + j w, ``p`` (R, n, 4) pedestal
+    motion: f = (k + s² m + s c) p_own (+ (k_ij + s c_ij) p_other)."""
     own = p[..., 2 * i + b]                      # (R, n)
-    cols = [own, -(w ** 2) * own, 1j * w * own]
+    cols = [own, s ** 2 * own, s * own]
     if cross:
         other = p[..., 2 * (1 - i) + b]
-        cols += [other, 1j * w * other]
+        cols += [other, s * other]
     X = np.stack([c.ravel() for c in cols], -1)  # (R n, u) complex
     return np.concatenate([X.real, X.imag], 0)
 
@@ -289,6 +346,11 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
         e = np.stack([r.excitation() for r in runs]).astype(complex)
         if any(r.force is not None for r in runs):
             raise RotoridError("identify_pedestals needs FRFs (force=None) for impact tests")
+        sig = {r.sigma for r in runs}
+        if len(sig) != 1:
+            raise RotoridError(f"the impact tests have different exponential windows (sigma {sorted(sig)} 1/s): "
+                               "window all tests alike")
+        sigma = sig.pop()
     else:
         for i, r in enumerate(runs):
             if r.imbalance is None:
@@ -297,6 +359,7 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
         f = rpm / 60.0
         w = spin = rpm * RPM
         gain = w ** 2
+        sigma = 0.0
         e = np.stack([r.imbalance.generalized(rotor) for r in runs])
     for lab, r in zip(labels[1:], runs[1:]):
         ax = r.freq_hz if impact else r.speed_rpm
@@ -315,9 +378,13 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
         if sel.sum() < 3:
             raise RotoridError(f"freq_range_hz = ({lo:g}, {hi:g}) keeps {int(sel.sum())} points; at least 3 needed")
 
+    s_lap = sigma + 1j * w                                         # the windowed spectra are at s
+    sig_arr = np.full(w.size, sigma) if sigma else None
+
     def forces(qq, pp):
         return _core.bearing_forces(rotor.core_params(), w, spin, np.ascontiguousarray(qq[None]),
-                                    np.ascontiguousarray(e[None], dtype=complex), gain, q_ped=np.ascontiguousarray(pp[None]))[0]
+                                    np.ascontiguousarray(e[None], dtype=complex), gain, sigma=sig_arr,
+                                    q_ped=np.ascontiguousarray(pp[None]))[0]
 
     F = forces(q, p)                                              # (R, n, 4) [f1x, f2x, f1y, f2y]
     R, n = q.shape[:2]
@@ -335,7 +402,18 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
             dq, dp = zero_q.copy(), zero_p.copy()
             (dq if comp < 8 else dp)[..., comp % 4] = 1j if comp % 8 >= 4 else 1.0
             J[:, :, comp] = forces(dq, dp) - F0
-        S = np.nan_to_num(np.stack(covs))                         # (R, n, 16, 16)
+        S = np.stack(covs)                                        # (R, n, 16, 16)
+        unknown = np.isnan(S).any(axis=(0, 2, 3))                 # a point whose covariance a run lacks
+        if unknown[sel].all():
+            have_cov = False
+        else:
+            if unknown[sel].any():
+                import warnings
+
+                warnings.warn(f"{int(unknown[sel].sum())} of {int(sel.sum())} points have no measurement covariance "
+                              "(NaN) in some run: the weighted pedestal fit leaves them out")
+                sel = sel & ~unknown
+            S = np.nan_to_num(S)
     mass = np.zeros((2, 2))
     kk = np.zeros((2, 2, 2))
     cc = np.zeros((2, 2, 2))
@@ -347,7 +425,7 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
     for b in range(2):
         for i in range(2):
             col = 2 * i + b                                       # index of (b, i) in [x1, x2, y1, y2]
-            X = _design(w[None].repeat(R, 0)[:, sel], p[:, sel], b, i, cross)
+            X = _design(s_lap[None].repeat(R, 0)[:, sel], p[:, sel], b, i, cross)
             y = np.concatenate([F[:, sel, col].ravel().real, F[:, sel, col].ravel().imag])
             if not np.all(np.isfinite(X)) or not np.all(np.isfinite(y)):
                 raise RotoridError("runs contain NaN or inf")
@@ -361,8 +439,8 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
             if have_cov:
                 for _ in range(2):  # weights depend on the estimate (D p carries the pedestal noise)
                     th = theta / scale
-                    D_own = th[0] - w ** 2 * th[1] + 1j * w * th[2]
-                    D_oth = (th[3] + 1j * w * th[4]) if cross else 0.0 * w
+                    D_own = th[0] + s_lap ** 2 * th[1] + s_lap * th[2]
+                    D_oth = (th[3] + s_lap * th[4]) if cross else 0.0 * w
                     # residual r = F_col - D_own p_own - D_oth p_oth: its 2 x 2 (Re, Im) covariance
                     g = J[:, :, :, col].copy()                    # (R, n, 16)
                     g[:, :, 8 + col] -= D_own[None]

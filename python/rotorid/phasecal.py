@@ -67,17 +67,24 @@ def _rotated(run: SyncResponse, theta, tau) -> SyncResponse:
     om = run.speed_rpm * RPM
     ph = theta - om * tau
     rot = np.exp(1j * ph)
-    cov = None
-    if run.cov is not None:
-        c, s = np.cos(ph), np.sin(ph)
-        R = np.zeros((om.size, 8, 8))
-        for j in range(4):
-            R[:, j, j] = c
-            R[:, j, j + 4] = -s
-            R[:, j + 4, j] = s
-            R[:, j + 4, j + 4] = c
-        cov = R @ run.cov @ np.transpose(R, (0, 2, 1))
-    return SyncResponse(run.speed_rpm, run.q * rot[:, None], run.imbalance, run.at, run.name, cov, run.dof)
+    c, s = np.cos(ph), np.sin(ph)
+    R = np.zeros((om.size, 8, 8))
+    for j in range(4):
+        R[:, j, j] = c
+        R[:, j, j + 4] = -s
+        R[:, j + 4, j] = s
+        R[:, j + 4, j + 4] = c
+    Rt = np.transpose(R, (0, 2, 1))
+
+    def turned(m):
+        return None if m is None else R @ m @ Rt
+
+    if run.pedestal is None:
+        return SyncResponse(run.speed_rpm, run.q * rot[:, None], run.imbalance, run.at, run.name, turned(run.cov),
+                            run.dof)
+    # the accelerometers share the keyphasor reference: their vectors turn with the probes'
+    return SyncResponse(run.speed_rpm, run.q * rot[:, None], run.imbalance, run.at, run.name, turned(run.cov), run.dof,
+                        run.pedestal * rot[:, None], turned(run.pedestal_cov), turned(run.pedestal_cross))
 
 
 def calibrate_phase(rotor, runs, *, delay: bool = True, offset: bool = True, degree: int = 0,

@@ -56,20 +56,21 @@ def _cov_transform(T, cov):
     return A8 @ np.asarray(cov) @ A8.T
 
 
-def check_cov(name, cov, n):
-    """A measurement covariance (n, 8, 8): real, finite (NaN where unknown), symmetric, positive
-    semi-definite."""
+def check_cov(name, cov, n, size: int = 8):
+    """A measurement covariance (n, size, size), by default (n, 8, 8): real, finite (NaN where
+    unknown), symmetric, positive semi-definite."""
     if cov is None:
         return None
+    what = "one 8 x 8 covariance of [Re q, Im q] per point" if size == 8 else \
+        f"one {size} x {size} covariance of [Re q, Im q, Re p, Im p] per point"
     if isinstance(cov, (str, bytes)) or np.iscomplexobj(cov):
-        raise RotoridError(f"{name} must be a real array (n, 8, 8) of covariances, got {type(cov).__name__}")
+        raise RotoridError(f"{name} must be a real array (n, {size}, {size}) of covariances, got {type(cov).__name__}")
     try:
         raw = np.array(cov, dtype=float)
     except (TypeError, ValueError):
-        raise RotoridError(f"{name} must be a real array (n, 8, 8) of covariances") from None
-    if raw.shape != (n, 8, 8):
-        raise RotoridError(f"{name} has shape {raw.shape}, expected ({n}, 8, 8): one 8 x 8 covariance of "
-                           "[Re q, Im q] per point")
+        raise RotoridError(f"{name} must be a real array (n, {size}, {size}) of covariances") from None
+    if raw.shape != (n, size, size):
+        raise RotoridError(f"{name} has shape {raw.shape}, expected ({n}, {size}, {size}): {what}")
     if np.isinf(raw).any():
         raise RotoridError(f"{name} contains inf (use NaN for a point whose covariance is unknown)")
     unknown = np.isnan(raw).any(axis=(1, 2))
@@ -131,11 +132,16 @@ def _pedestal_transform(T):
 def _check_pedestal(obj, n):
     """Validate the pedestal motion fields of a response (q shape (n, 4))."""
     if obj.pedestal is None:
-        if obj.pedestal_cov is not None:
-            raise RotoridError("pedestal_cov given without pedestal (the pedestal motion it is the covariance of)")
+        for name in ("pedestal_cov", "pedestal_cross"):
+            if getattr(obj, name) is not None:
+                raise RotoridError(f"{name} given without pedestal (the pedestal motion it is the covariance of)")
         return
     obj.pedestal = complex_array("pedestal (pedestal motion [xp1, xp2, yp1, yp2])", obj.pedestal, shape=(n, 4))
     obj.pedestal_cov = check_cov("pedestal_cov", obj.pedestal_cov, n)
+    if obj.pedestal_cross is not None:
+        if obj.cov is None or obj.pedestal_cov is None:
+            raise RotoridError("pedestal_cross (the covariance between q and pedestal) needs both cov and pedestal_cov")
+        obj.pedestal_cross = real_array("pedestal_cross", obj.pedestal_cross, shape=(n, 8, 8), finite=False)
 
 
 def _with_pedestal_at(resp, rotor, where):
@@ -148,15 +154,22 @@ def _with_pedestal_at(resp, rotor, where):
     q = _apply_planes(A, resp.q) + _apply_planes(B, p)
     if resp.cov is None or resp.pedestal_cov is None:
         return q, None, None
-    joint = joint_cov(resp)                                  # (n, 16, 16) in resp's own frame
+    out = _joint_moved(rotor, joint_cov(resp), where)         # (n, 16, 16)
+    return q, out[:, :8, :8], out[:, :8, 8:]
+
+
+def _joint_moved(rotor, joint, where):
+    """A joint covariance (n, 16, 16) of [Re q, Im q, Re p, Im p], q relative to the pedestals,
+    moved to ``where`` (from the other place; p stays at the bearings)."""
+    T = probes_to_bearings_matrix(rotor) if where == "bearings" else bearings_to_probes_matrix(rotor)
+    A, B = _pedestal_transform(T)
     M = np.zeros((16, 16))
     M[:8, :8] = _plane_matrix8(A)
     M[:8, 8:] = _plane_matrix8(B)
     M[8:, 8:] = np.eye(8)
     out = M @ np.nan_to_num(joint) @ M.T
-    unknown = np.isnan(joint).any(axis=(1, 2))
-    out[unknown] = np.nan
-    return q, out[:, :8, :8], out[:, :8, 8:]
+    out[np.isnan(joint).any(axis=(1, 2))] = np.nan
+    return out
 
 
 def _plane_matrix8(T):
@@ -179,7 +192,7 @@ def joint_cov(resp):
     out = np.zeros((n, 16, 16))
     out[:, :8, :8] = resp.cov
     out[:, 8:, 8:] = resp.pedestal_cov
-    cross = getattr(resp, "_pedestal_cross", None)
+    cross = resp.pedestal_cross
     if cross is not None:
         out[:, :8, 8:] = cross
         out[:, 8:, :8] = np.swapaxes(cross, 1, 2)
@@ -199,8 +212,10 @@ class SyncResponse:
     Flexible pedestals: ``pedestal`` (n, 4) complex, the pedestal (bearing housing) displacement
     [xp1, xp2, yp1, yp2] in m at the bearings (from the accelerometers, see
     :func:`rotorid.pedestal.displacement_from_acceleration`), with ``pedestal_cov`` (n, 8, 8) its
-    covariance. Then ``q`` is what probes mounted on the pedestals read: the rotor's motion
-    relative to them, and :attr:`absolute` is the rotor's motion in space.
+    covariance and ``pedestal_cross`` (n, 8, 8), optional, the covariance between [Re q, Im q]
+    and [Re p, Im p] (None: probe and accelerometer errors independent). Then ``q`` is what
+    probes mounted on the pedestals read: the rotor's motion relative to them, and
+    :attr:`absolute` is the rotor's motion in space.
     """
 
     speed_rpm: np.ndarray
@@ -212,6 +227,7 @@ class SyncResponse:
     dof: np.ndarray | None = None
     pedestal: np.ndarray | None = None
     pedestal_cov: np.ndarray | None = None
+    pedestal_cross: np.ndarray | None = None
 
     @classmethod
     def _unchecked(cls, **fields) -> "SyncResponse":
@@ -219,7 +235,7 @@ class SyncResponse:
         core): the checks of ``__post_init__`` are skipped. Not for user data."""
         obj = cls.__new__(cls)
         obj.__dict__.update(dict(imbalance=None, at="bearings", name=None, cov=None, dof=None, pedestal=None,
-                                 pedestal_cov=None) | fields)
+                                 pedestal_cov=None, pedestal_cross=None) | fields)
         return obj
 
     def __post_init__(self):
@@ -245,10 +261,8 @@ class SyncResponse:
             return self
         if self.pedestal is not None:
             q, cov, cross = _with_pedestal_at(self, rotor, where)
-            out = SyncResponse(self.speed_rpm, q, self.imbalance, where, self.name, cov, self.dof, self.pedestal,
-                               self.pedestal_cov)
-            out._pedestal_cross = cross
-            return out
+            return SyncResponse(self.speed_rpm, q, self.imbalance, where, self.name, cov, self.dof, self.pedestal,
+                                self.pedestal_cov, cross)
         T = probes_to_bearings_matrix(rotor) if where == "bearings" else bearings_to_probes_matrix(rotor)
         return SyncResponse(self.speed_rpm, _apply_planes(T, self.q), self.imbalance, where, self.name,
                             _cov_transform(T, self.cov), self.dof)
@@ -456,8 +470,8 @@ class ImpactResponse:
     from the scatter of single impacts), ``dof`` (n,) its degrees of freedom.
 
     Flexible pedestals: ``pedestal`` (n, 4), the pedestal displacement [xp1, xp2, yp1, yp2] per
-    unit force (m/N, the accelerometer FRFs divided by -w²), ``pedestal_cov`` its covariance;
-    ``q`` is then the motion relative to the pedestals (FRFs only: ``force=None``).
+    unit force (m/N, the accelerometer FRFs divided by -w²), ``pedestal_cov`` its covariance,
+    ``pedestal_cross`` the covariance between q and pedestal (see :class:`SyncResponse`); ``q`` is then the motion relative to the pedestals (FRFs only: ``force=None``).
     """
 
     speed_rpm: float
@@ -473,6 +487,7 @@ class ImpactResponse:
     dof: np.ndarray | None = None
     pedestal: np.ndarray | None = None
     pedestal_cov: np.ndarray | None = None
+    pedestal_cross: np.ndarray | None = None
 
     def __post_init__(self):
         self.sigma = float(real_array("sigma", self.sigma, ndim=0, nonneg=True))
@@ -509,6 +524,15 @@ class ImpactResponse:
         h = self.frf()
         return h if self.pedestal is None else h + self.pedestal
 
+    @property
+    def pedestal_ratio(self):
+        """(n,) pedestal motion relative to the motion relative to the pedestals: rms over the four
+        coordinates of |pedestal| / |q| (None without pedestal motion)."""
+        if self.pedestal is None:
+            return None
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.sqrt(np.sum(np.abs(self.pedestal) ** 2, 1) / np.sum(np.abs(self.frf()) ** 2, 1))
+
     def frf(self) -> np.ndarray:
         """Response per unit force (m/N), (n, 4)."""
         return self.q if self.force is None else self.q / self.force[:, None]
@@ -521,10 +545,8 @@ class ImpactResponse:
             return self
         if self.pedestal is not None:
             q, cov, cross = _with_pedestal_at(self, rotor, where)
-            out = ImpactResponse(self.speed_rpm, self.freq_hz, q, None, self.plane, self.direction, where, self.name,
-                                 self.sigma, cov, self.dof, self.pedestal, self.pedestal_cov)
-            out._pedestal_cross = cross
-            return out
+            return ImpactResponse(self.speed_rpm, self.freq_hz, q, None, self.plane, self.direction, where,
+                                  self.name, self.sigma, cov, self.dof, self.pedestal, self.pedestal_cov, cross)
         T = probes_to_bearings_matrix(rotor) if where == "bearings" else bearings_to_probes_matrix(rotor)
         return ImpactResponse(self.speed_rpm, self.freq_hz, _apply_planes(T, self.q), self.force, self.plane,
                               self.direction, where, self.name, self.sigma, _cov_transform(T, self.cov), self.dof)
@@ -626,7 +648,11 @@ def _expm(a: np.ndarray) -> np.ndarray:
 
 @dataclass
 class TimeResponse:
-    """Sampled time response: ``t`` (N,) s, ``q`` (N, 4) m real [x1, x2, y1, y2], ``force`` (N,) N."""
+    """Sampled time response: ``t`` (N,) s, ``q`` (N, 4) m real [x1, x2, y1, y2], ``force`` (N,) N.
+
+    With pedestals, ``q`` is the rotor's motion relative to the pedestals (what probes on them
+    read), ``pedestal`` (N, 4) the housings' displacement [xp1, xp2, yp1, yp2] (m) and
+    ``pedestal_accel`` (N, 4) their acceleration (m/s², what accelerometers on them read)."""
 
     t: np.ndarray
     q: np.ndarray
@@ -636,19 +662,44 @@ class TimeResponse:
     plane: float
     direction: str
     at: str = "bearings"
+    pedestal: np.ndarray | None = None
+    pedestal_accel: np.ndarray | None = None
 
 
 def impact_time_response(rotor: RigidRotor, bearings: BearingCoefficients, *, speed_rpm: float, force_N, fs_hz: float,
-                         plane: float = 0.0, direction: str = "x", at: str = "bearings") -> TimeResponse:
+                         plane: float = 0.0, direction: str = "x", at: str = "bearings",
+                         pedestals=None) -> TimeResponse:
     """Displacements caused by a sampled force pulse, exact for the linear model.
 
     The force is taken as piecewise linear between samples; the state-space model
     [q, dq/dt]' = A [q, dq/dt] + B F is discretized exactly with the matrix exponential of the
     augmented system (first-order hold) and stepped in the Rust core. The rotor starts at rest.
     Bearing coefficients must not depend on frequency (that has no time-domain ODE form).
+
+    With ``pedestals`` (a :class:`rotorid.Pedestals` with masses > 0) the state holds the rotor's
+    absolute motion q_a and the pedestals' motion p (8 + 8 states):
+
+        M q_a'' + Omega G q_a' + C (q_a' - p') + K (q_a - p) = F
+        M_p p'' + C_p p' + K_p p = C_b (q_a' - p') + K_b (q_a - p)
+
+(C = E C_b, K = E K_b: the rotor's rows balance forces and moments, the pedestals' rows are
+the bearing forces C_b, K_b over [x1, x2, y1, y2])
+
+    and the result carries ``q`` = q_a - p (relative), ``pedestal`` and ``pedestal_accel``.
+
+    Examples
+    --------
+    >>> import rotorid
+    >>> rig = rotorid.nsf_rig()
+    >>> u = rotorid.half_sine_pulse(1000.0, 1e-3, 10000.0, 2000)
+    >>> r = rotorid.impact_time_response(rig.rotor, rig.bearings, speed_rpm=3000, force_N=u, fs_hz=10000.0,
+    ...                                  pedestals=rotorid.example_pedestals())
+    >>> r.q.shape, r.pedestal_accel.shape
+    ((2000, 4), (2000, 4))
     """
     _check_model(rotor, bearings)
     choice("at", at, {"bearings", "probes"})
+    pedestals = _check_pedestals(pedestals)
     if bearings.axis_name == "freq_hz":
         raise RotoridError("impact_time_response needs frequency-independent bearing coefficients")
     speed = float(real_array("speed_rpm", speed_rpm, ndim=0, nonneg=True))
@@ -658,22 +709,53 @@ def impact_time_response(rotor: RigidRotor, bearings: BearingCoefficients, *, sp
         raise RotoridError("force_N needs at least 2 samples")
     k, c = bearings.at(speed_rpm=[speed]) if bearings.axis_name == "speed_rpm" else bearings.at()
     M, G, K, C = rotor.matrices(k[0], c[0])
-    Mi = np.linalg.inv(M)
-    A = np.block([[np.zeros((4, 4)), np.eye(4)], [-Mi @ K, -Mi @ (C + speed * RPM * G)]])
-    B = np.concatenate([np.zeros(4), Mi @ impact_vector(plane, direction)])[:, None]
+    f = impact_vector(plane, direction)
+    if pedestals is None:
+        Mt, Ct, Kt, ft = M, C + speed * RPM * G, K, f
+    else:
+        if np.any(pedestals.mass_kg <= 0):
+            raise RotoridError(f"impact_time_response with pedestals needs pedestal masses > 0 (the state-space "
+                               f"form inverts the mass matrix), got mass_kg = {pedestals.mass_kg.tolist()}")
+        from .pedestal import dof_matrix
+
+        Mp, Kp, Cp = pedestals.matrices()
+        # the rotor's rows are force and moment balances (K = E K_b with K_b the bearing
+        # coefficients over [x1, x2, y1, y2]); the pedestals' rows are the bearing forces
+        Kb, Cb = dof_matrix(k[0]), dof_matrix(c[0])
+        Z = np.zeros((4, 4))
+        Mt = np.block([[M, Z], [Z, Mp]])
+        Ct = np.block([[C + speed * RPM * G, -C], [-Cb, Cb + Cp]])
+        Kt = np.block([[K, -K], [-Kb, Kb + Kp]])
+        ft = np.concatenate([f, np.zeros(4)])
+    nd = Mt.shape[0]
+    Mi = np.linalg.inv(Mt)
+    A = np.block([[np.zeros((nd, nd)), np.eye(nd)], [-Mi @ Kt, -Mi @ Ct]])
+    B = np.concatenate([np.zeros(nd), Mi @ ft])[:, None]
     dt = 1.0 / fs
-    aug = np.zeros((10, 10))
-    aug[:8, :8] = A
-    aug[:8, 8:9] = B
-    aug[8, 9] = 1.0
+    ns = 2 * nd
+    aug = np.zeros((ns + 2, ns + 2))
+    aug[:ns, :ns] = A
+    aug[:ns, ns:ns + 1] = B
+    aug[ns, ns + 1] = 1.0
     E = _expm(aug * dt)
-    phi, g0, g1 = E[:8, :8], E[:8, 8:9], E[:8, 9:10] / dt
+    phi, g0, g1 = E[:ns, :ns], E[:ns, ns:ns + 1], E[:ns, ns + 1:ns + 2] / dt
     x = _core.lti_run(np.ascontiguousarray(phi), np.ascontiguousarray(g0), np.ascontiguousarray(g1),
-                      np.ascontiguousarray(u[:, None]), np.zeros(8))
-    q = x[:, :4]
-    if at == "probes":
-        q = bearings_to_probes(rotor, q).real
-    return TimeResponse(np.arange(u.size) * dt, q, u, fs, speed, float(plane), direction, at)
+                      np.ascontiguousarray(u[:, None]), np.zeros(ns))
+    if not np.all(np.isfinite(x)):
+        raise RotoridError(f"impact_time_response overflowed: the model's fastest mode is too fast or unstable for "
+                           f"fs_hz = {fs:g} Hz (stiff, light pedestals?); raise fs_hz or check the coefficients")
+    p = acc = None
+    if pedestals is None:
+        q = x[:, :4]
+        if at == "probes":
+            q = bearings_to_probes(rotor, q).real
+    else:
+        qa, p = x[:, :4], x[:, 4:8]
+        # the pedestals' acceleration from the equations of motion at each sample (exact, no
+        # differencing): rows 4..7 of x'' = A x + B u
+        acc = (x @ A[nd + 4:nd + 8].T) + u[:, None] * B[nd + 4:nd + 8, 0][None, :]
+        q = (bearings_to_probes(rotor, qa).real if at == "probes" else qa) - p
+    return TimeResponse(np.arange(u.size) * dt, q, u, fs, speed, float(plane), direction, at, p, acc)
 
 
 def half_sine_pulse(peak_N: float, duration_s: float, fs_hz: float, n_samples: int, t0_s: float = 0.0) -> np.ndarray:

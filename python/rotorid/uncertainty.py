@@ -86,8 +86,8 @@ def propagate(rotor, w, spin, qs, e, gain, sigma, covs, *, identical, method, bi
     the classic errors-in-variables attenuation), by b = ½ Σ_k [p(q + l_k) + p(q - l_k) - 2 p(q)]
     over the sigma points l_k (the columns of Σ^½, one run at a time). Returns (cov, bias).
 
-    ``shared`` (n, 8, 8): a covariance common to every pair of runs (all runs less the same
-    baseline run): the off-diagonal blocks of Σ."""
+    ``shared`` (n, 8, 8), or (n, 16, 16) with pedestal motion: a covariance common to every pair
+    of runs (all runs less the same baseline run): the off-diagonal blocks of Σ."""
     from ._validate import complex_array, flag, real_array
 
     qs = complex_array("qs", qs, shape=(None, None, 4))
@@ -95,12 +95,10 @@ def propagate(rotor, w, spin, qs, e, gain, sigma, covs, *, identical, method, bi
     ped = q_ped is not None
     if ped:
         q_ped = complex_array("q_ped", q_ped, shape=(R, n, 4))
-        if shared is not None:
-            raise RotoridError("shared covariances are not supported with pedestal motion")
     m = 16 if ped else 8                                                 # real inputs per run and point
     covs = real_array("covs", covs, shape=(R, n, m, m), finite=False)
     if shared is not None:
-        shared = real_array("shared", shared, shape=(n, 8, 8), finite=False)
+        shared = real_array("shared", shared, shape=(n, m, m), finite=False)
     bias = flag("bias", bias)
     scale = np.sqrt(np.mean(np.abs(qs) ** 2, axis=(0, 2)))
     h = _H_REL * np.where(scale > 0, scale, 1.0)
@@ -131,7 +129,7 @@ def propagate(rotor, w, spin, qs, e, gain, sigma, covs, *, identical, method, bi
         if shared is not None:
             for t in range(R):
                 if t != r:
-                    S[:, 8 * r:8 * r + 8, 8 * t:8 * t + 8] = np.nan_to_num(shared, nan=0.0)
+                    S[:, m * r:m * r + m, m * t:m * t + m] = np.nan_to_num(shared, nan=0.0)
     cov = J @ S @ np.transpose(J, (0, 2, 1))
     unknown = np.any(np.isnan(covs), axis=(0, 2, 3)) | ~np.all(np.isfinite(J), axis=(1, 2))
     cov[unknown] = np.nan

@@ -134,14 +134,15 @@ pub fn effective_coefficients(
     if w.iter().any(|&x| !(x.is_finite() && x != 0.0)) {
         return Err(CoreError::value("w", "(vibration frequency) must be finite and non-zero"));
     }
-    let bc = kb.len() == 8;
+    // k and c broadcast each on its own: either may be one row for every point
+    let (bk, bcc) = (kb.len() == 8, cb.len() == 8);
     let nbad = (k_eff.par_chunks_mut(8), c_eff.par_chunks_mut(8), transfer.par_chunks_mut(8))
         .into_par_iter()
         .with_min_len(256)
         .enumerate()
         .map(|(i, (ke, ce, tr))| {
-            let o = if bc { 0 } else { 8 * i };
-            let (k8, c8) = (&kb[o..o + 8], &cb[o..o + 8]);
+            let (ok, oc) = (if bk { 0 } else { 8 * i }, if bcc { 0 } else { 8 * i });
+            let (k8, c8) = (&kb[ok..ok + 8], &cb[oc..oc + 8]);
             let mut bad = 0usize;
             for b in 0..2 {
                 let z = bearing_impedance(k8, c8, b, w[i]);
