@@ -853,6 +853,25 @@ class ImpactSection(_Model):
         return [(("tests", i), t) for i, t in enumerate(self.tests)]
 
 
+class PedestalsSection(_Model):
+    """``[pedestals]``: flexible bearing housings whose motion accelerometers measure (channels
+    px1, px2, py1, py2 on every run, baseline and test)."""
+
+    measured: bool = Field(description="true: identify with the housings' motion from the accelerometers; "
+                                       "false: ignore accelerometer channels")
+    identify: bool = Field(True, description="also identify the pedestals' mass, stiffness and damping "
+                                             "(pedestals.csv); needs measured = true")
+    cross_coupled: bool = Field(False, description="pedestal stiffness and damping with xy, yx terms")
+    freq_range_hz: Optional[Band] = Field(None, description="Hz: points used for the pedestal fit (default all)")
+
+    @model_validator(mode="after")
+    def _identify_needs_measured(self):
+        if self.identify and not self.measured:
+            raise _err("needs measured = true (the pedestal parameters come from the accelerometers); set "
+                       "identify = false to ignore them", "identify")
+        return self
+
+
 class OutputSection(_Model):
     """``[output]``: where the tables and plots go and in which units."""
 
@@ -878,7 +897,7 @@ class Config(_Model):
 
     Sections are attributes: ``rig``, ``rotor_table`` (the ``[rotor]`` table; :meth:`rotor` gives
     the RigidRotor of either), ``channels``, ``files``, ``keyphasor``, ``imbalance``, ``impact``,
-    ``output``.
+    ``pedestals``, ``output``.
     """
 
     rig: Optional[RigSection] = None
@@ -888,6 +907,7 @@ class Config(_Model):
     keyphasor: KeyphasorOptions = Field(default_factory=KeyphasorOptions)
     imbalance: Optional[ImbalanceSection] = None
     impact: Optional[ImpactSection] = None
+    pedestals: Optional[PedestalsSection] = None
     output: OutputSection = Field(default_factory=OutputSection)
 
     _source: str = PrivateAttr("<config>")
@@ -1295,6 +1315,16 @@ def _semantic_problems(cfg: Config) -> list:
     f = cfg.files
     if f.sep == f.decimal and f.sep != "auto":
         out.append(f"[files] sep and decimal are both {f.sep!r}")
+    if cfg.pedestals is None:
+        # accelerometers mapped but no pedestal model: they would be silently ignored
+        maps = [(("channels",), cfg.channels)] + [(loc + ("channels",), e.channels) for loc, e in cfg.entries()
+                                                  if e.channels is not None]
+        for loc, m in maps:
+            for lab, spec in m.items():
+                if spec.to in ("px1", "px2", "py1", "py2"):
+                    out.append(_keyed(loc + (lab,), f"maps to the accelerometer channel {spec.to} but the config has "
+                                      "no [pedestals] section: add [pedestals] measured = true to identify with the "
+                                      "housings' motion (or measured = false to ignore the accelerometers)"))
     for loc, entry in cfg.entries():
         kw = cfg.files_for(entry)
         own = entry.sep is not None or entry.decimal is not None

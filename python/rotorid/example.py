@@ -10,6 +10,10 @@
     impact/impact_x.tdms, impact_y.tdms      five 4 kN, 2 ms impacts at the CG at 2000 rpm
     imbalance.toml, impact.toml              configs for `rotorid identify`
     truth.toml                               the bearing coefficients used to simulate
+    pedestal/                                the same rig on flexible pedestals (example_pedestals):
+                                             runs S0, C0 and a baseline, impacts x and y, with
+                                             housing accelerometers (g) and their truth.toml
+    pedestal_imbalance.toml, pedestal_impact.toml   configs with [pedestals] measured = true
 
 All recordings carry probe noise 0.5 µm rms, run-out (8, 3, 1 µm at 1X, 2X, 3X), a remnant
 imbalance (1.0 g and 0.6 g) and probes away from the bearings (s1 = 0.119, s2 = 0.146 m).
@@ -29,6 +33,7 @@ HERE = os.path.join(os.path.dirname(__file__), "data", "example")
 LAB_NAMES = {"x1": "Prox DE X", "y1": "Prox DE Y", "x2": "Prox FE X", "y2": "Prox FE Y", "kp": "Keyphasor",
              "force": "Hammer"}
 LAB_UNITS = {"x1": "mil", "y1": "mil", "x2": "mil", "y2": "mil", "kp": "V", "force": "lbf"}
+ACC_NAMES = {"px1": "Acc DE X", "py1": "Acc DE Y", "px2": "Acc FE X", "py2": "Acc FE Y"}
 SETS = {"S0": ((5.0, 5.0), (0.0, 0.0)), "C0": ((5.0, 5.0), (0.0, 180.0)),
         "S90": ((5.0, 5.0), (90.0, 90.0)), "C90": ((5.0, 5.0), (90.0, 270.0))}
 SPEEDS = [3000.0, 4000.0, 5000.0, 6000.0]
@@ -99,15 +104,60 @@ def generate(out: str = HERE) -> str:
         fh.write(head + '[imbalance]\nbaseline = "imbalance/baseline.tdms"\nslow_roll = "imbalance/slow_roll.tdms"\n'
                  'steady = true\n\n' + runs + '\n[output]\ndir = "out_imbalance"\nunits = "SI"\n')
     with open(os.path.join(out, "impact.toml"), "w") as fh:
-        fh.write(head + '[impact]\nband_hz = [5.0, 150.0]\nrecord_s = 0.25\n\n'
+        fh.write(head + '[impact]\nband_hz = [5.0, 150.0]\nrecord_s = 0.25\n'
+                 'kcm_band_hz = [20.0, 120.0]        # K, C and apparent mass fitted over this band -> kcm_fit.csv\n\n'
                  '[[impact.tests]]\nfile = "impact/impact_x.tdms"\nplane_m = 0.0\ndirection = "x"\n\n'
                  '[[impact.tests]]\nfile = "impact/impact_y.tdms"\nplane_m = 0.0\ndirection = "y"\n\n'
                  '[output]\ndir = "out_impact"\nunits = "SI"\n')
+    _generate_pedestal(out, rotor, brg, remnant, head)
     with open(os.path.join(out, "truth.toml"), "w") as fh:
         fh.write("# bearing coefficients used to simulate the example, k[bearing][i][j] (N/m), c (N*s/m)\n")
         fh.write(f"k = {brg.k.tolist()}\nc = {brg.c.tolist()}\n")
         fh.write(f"remnant_mass_g = {[m * 1e3 for m in remnant.mass_kg]}\nremnant_angle_deg = {list(remnant.angle_deg)}\n")
     return out
+
+
+def _generate_pedestal(out, rotor, brg, remnant, head):
+    """The pedestal part of the example: the rig on example_pedestals(), accelerometers in g."""
+    from . import rawsim
+    from .io import save_tdms
+    from .pedestal import example_pedestals
+
+    ped = example_pedestals()
+    os.makedirs(os.path.join(out, "pedestal"), exist_ok=True)
+    names = LAB_NAMES | ACC_NAMES
+    units = LAB_UNITS | {k: "g" for k in ACC_NAMES}
+
+    def save(rec, rel):
+        save_tdms(rec, os.path.join(out, rel), group="DAQ", names=names, units=units, dtype="float32")
+
+    sets = {k: SETS[k] for k in ("S0", "C0")}
+    for i, (name, (mass_g, ang)) in enumerate(sets.items()):
+        imb = Imbalance(tuple(m * 1e-3 for m in mass_g), ang, name=name)
+        save(rawsim.imbalance_recording(rotor, brg, speeds_rpm=SPEEDS, added=imb, remnant=remnant, dwell_s=2.0,
+                                        fs_hz=FS, seed=401 + i, pedestals=ped), f"pedestal/run_{name}.tdms")
+    save(rawsim.imbalance_recording(rotor, brg, speeds_rpm=SPEEDS, added=None, remnant=remnant, dwell_s=2.0, fs_hz=FS,
+                                    seed=501, kind="baseline", pedestals=ped), "pedestal/baseline.tdms")
+    for i, d in enumerate("xy"):
+        save(rawsim.impact_recording(rotor, brg, speed_rpm=2000.0, plane=0.0, direction=d, remnant=remnant, fs_hz=FS,
+                                     seed=601 + i, pedestals=ped), f"pedestal/impact_{d}.tdms")
+    chans = "\n".join(f'"{v}" = {{ to = "{k}", unit = "g" }}' for k, v in ACC_NAMES.items())
+    hd = head.replace("[channels]\n", "[channels]\n" + chans + "\n").replace(
+        "# rotorid example: the NSF rotor", "# rotorid example: flexible pedestals under the NSF rotor")
+    ped_sec = "[pedestals]\nmeasured = true\nidentify = true\n\n"
+    runs = "\n".join(f'[[imbalance.runs]]\nfile = "pedestal/run_{n}.tdms"\nname = "{n}"\nmass_g = [{m[0]}, {m[1]}]\n'
+                     f'angle_deg = [{a[0]}, {a[1]}]\n' for n, (m, a) in sets.items())
+    with open(os.path.join(out, "pedestal_imbalance.toml"), "w") as fh:
+        fh.write(hd + ped_sec + '[imbalance]\nbaseline = "pedestal/baseline.tdms"\nsteady = true\n\n' + runs
+                 + '\n[output]\ndir = "out_pedestal_imbalance"\nunits = "SI"\n')
+    with open(os.path.join(out, "pedestal_impact.toml"), "w") as fh:
+        fh.write(hd + ped_sec + '[impact]\nband_hz = [5.0, 150.0]\nrecord_s = 0.25\n\n'
+                 '[[impact.tests]]\nfile = "pedestal/impact_x.tdms"\nplane_m = 0.0\ndirection = "x"\n\n'
+                 '[[impact.tests]]\nfile = "pedestal/impact_y.tdms"\nplane_m = 0.0\ndirection = "y"\n\n'
+                 '[output]\ndir = "out_pedestal_impact"\nunits = "SI"\n')
+    with open(os.path.join(out, "pedestal", "truth.toml"), "w") as fh:
+        fh.write("# pedestals used to simulate (rotorid.example_pedestals()); bearings as ../truth.toml\n")
+        fh.write(f"mass_kg = {ped.mass_kg.tolist()}\nk = {ped.k.tolist()}\nc = {ped.c.tolist()}\n")
 
 
 def truth():

@@ -17,7 +17,7 @@ from . import signals
 from .errors import RotoridError
 from .identify import Identification, identify_impact, identify_synchronous
 from .model import Imbalance, RigidRotor
-from .recording import DISPLACEMENTS, Recording, SegmentedRecording
+from .recording import ACCELEROMETERS, DISPLACEMENTS, Recording, SegmentedRecording
 from .simulate import ImpactResponse, SyncResponse
 
 
@@ -56,8 +56,44 @@ def _near_only(track, speeds, tol, label, what):
     warnings.warn(f"{label}: {int(far.sum())} of {far.size} speed(s) ({', '.join(f'{v:.1f}' for v in track.speed_rpm[far][:5])} "
                   f"rpm) dropped: farther than {tol:g} rpm (speed_match_rpm) from every speed of {what}")
     keep = ~far
-    return dataclasses.replace(track, **{f: getattr(track, f)[keep] for f in
-                                         ("speed_rpm", "vectors", "n_revs", "scatter", "t_mid", "cov", "dof")})
+    fields = ("speed_rpm", "vectors", "n_revs", "scatter", "t_mid", "cov", "dof")
+    if track.has_pedestal:
+        fields += ("pedestal", "pedestal_cov", "pedestal_cross")
+    return dataclasses.replace(track, **{f: getattr(track, f)[keep] for f in fields})
+
+
+def _accelerometers_of(run):
+    """The accelerometer channels (px1, px2, py1, py2) a run carries: channels of a recording, all
+    four for a 1X table with pedestal columns."""
+    if isinstance(run, signals.SyncTrack):
+        return list(ACCELEROMETERS) if run.has_pedestal else []
+    chans = getattr(run, "channels", None) or {}
+    return [c for c in ACCELEROMETERS if c in chans]
+
+
+def _pedestal_choice(pedestal_motion, runs, labels):
+    """Whether the chain uses the housings' accelerometers: ``pedestal_motion`` checked against the
+    channels the runs carry (accelerometers without a choice, or a choice without accelerometers,
+    is an error that names the run and channel)."""
+    from ._validate import flag
+
+    found = [(lab, _accelerometers_of(r)) for lab, r in zip(labels, runs)]
+    if pedestal_motion is None:
+        having = [(lab, ch) for lab, ch in found if ch]
+        if having:
+            lab, ch = having[0]
+            raise RotoridError(f"{lab} has accelerometer channel(s) {', '.join(ch)} (pedestal motion) but no pedestal "
+                               "model was chosen: set pedestal_motion=True (config: [pedestals] measured = true) to "
+                               "identify with the housings' motion, or False to ignore the accelerometers")
+        return False
+    pedestal_motion = flag("pedestal_motion", pedestal_motion)
+    if pedestal_motion:
+        for lab, ch in found:
+            missing = [c for c in ACCELEROMETERS if c not in ch]
+            if missing:
+                raise RotoridError(f"{lab} has no accelerometer channel {missing[0]}: identifying with pedestal motion "
+                                   f"needs px1, px2, py1, py2 on every run (missing: {', '.join(missing)})")
+    return pedestal_motion
 
 
 def _labelled(fn, label, what):
@@ -68,13 +104,14 @@ def _labelled(fn, label, what):
         raise RotoridError(f"{label} ({what}): {exc}") from None
 
 
-def _track_of(run, label, *, orders, steady, track_kw, keyphasor):
+def _track_of(run, label, *, orders, steady, track_kw, keyphasor, pedestal=False):
     """A run as a SyncTrack: tracked from a (segmented) recording, or a SyncTrack already (a DAQ
     1X table, see rotorid.tables)."""
     if isinstance(run, signals.SyncTrack):
         return run
     if isinstance(run, (Recording, SegmentedRecording)):
-        return signals.track(run, orders=orders, steady=steady, keyphasor=keyphasor, **track_kw)
+        return _labelled(lambda: signals.track(run, orders=orders, steady=steady, keyphasor=keyphasor,
+                                               pedestal=pedestal, **track_kw), label, "order tracking")
     raise RotoridError(f"{label} must be a Recording, SegmentedRecording or SyncTrack (1X table), got "
                        f"{type(run).__name__}")
 
@@ -83,7 +120,8 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
                     imbalances=None, orders=(1, 2, 3), method: str = "forces", keyphasor=None,
                     speed_match_rpm: float | None = None, slow_roll_max_rpm: float | None = None,
                     points_per_rev=None, min_revs: int = 8, settle_revs: int = 2, speed_tolerance: float = 0.005,
-                    revs_per_block: int | None = None, **ident_kw) -> ImbalanceChainResult:
+                    revs_per_block: int | None = None, pedestal_motion: bool | None = None,
+                    **ident_kw) -> ImbalanceChainResult:
     """Imbalance runs -> 1X vectors -> slow-roll and baseline compensation -> identification.
 
     Parameters
@@ -110,6 +148,13 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
         Keyphasor options for every recording (see :func:`rotorid.signals.keyphasor_times`).
     points_per_rev, min_revs, settle_revs, speed_tolerance, revs_per_block
         Order-tracking options (see :func:`rotorid.signals.track`).
+    pedestal_motion : bool, optional
+        True: the bearings sit on flexible housings whose accelerometers (channels px1, px2, py1,
+        py2 on every run and the baseline; pedestal columns of 1X tables) measure their motion;
+        the probes, mounted on the housings, read the motion relative to them, and the
+        identification uses both (report sec. on pedestal motion). False: accelerometer channels
+        are ignored. None (default): an error if any run carries accelerometer channels, so they
+        are never silently ignored.
     **ident_kw
         Passed to :func:`rotorid.identify_synchronous` (identical, cond_max, min_rel_amplitude).
     """
@@ -132,9 +177,11 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
     if imbalances is not None and len(imbalances) != len(runs):
         raise RotoridError(f"imbalances gives {len(imbalances)} entries for {len(runs)} runs")
     notes = []
+    labels = [f"run {i}" for i in range(len(runs))] + (["baseline"] if baseline is not None else [])
+    ped = _pedestal_choice(pedestal_motion, runs + ([baseline] if baseline is not None else []), labels)
     track_kw = dict(points_per_rev=points_per_rev, min_revs=min_revs, settle_revs=settle_revs,
                     speed_tolerance=speed_tolerance, revs_per_block=revs_per_block)
-    kw = dict(orders=orders, steady=steady, track_kw=track_kw, keyphasor=keyphasor)
+    kw = dict(orders=orders, steady=steady, track_kw=track_kw, keyphasor=keyphasor, pedestal=ped)
     sr, sr_cov = None, None
     if slow_roll is not None:
         if isinstance(slow_roll, signals.SyncTrack):
@@ -200,10 +247,28 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
         meta = getattr(r, "meta", {}) or {}
         at = meta.get("probes_at", "probes")
         name = imb.name or getattr(r, "name", None) or os.path.basename(getattr(r, "source", "") or "") or f"run {i}"
-        responses.append(SyncResponse(grid, q, imb, at, name, cov, np.where(np.isnan(dof), np.inf, dof)))
+        pk = {}
+        if ped:
+            i1 = t.orders.index(1)
+            pc, cr = t.pedestal_cov_at_speeds(grid)
+            pk = dict(pedestal=t.pedestal_at_speeds(grid)[:, i1, :], pedestal_cov=pc, pedestal_cross=cr)
+            if not (np.all(np.isfinite(cov)) and np.all(np.isfinite(pc))):
+                pk.pop("pedestal_cross")
+                pk["pedestal_cov"] = pc if np.all(np.isfinite(pc)) else None
+        responses.append(SyncResponse(grid, q, imb, at, name, cov, np.where(np.isnan(dof), np.inf, dof), **pk))
+    if ped:
+        ratio = max(float(np.nanmax(r.pedestal_ratio)) for r in responses)
+        notes.append(f"pedestal motion from accelerometers px1, px2, py1, py2: up to {ratio:.2f} x the motion "
+                     "relative to the housings")
     if baseline is not None and "shared_cov" not in ident_kw:
         # every run had the same baseline subtracted: its error is common to all runs
         shared, _ = _labelled(lambda: bt.cov_at_speeds(grid), "baseline", "the common speed grid")
+        if ped:
+            pc, cr = bt.pedestal_cov_at_speeds(grid)
+            joint = np.zeros((grid.size, 16, 16))
+            joint[:, :8, :8], joint[:, 8:, 8:] = shared, pc
+            joint[:, :8, 8:], joint[:, 8:, :8] = cr, np.swapaxes(cr, 1, 2)
+            shared = joint
         if np.all(np.isfinite(shared)):
             ident_kw = dict(ident_kw, shared_cov=shared)
     ident = identify_synchronous(rotor, responses, method=method, **ident_kw)
@@ -222,7 +287,7 @@ class ImpactChainResult:
 
 def impact_segments(rec: Recording, *, record_s: float = 0.25, pre_s: float = 0.01, revs_before: int = 8,
                     runout: bool = True, kp: signals.Keyphasor | None = None, points_per_rev: int = 256,
-                    exp_window_tau_s: float | None = None, detect=None):
+                    exp_window_tau_s: float | None = None, detect=None, pedestal: bool = False):
     """Force and (run-out filtered) response segments of every clean impact of a recording.
 
     Returns (forces, responses, used_times, dropped): equally long records starting ``pre_s`` before
@@ -230,7 +295,9 @@ def impact_segments(rec: Recording, *, record_s: float = 0.25, pre_s: float = 0.
     ``revs_before`` revolutions preceding the impact (run-out and remnant-imbalance response).
     ``exp_window_tau_s``: multiply force and response by exp(-(t - t_impact)/tau) (the FRFs are then
     at s = 1/tau + j w, which ``impact_chain`` passes on to the identification).
-    ``detect``: options of :func:`rotorid.signals.detect_impacts` (a dict, optional)."""
+    ``detect``: options of :func:`rotorid.signals.detect_impacts` (a dict, optional).
+    ``pedestal``: the responses also hold the housing accelerometers px1, px2, py1, py2 (rows 4-7,
+    m/s², run-out filtered alike: the filter removes their synchronous vibration)."""
     from ._validate import flag, index, instance, mapping, number
 
     instance("rec", rec, Recording, what="rotorid.Recording (one impact recording)")
@@ -244,7 +311,9 @@ def impact_segments(rec: Recording, *, record_s: float = 0.25, pre_s: float = 0.
     unknown = sorted(str(k) for k in detect if k not in _DETECT_OPTIONS)
     if unknown:
         raise RotoridError(f"detect: unknown option(s) {unknown}; known: {list(_DETECT_OPTIONS)}")
-    rec.require("force", *DISPLACEMENTS)
+    pedestal = flag("pedestal", pedestal)
+    channels = DISPLACEMENTS + (ACCELEROMETERS if pedestal else ())
+    rec.require("force", *channels)
     fs = rec.fs_hz
     if not pre_s < record_s:
         raise RotoridError(f"need record_s > 0 and 0 <= pre_s < record_s, got record_s={record_s!r}, pre_s={pre_s!r}")
@@ -254,7 +323,7 @@ def impact_segments(rec: Recording, *, record_s: float = 0.25, pre_s: float = 0.
     if runout:
         rec.require("kp")
         kp = kp if kp is not None else signals.order.detect_keyphasor(rec)
-    x = rec.displacements()
+    x = np.stack([rec.channels[c] for c in channels])
     forces, responses, used, dropped = [], [], [], []
     for j, imp in enumerate(imps):
         t_imp = rec.t0_s + imp.start / fs
@@ -308,12 +377,41 @@ def _h1(forces, responses, fs, zero_pad_s):
     return signals.frf_h1(forces, responses, fs)
 
 
+def _impact_response(frf, sel, speed, plane, direction, at, sigma, name) -> ImpactResponse:
+    """The ImpactResponse of an averaged H1 over the band ``sel``; with 8 channels the last four
+    are housing accelerometers, whose FRFs A become pedestal displacement FRFs A / s² with
+    s = sigma + j w (their covariance mapped alike)."""
+    h = frf.h[sel]
+    cov = None if frf.cov is None else frf.cov[sel]
+    dof = None if cov is None else np.full(cov.shape[0], frf.dof)
+    if h.shape[1] == 4:
+        return ImpactResponse(speed_rpm=speed, freq_hz=frf.freq_hz[sel], q=h, plane=plane, direction=direction, at=at,
+                              name=name, sigma=sigma, cov=cov, dof=dof)
+    s = sigma + 2j * np.pi * frf.freq_hz[sel]
+    g = 1.0 / s ** 2                                     # displacement per acceleration
+    p = h[:, 4:] * g[:, None]
+    pk = dict(pedestal=p)
+    if cov is not None:
+        # [Re p, Im p] = [[gr, -gi], [gi, gr]] [Re a, Im a] per channel
+        L = np.zeros((g.size, 16, 16))
+        L[:, np.arange(8), np.arange(8)] = 1.0
+        for j in range(4):
+            L[:, 8 + j, 8 + j], L[:, 8 + j, 12 + j] = g.real, -g.imag
+            L[:, 12 + j, 8 + j], L[:, 12 + j, 12 + j] = g.imag, g.real
+        joint = L @ cov @ np.swapaxes(L, 1, 2)
+        joint = 0.5 * (joint + np.swapaxes(joint, 1, 2))
+        cov = joint[:, :8, :8]
+        pk.update(pedestal_cov=joint[:, 8:, 8:], pedestal_cross=joint[:, :8, 8:])
+    return ImpactResponse(speed_rpm=speed, freq_hz=frf.freq_hz[sel], q=h[:, :4], plane=plane, direction=direction,
+                          at=at, name=name, sigma=sigma, cov=cov, dof=dof, **pk)
+
+
 def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_s: float = 0.25, runout: bool = True,
                  identical: bool = False, method: str = "forces", tests_meta=None, exp_window_tau_s: float | None = None,
                  pre_s: float = 0.01, zero_pad_s: float | None = None, revs_before: int = 8, points_per_rev: int = 256,
                  keyphasor=None, speed_rpm: float | None = None, coherence_min: float = 0.9, threshold_N=None,
                  min_separation_s: float = 0.2, double_hit_window_s: float = 0.02, overload_N=None,
-                 kcm_band_hz=None, **ident_kw) -> ImpactChainResult:
+                 kcm_band_hz=None, pedestal_motion: bool | None = None, **ident_kw) -> ImpactChainResult:
     """Impact recordings -> impact detection -> run-out filter -> H1 FRFs per test (plane, direction),
     averaged over all clean impacts -> frequency-dependent identification over ``band_hz``.
 
@@ -342,6 +440,11 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
     kcm_band_hz : (float, float), optional
         Also fit K, C and an apparent mass over this band (:func:`rotorid.fit_kcm`), with standard
         errors from a delete-one jackknife over the impacts (``result.kcm``).
+    pedestal_motion : bool, optional
+        True: accelerometers on the bearing housings (channels px1, px2, py1, py2 on every
+        recording) measure the pedestals' motion; their H1 FRFs, divided by s² (s = sigma + j w),
+        are the pedestal FRFs the identification uses with the probes' (relative) FRFs. False:
+        accelerometers are ignored. None: an error if any recording has accelerometer channels.
     """
     from ._validate import flag, index, mapping, number
 
@@ -388,6 +491,9 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
         raise RotoridError(f"coherence_min must be between 0 and 1, got {coherence_min!r}")
     detect = dict(threshold_N=threshold_N, min_separation_s=min_separation_s, double_hit_window_s=double_hit_window_s,
                   overload_N=overload_N)
+    ped = _pedestal_choice(pedestal_motion, recordings,
+                           [f"impact recording {rec.source or i!r}" for i, rec in enumerate(recordings)])
+    channels = DISPLACEMENTS + (ACCELEROMETERS if ped else ())
     groups = {}
     dropped = []
     speeds = []
@@ -406,7 +512,7 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
             rec.require("kp")
         f, r, u, d = impact_segments(rec, record_s=record_s, pre_s=pre_s, runout=runout, kp=kp,
                                      exp_window_tau_s=exp_window_tau_s, revs_before=revs_before,
-                                     points_per_rev=points_per_rev, detect=detect)
+                                     points_per_rev=points_per_rev, detect=detect, pedestal=ped)
         dropped += d
         key = (float(meta["plane"]), str(meta["direction"]), meta.get("probes_at", "probes"), rec.fs_hz)
         g = groups.setdefault(key, ([], [], []))
@@ -439,13 +545,11 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
         if np.any(coh < coherence_min):
             i, j = np.unravel_index(np.argmin(coh), coh.shape)
             warnings.warn(f"test {direction} at {plane:g} m: coherence drops to {coh[i, j]:.2f} "
-                          f"({DISPLACEMENTS[j]} at {frf.freq_hz[sel][i]:.1f} Hz) in the band; "
+                          f"({channels[j]} at {frf.freq_hz[sel][i]:.1f} Hz) in the band; "
                           f"{int((coh < coherence_min).sum())} of {coh.size} points below {coherence_min:g}")
         sigma = 0.0 if exp_window_tau_s is None else 1.0 / exp_window_tau_s
-        cov = None if frf.cov is None else frf.cov[sel]
-        tests.append(ImpactResponse(speed_rpm=speed, freq_hz=frf.freq_hz[sel], q=frf.h[sel], plane=plane,
-                                    direction=direction, at=at, name=f"{direction}@{plane:g}m x{len(fl)}", sigma=sigma,
-                                    cov=cov, dof=None if cov is None else np.full(cov.shape[0], frf.dof)))
+        tests.append(_impact_response(frf, sel, speed, plane, direction, at, sigma,
+                                      f"{direction}@{plane:g}m x{len(fl)}"))
         frfs.append(frf)
         used.append(ul)
     # low coherence at a frequency (any test, any channel) flags the point: its FRFs are unreliable
@@ -470,10 +574,8 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
                     sel = (frf.freq_hz >= band_hz[0]) & (frf.freq_hz <= band_hz[1])
                     t0 = tests[gi]
                     rep_tests = list(tests)
-                    rep_tests[gi] = ImpactResponse(speed_rpm=t0.speed_rpm, freq_hz=frf.freq_hz[sel], q=frf.h[sel],
-                                                   plane=t0.plane, direction=t0.direction, at=t0.at, sigma=t0.sigma,
-                                                   cov=None if frf.cov is None else frf.cov[sel],
-                                                   dof=None if frf.cov is None else np.full(sel.sum(), frf.dof))
+                    rep_tests[gi] = _impact_response(frf, sel, t0.speed_rpm, t0.plane, t0.direction, t0.at,
+                                                     t0.sigma, t0.name)
                     with warnings.catch_warnings():
                         warnings.simplefilter("ignore")
                         rid = identify_impact(rotor, rep_tests, identical=identical, method=method, extra_flags=flags,
@@ -552,8 +654,10 @@ def _load_table(cfg, entry, name=None):
     return load_1x_table(paths[0], name=name, meta=entry.meta(), **cfg.imbalance.table.reader_kwargs())
 
 
-RESULT_PATTERNS = {"imbalance": ["sync_vectors_*.csv", "keyphasor.csv", "coefficients_imbalance.*"],
-                   "impact": ["frf_*.csv", "dropped_impacts.csv", "kcm_fit.csv", "coefficients_impact.*"]}
+RESULT_PATTERNS = {"imbalance": ["sync_vectors_*.csv", "keyphasor.csv", "coefficients_imbalance.*",
+                                 "pedestals_imbalance.csv"],
+                   "impact": ["frf_*.csv", "dropped_impacts.csv", "kcm_fit.csv", "coefficients_impact.*",
+                              "pedestals_impact.csv"]}
 
 
 def run_config(path, kind: str, *, out_dir=None, log=print, overwrite: bool = False):
@@ -583,6 +687,8 @@ def run_config(path, kind: str, *, out_dir=None, log=print, overwrite: bool = Fa
     out = folder.path
     us = cfg.output.units.upper() == "US"
     files = []
+    ped_cfg = cfg.pedestals
+    pedestal_motion = None if ped_cfg is None else ped_cfg.measured
 
     def write_csv(df, name, **kw):
         with folder.atomic(name) as tmp:
@@ -597,7 +703,7 @@ def run_config(path, kind: str, *, out_dir=None, log=print, overwrite: bool = Fa
             slow = _load_table(cfg, sec.slow_roll, "slow roll") if sec.slow_roll is not None else None
             chain_kw = dict(speed_match_rpm=sec.speed_match_rpm, slow_roll_max_rpm=sec.table.slow_roll_max_rpm)
         else:
-            need = set(DISPLACEMENTS) | {"kp"}
+            need = set(DISPLACEMENTS) | set(ACCELEROMETERS) | {"kp"}
             runs = [_load_entry(cfg, r, need) for r in sec.runs]
             base = _load_entry(cfg, sec.baseline, need) if sec.baseline is not None else None
             slow = _load_entry(cfg, sec.slow_roll, need) if sec.slow_roll is not None else None
@@ -607,8 +713,10 @@ def run_config(path, kind: str, *, out_dir=None, log=print, overwrite: bool = Fa
         imbs = [r.imbalance_meta() for r in sec.runs]
         res = imbalance_chain(rotor, runs, baseline=base, slow_roll=slow,
                               speeds_rpm=None if sec.speeds_rpm is None else list(sec.speeds_rpm), steady=sec.steady,
-                              imbalances=imbs, orders=tuple(sec.orders), method=sec.method, **chain_kw, **ident_kw)
+                              imbalances=imbs, orders=tuple(sec.orders), method=sec.method,
+                              pedestal_motion=pedestal_motion, **chain_kw, **ident_kw)
         ident = res.identification
+        responses = res.responses
         if sec.phase_calibration != "off":
             from .phasecal import calibrate_phase
 
@@ -635,7 +743,7 @@ def run_config(path, kind: str, *, out_dir=None, log=print, overwrite: bool = Fa
         for n in res.notes:
             log("  " + n)
     else:
-        need = set(DISPLACEMENTS) | {"kp", "force"}
+        need = set(DISPLACEMENTS) | set(ACCELEROMETERS) | {"kp", "force"}
         recs = [_load_entry(cfg, t, need) for t in sec.tests]
         for r in recs:
             if not isinstance(r, Recording):
@@ -650,14 +758,15 @@ def run_config(path, kind: str, *, out_dir=None, log=print, overwrite: bool = Fa
                            threshold_N=sec.threshold_N, min_separation_s=sec.min_separation_s,
                            double_hit_window_s=sec.double_hit_window_s, overload_N=sec.overload_N,
                            cond_max=sec.cond_max, min_rel_amplitude=sec.min_rel_amplitude, max_rel_std=sec.max_rel_std,
-                           estimator=sec.estimator, kcm_band_hz=sec.kcm_band_hz)
+                           estimator=sec.estimator, kcm_band_hz=sec.kcm_band_hz, pedestal_motion=pedestal_motion)
         ident = res.identification
+        responses = res.tests
         import pandas as pd
 
         for t, frf in zip(res.tests, res.frfs):
             df = t.to_dataframe()
             sel = (frf.freq_hz >= t.freq_hz[0] - 1e-9) & (frf.freq_hz <= t.freq_hz[-1] + 1e-9)
-            for j, nm in enumerate(DISPLACEMENTS):
+            for j, nm in enumerate(DISPLACEMENTS + (ACCELEROMETERS if t.pedestal is not None else ())):
                 df[f"{nm}_coherence"] = frf.coherence[sel, j]
             write_csv(df, f"frf_{_safe(t.name)}.csv", float_format="%.6g")
         if res.dropped:
@@ -668,6 +777,17 @@ def run_config(path, kind: str, *, out_dir=None, log=print, overwrite: bool = Fa
             write_csv(fit.to_dataframe(), "kcm_fit.csv", float_format="%.6g")
             log(f"  K-C-M fit over {fit.band_hz[0]:g}-{fit.band_hz[1]:g} Hz ({fit.n_points} points)"
                 + (f"; {fit.mass_check}" if fit.mass_check else ""))
+    if ped_cfg is not None and ped_cfg.measured and ped_cfg.identify:
+        from .pedestal import identify_pedestals
+
+        try:
+            pfit = identify_pedestals(rotor, responses, cross_coupled=ped_cfg.cross_coupled,
+                                      freq_range_hz=ped_cfg.freq_range_hz)
+        except RotoridError as exc:
+            log(f"  pedestals not identified: {exc}")
+        else:
+            write_csv(pfit.to_dataframe(us=us), f"pedestals_{kind}.csv", float_format="%.6g")
+            log("  " + pfit.summary(us=us))
     df = ident.to_dataframe()
     if us:
         from .units import from_si

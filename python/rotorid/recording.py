@@ -29,6 +29,7 @@ import numpy as np
 from .errors import RotoridError
 
 DISPLACEMENTS = ("x1", "x2", "y1", "y2")  # q order [x1, x2, y1, y2]
+ACCELEROMETERS = ("px1", "px2", "py1", "py2")  # housing accelerometers, order [xp1, xp2, yp1, yp2] as q
 KNOWN = DISPLACEMENTS + ("kp", "force", "px1", "py1", "px2", "py2")
 SI_UNITS = {"x1": "m", "x2": "m", "y1": "m", "y2": "m", "kp": "V", "force": "N",
             "px1": "m/s^2", "py1": "m/s^2", "px2": "m/s^2", "py2": "m/s^2"}

@@ -106,6 +106,24 @@ def _runout(runout):
     return runout.vectors() if runout is not None else np.zeros((1, 4), complex)
 
 
+def _pedestals(pedestals):
+    """The pedestals argument checked (None: rigid supports)."""
+    from .._validate import instance
+    from ..pedestal import Pedestals
+
+    instance("pedestals", pedestals, Pedestals, allow_none=True, what="rotorid.Pedestals")
+    return pedestals
+
+
+def _accel_channels(a, noise, rng):
+    """Accelerometer channels px1, px2, py1, py2 from housing accelerations (4, N) in the order
+    [xp1, xp2, yp1, yp2], with white noise of ``noise`` m/s² rms."""
+    from ..pedestal import ACCEL_CHANNELS, PEDESTAL_DOFS
+
+    a = a + noise * rng.standard_normal(a.shape)
+    return {ACCEL_CHANNELS[d]: a[j] for j, d in enumerate(PEDESTAL_DOFS)}
+
+
 def _with_1x(q, ro):
     """Run-out vectors with the 1X response ``q`` (4,) added to order 1."""
     v = np.array(ro, dtype=complex)
@@ -125,10 +143,25 @@ def _synchronous(q_vectors, theta):
 def imbalance_recording(rotor: RigidRotor, bearings: BearingCoefficients, *, speeds_rpm, added: Imbalance | None,
                         remnant: Imbalance | None = None, runout: Runout | None = Runout(), noise_m: float = 0.5e-6,
                         dwell_s: float = 6.0, fs_hz: float = 10000.0, seed: int = 0, kind: str = "imbalance",
-                        theta0: float = 0.3) -> Recording:
+                        theta0: float = 0.3, pedestals=None, accel_noise_ms2: float = 0.02) -> Recording:
     """A run of steady dwells of ``dwell_s`` seconds at ``speeds_rpm`` with the ``added`` imbalance
     (None for a baseline run) on top of the ``remnant`` imbalance. Channels x1, x2, y1, y2 (probes,
-    m), kp (V)."""
+    m), kp (V).
+
+    With ``pedestals`` (a :class:`rotorid.Pedestals`) the bearings sit on flexible housings: the
+    probes, mounted on them, read the rotor's motion relative to the housings, and accelerometers
+    on the housings add channels px1, px2, py1, py2 (m/s², white noise ``accel_noise_ms2`` rms).
+
+    Examples
+    --------
+    >>> import rotorid
+    >>> from rotorid import rawsim
+    >>> rotor, brg, remnant = rawsim.example_rig()
+    >>> rec = rawsim.imbalance_recording(rotor, brg, speeds_rpm=[3000], added=None, remnant=remnant, dwell_s=1.0,
+    ...                                  pedestals=rotorid.example_pedestals())
+    >>> sorted(rec.channels)
+    ['kp', 'px1', 'px2', 'py1', 'py2', 'x1', 'x2', 'y1', 'y2']
+    """
     from .._validate import number, seed as _seed, speeds_rpm as _speeds, text
 
     _models(rotor, bearings, added=added, remnant=remnant)
@@ -139,21 +172,28 @@ def imbalance_recording(rotor: RigidRotor, bearings: BearingCoefficients, *, spe
     noise_m = number("noise_m", noise_m, nonneg=True)
     theta0 = number("theta0", theta0)
     kind = text("kind", kind)
+    pedestals = _pedestals(pedestals)
+    accel_noise_ms2 = number("accel_noise_ms2", accel_noise_ms2, nonneg=True)
     _turning("speeds_rpm", speeds)
     _n_samples("dwell_s", dwell_s, fs_hz, speeds.size)
     ro = _runout(runout)
-    chunks, kps = [], []
+    chunks, kps, accs = [], [], []
     theta_start = theta0
     for rpm in speeds:
         om = rpm * RPM
         n = int(round(dwell_s * fs_hz))
         theta = theta_start + om * np.arange(n) / fs_hz
-        q = np.zeros(4, complex)
+        q, p = np.zeros(4, complex), np.zeros(4, complex)
         for imb in (added, remnant):
             if imb is not None:
-                q += imbalance_response(rotor, bearings, imb, speed_rpm=[rpm], at="probes").q[0]
+                r = imbalance_response(rotor, bearings, imb, speed_rpm=[rpm], at="probes", pedestals=pedestals)
+                q += r.q[0]
+                if pedestals is not None:
+                    p += r.pedestal[0]
         sig = _synchronous(_with_1x(q, ro), theta)
         chunks.append(sig)
+        if pedestals is not None:
+            accs.append(_synchronous((-om ** 2 * p)[None, :], theta))
         kps.append(_keyphasor(theta, fs_hz, om))
         theta_start = theta[-1] + om / fs_hz
     x = np.concatenate(chunks, axis=1)
@@ -165,6 +205,8 @@ def imbalance_recording(rotor: RigidRotor, bearings: BearingCoefficients, *, spe
         if added.name:
             meta["name"] = added.name
     chans = {"x1": x[0], "x2": x[1], "y1": x[2], "y2": x[3], "kp": kp}
+    if pedestals is not None:
+        chans.update(_accel_channels(np.concatenate(accs, axis=1), accel_noise_ms2, rng))
     return Recording(fs_hz, chans, meta, source=f"simulated {kind}")
 
 
@@ -172,10 +214,13 @@ def impact_recording(rotor: RigidRotor, bearings: BearingCoefficients, *, speed_
                      direction: str, impact_times_s=(0.5, 1.2, 1.9, 2.6, 3.3), peak_N: float = 4000.0,
                      duration_s: float = 2e-3, record_s: float = 4.0, remnant: Imbalance | None = None,
                      runout: Runout | None = Runout(), noise_m: float = 0.5e-6, force_noise_N: float = 2.0,
-                     fs_hz: float = 10000.0, seed: int = 0, theta0: float = 0.3, double_hit_at=None) -> Recording:
+                     fs_hz: float = 10000.0, seed: int = 0, theta0: float = 0.3, double_hit_at=None,
+                     pedestals=None, accel_noise_ms2: float = 0.02) -> Recording:
     """Impacts at ``plane`` in ``direction`` while the rotor spins at ``speed_rpm``: channels x1, x2,
     y1, y2 (probes, m), kp (V), force (N). ``double_hit_at``: index of an impact to follow by a
-    rebound 8 ms later (to exercise the detector)."""
+    rebound 8 ms later (to exercise the detector). With ``pedestals``, probes read the motion
+    relative to the housings and channels px1, px2, py1, py2 (m/s²) hold the housings'
+    acceleration (see :func:`imbalance_recording`)."""
     from .._validate import choice, index, number, real_array, seed as _seed
 
     _models(rotor, bearings, remnant=remnant)
@@ -197,12 +242,17 @@ def impact_recording(rotor: RigidRotor, bearings: BearingCoefficients, *, speed_
                            f"{times.min():g} to {times.max():g} s")
     if double_hit_at is not None:
         double_hit_at = index("double_hit_at", double_hit_at, 0, times.size - 1)
+    pedestals = _pedestals(pedestals)
+    accel_noise_ms2 = number("accel_noise_ms2", accel_noise_ms2, nonneg=True)
     n = _n_samples("record_s", record_s, fs_hz)
     om = speed_rpm * RPM
     theta = theta0 + om * np.arange(n) / fs_hz
-    q = np.zeros(4, complex)
+    q, p = np.zeros(4, complex), np.zeros(4, complex)
     if remnant is not None:
-        q = imbalance_response(rotor, bearings, remnant, speed_rpm=[speed_rpm], at="probes").q[0]
+        r = imbalance_response(rotor, bearings, remnant, speed_rpm=[speed_rpm], at="probes", pedestals=pedestals)
+        q = r.q[0]
+        if pedestals is not None:
+            p = r.pedestal[0]
     ro = _runout(runout)
     x = _synchronous(_with_1x(q, ro), theta)
     u = np.zeros(n)
@@ -211,10 +261,13 @@ def impact_recording(rotor: RigidRotor, bearings: BearingCoefficients, *, speed_
         if double_hit_at is not None and k == double_hit_at:
             u += half_sine_pulse(0.4 * peak_N, duration_s, fs_hz, n, t0_s=t + 0.008)
     tr = impact_time_response(rotor, bearings, speed_rpm=speed_rpm, force_N=u, fs_hz=fs_hz, plane=plane,
-                              direction=direction, at="probes")
+                              direction=direction, at="probes", pedestals=pedestals)
     x = x + tr.q.T + noise_m * rng.standard_normal((4, n))
     chans = {"x1": x[0], "x2": x[1], "y1": x[2], "y2": x[3], "kp": _keyphasor(theta, fs_hz, om),
              "force": u + force_noise_N * rng.standard_normal(n)}
+    if pedestals is not None:
+        acc = _synchronous((-om ** 2 * p)[None, :], theta) + tr.pedestal_accel.T
+        chans.update(_accel_channels(acc, accel_noise_ms2, rng))
     meta = dict(kind="impact", speed_rpm=float(speed_rpm), plane=float(plane), direction=direction, probes_at="probes")
     return Recording(fs_hz, chans, meta, source=f"simulated impact {direction} at {plane:g} m")
 

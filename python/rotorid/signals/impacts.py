@@ -233,7 +233,8 @@ def frf_h1(forces, responses, fs_hz: float) -> FRF:
     """H1 FRF and coherence from equally long force records (list of (N,)) and response records
     (list of (C, N)), one pair per impact.
 
-    With n >= 2 impacts and C = 4 channels, also the covariance of H1's [Re, Im] per frequency
+    With n >= 2 impacts and C = 4 channels (or 8: probes then accelerometers, the covariance then
+    over [Re q, Im q, Re p, Im p]), also the covariance of H1's [Re, Im] per frequency
     from the scatter of the single impacts: with X_i = H F_i + N_i, H1 - H = Σ N_i F_i* / Σ|F_i|²,
     estimated from the residuals R_i = X_i - H1 F_i as n/(n-1) Σ_i outer(R_i F_i* / Σ|F|²)
     (real 8-vector form), with n - 1 degrees of freedom. A frequency at which no impact has any force
@@ -273,14 +274,17 @@ def frf_h1(forces, responses, fs_hz: float) -> FRF:
         coh = np.abs(sxf) ** 2 / (sff[:, None] * sxx)
     m = len(forces)
     cov, dof = None, float("nan")
-    if m >= 2 and h.shape[1] == 4:
-        cov = np.zeros((freq.size, 8, 8))
+    if m >= 2 and h.shape[1] in (4, 8):
+        c2 = 2 * h.shape[1]
+        cov = np.zeros((freq.size, c2, c2))
         for f, x in zip(forces, responses):
             F = np.fft.rfft(f)
             X = np.fft.rfft(np.asarray(x), axis=-1).T
             with np.errstate(divide="ignore", invalid="ignore"):
                 e = (X - h * F[:, None]) * np.conj(F)[:, None] / sff[:, None]
-            r = np.concatenate([e.real, e.imag], axis=1)
+            # [Re, Im] per group of 4 channels (probes, then accelerometers: [Re q, Im q, Re p, Im p])
+            r = np.concatenate([part for g in range(0, e.shape[1], 4) for part in (e[:, g:g + 4].real,
+                                                                                   e[:, g:g + 4].imag)], axis=1)
             cov += r[:, :, None] * r[:, None, :]
         cov *= m / (m - 1.0)
         dof = float(m - 1)

@@ -10,7 +10,7 @@ import numpy as np
 
 from .._corecall import core as _core
 from ..errors import RotoridError
-from ..recording import DISPLACEMENTS, Recording
+from ..recording import ACCELEROMETERS, DISPLACEMENTS, Recording
 from .keyphasor import Keyphasor, keyphasor_times
 
 
@@ -29,6 +29,13 @@ class SyncTrack:
     [Re x1, Re x2, Re y1, Re y2, Im x1, Im x2, Im y1, Im y2] (m²), estimated from the data
     themselves (batch means of the per-revolution vectors, so correlated noise between nearby
     revolutions is accounted for); ``dof`` (n_blocks,) its degrees of freedom. NaN where unknown.
+
+    Flexible pedestals (tracked with ``pedestal=True``): ``pedestal`` complex (n_blocks,
+    n_orders, 4), the housings' displacement [xp1, xp2, yp1, yp2] (m, 0-pk) from the
+    accelerometers px1, px2, py1, py2 (each revolution's order-n acceleration divided by
+    -(n Omega)^2); ``pedestal_cov`` (n_blocks, 8, 8) the covariance of its 1X as [Re, Im] and
+    ``pedestal_cross`` (n_blocks, 8, 8) the covariance between the probes' 1X and it (both from
+    the same batch means as ``cov``).
     """
 
     speed_rpm: np.ndarray
@@ -40,6 +47,9 @@ class SyncTrack:
     keyphasors: list = field(default_factory=list)
     cov: np.ndarray | None = None
     dof: np.ndarray | None = None
+    pedestal: np.ndarray | None = None
+    pedestal_cov: np.ndarray | None = None
+    pedestal_cross: np.ndarray | None = None
 
     def __post_init__(self):
         from .._validate import complex_array, real_array
@@ -70,6 +80,20 @@ class SyncTrack:
             self.dof = np.full(n, np.nan)
         else:
             self.dof = real_array("dof", self.dof, shape=(n,), finite=False)
+        if self.pedestal is None:
+            if self.pedestal_cov is not None or self.pedestal_cross is not None:
+                raise RotoridError("pedestal_cov / pedestal_cross given without pedestal (the pedestal motion)")
+        else:
+            self.pedestal = complex_array("pedestal", self.pedestal, shape=(n, len(self.orders), 4))
+            for name in ("pedestal_cov", "pedestal_cross"):
+                v = getattr(self, name)
+                setattr(self, name, np.full((n, 8, 8), np.nan) if v is None else
+                        real_array(name, v, shape=(n, 8, 8), finite=False))
+
+    @property
+    def has_pedestal(self) -> bool:
+        """Whether the track carries pedestal (housing) motion from accelerometers."""
+        return self.pedestal is not None
 
     def order(self, n: int = 1) -> np.ndarray:
         if isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer)) or n not in self.orders:
@@ -80,11 +104,19 @@ class SyncTrack:
         """Subtract vectors: another track interpolated to these speeds (baseline), or one fixed
         complex array (n_orders, 4) (slow-roll run-out) with its 1X covariance ``other_cov``
         (8, 8) if known. Covariances add (the two are independent measurements)."""
+        ped = {}
         if isinstance(other, SyncTrack):
             if tuple(other.orders) != tuple(self.orders):
                 raise RotoridError("tracks with different orders cannot be subtracted")
+            if other.has_pedestal != self.has_pedestal:
+                raise RotoridError("one track carries pedestal motion (accelerometers px1, px2, py1, py2) and the "
+                                   "other does not: subtract tracks recorded with the same channels")
             sub = other.at_speeds(self.speed_rpm)
             ocov, odof = other.cov_at_speeds(self.speed_rpm)
+            if self.has_pedestal:
+                opc, ocr = other.pedestal_cov_at_speeds(self.speed_rpm)
+                ped = dict(pedestal=self.pedestal - other.pedestal_at_speeds(self.speed_rpm),
+                           pedestal_cov=self.pedestal_cov + opc, pedestal_cross=self.pedestal_cross + ocr)
         else:
             from .._validate import complex_array, real_array
 
@@ -97,8 +129,13 @@ class SyncTrack:
             ocov = np.zeros((1, 8, 8)) if other_cov is None else real_array("other_cov", other_cov, shape=(8, 8),
                                                                             finite=False)[None]
             odof = np.full(1, np.inf)
+            if self.has_pedestal:
+                # run-out is the probes' (a shaft surface seen by a proximity probe): the housings'
+                # motion keeps its value
+                ped = dict(pedestal=self.pedestal, pedestal_cov=self.pedestal_cov,
+                           pedestal_cross=self.pedestal_cross)
         return SyncTrack(self.speed_rpm, self.vectors - sub, self.orders, self.n_revs, self.scatter, self.t_mid,
-                         self.keyphasors, self.cov + ocov, np.minimum(self.dof, odof))
+                         self.keyphasors, self.cov + ocov, np.minimum(self.dof, odof), **ped)
 
     def _weights(self, speed_rpm):
         from .._validate import real_array
@@ -125,6 +162,23 @@ class SyncTrack:
         v = self.vectors[order]
         return v[i] * w[:, None, None] + v[j] * (1.0 - w)[:, None, None]
 
+    def pedestal_at_speeds(self, speed_rpm) -> np.ndarray:
+        """Pedestal motion (n, n_orders, 4) interpolated as :meth:`at_speeds`."""
+        if not self.has_pedestal:
+            raise RotoridError("this track carries no pedestal motion (no accelerometer channels were tracked)")
+        order, i, j, w = self._weights(speed_rpm)
+        v = self.pedestal[order]
+        return v[i] * w[:, None, None] + v[j] * (1.0 - w)[:, None, None]
+
+    def pedestal_cov_at_speeds(self, speed_rpm):
+        """(pedestal_cov, pedestal_cross) interpolated as :meth:`cov_at_speeds`."""
+        if not self.has_pedestal:
+            raise RotoridError("this track carries no pedestal motion (no accelerometer channels were tracked)")
+        order, i, j, w = self._weights(speed_rpm)
+        a, b = (w ** 2)[:, None, None], ((1.0 - w) ** 2)[:, None, None]
+        pc, cr = self.pedestal_cov[order], self.pedestal_cross[order]
+        return pc[i] * a + pc[j] * b, cr[i] * a + cr[j] * b
+
     def cov_at_speeds(self, speed_rpm):
         """(cov, dof) of the 1X vectors interpolated to the given speeds (squared weights)."""
         order, i, j, w = self._weights(speed_rpm)
@@ -135,16 +189,18 @@ class SyncTrack:
 
 def mean_covariance(v, *, max_batches: int = 16):
     """Covariance of the mean of per-revolution complex vectors ``v`` (revs, 4) as the real
-    8-vector [Re, Im], from batch means: the revolutions are cut into up to ``max_batches``
+    8-vector [Re, Im] (``v`` (revs, 8), probes then accelerometers: the 16-vector [Re q, Im q,
+    Re p, Im p]), from batch means: the revolutions are cut into up to ``max_batches``
     consecutive batches, so noise correlated over fewer revolutions than a batch is accounted
     for. Returns (cov (8, 8), dof)."""
-    n = v.shape[0]
+    n, k = v.shape
     nb = min(n, max_batches)
     if nb < 2:
-        return np.full((8, 8), np.nan), np.nan
+        return np.full((2 * k, 2 * k), np.nan), np.nan
     size = n // nb
-    b = v[: nb * size].reshape(nb, size, 4).mean(axis=1)
-    r = np.concatenate([b.real, b.imag], axis=1)
+    b = v[: nb * size].reshape(nb, size, k).mean(axis=1)
+    # [Re, Im] per group of 4 channels: probes then accelerometers, as the joint covariances
+    r = np.concatenate([part for g in range(0, k, 4) for part in (b[:, g:g + 4].real, b[:, g:g + 4].imag)], axis=1)
     return np.cov(r, rowvar=False, ddof=1) / nb, float(nb - 1)
 
 
@@ -214,8 +270,9 @@ def detect_keyphasor(rec: Recording, keyphasor=None) -> Keyphasor:
 
 def track(rec, *, orders=(1, 2, 3), revs_per_block: int | None = None, steady: bool = True,
           points_per_rev: int | None = None, kp=None, min_revs: int = 8, settle_revs: int = 2,
-          speed_tolerance: float = 0.005, keyphasor=None) -> SyncTrack:
-    """Synchronous vectors of the four displacement channels of a recording.
+          speed_tolerance: float = 0.005, keyphasor=None, pedestal: bool = False) -> SyncTrack:
+    """Synchronous vectors of the four displacement channels of a recording (and, with
+    ``pedestal``, of the four housing accelerometers).
 
     Parameters
     ----------
@@ -238,8 +295,13 @@ def track(rec, *, orders=(1, 2, 3), revs_per_block: int | None = None, steady: b
         Options of :func:`~rotorid.signals.keyphasor_times` (level, hysteresis, edge,
         mark_angle_deg, delay_s, tolerance, fill_missing), or ``{"times": array}``.
 
-    Displacement channels with a delay in ``rec.meta["channel_delays_s"]`` (from the channel
-    map's ``delay_s``) have their order-n vectors advanced by n Ω delay.
+    pedestal : bool
+        Also track the accelerometers on the bearing housings, channels px1, px2, py1, py2
+        (m/s², required then), into ``SyncTrack.pedestal`` (housing displacement, m): each
+        revolution's order-n vector divided by -(n Ω)² at that revolution's speed.
+
+    Channels with a delay in ``rec.meta["channel_delays_s"]`` (from the channel map's
+    ``delay_s``) have their order-n vectors advanced by n Ω delay.
 
     Examples
     --------
@@ -256,15 +318,23 @@ def track(rec, *, orders=(1, 2, 3), revs_per_block: int | None = None, steady: b
     if isinstance(rec, SegmentedRecording):
         parts = [track(b, orders=orders, revs_per_block=revs_per_block, steady=steady, points_per_rev=points_per_rev,
                        kp=None, min_revs=min_revs, settle_revs=settle_revs, speed_tolerance=speed_tolerance,
-                       keyphasor=keyphasor) for b in rec.blocks]
+                       keyphasor=keyphasor, pedestal=pedestal) for b in rec.blocks]
+        ped = {}
+        if parts[0].has_pedestal:
+            ped = {name: np.concatenate([getattr(p, name) for p in parts])
+                   for name in ("pedestal", "pedestal_cov", "pedestal_cross")}
         return SyncTrack(np.concatenate([p.speed_rpm for p in parts]), np.concatenate([p.vectors for p in parts]),
                          parts[0].orders, np.concatenate([p.n_revs for p in parts]),
                          np.concatenate([p.scatter for p in parts]), np.concatenate([p.t_mid for p in parts]),
                          [k for p in parts for k in p.keyphasors], np.concatenate([p.cov for p in parts]),
-                         np.concatenate([p.dof for p in parts]))
+                         np.concatenate([p.dof for p in parts]), **ped)
     if not isinstance(rec, Recording):
         raise RotoridError(f"rec must be a Recording or SegmentedRecording, got {type(rec).__name__}")
-    rec.require(*DISPLACEMENTS)
+    from .._validate import flag
+
+    pedestal = flag("pedestal", pedestal)
+    channels = DISPLACEMENTS + (ACCELEROMETERS if pedestal else ())
+    rec.require(*channels)
     try:
         raw = tuple(orders)
         orders = tuple(int(o) for o in raw)
@@ -275,7 +345,7 @@ def track(rec, *, orders=(1, 2, 3), revs_per_block: int | None = None, steady: b
                            f"{list(raw)!r}")
     if not orders or any(o < 1 for o in orders):
         raise RotoridError(f"orders must be whole numbers >= 1, got {orders!r}")
-    from .._validate import flag, index, number
+    from .._validate import index, number
 
     min_revs = index("min_revs", min_revs, 2)
     settle_revs = index("settle_revs", settle_revs, 0)
@@ -314,7 +384,7 @@ def track(rec, *, orders=(1, 2, 3), revs_per_block: int | None = None, steady: b
     if sps < 8:
         raise RotoridError(f"only {sps:.1f} samples per revolution at the highest speed: sample faster "
                            "(at least 8, better 30+ samples per revolution)")
-    x = np.ascontiguousarray(rec.displacements())
+    x = np.ascontiguousarray(np.stack([rec.channels[c] for c in channels]))
     kpt = np.ascontiguousarray(kp.times)
     # per-revolution order vectors (revs, orders, 4), resampled and transformed a chunk of revolutions
     # at a time (at most CHUNK_DOUBLES doubles, 64 MB) so long records and fine grids stay bounded
@@ -340,11 +410,15 @@ def track(rec, *, orders=(1, 2, 3), revs_per_block: int | None = None, steady: b
     rpm = kp.speed_rpm[k0:k1]
     tmid = kp.mid_times[k0:k1]
     delays = rec.meta.get("channel_delays_s", {}) or {}
-    d = np.array([float(delays.get(c, 0.0)) for c in DISPLACEMENTS])
+    d = np.array([float(delays.get(c, 0.0)) for c in channels])
+    om = (rpm * np.pi / 30.0)[:, None, None]
+    nom = np.asarray(orders)[None, :, None] * om          # (revs, orders, 1): n Omega of each revolution
     if np.any(d):
         # x measured(t) = x(t - d): order n lags by n Omega d
-        om = (rpm * np.pi / 30.0)[:, None, None]
-        per_rev = per_rev * np.exp(1j * np.asarray(orders)[None, :, None] * om * d[None, None, :])
+        per_rev = per_rev * np.exp(1j * nom * d[None, None, :])
+    if pedestal:
+        # housing displacement from acceleration, revolution by revolution: a = -(n Omega)^2 x
+        per_rev[:, :, 4:] = per_rev[:, :, 4:] / -(nom ** 2)
     if steady:
         sub = Keyphasor(kp.times[k0:k1 + 1])
         blocks = steady_segments(sub, tolerance=speed_tolerance, min_revs=int(min_revs), settle_revs=int(settle_revs))
@@ -361,22 +435,30 @@ def track(rec, *, orders=(1, 2, 3), revs_per_block: int | None = None, steady: b
             raise RotoridError(f"recording has {rpm.size} revolutions, fewer than revs_per_block = {rb}")
         blocks = [(i * rb, (i + 1) * rb) for i in range(nb)]
     vec, sp, nrev, scat, tm, cov, dof = [], [], [], [], [], [], []
+    pv, pcov, pcross = [], [], []
     i1 = orders.index(1) if 1 in orders else None
+    m = 2 * len(channels)
     for a, b in blocks:
         v = per_rev[a:b]
-        vec.append(v.mean(axis=0))
+        mean = v.mean(axis=0)
+        vec.append(mean[:, :4])
         if i1 is not None:
             c, d = mean_covariance(v[:, i1, :])
         else:
-            c, d = np.full((8, 8), np.nan), np.nan
-        cov.append(c)
+            c, d = np.full((m, m), np.nan), np.nan
+        cov.append(c[:8, :8])
         dof.append(d)
+        if pedestal:
+            pv.append(mean[:, 4:])
+            pcov.append(c[8:, 8:])
+            pcross.append(c[:8, 8:])
         sp.append(rpm[a:b].mean())
         nrev.append(b - a)
-        scat.append(np.sqrt(np.mean(np.abs(v[:, 0, :] - v[:, 0, :].mean(axis=0)) ** 2, axis=0)))
+        scat.append(np.sqrt(np.mean(np.abs(v[:, 0, :4] - v[:, 0, :4].mean(axis=0)) ** 2, axis=0)))
         tm.append(tmid[a:b].mean())
+    ped = dict(pedestal=np.array(pv), pedestal_cov=np.array(pcov), pedestal_cross=np.array(pcross)) if pedestal else {}
     return SyncTrack(np.array(sp), np.array(vec), orders, np.array(nrev), np.array(scat), np.array(tm), [kp],
-                     np.array(cov), np.array(dof))
+                     np.array(cov), np.array(dof), **ped)
 
 
 def slow_roll_vector(rec: Recording, *, orders=(1, 2, 3), return_cov: bool = False, **kw):
