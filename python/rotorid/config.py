@@ -396,6 +396,14 @@ def _check_length_unit(v):
     return v
 
 
+def _check_accel_unit(v):
+    _check_text(v)
+    problem = _unit_problem(v, "acceleration", "the accelerometer amplitudes are accelerations")
+    if problem:
+        raise _err(problem, keyless=True)
+    return v
+
+
 def _unit_problem(unit: str, quantity: str, subject: str):
     """None if ``unit`` parses as a unit of ``quantity``, else the problem."""
     try:
@@ -421,6 +429,7 @@ Groups = Annotated[Union[Literal["*"], tuple[str, ...]], PlainValidator(_check_g
 TimeColumn = Annotated[Union[str, Literal[False]], PlainValidator(_check_time_column)]
 Sheet = Annotated[Union[str, int], PlainValidator(_check_sheet)]
 LengthUnit = Annotated[str, PlainValidator(_check_length_unit)]
+AccelUnit = Annotated[str, PlainValidator(_check_accel_unit)]
 Band = Annotated[tuple[float, float], PlainValidator(_band)]
 Finite = _number()
 Positive = _number(gt=0)
@@ -728,12 +737,27 @@ class OneXColumn(_Model):
 
 
 class OneXColumns(_Model):
-    """``columns`` of ``[imbalance.table]``: all four probes."""
+    """``columns`` of ``[imbalance.table]``: all four probes, and the four housing accelerometers
+    (all or none) with ``[pedestals]``."""
 
     x1: OneXColumn = Field(description="x1 = {amplitude = ..., phase = ...}")
     x2: OneXColumn = Field(description="x2 = {amplitude = ..., phase = ...}")
     y1: OneXColumn = Field(description="y1 = {amplitude = ..., phase = ...}")
     y2: OneXColumn = Field(description="y2 = {amplitude = ..., phase = ...}")
+    px1: Optional[OneXColumn] = Field(None, description="housing accelerometer, bearing 1 x")
+    px2: Optional[OneXColumn] = Field(None, description="housing accelerometer, bearing 2 x")
+    py1: Optional[OneXColumn] = Field(None, description="housing accelerometer, bearing 1 y")
+    py2: Optional[OneXColumn] = Field(None, description="housing accelerometer, bearing 2 y")
+
+    @model_validator(mode="after")
+    def _all_or_none(self):
+        names = ("px1", "px2", "py1", "py2")
+        have = [n for n in names if getattr(self, n) is not None]
+        if have and len(have) != 4:
+            missing = [n for n in names if n not in have]
+            raise _err(f"gives accelerometer columns {', '.join(have)} but not {', '.join(missing)}: give all four "
+                       "housing accelerometers or none", missing[0])
+        return self
 
 
 class OneXTable(_Model):
@@ -754,6 +778,9 @@ class OneXTable(_Model):
     slow_roll_max_rpm: Optional[Positive] = None
     amplitude_std: Optional[NonNeg] = None
     phase_std_deg: Optional[NonNeg] = None
+    accel_unit: AccelUnit = "g"
+    accel_amplitude: Optional[_choice("pk-pk", "0-pk")] = None
+    accel_amplitude_std: Optional[NonNeg] = None
 
     def reader_kwargs(self) -> dict:
         """Keyword arguments of ``rotorid.tables.load_1x_table`` (all but the path).
@@ -766,9 +793,11 @@ class OneXTable(_Model):
         >>> kw["columns"]["y2"], kw["unit"], kw["amplitude"], kw["phase"], kw["skip_rows"]
         ({'amplitude': 'y2 amp', 'phase': 'y2 ph'}, 'um', '0-pk', 'lag', 'auto')
         """
-        return {"columns": self.columns.model_dump(), "speed_column": self.speed_column, "amplitude": self.amplitude,
-                "unit": self.unit, "phase": self.phase, "phase_unit": self.phase_unit, "sheet": self.sheet,
-                "skip_rows": self.skip_rows, "amplitude_std": self.amplitude_std, "phase_std_deg": self.phase_std_deg}
+        return {"columns": self.columns.model_dump(exclude_none=True), "speed_column": self.speed_column,
+                "amplitude": self.amplitude, "unit": self.unit, "phase": self.phase, "phase_unit": self.phase_unit,
+                "sheet": self.sheet, "skip_rows": self.skip_rows, "amplitude_std": self.amplitude_std,
+                "phase_std_deg": self.phase_std_deg, "accel_unit": self.accel_unit,
+                "accel_amplitude": self.accel_amplitude, "accel_amplitude_std": self.accel_amplitude_std}
 
 
 class ImbalanceSection(_Model):

@@ -225,9 +225,14 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
         # (interpolating 1X vectors across the gap between two dwells would invent data)
         from .tables import match_speeds
 
-        grid, qs = match_speeds([signals.SyncTrack(t.speed_rpm, t.vectors[:, t.orders.index(1):t.orders.index(1) + 1],
-                                                   (1,), t.n_revs, t.scatter, t.t_mid) for t in comp],
-                                grid=speeds_rpm, tolerance_rpm=tol)
+        def one_x(t):
+            i1 = t.orders.index(1)
+            pk = dict(pedestal=t.pedestal[:, i1:i1 + 1]) if ped else {}
+            return signals.SyncTrack(t.speed_rpm, t.vectors[:, i1:i1 + 1], (1,), t.n_revs, t.scatter, t.t_mid, **pk)
+
+        matched = match_speeds([one_x(t) for t in comp], grid=speeds_rpm, tolerance_rpm=tol, pedestal=ped)
+        grid, qs = matched[:2]
+        ped_on_grid = matched[2] if ped else None
     else:
         if speeds_rpm is None:
             if steady:
@@ -240,6 +245,7 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
             grid = np.asarray(speeds_rpm, float)
         qs = [_labelled(lambda t=t: t.at_speeds(grid)[:, t.orders.index(1), :], f"run {i}", "the common speed grid")
               for i, t in enumerate(comp)]
+        ped_on_grid = [t.pedestal_at_speeds(grid)[:, t.orders.index(1), :] for t in comp] if ped else None
     responses = []
     for i, (r, q, t) in enumerate(zip(runs, qs, comp)):
         cov, dof = _labelled(lambda t=t: t.cov_at_speeds(grid), f"run {i}", "the common speed grid")
@@ -249,9 +255,8 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
         name = imb.name or getattr(r, "name", None) or os.path.basename(getattr(r, "source", "") or "") or f"run {i}"
         pk = {}
         if ped:
-            i1 = t.orders.index(1)
             pc, cr = t.pedestal_cov_at_speeds(grid)
-            pk = dict(pedestal=t.pedestal_at_speeds(grid)[:, i1, :], pedestal_cov=pc, pedestal_cross=cr)
+            pk = dict(pedestal=ped_on_grid[i], pedestal_cov=pc, pedestal_cross=cr)
             if not (np.all(np.isfinite(cov)) and np.all(np.isfinite(pc))):
                 pk.pop("pedestal_cross")
                 pk["pedestal_cov"] = pc if np.all(np.isfinite(pc)) else None

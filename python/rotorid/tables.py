@@ -18,6 +18,11 @@ shared:
 Conventions at this edge: a DAQ's amplitude A (pk-pk or 0-pk, any length unit) and phase lag
 ``lag`` become X = (A_0pk in m) e^{-j lag}; a phase given as lead (= arg X) becomes
 X = A e^{+j lead}. Inside rotorid x(t) = Re(X e^{jΩt}) with the keyphasor at rotor angle 0.
+
+Flexible pedestals: a table may also hold the 1X amplitude and phase of the four bearing-housing
+accelerometers px1, px2, py1, py2 (all four or none), in an acceleration unit (g, m/s^2) with the
+same conventions. Each row's acceleration phasor A (m/s², 0-pk) becomes the housing displacement
+P = -A / Ω² (Ω the row's speed in rad/s), the track's ``pedestal`` [xp1, xp2, yp1, yp2].
 """
 
 from __future__ import annotations
@@ -34,13 +39,18 @@ import numpy as np
 
 from . import units
 from .errors import RotoridError
+from .recording import ACCELEROMETERS
 from .signals import SyncTrack
 
 __all__ = ["TableTrack", "load_1x_table", "match_speeds", "slow_roll_vector", "save_1x_table", "example_tables",
-           "CHANNELS", "ADRE_POINTS", "EXAMPLE_DIR", "EXAMPLE_COLUMNS", "EXAMPLE_FILES"]
+           "CHANNELS", "ACCELEROMETERS", "ADRE_POINTS", "ADRE_ACCEL_POINTS", "EXAMPLE_DIR", "EXAMPLE_COLUMNS",
+           "EXAMPLE_FILES"]
 
 CHANNELS = ("x1", "x2", "y1", "y2")                 # rotorid's q order
+# ACCELEROMETERS = ("px1", "px2", "py1", "py2"): housing accelerometers, the order of SyncTrack.pedestal
 ADRE_POINTS = {"x1": "DE X", "y1": "DE Y", "x2": "FE X", "y2": "FE Y"}   # DAQ point names, in the DAQ's order
+# the housing accelerometers' point names (HSG = bearing housing), in the DAQ's order
+ADRE_ACCEL_POINTS = {"px1": "DE HSG X", "py1": "DE HSG Y", "px2": "FE HSG X", "py2": "FE HSG Y"}
 EXAMPLE_DIR = os.path.join(os.path.dirname(__file__), "data", "example", "daq_1x")
 EXAMPLE_FILES = {"S0": "run_S0.csv", "C0": "run_C0.csv", "S90": "run_S90.csv", "C90": "run_C90.csv",
                  "baseline": "baseline.csv", "slow_roll": "slow_roll.csv"}
@@ -55,6 +65,8 @@ _DEG = {"deg", "degree", "degrees"}
 _RAD = {"rad", "radian", "radians"}
 # decimals a DAQ prints amplitudes with: 0.001 mil and the like
 _AMP_DECIMALS = {"mil": 3, "mils": 3, "um": 2, "µm": 2, "micron": 2, "microns": 2, "mm": 5, "m": 8, "in": 6}
+# ... and accelerations: 0.00001 g, 0.0001 m/s²
+_ACC_DECIMALS = {"g": 5, "m/s^2": 4, "m/s2": 4}
 _MAX_LIST = 8   # rows / speeds listed in one message
 
 
@@ -72,6 +84,11 @@ class TableTrack(SyncTrack):
     file name without extension), ``source`` (the file) and ``meta`` (the reader's arguments, the
     preamble lines, and the user's ``meta``) travel along; :meth:`minus` keeps them and records
     the compensation in ``meta["compensated"]``.
+
+    A table with the housing accelerometers' columns (px1, px2, py1, py2) also carries
+    ``pedestal`` (n, 1, 4) complex, the housings' displacement [xp1, xp2, yp1, yp2] (m, 0-pk,
+    -A / Ω² of each row's acceleration A), and ``pedestal_cov`` / ``pedestal_cross`` (n, 8, 8)
+    (NaN unless the DAQ's accuracy is given); ``has_pedestal`` is then True.
     """
 
     name: str | None = None
@@ -84,7 +101,8 @@ class TableTrack(SyncTrack):
         meta = dict(self.meta)
         meta["compensated"] = list(meta.get("compensated", [])) + [f"minus {what}"]
         return TableTrack(base.speed_rpm, base.vectors, base.orders, base.n_revs, base.scatter, base.t_mid,
-                          base.keyphasors, base.cov, base.dof, name=self.name, source=self.source, meta=meta)
+                          base.keyphasors, base.cov, base.dof, pedestal=base.pedestal, pedestal_cov=base.pedestal_cov,
+                          pedestal_cross=base.pedestal_cross, name=self.name, source=self.source, meta=meta)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -118,18 +136,49 @@ def _angle_kind(phase_unit) -> str:
     return _kind(phase_unit, "phase_unit", {"deg": _DEG, "rad": _RAD}, "'deg' or 'rad'")
 
 
+def _quantity(unit):
+    try:
+        return units.quantity_of(unit)
+    except RotoridError:
+        return None
+
+
 def _length_factor(unit) -> float:
+    if _quantity(unit) == "acceleration":
+        raise RotoridError(f"unit={unit!r} is an acceleration unit, but unit= is the length unit of the probe "
+                           "channels x1, x2, y1, y2 (mil, um, µm, mm, m, in); give the housing accelerometers' "
+                           "(px1, px2, py1, py2) unit as accel_unit=")
     try:
         return units.factor(unit, "length")
     except RotoridError as exc:
         raise RotoridError(f"unit: {exc} (a length unit: mil, um, µm, mm, m, in)") from None
 
 
+def _accel_factor(accel_unit) -> float:
+    if _quantity(accel_unit) == "length":
+        raise RotoridError(f"accel_unit={accel_unit!r} is a length unit, but accel_unit= is the acceleration unit "
+                           "of the housing accelerometer channels px1, px2, py1, py2 (g, m/s^2); the probes' "
+                           "(x1, x2, y1, y2) length unit is unit=")
+    try:
+        return units.factor(accel_unit, "acceleration")
+    except RotoridError as exc:
+        raise RotoridError(f"accel_unit: {exc} (an acceleration unit: g, m/s^2, m/s2)") from None
+
+
+def _unit_label(unit) -> str:
+    """A unit as a header writes it: mil, um, g, m/s^2."""
+    u = _norm(unit)
+    return {"µm": "um", "μm": "um", "micron": "um", "microns": "um", "mils": "mil"}.get(u, u)
+
+
 def _check_columns_arg(columns) -> dict:
+    """``columns`` checked: {channel: {"amplitude": str, "phase": str}} for x1, x2, y1, y2 and, when
+    the table has the housing accelerometers, px1, px2, py1, py2 (in that order)."""
     if not isinstance(columns, dict):
         raise RotoridError("columns must be a mapping {'x1': {'amplitude': <column>, 'phase': <column>}, ...} "
-                           f"for x1, x2, y1, y2; got {type(columns).__name__}")
-    unknown = sorted(set(columns) - set(CHANNELS))
+                           f"for x1, x2, y1, y2 (and px1, px2, py1, py2 with housing accelerometers); got "
+                           f"{type(columns).__name__}")
+    unknown = sorted(set(columns) - set(CHANNELS) - set(ACCELEROMETERS), key=str)
     missing = [c for c in CHANNELS if c not in columns]
     if unknown or missing:
         parts = []
@@ -138,16 +187,24 @@ def _check_columns_arg(columns) -> dict:
         if unknown:
             parts.append(f"unknown {unknown}")
         raise RotoridError(f"columns must map all four channels x1, x2, y1, y2 (probe plane 1 = drive end) to "
-                           f"their amplitude and phase columns: {', '.join(parts)}")
+                           f"their amplitude and phase columns: {', '.join(parts)}"
+                           + (" (housing accelerometers: px1, px2, py1, py2)" if unknown else ""))
+    acc_given = [c for c in ACCELEROMETERS if c in columns]
+    if acc_given and len(acc_given) < len(ACCELEROMETERS):
+        acc_missing = [c for c in ACCELEROMETERS if c not in columns]
+        raise RotoridError(f"columns maps the housing accelerometer channel(s) {acc_given} but not {acc_missing}: a "
+                           "table has all four accelerometers px1, px2, py1, py2 (bearing housings 1 and 2, x and y) "
+                           "or none; map the missing channel(s) to their amplitude and phase columns")
+    chans = CHANNELS + (ACCELEROMETERS if acc_given else ())
     out = {}
-    for ch in CHANNELS:
+    for ch in chans:
         spec = columns[ch]
         if not isinstance(spec, dict) or set(spec) != {"amplitude", "phase"}:
             raise RotoridError(f"columns[{ch!r}] must be {{'amplitude': <column name>, 'phase': <column name>}}, "
                                f"got {spec!r}")
         out[ch] = {k: str(spec[k]) for k in ("amplitude", "phase")}
-    names = [_key(out[c][k]) for c in CHANNELS for k in ("amplitude", "phase")]
-    dup = sorted({out[c][k] for c in CHANNELS for k in ("amplitude", "phase") if names.count(_key(out[c][k])) > 1})
+    names = [_key(out[c][k]) for c in chans for k in ("amplitude", "phase")]
+    dup = sorted({out[c][k] for c in chans for k in ("amplitude", "phase") if names.count(_key(out[c][k])) > 1})
     if dup:
         raise RotoridError(f"columns uses the column(s) {dup} for more than one channel or quantity")
     return out
@@ -166,17 +223,27 @@ _BRACKETS = re.compile(r"[(\[{]([^)\]}]*)[)\]}]")
 _UNIT_TOKENS = {"mil": "mil", "mils": "mil", "um": "um", "µm": "um", "μm": "um", "micron": "um", "microns": "um",
                 "mm": "mm", "m": "m", "in": "in", "inch": "in", "inches": "in"}
 _AMBIGUOUS_OUTSIDE = {"m", "in", "inch"}   # English words / initials: only counted inside brackets
+# accelerations: <length>/s^2 (also s2, s², s**2, /s/s, /sec^2) and g (inside brackets only, as "m")
+_ACC_RE = re.compile(_B + r"(?P<u>[a-zµμ]+)\s*/\s*s(?:ec)?\s*(?:\^\s*2|\*\*\s*2|2|²|/\s*s(?:ec)?)" + _E)
+_VEL_RE = re.compile(_B + r"(?:(?:m|mm|cm|um|µm|μm|in|mil|mils|ft)\s*/\s*s(?:ec)?|ips|in/sec)" + _E)
 
 
 def _states(header: str) -> dict:
-    """Units and conventions a column header states: {'unit': {...}, 'amp': {...}, 'dir': {...},
-    'angle': {...}, 'speed': {...}}. Empty sets where it says nothing."""
+    """Units and conventions a column header states: {'unit': {...}, 'accel': {...},
+    'velocity': {...}, 'amp': {...}, 'dir': {...}, 'angle': {...}, 'speed': {...}}. Empty sets
+    where it says nothing. ``unit``: length units; ``accel``: acceleration units ("g",
+    "m/s^2", or e.g. "mm/s^2", which rotorid does not convert); ``velocity``: velocity units."""
     low = str(header).lower()
+    accel = {("m/s^2" if m.group("u") == "m" else f"{m.group('u')}/s^2") for m in _ACC_RE.finditer(low)}
+    low = _ACC_RE.sub(" ", low)                 # "m/s^2" is no length "m"
+    velocity = {m.group(0).replace(" ", "") for m in _VEL_RE.finditer(low)}
     inside = " ".join(_BRACKETS.findall(low))
     toks_all = re.findall(r"[a-zµμ]+", low)
     toks_in = set(re.findall(r"[a-zµμ]+", inside))
     unit = {_UNIT_TOKENS[t] for t in toks_all
             if t in _UNIT_TOKENS and (t not in _AMBIGUOUS_OUTSIDE or t in toks_in)}
+    if "g" in toks_in:
+        accel.add("g")
     amp = set()
     rest = low
     if _PKPK_RE.search(rest):
@@ -195,29 +262,64 @@ def _states(header: str) -> dict:
         speed.add("Hz")
     if "rad/s" in low.replace(" ", "") or "rad/sec" in low.replace(" ", ""):
         speed.add("rad/s")
-    return {"unit": unit, "amp": amp, "dir": direction, "angle": angle, "speed": speed}
+    return {"unit": unit, "accel": accel, "velocity": velocity, "amp": amp, "dir": direction, "angle": angle,
+            "speed": speed}
 
 
-def _check_headers(where, cols, speed_col, unit, amp_kind, phase_kind, angle_kind):
-    """A header that states a unit or convention contradicting the arguments raises."""
+def _check_headers(where, cols, speed_col, unit, amp_kind, phase_kind, angle_kind, accel_unit="g",
+                   accel_amp_kind=None):
+    """A header that states a unit or convention contradicting the arguments raises; so does an
+    acceleration unit on a probe column or a length (or velocity) unit on an accelerometer column."""
     f_arg = _length_factor(unit)
-    for ch in CHANNELS:
+    for ch in cols:
         a, p = cols[ch]["amplitude"], cols[ch]["phase"]
         st = _states(a)
-        wrong_units = sorted(u for u in st["unit"] if not math.isclose(units.factor(u, "length"), f_arg, rel_tol=1e-9))
-        if wrong_units:
-            raise RotoridError(f"{where}: column {a!r} ({ch} amplitude) states the unit {wrong_units[0]!r} but "
-                               f"unit={unit!r} was passed; pass unit={wrong_units[0]!r} (or fix the header if it "
-                               "is wrong)")
+        is_acc = ch in ACCELEROMETERS
+        if not is_acc and st["accel"]:
+            stated = sorted(st["accel"])[0]
+            raise RotoridError(f"{where}: column {a!r} ({ch} amplitude) states the acceleration unit {stated!r}, but "
+                               f"{ch} is a proximity probe channel (a displacement: mil, um, mm, m, in); map the "
+                               "housing accelerometers' columns to px1, px2, py1, py2 (or fix the header if it is "
+                               "wrong)")
+        if is_acc:
+            f_acc = _accel_factor(accel_unit)
+            if st["velocity"]:
+                stated = sorted(st["velocity"])[0]
+                raise RotoridError(f"{where}: column {a!r} ({ch} amplitude) states the velocity unit {stated!r}; the "
+                                   f"accelerometer channel {ch} takes accelerations (g, m/s^2): convert the column")
+            if st["unit"]:
+                stated = sorted(st["unit"])[0]
+                raise RotoridError(f"{where}: column {a!r} ({ch} amplitude) states the length unit {stated!r}, but "
+                                   f"{ch} is a housing accelerometer channel (an acceleration: g, m/s^2); map "
+                                   "displacement columns to x1, x2, y1, y2 (or fix the header if it is wrong)")
+            unknown = sorted(u for u in st["accel"] if _quantity(u) != "acceleration")
+            if unknown:
+                raise RotoridError(f"{where}: column {a!r} ({ch} amplitude) states the unit {unknown[0]!r}, which "
+                                   "rotorid does not convert; convert the column to g or m/s^2")
+            wrong_units = sorted(u for u in st["accel"]
+                                 if not math.isclose(units.factor(u, "acceleration"), f_acc, rel_tol=1e-9))
+            if wrong_units:
+                raise RotoridError(f"{where}: column {a!r} ({ch} amplitude) states the unit {wrong_units[0]!r} but "
+                                   f"accel_unit={accel_unit!r} was passed; pass accel_unit={wrong_units[0]!r} (or fix "
+                                   "the header if it is wrong)")
+            kind, arg = accel_amp_kind or amp_kind, "accel_amplitude"
+        else:
+            wrong_units = sorted(u for u in st["unit"]
+                                 if not math.isclose(units.factor(u, "length"), f_arg, rel_tol=1e-9))
+            if wrong_units:
+                raise RotoridError(f"{where}: column {a!r} ({ch} amplitude) states the unit {wrong_units[0]!r} but "
+                                   f"unit={unit!r} was passed; pass unit={wrong_units[0]!r} (or fix the header if it "
+                                   "is wrong)")
+            kind, arg = amp_kind, "amplitude"
         if "rms" in st["amp"]:
             raise RotoridError(f"{where}: column {a!r} ({ch} amplitude) states rms; give pk-pk or 0-pk amplitudes "
                                "(for a pure 1X sinusoid 0-pk = sqrt(2) x rms)")
         if len(st["amp"]) > 1:
             raise RotoridError(f"{where}: column {a!r} ({ch} amplitude) states both pk-pk and 0-pk; fix the header")
-        if st["amp"] and amp_kind not in st["amp"]:
+        if st["amp"] and kind not in st["amp"]:
             stated = next(iter(st["amp"]))
-            raise RotoridError(f"{where}: column {a!r} ({ch} amplitude) states {stated} but amplitude={amp_kind!r} "
-                               f"was passed: that is a factor 2 in every vector; pass amplitude={stated!r} (or fix "
+            raise RotoridError(f"{where}: column {a!r} ({ch} amplitude) states {stated} but {arg}={kind!r} "
+                               f"was passed: that is a factor 2 in every vector; pass {arg}={stated!r} (or fix "
                                "the header if it is wrong)")
         sp = _states(p)
         if len(sp["dir"]) > 1 or len(sp["angle"]) > 1:
@@ -266,7 +368,7 @@ def _key(name) -> str:
 
 
 def _wanted(cols, speed_column) -> list:
-    names = [cols[c][k] for c in CHANNELS for k in ("amplitude", "phase")]
+    names = [cols[c][k] for c in cols for k in ("amplitude", "phase")]
     if speed_column != "auto":
         names.append(str(speed_column))
     return names
@@ -514,7 +616,7 @@ def _to_numbers(cols: dict, first_row: int, where: str) -> tuple:
 
 def load_1x_table(path, *, columns, speed_column="auto", amplitude="pk-pk", unit="mil", phase="lag",
                   phase_unit="deg", sheet=None, skip_rows="auto", name=None, meta=None, amplitude_std=None,
-                  phase_std_deg=None) -> TableTrack:
+                  phase_std_deg=None, accel_unit="g", accel_amplitude=None, accel_amplitude_std=None) -> TableTrack:
     """Read a DAQ's 1X table (amplitude and phase per speed) into a SyncTrack.
 
     Parameters
@@ -527,17 +629,20 @@ def load_1x_table(path, *, columns, speed_column="auto", amplitude="pk-pk", unit
     columns : dict
         ``{"x1": {"amplitude": <column>, "phase": <column>}, "x2": ..., "y1": ..., "y2": ...}``:
         the table's columns of each canonical channel (x horizontal, y vertical, 1 = drive-end
-        probe plane). All four are required. Column names are matched ignoring case and repeated
-        blanks; other columns of the file are ignored.
+        probe plane). All four are required. With flexible pedestals also ``"px1"``, ``"px2"``,
+        ``"py1"``, ``"py2"`` (same form): the 1X acceleration of the bearing-housing
+        accelerometers (housing 1 = drive end, x and y), all four or none. Column names are matched
+        ignoring case and repeated blanks; other columns of the file are ignored.
     speed_column : str
         Column of the speed in rpm. ``"auto"``: the one column (not used in ``columns``) whose
         name contains "speed" or "rpm", case-insensitive.
     amplitude : {"pk-pk", "0-pk"}
         What the amplitude columns hold (also "pp", "peak-to-peak"; "0-p", "peak").
     unit : str
-        Length unit of the amplitudes (any of ``rotorid.units``: mil, um, µm, mm, m, in).
+        Length unit of the probes' amplitudes (any of ``rotorid.units``: mil, um, µm, mm, m, in).
     phase : {"lag", "lead"}
-        "lag": the DAQ convention, X = A e^{-j lag}; "lead" or "arg": X = A e^{+j phase}.
+        "lag": the DAQ convention, X = A e^{-j lag}; "lead" or "arg": X = A e^{+j phase}. The
+        accelerometers' phases too.
     phase_unit : {"deg", "rad"}
     sheet : str or int, optional
         Excel sheet (name or 0-based index); default the first.
@@ -547,13 +652,29 @@ def load_1x_table(path, *, columns, speed_column="auto", amplitude="pk-pk", unit
         Name of the run (default: file name without extension).
     meta : dict, optional
         Stored in the result's ``meta`` (with the reader's arguments and the preamble lines).
+    amplitude_std, phase_std_deg : float, optional
+        The DAQ's stated accuracy: standard deviation of an amplitude (in ``unit``, as
+        ``amplitude``) and of a phase (deg), independent errors; gives ``cov`` (``dof`` inf).
+        Default: unknown (NaN).
+    accel_unit : str
+        Acceleration unit of the accelerometers' amplitudes: "g" (9.80665 m/s²), "m/s^2" or
+        "m/s2". Used only with accelerometer columns.
+    accel_amplitude : {"pk-pk", "0-pk"}, optional
+        What the accelerometers' amplitude columns hold; default: as ``amplitude``.
+    accel_amplitude_std : float, optional
+        Standard deviation of an accelerometer amplitude (in ``accel_unit``, as
+        ``accel_amplitude``); needed for ``pedestal_cov`` when ``amplitude_std`` is given.
 
     Returns
     -------
     TableTrack
         A :class:`~rotorid.signals.SyncTrack` with ``orders=(1,)``, ``vectors`` (n, 1, 4) complex
         (m, 0-pk, x(t) = Re(X e^{jΩt})), ``speed_rpm`` ascending, ``n_revs``, ``scatter`` and
-        ``t_mid`` NaN.
+        ``t_mid`` NaN. With accelerometer columns also ``pedestal`` (n, 1, 4) complex, the
+        housings' displacement [xp1, xp2, yp1, yp2] = -A / Ω² of each row's acceleration
+        phasor A (m/s², 0-pk) at the row's speed Ω (rad/s), ``pedestal_cov`` (n, 8, 8) its
+        covariance when the accuracy is given (``pedestal_cross`` then 0: the channels' errors
+        are independent), else NaN.
 
     Raises
     ------
@@ -561,11 +682,14 @@ def load_1x_table(path, *, columns, speed_column="auto", amplitude="pk-pk", unit
         One clear message naming the file, the column and the rows (numbered as in the file:
         CSV line, spreadsheet row) for: a named column missing; a header stating a unit, pk-pk /
         0-pk, lag / lead or deg / rad that contradicts the arguments (e.g. ``Amp (mil pp)`` read with
-        ``amplitude="0-pk"``: a factor 2); non-numeric cells; blank speeds; rows with some
+        ``amplitude="0-pk"``: a factor 2); an acceleration unit on a probe column or a length or
+        velocity unit on an accelerometer column (naming column and channel); some but not all
+        four accelerometer channels in ``columns``; non-numeric cells; blank speeds; rows with some
         channels blank (nothing is dropped silently; rows blank in every used column are blank
-        lines); duplicated speeds; speeds <= 0; negative amplitudes; phases beyond ±360 deg or
-        beyond ±2π rad ("looks like degrees"); degree phases that all lie within ±2π in a table of
-        more than 5 rows ("looks like radians labelled degrees"); fewer than 2 rows.
+        lines; "NaN" cells are blank); duplicated speeds; speeds <= 0; negative amplitudes; phases
+        beyond ±360 deg or beyond ±2π rad ("looks like degrees"); degree phases that all lie within
+        ±2π in a table of more than 5 rows ("looks like radians labelled degrees"); fewer than 2
+        rows.
 
     Examples
     --------
@@ -577,11 +701,27 @@ def load_1x_table(path, *, columns, speed_column="auto", amplitude="pk-pk", unit
     ((13, 1, 4), (1,))
     >>> round(float(t.speed_rpm[0]))
     3000
+
+    A table with the housing accelerometers (here in g 0-pk beside the probes' mil pk-pk):
+
+    >>> import tempfile, numpy as np
+    >>> p = os.path.join(tempfile.mkdtemp(), "ped.csv")
+    >>> amp = ",".join(f"{c} amp,{c} ph" for c in ("x1", "x2", "y1", "y2", "px1", "px2", "py1", "py2"))
+    >>> row = ",".join(["1.0,30.0"] * 4 + ["0.01,100.0"] * 4)
+    >>> _ = open(p, "w").write(f"rpm,{amp}\\n3000,{row}\\n3600,{row}\\n")
+    >>> cols = {c: {"amplitude": f"{c} amp", "phase": f"{c} ph"} for c in tb.CHANNELS + tb.ACCELEROMETERS}
+    >>> t = tb.load_1x_table(p, columns=cols, accel_unit="g", accel_amplitude="0-pk")
+    >>> t.has_pedestal, t.pedestal.shape
+    (True, (2, 1, 4))
+    >>> round(float(np.abs(t.pedestal[0, 0, 0])) * 1e6, 3)      # 0.01 g at 50 Hz: 0.994 µm
+    0.994
     """
     from ._validate import mapping, number, path as _path, text
 
     path = _path("path", path)
     cols = _check_columns_arg(columns)
+    chans = tuple(cols)                                   # CHANNELS (+ ACCELEROMETERS)
+    has_ped = len(chans) > len(CHANNELS)
     speed_column = text("speed_column", speed_column)
     if not (isinstance(skip_rows, str) and skip_rows == "auto") and (
             isinstance(skip_rows, (bool, np.bool_)) or not isinstance(skip_rows, (int, np.integer)) or skip_rows < 0):
@@ -593,10 +733,25 @@ def load_1x_table(path, *, columns, speed_column="auto", amplitude="pk-pk", unit
     meta = mapping("meta", meta)
     amplitude_std = number("amplitude_std", amplitude_std, nonneg=True, allow_none=True)
     phase_std_deg = number("phase_std_deg", phase_std_deg, nonneg=True, allow_none=True)
+    accel_amplitude_std = number("accel_amplitude_std", accel_amplitude_std, nonneg=True, allow_none=True)
     amp_kind = _amplitude_kind(amplitude)
     phase_kind = _phase_kind(phase)
     angle_kind = _angle_kind(phase_unit)
     f_len = _length_factor(unit)
+    f_acc = _accel_factor(accel_unit)
+    acc_amp_kind = amp_kind if accel_amplitude is None else \
+        _kind(accel_amplitude, "accel_amplitude", {"pk-pk": _PKPK, "0-pk": _ZPK},
+              "'pk-pk' (also 'pp', 'peak-to-peak') or '0-pk' (also '0-p', 'peak')")
+    if accel_amplitude_std is not None:
+        if not has_ped:
+            raise RotoridError("accel_amplitude_std was given but columns maps no housing accelerometer channels "
+                               "(px1, px2, py1, py2)")
+        if amplitude_std is None and phase_std_deg is None:
+            raise RotoridError("accel_amplitude_std was given without amplitude_std / phase_std_deg: give the "
+                               "probes' accuracy too (the phase accuracy is shared)")
+    if has_ped and amplitude_std is not None and accel_amplitude_std is None:
+        raise RotoridError("amplitude_std was given for the probes but accel_amplitude_std (in accel_unit) is "
+                           "missing for the housing accelerometers px1, px2, py1, py2: give both (0 if exact)")
     if not path.is_file():
         raise RotoridError(f"no such file: {path}")
     ext = path.suffix.lower()
@@ -616,7 +771,7 @@ def load_1x_table(path, *, columns, speed_column="auto", amplitude="pk-pk", unit
     keys = [_key(c) for c in header]
     pos = {k: j for j, k in enumerate(keys) if k}
     # speed column
-    used = {_key(cols[c][k]) for c in CHANNELS for k in ("amplitude", "phase")}
+    used = {_key(cols[c][k]) for c in chans for k in ("amplitude", "phase")}
     if speed_column == "auto":
         cand = [header[j] for j, k in enumerate(keys) if k and k not in used and ("speed" in k or "rpm" in k)]
         if len(cand) != 1:
@@ -628,7 +783,7 @@ def load_1x_table(path, *, columns, speed_column="auto", amplitude="pk-pk", unit
         speed_col = str(cand[0]).strip()
     else:
         speed_col = str(speed_column)
-    names = [speed_col] + [cols[c][k] for c in CHANNELS for k in ("amplitude", "phase")]
+    names = [speed_col] + [cols[c][k] for c in chans for k in ("amplitude", "phase")]
     if _key(speed_col) in used:
         raise RotoridError(f"speed_column={speed_col!r} is also one of the channel columns")
     for nm in names:
@@ -638,13 +793,13 @@ def load_1x_table(path, *, columns, speed_column="auto", amplitude="pk-pk", unit
         if len(j) > 1:
             raise RotoridError(f"{where}: the header names the column {nm!r} {len(j)} times (columns "
                                f"{', '.join(str(x + 1) for x in j)}); which one holds the data is ambiguous")
-    _check_headers(where, cols, speed_col, unit, amp_kind, phase_kind, angle_kind)
+    _check_headers(where, cols, speed_col, unit, amp_kind, phase_kind, angle_kind, accel_unit, acc_amp_kind)
     raw = {n: data[pos[_key(n)]] for n in names}
     nums, blank = _to_numbers(raw, first_row, where)
     nrow = len(raw[speed_col])
     rownum = first_row + np.arange(nrow)
     ch_names = names[1:]
-    ch_blank = np.stack([blank[n] for n in ch_names], axis=1)        # (rows, 8)
+    ch_blank = np.stack([blank[n] for n in ch_names], axis=1)        # (rows, 8 or 16)
     sp_blank = blank[speed_col]
     empty = sp_blank & ch_blank.all(axis=1)
     # rows blank in every used column are blank lines (e.g. at the end of an export)
@@ -675,15 +830,15 @@ def load_1x_table(path, *, columns, speed_column="auto", amplitude="pk-pk", unit
                  for u in np.nonzero(cnt > 1)[0][:_MAX_LIST]]
         raise RotoridError(f"{where}: duplicated speeds in column {speed_col!r}: {'; '.join(parts)}; a table must have "
                            "one row per speed (average or delete the repeats)")
-    amp = np.stack([nums[cols[c]["amplitude"]][keep] for c in CHANNELS], axis=1)
-    ph = np.stack([nums[cols[c]["phase"]][keep] for c in CHANNELS], axis=1)
-    for j, c in enumerate(CHANNELS):
+    amp = np.stack([nums[cols[c]["amplitude"]][keep] for c in chans], axis=1)
+    ph = np.stack([nums[cols[c]["phase"]][keep] for c in chans], axis=1)
+    for j, c in enumerate(chans):
         neg = amp[:, j] < 0
         if neg.any():
             raise RotoridError(f"{where}: column {cols[c]['amplitude']!r} ({c} amplitude) has negative amplitudes in "
                                f"{_rows_text(rownum[neg])}; an amplitude is a magnitude (the sign belongs in the phase)")
     lim = 360.0 if angle_kind == "deg" else 2 * np.pi
-    for j, c in enumerate(CHANNELS):
+    for j, c in enumerate(chans):
         over = np.abs(ph[:, j]) > lim * (1 + 1e-9)
         if over.any():
             col = cols[c]["phase"]
@@ -694,20 +849,29 @@ def load_1x_table(path, *, columns, speed_column="auto", amplitude="pk-pk", unit
                                f"{_rows_text(rownum[over])} (e.g. {ph[over, j][0]:g}): looks like degrees; pass "
                                "phase_unit='deg'")
     if angle_kind == "deg" and n > 5 and np.all(np.abs(ph) <= 2 * np.pi):
-        # every phase column within ±2π over more than 5 speeds: radians. (All four columns, not each
+        # every phase column within ±2π over more than 5 speeds: radians. (All columns, not each
         # one alone: one probe's degree phase can stay within ±6° over a run, four together cannot.)
-        raise RotoridError(f"{where}: the phase columns {[cols[c]['phase'] for c in CHANNELS]} all lie within ±2π "
+        raise RotoridError(f"{where}: the phase columns {[cols[c]['phase'] for c in chans]} all lie within ±2π "
                            f"over {n} rows (rows {rownum[0]}-{rownum[-1]}): looks like radians labelled degrees; "
                            "pass phase_unit='rad'")
-    a_si = amp * f_len * (0.5 if amp_kind == "pk-pk" else 1.0)
+    half = {"pk-pk": 0.5, "0-pk": 1.0}
+    f_amp = np.array([f_len * half[amp_kind]] * len(CHANNELS) + [f_acc * half[acc_amp_kind]] * (len(chans) - 4))
+    a_si = amp * f_amp[None, :]
     ph_rad = np.deg2rad(ph) if angle_kind == "deg" else ph
     sign = -1.0 if phase_kind == "lag" else 1.0
-    q = a_si * np.exp(1j * sign * ph_rad)
+    z = a_si * np.exp(1j * sign * ph_rad)
     order = np.argsort(speed, kind="stable")
-    q = q[order]
+    z = z[order]
     speed = speed[order]
+    q = z[:, :4]
     info = {"columns": cols, "speed_column": speed_col, "amplitude": amp_kind, "unit": str(unit),
             "phase": phase_kind, "phase_unit": angle_kind, "rows": [int(r) for r in rownum[order]]}
+    ped = {}
+    if has_ped:
+        # housing displacement from its 1X acceleration at the row's speed: a = -Ω² x
+        om2 = (speed * units.factor("rpm", "speed")) ** 2
+        ped["pedestal"] = (-z[:, 4:] / om2[:, None])[:, None, :]
+        info.update(accel_unit=str(accel_unit), accel_amplitude=acc_amp_kind)
     if ext in _TEXT_EXT:
         info["preamble"] = _preamble(path, first_row - 2)
     if sheet is not None:
@@ -716,16 +880,22 @@ def load_1x_table(path, *, columns, speed_column="auto", amplitude="pk-pk", unit
     m.setdefault("table", info)
     cov, dof = None, None
     if amplitude_std is not None or phase_std_deg is not None:
-        sa = number("amplitude_std", amplitude_std or 0.0, nonneg=True) * f_len * (0.5 if amp_kind == "pk-pk" else 1.0)
+        sa = number("amplitude_std", amplitude_std or 0.0, nonneg=True) * f_len * half[amp_kind]
         sp = np.deg2rad(number("phase_std_deg", phase_std_deg or 0.0, nonneg=True))
-        if not (np.isfinite(sa) and np.isfinite(sp) and sa >= 0 and sp >= 0) or (sa == 0 and sp == 0):
+        sa_acc = (accel_amplitude_std or 0.0) * f_acc * half[acc_amp_kind]
+        if not (np.isfinite(sa) and np.isfinite(sp) and sa >= 0 and sp >= 0) or (sa == 0 and sp == 0 and sa_acc == 0):
             raise RotoridError(f"{where}: amplitude_std and phase_std_deg must be finite and >= 0 (one > 0), got "
                                f"{amplitude_std!r}, {phase_std_deg!r}")
         cov = polar_covariance(q, sa, sp)
         dof = np.full(n, np.inf)
+        if has_ped:
+            # the acceleration's covariance scaled by 1/Ω⁴ (P = -A/Ω²: the sign leaves it unchanged);
+            # every channel's reading has its own error: no cross-covariance with the probes
+            ped["pedestal_cov"] = polar_covariance(z[:, 4:], sa_acc, sp) / (om2 ** 2)[:, None, None]
+            ped["pedestal_cross"] = np.zeros((n, 8, 8))
     return TableTrack(speed.astype(float), q[:, None, :], (1,), np.full(n, np.nan), np.full((n, 4), np.nan),
                       np.full(n, np.nan), [], cov, dof, name=name if name is not None else path.stem,
-                      source=str(path), meta=m)
+                      source=str(path), meta=m, **ped)
 
 
 def polar_covariance(q, amplitude_std_m: float, phase_std_rad: float) -> np.ndarray:
@@ -782,7 +952,7 @@ def _interp_1x(sp, v, g):
     return v[i] * (1 - w)[:, None] + v[i + 1] * w[:, None]
 
 
-def match_speeds(tracks, *, grid=None, tolerance_rpm=2.0):
+def match_speeds(tracks, *, grid=None, tolerance_rpm=2.0, pedestal=False):
     """A common speed grid for several runs, with each run's 1X vectors on it.
 
     Runs recorded at "the same" speeds never are: a DAQ's speeds differ by fractions of an rpm
@@ -802,6 +972,10 @@ def match_speeds(tracks, *, grid=None, tolerance_rpm=2.0):
         their end speeds).
     tolerance_rpm : float
         Largest distance (rpm) from a grid speed to the nearest measured speed of every run.
+    pedestal : bool
+        Also return each run's 1X pedestal (housing) motion on the grid, interpolated in the same
+        way; every run must then carry it (tables with accelerometer columns px1, px2, py1, py2,
+        or tracks with ``pedestal=True``).
 
     Returns
     -------
@@ -809,6 +983,9 @@ def match_speeds(tracks, *, grid=None, tolerance_rpm=2.0):
         Ascending speeds, rpm.
     vectors : list of ndarray (n, 4) complex
         Each run's 1X vectors [x1, x2, y1, y2] at ``grid`` (SI, as in the tracks).
+    pedestals : list of ndarray (n, 4) complex
+        Only with ``pedestal=True``: each run's 1X housing displacement [xp1, xp2, yp1, yp2] at
+        ``grid`` (m, 0-pk), for ``SyncResponse(..., pedestal=...)``.
 
     Warns
     -----
@@ -820,6 +997,7 @@ def match_speeds(tracks, *, grid=None, tolerance_rpm=2.0):
     ------
     RotoridError
         No common speed range, or no grid speed left; the message names the runs and their ranges.
+        With ``pedestal=True``, a run without pedestal motion (named).
 
     Examples
     --------
@@ -851,8 +1029,11 @@ def match_speeds(tracks, *, grid=None, tolerance_rpm=2.0):
         raise RotoridError("match_speeds: no tracks given")
     from ._validate import number
 
+    from ._validate import flag
+
     tol = number("tolerance_rpm", tolerance_rpm, positive=True)
-    labels, sps, vs = [], [], []
+    pedestal = flag("pedestal", pedestal)
+    labels, sps, vs, ps = [], [], [], []
     for i, (t, k) in enumerate(zip(tracks, keys)):
         if not isinstance(t, SyncTrack):
             raise RotoridError(f"match_speeds: track {i} must be a SyncTrack (from load_1x_table or signals.track), "
@@ -864,6 +1045,8 @@ def match_speeds(tracks, *, grid=None, tolerance_rpm=2.0):
         v = np.asarray(t.order(1))
         o = np.argsort(sp, kind="stable")
         sp, v = sp[o], v[o]
+        if pedestal:
+            ps.append(np.asarray(t.pedestal[:, t.orders.index(1), :])[o] if t.has_pedestal else None)
         if np.any(np.diff(sp) == 0):
             d = sp[1:][np.diff(sp) == 0]
             raise RotoridError(f"match_speeds: {lab!r} has the speed(s) {np.unique(d).tolist()} rpm more than once")
@@ -873,6 +1056,10 @@ def match_speeds(tracks, *, grid=None, tolerance_rpm=2.0):
     dup = sorted({x for x in labels if labels.count(x) > 1})
     if dup:  # name runs unambiguously in messages
         labels = [f"{lab} (#{i})" if lab in dup else lab for i, lab in enumerate(labels)]
+    if pedestal and any(p is None for p in ps):
+        without = [lab for lab, p in zip(labels, ps) if p is None]
+        raise RotoridError(f"match_speeds: pedestal=True but {without} carr{'y' if len(without) > 1 else 'ies'} no "
+                           "pedestal motion (no accelerometer columns px1, px2, py1, py2 / channels tracked)")
     lo = max(s[0] for s in sps)
     hi = min(s[-1] for s in sps)
     ranges = "; ".join(f"{lab!r}: {s[0]:.1f}-{s[-1]:.1f} rpm" for lab, s in zip(labels, sps))
@@ -920,7 +1107,10 @@ def match_speeds(tracks, *, grid=None, tolerance_rpm=2.0):
         g = g[~far]
     if g.size == 0:
         raise RotoridError(f"match_speeds: no grid speed inside the range all runs share ({ranges})")
-    return g, [_interp_1x(sp, v, g) for sp, v in zip(sps, vs)]
+    out = [_interp_1x(sp, v, g) for sp, v in zip(sps, vs)]
+    if pedestal:
+        return g, out, [_interp_1x(sp, p, g) for sp, p in zip(sps, ps)]
+    return g, out
 
 
 def _speeds_text(s) -> str:
@@ -939,6 +1129,10 @@ def slow_roll_vector(track, *, max_rpm=None) -> np.ndarray:
     For tables that are not already slow-roll compensated (a DAQ may have subtracted a slow-roll
     vector before exporting: then do not subtract again). The slow roll must be slow enough for the
     dynamic response to be negligible (it scales with speed² well below the first critical speed).
+
+    Run-out is the probes' alone (a shaft surface seen by a proximity probe): a table's housing
+    accelerometers (``pedestal``) have none, and ``track.minus(vector)`` leaves its pedestal
+    motion as it is.
 
     Parameters
     ----------
@@ -983,15 +1177,17 @@ def slow_roll_vector(track, *, max_rpm=None) -> np.ndarray:
 # write
 
 
-def _adre_columns(amp_kind, unit, phase_kind) -> dict:
-    a = "pp" if amp_kind == "pk-pk" else "0-pk"
-    u = _norm(unit)
-    u = {"µm": "um", "μm": "um", "micron": "um", "microns": "um", "mils": "mil"}.get(u, u)
-    return {ch: {"amplitude": f"{pt} 1X Amp ({u} {a})", "phase": f"{pt} 1X Phase (deg {phase_kind})"}
-            for ch, pt in ADRE_POINTS.items()}
+def _adre_columns(amp_kind, unit, phase_kind, accel=None) -> dict:
+    """Column names of the "adre" layout, in the DAQ's order; ``accel`` = (amplitude kind, unit)
+    adds the housing accelerometers' columns after the probes'."""
+    pts = [(ADRE_POINTS, amp_kind, unit)] + ([(ADRE_ACCEL_POINTS, *accel)] if accel is not None else [])
+    return {ch: {"amplitude": f"{pt} 1X Amp ({_unit_label(u)} {'pp' if kind == 'pk-pk' else '0-pk'})",
+                 "phase": f"{pt} 1X Phase (deg {phase_kind})"}
+            for points, kind, u in pts for ch, pt in points.items()}
 
 
-def save_1x_table(track, path, *, layout="adre", amplitude="pk-pk", unit="mil", phase="lag", preamble=None) -> dict:
+def save_1x_table(track, path, *, layout="adre", amplitude="pk-pk", unit="mil", phase="lag", preamble=None,
+                  accel_unit="g", accel_amplitude=None) -> dict:
     """Write a 1X table as a vibration DAQ exports it (CSV), and return the ``columns`` that read it back.
 
     Layout ``"adre"`` (a Bently Nevada ADRE / System 1 style tabular list)::
@@ -1004,6 +1200,12 @@ def save_1x_table(track, path, *, layout="adre", amplitude="pk-pk", unit="mil", 
 
     Points DE X, DE Y, FE X, FE Y = x1, y1, x2, y2. Amplitudes rounded as a DAQ prints them (0.001
     mil, 0.01 µm, ...), phases to 0.1 deg (lag in [0, 360), lead in (-180, 180]), speeds to 0.1 rpm.
+
+    A track with pedestal motion (``track.has_pedestal``) also gets the housing accelerometers'
+    columns after the probes': points DE HSG X, DE HSG Y, FE HSG X, FE HSG Y = px1, py1, px2, py2,
+    e.g. ``DE HSG X 1X Amp (g pp)``, holding the 1X acceleration A = -Ω² P of the pedestal
+    displacement P at the track's (unrounded) speed, in ``accel_unit`` to 0.00001 g or 0.0001 m/s²,
+    with the phase of A.
 
     Parameters
     ----------
@@ -1019,12 +1221,17 @@ def save_1x_table(track, path, *, layout="adre", amplitude="pk-pk", unit="mil", 
     preamble : dict, optional
         Preamble lines ``{key: value}``; default: Machine, Run (the track's name), Data type and the
         track's ``meta["preamble"]`` entries if it is a dict.
+    accel_unit : {"g", "m/s^2", "m/s2"}
+        Acceleration unit of the accelerometers' amplitudes (tracks with pedestal motion).
+    accel_amplitude : {"pk-pk", "0-pk"}, optional
+        What the accelerometers' amplitudes are; default: as ``amplitude``.
 
     Returns
     -------
     dict
         The ``columns`` mapping for :func:`load_1x_table` (with the same ``amplitude``, ``unit``,
-        ``phase``).
+        ``phase``, and ``accel_unit``, ``accel_amplitude`` for a track with pedestal motion), with
+        px1, px2, py1, py2 when the track has pedestal motion.
 
     Examples
     --------
@@ -1050,15 +1257,29 @@ def save_1x_table(track, path, *, layout="adre", amplitude="pk-pk", unit="mil", 
     amp_kind = _amplitude_kind(amplitude)
     phase_kind = _phase_kind(phase)
     f_len = _length_factor(unit)
+    f_acc = _accel_factor(accel_unit)
+    acc_amp_kind = amp_kind if accel_amplitude is None else \
+        _kind(accel_amplitude, "accel_amplitude", {"pk-pk": _PKPK, "0-pk": _ZPK},
+              "'pk-pk' (also 'pp', 'peak-to-peak') or '0-pk' (also '0-p', 'peak')")
     u = _norm(unit)
-    dec = _AMP_DECIMALS.get(u, 3)
+    has_ped = track.has_pedestal
+    chans = CHANNELS + (ACCELEROMETERS if has_ped else ())
+    dec = [_AMP_DECIMALS.get(u, 3)] * 4 + [_ACC_DECIMALS.get(_norm(accel_unit), 5)] * (len(chans) - 4)
     sp = np.asarray(track.speed_rpm, float)
     v = np.asarray(track.order(1))
+    if has_ped:
+        # the accelerometers read A = -Ω² P (1X, at the track's speed)
+        a_acc = -(sp * units.factor("rpm", "speed"))[:, None] ** 2 * np.asarray(track.pedestal)[:, track.orders.index(1), :]
+        if not np.all(np.isfinite(a_acc)):
+            raise RotoridError("save_1x_table: the track has NaN or inf pedestal motion")
+        v = np.concatenate([v, a_acc], axis=1)
     if not (np.all(np.isfinite(sp)) and np.all(np.isfinite(v))):
         raise RotoridError("save_1x_table: the track has NaN or inf speeds or vectors")
     o = np.argsort(sp, kind="stable")
     sp, v = sp[o], v[o]
-    amp = np.abs(v) / f_len * (2.0 if amp_kind == "pk-pk" else 1.0)
+    scale = np.array([(2.0 if amp_kind == "pk-pk" else 1.0) / f_len] * 4
+                     + [(2.0 if acc_amp_kind == "pk-pk" else 1.0) / f_acc] * (len(chans) - 4))
+    amp = np.abs(v) * scale[None, :]
     ang = np.rad2deg(np.angle(v)) * (-1.0 if phase_kind == "lag" else 1.0)
     ang = np.round(ang, 1)
     if phase_kind == "lag":
@@ -1066,18 +1287,18 @@ def save_1x_table(track, path, *, layout="adre", amplitude="pk-pk", unit="mil", 
         ang = np.where(ang >= 359.95, 0.0, ang)
     else:
         ang = np.where(ang <= -180.0, ang + 360.0, ang)
-    cols = _adre_columns(amp_kind, unit, phase_kind)
+    cols = _adre_columns(amp_kind, unit, phase_kind, (acc_amp_kind, accel_unit) if has_ped else None)
     meta = getattr(track, "meta", {}) or {}
     if preamble is None:
         preamble = {"Machine": meta.get("machine", "rotorid"), "Run": getattr(track, "name", None) or "",
                     "Data type": "1X filtered"}
         if isinstance(meta.get("preamble"), dict):
             preamble.update(meta["preamble"])
-    order_pts = list(ADRE_POINTS.items())
+    order_pts = list(ADRE_POINTS.items()) + (list(ADRE_ACCEL_POINTS.items()) if has_ped else [])
     header = ["Sample", "Speed (rpm)"]
     for ch, _ in order_pts:
         header += [cols[ch]["amplitude"], cols[ch]["phase"]]
-    idx = {ch: CHANNELS.index(ch) for ch in CHANNELS}
+    idx = {ch: chans.index(ch) for ch in chans}
     lines = [f"{k}: {val}" for k, val in preamble.items()]
     broken = [ln for ln in lines if "\n" in ln or "\r" in ln]
     if broken:
@@ -1088,8 +1309,8 @@ def save_1x_table(track, path, *, layout="adre", amplitude="pk-pk", unit="mil", 
         cells = [str(r + 1), f"{sp[r]:.1f}"]
         for ch, _ in order_pts:
             j = idx[ch]
-            a = round(float(amp[r, j]), dec)
-            cells += [f"{a:.{dec}f}", f"{ang[r, j] + 0.0:.1f}"]
+            a = round(float(amp[r, j]), dec[j])
+            cells += [f"{a:.{dec[j]}f}", f"{ang[r, j] + 0.0:.1f}"]
         lines.append(",".join(cells))
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
