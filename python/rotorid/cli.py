@@ -121,7 +121,8 @@ def _demo(args):
                          args.phase_resolution_deg is None or args.phase_resolution_deg >= 0)):
         if not ok or (v is not None and v != v):
             raise RotoridError(f"{name} must be >= 0, got {v:g}")
-    folder = ResultsFolder(args.out, patterns=["table5_*", "campbell.*", "figure*"], overwrite=args.overwrite,
+    folder = ResultsFolder(args.out, patterns=["table5_*", "campbell.*", "figure*", "pedestal_*", "impact_time_*"],
+                           overwrite=args.overwrite,
                            command="rotorid demo")
     base = ProbeResolution()
     res = ProbeResolution(
@@ -130,10 +131,12 @@ def _demo(args):
         noise_m=args.noise_um * 1e-6)
     out = demo.synchronous(args.out, step_rpm=args.step_rpm, resolution=res)
     imp = demo.impact(args.out)
-    for f in out["files"] + imp["files"]:
+    ped = demo.pedestal(args.out)
+    files = out["files"] + imp["files"] + ped["files"]
+    for f in files:
         folder.record(os.path.basename(f))
     folder.finish()
-    print(f"wrote {len(out['files']) + len(imp['files'])} files to {args.out}/")
+    print(f"wrote {len(files)} files to {args.out}/")
     return 0
 
 

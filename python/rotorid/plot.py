@@ -156,6 +156,56 @@ def coefficients(ident, truth=None, *, title="", path=None, show_flagged=True, y
     return finish(fig, path)
 
 
+def pedestal_compensation(without, with_pedestal, truth, *, title="", path=None):
+    """Direct stiffness and damping of both bearings identified from the same runs, ignoring the
+    pedestals' motion (left) and with it (right), on shared axes, with 95 % intervals and the
+    truth (BearingCoefficients) as lines."""
+    from .identify import Identification
+    from .model import BearingCoefficients
+
+    for name, v in (("without", without), ("with_pedestal", with_pedestal)):
+        _v.instance(name, v, Identification, what="rotorid Identification")
+    _v.instance("truth", truth, BearingCoefficients, what="rotorid.BearingCoefficients")
+    title, path = _v.text("title", title), _path(path)
+    plt = _plt()
+    fig, axes = plt.subplots(2, 2, figsize=(13, 8), sharex=True, sharey="row")
+    direct = [(b, i) for b in range(2) for i in range(2)]
+    for col, (ident, head) in enumerate(((without, "pedestal motion ignored"),
+                                         (with_pedestal, "with the housing accelerometers"))):
+        x = ident.axis
+        kk, cc = truth.at(speed_rpm=x) if not truth.is_constant else truth.at()
+        iv = ident.interval(0.95)
+        for row, (sym, arr, lo, hi, tv, scale, unit) in enumerate((
+                ("K", ident.k, iv.k_lower, iv.k_upper, kk, 1e-6, "Direct stiffness (MN/m)"),
+                ("C", ident.c, iv.c_lower, iv.c_upper, cc, 1e-3, "Direct damping (kN·s/m)"))):
+            ax = axes[row, col]
+            for m, (b, i) in enumerate(direct):
+                y = arr[:, b, i, i] * scale
+                err = 0.5 * (hi - lo)[:, b, i, i] * scale
+                line = ax.plot(x, y, "osv^"[m], ms=3, label=f"{sym}{'xy'[i] * 2}{b + 1}")[0]
+                has = np.isfinite(err)
+                ax.errorbar(x[has], y[has], yerr=err[has], fmt="none", ecolor=line.get_color(), elinewidth=0.7,
+                            alpha=0.6)
+                ax.plot(x, np.broadcast_to(tv[..., b, i, i], x.shape) * scale, "-", color=line.get_color(), lw=1)
+            ax.set_title(head if row == 0 else "")
+            ax.grid(True, alpha=0.3)
+            if col == 0:
+                ax.set_ylabel(unit)
+            if row == 1:
+                ax.set_xlabel("Rotor speed (rpm)")
+            ax.legend(fontsize=8, ncol=2)
+    # the axes follow the compensated result (the truth's scale); the erratic values leave them
+    for row, arr, scale in ((0, with_pedestal.k, 1e-6), (1, with_pedestal.c, 1e-3)):
+        vals = np.concatenate([arr[:, b, i, i] * scale for b, i in direct])
+        vals = vals[np.isfinite(vals)]
+        if vals.size:
+            lo, hi = np.percentile(vals, [1, 99])
+            span = max(hi - lo, 0.2 * abs(hi))
+            axes[row, 0].set_ylim(lo - span, hi + span)
+    fig.suptitle(title + "\n(lines: truth; error bars: 95 % intervals)")
+    return finish(fig, path)
+
+
 def campbell(modal_result, *, crit=None, path=None, title="Campbell diagram"):
     """Damped natural frequencies (cpm) over speed with the 1X line; ``crit``, the DataFrame of
     :func:`rotorid.critical_speeds`, marks the critical speeds."""
