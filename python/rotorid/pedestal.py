@@ -276,6 +276,20 @@ class PedestalIdentification:
         return pd.DataFrame(rows)
 
 
+#: fewest degrees of freedom of the runs' covariances for a weighted pedestal fit (below it the fit
+#: is unweighted with a sandwich covariance); measured by Monte Carlo, docs/pedestals.md
+GLS_MIN_DOF = 10
+
+
+def _hc3(X, r):
+    """Heteroscedasticity-consistent (HC3) covariance of least squares X theta = y with
+    residuals r."""
+    XtXi = np.linalg.inv(X.T @ X)
+    h = np.einsum("ij,jk,ik->i", X, XtXi, X)
+    meat = (X * (r / np.clip(1 - h, 1e-12, None))[:, None] ** 2).T @ X
+    return XtXi @ meat @ XtXi
+
+
 def _design(s, p, b, i, cross):
     """Real design matrix of pedestal b, direction i: unknowns [k_ii, m_i, c_ii (, k_ij, c_ij)];
     rows [Re, Im] of each (run, point). ``s`` (R, n) = sigma + j w, ``p`` (R, n, 4) pedestal
@@ -371,6 +385,10 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
     p = np.stack([fr[1] for fr in frames])
     covs = [fr[2] for fr in frames]
     have_cov = all(c is not None for c in covs)
+    # weighted least squares only with covariances known well enough to weigh with
+    dofs = [np.asarray(r.dof, float) if r.dof is not None else np.full(w.size, np.inf) for r in runs]
+    min_dof = float(np.nanmin(np.concatenate(dofs))) if have_cov else np.inf
+    weighted = have_cov and min_dof >= GLS_MIN_DOF
     sel = np.ones(w.size, bool)
     if freq_range_hz is not None:
         lo, hi = real_array("freq_range_hz", freq_range_hz, shape=(2,), nonneg=True)
@@ -437,11 +455,15 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
                                            "distinct frequencies, or no pedestal motion in that direction)")
             m_rows = y.size
             if have_cov:
-                for _ in range(2):  # weights depend on the estimate (D p carries the pedestal noise)
+                Xr = np.stack([Xs[:m_rows // 2], Xs[m_rows // 2:]], 1)   # (Rn, 2, u)
+                yr = np.stack([y[:m_rows // 2], y[m_rows // 2:]], 1)     # (Rn, 2)
+
+                def row_cov(theta):
+                    """2 x 2 (Re, Im) covariance of each equation's residual
+                    r = F_col - D_own p_own - D_oth p_oth at the estimate ``theta``."""
                     th = theta / scale
                     D_own = th[0] + s_lap ** 2 * th[1] + s_lap * th[2]
                     D_oth = (th[3] + s_lap * th[4]) if cross else 0.0 * w
-                    # residual r = F_col - D_own p_own - D_oth p_oth: its 2 x 2 (Re, Im) covariance
                     g = J[:, :, :, col].copy()                    # (R, n, 16)
                     g[:, :, 8 + col] -= D_own[None]
                     g[:, :, 12 + col] -= 1j * D_own[None]
@@ -450,27 +472,37 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
                         g[:, :, 8 + oc] -= D_oth[None]
                         g[:, :, 12 + oc] -= 1j * D_oth[None]
                     G2 = np.stack([g.real, g.imag], -2)           # (R, n, 2, 16)
-                    V = G2 @ S @ np.swapaxes(G2, -1, -2)          # (R, n, 2, 2)
-                    Vs = V[:, sel].reshape(-1, 2, 2)
-                    Lc = np.linalg.cholesky(Vs + 1e-300 * np.eye(2))
-                    Li = np.linalg.inv(Lc)                        # whitening per (run, point)
-                    Xr = np.stack([Xs[:m_rows // 2], Xs[m_rows // 2:]], 1)   # (Rn, 2, u)
-                    yr = np.stack([y[:m_rows // 2], y[m_rows // 2:]], 1)     # (Rn, 2)
-                    Xw = (Li @ Xr).reshape(-1, nu)
-                    yw = (Li @ yr[..., None])[..., 0].ravel()
-                    theta, *_ = np.linalg.lstsq(Xw, yw, rcond=None)
-                covt = np.linalg.inv(Xw.T @ Xw)
-                rw = yw - Xw @ theta
-                chi2 = float(rw @ rw) / max(Xw.shape[0] - nu, 1)
-                # a misfit beyond the measurement errors (a wrong pedestal model) widens the errors
-                covt = covt * max(chi2, 1.0)
-                src = "measurement covariance"
+                    return (G2 @ S @ np.swapaxes(G2, -1, -2))[:, sel].reshape(-1, 2, 2)
+
+                if weighted:
+                    for _ in range(2):  # weights depend on the estimate (D p carries the pedestal noise)
+                        Li = np.linalg.inv(np.linalg.cholesky(row_cov(theta) + 1e-300 * np.eye(2)))  # whitening
+                        Xw = (Li @ Xr).reshape(-1, nu)
+                        yw = (Li @ yr[..., None])[..., 0].ravel()
+                        theta, *_ = np.linalg.lstsq(Xw, yw, rcond=None)
+                    covt = np.linalg.inv(Xw.T @ Xw)
+                    rw = yw - Xw @ theta
+                    chi2 = float(rw @ rw) / max(Xw.shape[0] - nu, 1)
+                    # a misfit beyond the measurement errors (a wrong pedestal model) widens the errors
+                    covt = covt * max(chi2, 1.0)
+                    src = "measurement covariance"
+                else:
+                    # covariances from a few repeats (impacts: dof = impacts - 1) are too noisy to
+                    # weigh with (the inverse of a poorly estimated covariance overweights the rows
+                    # whose variance happens to come out small): unweighted least squares with the
+                    # sandwich of the propagated row covariances
+                    XtXi = np.linalg.inv(Xs.T @ Xs)
+                    meat = np.einsum("rau,rab,rbv->uv", Xr, row_cov(theta), Xr)
+                    covt = XtXi @ meat @ XtXi
+                    # the residual (HC3) covariance as well: it also sees errors the measurement
+                    # covariance misses (run-out filter leftovers, low-coherence bins); the larger
+                    # variance of the two counts
+                    c3 = _hc3(Xs, y - Xs @ theta)
+                    big = np.diag(c3) > np.diag(covt)
+                    covt = np.where(big[:, None] & big[None, :], c3, covt)
+                    src = "residual or measurement covariance, the larger (unweighted fit)"
             else:
-                r = y - Xs @ theta
-                XtXi = np.linalg.inv(Xs.T @ Xs)
-                h = np.einsum("ij,jk,ik->i", Xs, XtXi, Xs)
-                meat = (Xs * (r / np.clip(1 - h, 1e-12, None))[:, None] ** 2).T @ Xs
-                covt = XtXi @ meat @ XtXi
+                covt = _hc3(Xs, y - Xs @ theta)
                 src = "residual"
             sd = np.sqrt(np.clip(np.diag(covt), 0, None)) / scale
             th = theta / scale
