@@ -845,3 +845,84 @@ def test_warning_and_flags_when_pedestal_motion_dominates():
     with pytest.warns(UserWarning, match=rf"pedestal motion is up to {re.escape(f'{tr.max():.3g}')} times .* Hz"):
         res = rotorid.identify_impact(RIG.rotor, tests)
     np.testing.assert_array_equal(np.array(["pedestal motion dominates" in f for f in res.flag]), tr.max(axis=0) > 1)
+
+
+# --------------------------------------------------------------------------------------------
+# accelerometer calibration uncertainty (systematic, common to all runs)
+
+def _calibrated_runs(rng, gain, phase, noise=1e-9):
+    rig = rotorid.nsf_rig()
+    ped = rotorid.example_pedestals()
+    rpm = np.arange(3000.0, 7001.0, 500.0)
+    cov = np.broadcast_to(np.eye(8) * noise ** 2 / 2, (rpm.size, 8, 8)).copy()
+    runs = []
+    for s in "AB":
+        r = rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=rpm, at="probes",
+                                       pedestals=ped)
+        q = r.q + noise * (rng.standard_normal(r.q.shape) + 1j * rng.standard_normal(r.q.shape)) / np.sqrt(2)
+        runs.append(rotorid.SyncResponse(rpm, q, r.imbalance, "probes", s, cov, None,
+                                         r.pedestal * gain * np.exp(1j * phase), cov.copy()))
+    return rig, ped, runs
+
+
+def test_accelerometer_calibration_errors_are_covered_only_when_declared():
+    rng = np.random.default_rng(5)
+    k0, c0 = rotorid.nsf_rig().bearings.at()
+    with_cal, without = [], []
+    for _ in range(120):
+        g = 1 + 0.02 * rng.standard_normal(4)
+        ph = np.deg2rad(1.0) * rng.standard_normal(4)
+        rig, _, runs = _calibrated_runs(rng, g, ph)
+        for out, kw in ((with_cal, dict(accel_gain_std=0.02, accel_phase_std_deg=1.0)), (without, {})):
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                iv = rotorid.identify_synchronous(rig.rotor, runs, **kw).interval(0.95)
+            out.append(np.concatenate([((iv.k_lower <= k0) & (k0 <= iv.k_upper)).ravel(),
+                                       ((iv.c_lower <= c0) & (c0 <= iv.c_upper)).ravel()]))
+    cov_with, cov_without = np.mean(with_cal), np.mean(without)
+    assert 0.93 <= cov_with <= 0.975, cov_with
+    assert cov_without < 0.3, cov_without       # the random errors alone miss the systematic one
+
+
+def test_pedestal_fit_calibration_uncertainty_scales_the_errors():
+    rng = np.random.default_rng(8)
+    rig, ped, runs = _calibrated_runs(rng, np.ones(4), np.zeros(4))
+    plain = rotorid.identify_pedestals(rig.rotor, runs)
+    cal = rotorid.identify_pedestals(rig.rotor, runs, accel_gain_std=0.02)
+    assert "accelerometer calibration" in cal.std_source
+    np.testing.assert_allclose(cal.k, plain.k)
+    # k_p = f / p scales with 1 / gain: a 2 % gain uncertainty is about 2 % of k_p
+    d = np.arange(2)
+    np.testing.assert_allclose(cal.k_std[:, d, d] / ped.k[:, d, d], 0.02, rtol=0.15)
+    # a biased gain lands inside the widened interval, not inside the plain one
+    _, _, biased = _calibrated_runs(rng, np.array([1.03, 1.0, 1.0, 1.0]), np.zeros(4))
+    lo, hi = rotorid.identify_pedestals(rig.rotor, biased, accel_gain_std=0.02).interval()["k"]
+    assert lo[0, 0, 0] <= ped.k[0, 0, 0] <= hi[0, 0, 0]
+    lo, hi = rotorid.identify_pedestals(rig.rotor, biased).interval()["k"]
+    assert not lo[0, 0, 0] <= ped.k[0, 0, 0] <= hi[0, 0, 0]
+
+
+@pytest.mark.parametrize("kw, match", [
+    (dict(accel_gain_std=0.6), "relative"),
+    (dict(accel_gain_std=-0.01), "accel_gain_std"),
+    (dict(accel_phase_std_deg=50.0), "below 45"),
+    (dict(accel_gain_std=float("nan")), "accel_gain_std"),
+])
+def test_bad_calibration_uncertainty(kw, match):
+    rig, _, runs = _calibrated_runs(np.random.default_rng(0), np.ones(4), np.zeros(4))
+    with pytest.raises(RotoridError, match=match):
+        rotorid.identify_synchronous(rig.rotor, runs, **kw)
+    with pytest.raises(RotoridError, match=match):
+        rotorid.identify_pedestals(rig.rotor, runs, **kw)
+
+
+def test_calibration_without_pedestal_motion_is_an_error():
+    rig = rotorid.nsf_rig()
+    runs = [rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=[3000.0, 4000.0])
+            for s in "AB"]
+    with pytest.raises(RotoridError, match="no pedestal motion"):
+        rotorid.identify_synchronous(rig.rotor, runs, accel_gain_std=0.02)
+    tests = [rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=1000, freq_hz=[20.0, 40.0], direction=d)
+             for d in "xy"]
+    with pytest.raises(RotoridError, match="no pedestal motion"):
+        rotorid.identify_impact(rig.rotor, tests, accel_phase_std_deg=1.0)

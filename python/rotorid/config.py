@@ -892,6 +892,10 @@ class PedestalsSection(_Model):
                                              "(pedestals.csv); needs measured = true")
     cross_coupled: bool = Field(False, description="pedestal stiffness and damping with xy, yx terms")
     freq_range_hz: Optional[Band] = Field(None, description="Hz: points used for the pedestal fit (default all)")
+    accel_gain_std: _number(ge=0, lt=0.5) = Field(0.0, description="relative calibration uncertainty of each "
+                                                                   "accelerometer's sensitivity (0.02 = 2 %)")
+    accel_phase_std_deg: _number(ge=0, lt=45) = Field(0.0, description="calibration uncertainty of each "
+                                                                       "accelerometer's phase, degrees")
 
     @model_validator(mode="after")
     def _identify_needs_measured(self):

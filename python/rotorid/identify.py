@@ -323,7 +323,8 @@ def _check_threshold(name, value, lo, hi=np.inf):
 def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", identical: bool = False,
                          cond_max: float = COND_MAX, min_rel_amplitude: float = MIN_REL_AMPLITUDE,
                          max_rel_std: float = MAX_REL_STD, estimator: str = "ls",
-                         shared_cov=None) -> Identification:
+                         shared_cov=None, accel_gain_std: float = 0.0,
+                         accel_phase_std_deg: float = 0.0) -> Identification:
     """Synchronous K and C of both bearings at every speed from two or more imbalance runs.
 
     ``runs``: list (or dict name -> run) of SyncResponse, each with its added ``imbalance`` and the
@@ -347,6 +348,13 @@ def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", ide
     (at the same place as ``q``) had the same baseline run subtracted: its error is common to all
     of them, which propagation must not treat as independent. With pedestal motion it is
     (n, 16, 16), over [Re q, Im q, Re p, Im p].
+
+    ``accel_gain_std`` (relative, e.g. 0.02) and ``accel_phase_std_deg``: the calibration
+    uncertainty of each housing accelerometer's sensitivity and phase, independent between the
+    four accelerometers and common to every run and speed (a systematic error that no averaging
+    removes). With pedestal motion it is added to the coefficients' covariance (the derivative of
+    the estimate with respect to each accelerometer's gain and phase, by central differences):
+    the pedestal-compensated coefficients depend strongly on it (docs/pedestals.md).
 
     ``estimator``: "ls" (least squares, as the report) or "bias-corrected": least squares less its
     second-order errors-in-variables bias, estimated from the measurement covariance (sigma points
@@ -373,10 +381,12 @@ def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", ide
     e = np.stack([r.imbalance.generalized(rotor) for r in runs])  # (R, 4), scaled by Omega^2 below
     if _has_pedestal(runs, labels):
         qs, qps, covs, dofs, flags = _pedestal_inputs(rotor, runs, labels, "speed_rpm", rpm)
+        cal = _calibration_inputs(rotor, runs, labels, accel_gain_std, accel_phase_std_deg)
         return _solve(rotor, "speed_rpm", rpm, om, om, qs, e, om ** 2, None, identical=identical, method=method,
                       labels=labels, cond_max=cond_max, min_rel_amplitude=min_rel_amplitude, what="responses",
                       covs=covs, dofs=dofs, max_rel_std=max_rel_std, estimator=estimator, extra_flags=flags,
-                      q_ped=qps, shared_cov=_shared(rotor, runs, shared_cov, size=16))
+                      q_ped=qps, shared_cov=_shared(rotor, runs, shared_cov, size=16), calibration=cal)
+    _no_calibration(accel_gain_std, accel_phase_std_deg)
     at_b = [r.at_bearings(rotor) for r in runs]
     qs = [np.ascontiguousarray(r.q, dtype=complex) for r in at_b]  # the runs as they are: no copy, no stack
     covs = _run_covs(at_b, labels)
@@ -457,6 +467,69 @@ def _pedestal_inputs(rotor, runs, labels, axis_name, axis):
     return qs, qps, covs, dofs, flags
 
 
+#: relative step of the calibration derivatives (the estimate is smooth in the gains and phases)
+_CAL_STEP = 1e-4
+
+
+def _calibration_std(accel_gain_std, accel_phase_std_deg):
+    from ._validate import number
+
+    g = number("accel_gain_std", accel_gain_std, nonneg=True)
+    ph = number("accel_phase_std_deg", accel_phase_std_deg, nonneg=True)
+    if g >= 0.5:
+        raise RotoridError(f"accel_gain_std is relative (0.02 = 2 %), got {g:g}: an accelerometer known to within "
+                           "50 % or worse cannot compensate pedestal motion")
+    if ph >= 45.0:
+        raise RotoridError(f"accel_phase_std_deg must be below 45 degrees, got {ph:g}")
+    return g, np.deg2rad(ph)
+
+
+def _no_calibration(accel_gain_std, accel_phase_std_deg):
+    """Accelerometer calibration without pedestal motion is an error (it would be silently unused)."""
+    g, ph = _calibration_std(accel_gain_std, accel_phase_std_deg)
+    if g or ph:
+        raise RotoridError("accel_gain_std / accel_phase_std_deg are the accelerometers' calibration uncertainty, but "
+                           "the runs carry no pedestal motion (no accelerometer data)")
+
+
+def _calibration_inputs(rotor, runs, labels, accel_gain_std, accel_phase_std_deg):
+    """For each accelerometer (xp1, xp2, yp1, yp2) and each of gain and phase with a nonzero
+    uncertainty: (std, [(q_rel, p) at the bearings per run] for +step, the same for -step).
+    The step acts on the measured pedestal motion before the probe transform (the relative motion
+    at the bearings depends on it when the probes are away from the bearings). None when both
+    uncertainties are zero."""
+    import dataclasses
+
+    g, ph = _calibration_std(accel_gain_std, accel_phase_std_deg)
+    out = []
+    for std, kind in ((g, "gain"), (ph, "phase")):
+        if not std:
+            continue
+        for j in range(4):
+            sides = []
+            for sign in (1.0, -1.0):
+                f = np.ones(4, complex)
+                f[j] = 1.0 + sign * _CAL_STEP if kind == "gain" else np.exp(1j * sign * _CAL_STEP)
+                frames = [_pedestal_frame(rotor, dataclasses.replace(r, pedestal=r.pedestal * f[None, :]), lab)
+                          for r, lab in zip(runs, labels)]
+                sides.append(([fr[0] for fr in frames], [fr[1] for fr in frames]))
+            out.append((std, sides[0], sides[1]))
+    return out or None
+
+
+def _calibration_cov(rotor, w, spin, e, gain, sigma, identical, method, calibration):
+    """Covariance (n, 16, 16) of the report vector from the accelerometers' calibration."""
+    from .uncertainty import _eval
+
+    qb = np.stack([np.stack(side[0]) for _, plus, minus in calibration for side in (plus, minus)])
+    pb = np.stack([np.stack(side[1]) for _, plus, minus in calibration for side in (plus, minus)])
+    rv = _eval(rotor, w, spin, qb, e, gain, sigma, identical, method, pb)       # (2P, n, 16)
+    d = (rv[0::2] - rv[1::2]) / (2.0 * _CAL_STEP)                               # (P, n, 16)
+    std = np.array([c[0] for c in calibration])
+    d = d * std[:, None, None]
+    return np.einsum("pni,pnj->nij", d, d)
+
+
 def _check_same_axis(name, axes, labels, what, unit, advice):
     """Every run on the first run's axis: equal arrays pass at once (the common case, a pass over
     the data), otherwise within 1e-9 relative (rounding of a stored axis)."""
@@ -511,7 +584,7 @@ def _run_dofs(runs):
 
 def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, method, labels, cond_max,
            min_rel_amplitude, what, covs=None, dofs=None, max_rel_std=MAX_REL_STD, extra_flags=None,
-           estimator="ls", shared_cov=None, q_ped=None):
+           estimator="ls", shared_cov=None, q_ped=None, calibration=None):
     """One core call for the whole axis, uncertainty, then flags; shared by both methods."""
     from .uncertainty import propagate, std_from_cov
 
@@ -575,6 +648,23 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
         source = "measurement covariance"
         dof = np.min(dofs, axis=0) if dofs is not None else np.full(axis.size, np.inf)
         dof = np.where(np.isnan(cov).any(axis=(1, 2)), np.nan, dof)
+    if calibration is not None:
+        # accelerometer calibration: a systematic error common to all runs, added to the covariance
+        ccal = _calibration_cov(rotor, w, spin, e, gain, sigma, identical, method, calibration)
+        if cov is not None:
+            cov = cov + ccal
+            ks, cs = std_from_cov(cov)
+            bad = np.isnan(cov).any(axis=(1, 2))
+            ks[bad] = np.nan
+            cs[bad] = np.nan
+        elif source != "none":
+            # residual-based errors (redundant runs) plus the calibration's
+            kc, cc = std_from_cov(ccal)
+            ks, cs = np.sqrt(ks ** 2 + kc ** 2), np.sqrt(cs ** 2 + cc ** 2)
+        if source != "none":
+            # (without any estimate of the random errors the standard errors stay unknown)
+            rel_std = None
+            source = f"{source} + accelerometer calibration"
     if identical and redundant:
         # the identical-bearing hypothesis is testable: the two bearings' equations must agree within
         # the measurement errors (residual-based errors no larger than the propagated ones), or, without
@@ -661,7 +751,8 @@ def check_impact_independence(tests, labels, *, identical=False):
 
 def identify_impact(rotor: RigidRotor, tests, *, method: str = "forces", identical: bool = False,
                     cond_max: float = COND_MAX, min_rel_amplitude: float = MIN_REL_AMPLITUDE_IMPACT,
-                    max_rel_std: float = MAX_REL_STD, extra_flags=None, estimator: str = "ls") -> Identification:
+                    max_rel_std: float = MAX_REL_STD, extra_flags=None, estimator: str = "ls",
+                    accel_gain_std: float = 0.0, accel_phase_std_deg: float = 0.0) -> Identification:
     """Frequency-dependent K(w) and C(w) of both bearings from impacts at one running speed (eq. 23-28).
 
     ``tests``: list (or dict) of ImpactResponse at the same ``speed_rpm`` and ``freq_hz``: FRFs, or
@@ -671,7 +762,8 @@ def identify_impact(rotor: RigidRotor, tests, *, method: str = "forces", identic
     coefficients at both bearings (8 unknowns) and works from a single impact. C is Im(Z)/w with w
     the vibration frequency; for exponentially windowed spectra (``ImpactResponse.sigma``) the
     equations are solved at s = sigma + j w and K = Re(Z) - sigma C. The whole frequency batch is
-    one core call.
+    one core call. ``accel_gain_std``, ``accel_phase_std_deg``: accelerometer calibration
+    uncertainty with pedestal motion (see :func:`identify_synchronous`).
     """
     if not isinstance(rotor, RigidRotor):
         raise RotoridError(f"rotor must be a rotorid.RigidRotor, got {type(rotor).__name__}")
@@ -699,11 +791,13 @@ def identify_impact(rotor: RigidRotor, tests, *, method: str = "forces", identic
             raise RotoridError(f"sigma (exponential window decay) of {labels[i]} ({t.sigma:g} 1/s) differs from "
                                f"{labels[0]} ({tests[0].sigma:g} 1/s): window all tests alike")
     check_impact_independence(tests, labels, identical=identical)
-    q_ped = None
+    q_ped = cal = None
     if _has_pedestal(tests, labels):
         qs, q_ped, covs, dofs, pflags = _pedestal_inputs(rotor, tests, labels, "freq_hz", f)
         extra_flags = list(extra_flags or []) + pflags
+        cal = _calibration_inputs(rotor, tests, labels, accel_gain_std, accel_phase_std_deg)
     else:
+        _no_calibration(accel_gain_std, accel_phase_std_deg)
         at_b = [t.at_bearings(rotor) for t in tests]
         qs = [np.ascontiguousarray(t.frf(), dtype=complex) for t in at_b]  # (n, 4) per unit force, per test
         covs = _run_covs(at_b, labels)
@@ -715,4 +809,4 @@ def identify_impact(rotor: RigidRotor, tests, *, method: str = "forces", identic
     return _solve(rotor, "freq_hz", f, w, spin, qs, e, np.ones(1), sigma, identical=identical, method=method,
                   labels=labels, cond_max=cond_max, min_rel_amplitude=min_rel_amplitude, what="impact responses",
                   covs=covs, dofs=dofs, max_rel_std=max_rel_std, extra_flags=extra_flags, estimator=estimator,
-                  q_ped=q_ped)
+                  q_ped=q_ped, calibration=cal)

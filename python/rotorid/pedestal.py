@@ -303,7 +303,8 @@ def _design(s, p, b, i, cross):
     return np.concatenate([X.real, X.imag], 0)
 
 
-def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_hz=None) -> PedestalIdentification:
+def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_hz=None, accel_gain_std: float = 0.0,
+                       accel_phase_std_deg: float = 0.0) -> PedestalIdentification:
     """Each pedestal's mass, stiffness and damping from imbalance runs (or impact tests) that carry
     pedestal motion.
 
@@ -317,7 +318,11 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
     weighted by the inverse of its propagated covariance (including the accelerometer noise, which
     at low speed dominates: the displacement is a/w²) and the standard errors follow from that;
     otherwise the fit is unweighted with heteroscedasticity-consistent (HC3) standard errors.
-    ``freq_range_hz`` = (lo, hi) restricts the points used.
+    ``freq_range_hz`` = (lo, hi) restricts the points used. With covariances from a few repeats
+    (degrees of freedom below ``GLS_MIN_DOF``, e.g. H1 FRFs of five impacts) the fit is
+    unweighted and takes the larger of the propagated (sandwich) and residual (HC3) variances.
+    ``accel_gain_std`` (relative) and ``accel_phase_std_deg``: the accelerometers' calibration
+    uncertainty, added to the standard errors (the pedestal stiffness scales with 1/gain).
 
     Examples
     --------
@@ -340,6 +345,9 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
     if not isinstance(rotor, RigidRotor):
         raise RotoridError(f"rotor must be a rotorid.RigidRotor, got {type(rotor).__name__}")
     cross = flag("cross_coupled", cross_coupled)
+    from .identify import _calibration_std
+
+    cal_g, cal_ph = _calibration_std(accel_gain_std, accel_phase_std_deg)
     runs = list(runs.values()) if isinstance(runs, dict) else _as_runs(runs)
     if not runs:
         raise IdentifiabilityError("no runs given")
@@ -514,4 +522,37 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
             dof[b, i] = m_rows - nu
             fit = X @ th
             resid[b, i] = np.sqrt(np.sum((y - fit) ** 2) / max(np.sum(y ** 2), 1e-300))
-    return PedestalIdentification(mass, kk, cc, ms, ks, cs, dof, resid, src, cross, R * int(sel.sum()), labels)
+    out = PedestalIdentification(mass, kk, cc, ms, ks, cs, dof, resid, src, cross, R * int(sel.sum()), labels)
+    if cal_g or cal_ph:
+        _add_calibration(out, rotor, runs, cal_g, cal_ph, cross_coupled=cross, freq_range_hz=freq_range_hz)
+    return out
+
+
+def _add_calibration(fit, rotor, runs, gain_std, phase_std_rad, **kw):
+    """Add the accelerometers' calibration uncertainty to a pedestal fit's standard errors: central
+    differences of the whole fit with respect to each accelerometer's gain and phase."""
+    import dataclasses
+    import warnings
+
+    from .identify import _CAL_STEP
+
+    var = [np.zeros_like(fit.mass_kg), np.zeros_like(fit.k), np.zeros_like(fit.c)]
+    for std, kind in ((gain_std, "gain"), (phase_std_rad, "phase")):
+        if not std:
+            continue
+        for j in range(4):
+            est = []
+            for sign in (1.0, -1.0):
+                f = np.ones(4, complex)
+                f[j] = 1.0 + sign * _CAL_STEP if kind == "gain" else np.exp(1j * sign * _CAL_STEP)
+                moved = [dataclasses.replace(r, pedestal=r.pedestal * f[None, :]) for r in runs]
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")  # the nominal fit has warned already
+                    e = identify_pedestals(rotor, moved, **kw)
+                est.append((e.mass_kg, e.k, e.c))
+            for v, a, b in zip(var, est[0], est[1]):
+                v += (std * (a - b) / (2.0 * _CAL_STEP)) ** 2
+    fit.mass_std = np.sqrt(fit.mass_std ** 2 + var[0])
+    fit.k_std = np.sqrt(fit.k_std ** 2 + var[1])
+    fit.c_std = np.sqrt(fit.c_std ** 2 + var[2])
+    fit.std_source += " + accelerometer calibration"

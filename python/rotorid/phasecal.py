@@ -139,9 +139,12 @@ def calibrate_phase(rotor, runs, *, delay: bool = True, offset: bool = True, deg
         raise RotoridError("calibrate_phase: estimate the offset, the delay or both")
     degree = index("degree", degree, 0)
     unknown = sorted(set(ident_kw) - {"method", "identical", "cond_max", "min_rel_amplitude", "max_rel_std",
-                                      "estimator", "shared_cov"})
+                                      "estimator", "shared_cov", "accel_gain_std", "accel_phase_std_deg"})
     if unknown:
         raise RotoridError(f"calibrate_phase got unknown argument(s) {unknown}")
+    # the accelerometers' calibration is a systematic error common to all runs: it does not enter
+    # the misfit between runs that the phase reference is estimated from
+    ident_kw = {k: v for k, v in ident_kw.items() if k not in ("accel_gain_std", "accel_phase_std_deg")}
     base = identify_synchronous(rotor, runs, **ident_kw)
     sel = base.ok & np.all(np.isfinite(base.k.reshape(base.axis.size, -1)), axis=1)
     n = int(sel.sum())

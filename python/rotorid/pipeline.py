@@ -694,6 +694,12 @@ def run_config(path, kind: str, *, out_dir=None, log=print, overwrite: bool = Fa
     files = []
     ped_cfg = cfg.pedestals
     pedestal_motion = None if ped_cfg is None else ped_cfg.measured
+    cal_kw = {}
+    if pedestal_motion:
+        cal_kw = dict(accel_gain_std=ped_cfg.accel_gain_std, accel_phase_std_deg=ped_cfg.accel_phase_std_deg)
+        if not (ped_cfg.accel_gain_std or ped_cfg.accel_phase_std_deg):
+            log("  note: the accelerometers' calibration uncertainty is not in the error bars ([pedestals] "
+                "accel_gain_std, accel_phase_std_deg); the compensated coefficients are sensitive to it")
 
     def write_csv(df, name, **kw):
         with folder.atomic(name) as tmp:
@@ -701,7 +707,7 @@ def run_config(path, kind: str, *, out_dir=None, log=print, overwrite: bool = Fa
         files.append(os.path.join(out, name))
     if kind == "imbalance":
         ident_kw = dict(identical=sec.identical, cond_max=sec.cond_max, min_rel_amplitude=sec.min_rel_amplitude,
-                        max_rel_std=sec.max_rel_std, estimator=sec.estimator)
+                        max_rel_std=sec.max_rel_std, estimator=sec.estimator, **cal_kw)
         if sec.table is not None:
             runs = [_load_table(cfg, r, r.name) for r in sec.runs]
             base = _load_table(cfg, sec.baseline, "baseline") if sec.baseline is not None else None
@@ -763,7 +769,8 @@ def run_config(path, kind: str, *, out_dir=None, log=print, overwrite: bool = Fa
                            threshold_N=sec.threshold_N, min_separation_s=sec.min_separation_s,
                            double_hit_window_s=sec.double_hit_window_s, overload_N=sec.overload_N,
                            cond_max=sec.cond_max, min_rel_amplitude=sec.min_rel_amplitude, max_rel_std=sec.max_rel_std,
-                           estimator=sec.estimator, kcm_band_hz=sec.kcm_band_hz, pedestal_motion=pedestal_motion)
+                           estimator=sec.estimator, kcm_band_hz=sec.kcm_band_hz, pedestal_motion=pedestal_motion,
+                           **cal_kw)
         ident = res.identification
         responses = res.tests
         import pandas as pd
@@ -787,7 +794,7 @@ def run_config(path, kind: str, *, out_dir=None, log=print, overwrite: bool = Fa
 
         try:
             pfit = identify_pedestals(rotor, responses, cross_coupled=ped_cfg.cross_coupled,
-                                      freq_range_hz=ped_cfg.freq_range_hz)
+                                      freq_range_hz=ped_cfg.freq_range_hz, **cal_kw)
         except RotoridError as exc:
             log(f"  pedestals not identified: {exc}")
         else:
