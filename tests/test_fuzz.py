@@ -17,6 +17,7 @@ import rotorid
 from rotorid import RotoridError, cli, kcm, outputs, phasecal, rawsim, signals, tables, uncertainty
 from rotorid.io import (check_clipping, list_groups, load_recording, load_segmented, save_csv, save_recording,
                         save_tdms, save_tdms_segmented, save_uff58)
+from rotorid.pedestal import PedestalIdentification, Pedestals
 from rotorid.recording import SegmentedRecording
 from strategies import bad_kwargs, bad_values
 
@@ -211,8 +212,15 @@ def _finite(out, where="result"):
     elif isinstance(out, signals.SyncTrack):
         _finite(out.speed_rpm, f"{where}.speed_rpm")
         _finite(out.vectors, f"{where}.vectors")
+        if out.pedestal is not None:
+            _finite(out.pedestal, f"{where}.pedestal")
     elif isinstance(out, kcm.KCMFit):
         for name in ("K", "M", "C"):
+            _finite(getattr(out, name), f"{where}.{name}")
+    elif isinstance(out, Pedestals):
+        _finite(out.core_params(), f"{where} (mass, stiffness, damping)")
+    elif isinstance(out, PedestalIdentification):
+        for name in ("mass_kg", "k", "c", "mass_std", "k_std", "c_std", "residual"):
             _finite(getattr(out, name), f"{where}.{name}")
     elif isinstance(out, np.ndarray) and out.dtype.kind in "fc":
         assert np.all(np.isfinite(out)), f"{where} holds NaN or inf without a flag"
@@ -243,9 +251,12 @@ def _outcome(call, *, nan_ok=False, seconds=30):
 # a failure is reported at its first bug, shrunk alone (several at once take minutes to shrink)
 API = settings(FUZZ, report_multiple_bugs=False)
 
+#: flexible pedestals (rotorid.Pedestals): a valid model object that the sweep also puts where it does not belong
+PEDESTALS = rotorid.example_pedestals()
+
 #: the sweep's bad values, each tried in every argument of every function
 SWEEP = [np.nan, np.inf, -np.inf, -1.0, 0, -0.0, 5e-324, 1e12, 1e300, 2 ** 63, 10 ** 30, "x", "", None, True, b"x",
-         1 + 1j, [1.0, 2.0], [], {"a": 1}, np.zeros(0), np.ones((2, 2)), np.array([np.nan]), object()]
+         1 + 1j, [1.0, 2.0], [], {"a": 1}, np.zeros(0), np.ones((2, 2)), np.array([np.nan]), object(), PEDESTALS]
 
 
 class Call:
@@ -298,6 +309,15 @@ def _a_table(out, kw):
     assert np.all(out.speed_rpm > 0) and np.all(np.diff(out.speed_rpm) > 0)
 
 
+def _a_table_with_pedestal(out, kw):
+    """A 1X table with the housing accelerometers' columns: a table that carries the housing motion,
+    and its covariance wherever the probes' and the accelerometers' accuracies are all given."""
+    _a_table(out, kw)
+    assert out.has_pedestal
+    if all(kw[k] is not None for k in ("amplitude_std", "phase_std_deg", "accel_amplitude_std")):
+        _finite(out.pedestal_cov, "pedestal_cov")
+
+
 def _frf_flagged(out, kw):
     """frf_h1: H1 is NaN only at frequencies without force (0/0), and the coherence says so."""
     bad = ~np.all(np.isfinite(out.h), axis=1)
@@ -333,14 +353,45 @@ def _impact_fit():
     return ident, rotorid.fit_kcm(ident)
 
 
+@functools.lru_cache(maxsize=None)
+def _pedestal_fixtures():
+    """Good arguments on flexible pedestals (issue 12), built on first use: runs and impact tests of
+    the NSF rig with pedestal motion (and the same runs without it), a raw recording with the
+    housing accelerometers px1, px2, py1, py2, and 1X tracks that carry the housing motion."""
+    rig = rotorid.nsf_rig()
+    runs = [rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=np.linspace(2000, 6000, 8),
+                                       pedestals=PEDESTALS) for s in "AB"]
+    naive = [rotorid.SyncResponse(r.speed_rpm, r.q, r.imbalance, r.at, r.name) for r in runs]
+    tests = [rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=1000, freq_hz=np.arange(10.0, 60.0, 5.0),
+                                direction=d, pedestals=PEDESTALS) for d in "xy"]
+    rotor, brg, remnant = rawsim.example_rig()
+    imbs = [rotorid.Imbalance((5e-3, 5e-3), a) for a in ((0.0, 0.0), (0.0, 180.0))]
+    rec = rawsim.imbalance_recording(rotor, brg, speeds_rpm=[3000.0], added=imbs[0], remnant=remnant, dwell_s=0.3,
+                                     pedestals=PEDESTALS)
+    speeds = np.arange(3000.0, 4001.0, 250.0)
+    n = speeds.size
+    tracks = []
+    for j, imb in enumerate(imbs):
+        r = rotorid.imbalance_response(rotor, brg, imb, speed_rpm=speeds, at="probes", pedestals=PEDESTALS)
+        tracks.append(tables.TableTrack(speeds, r.q[:, None, :], (1,), np.full(n, np.nan), np.full((n, 4), np.nan),
+                                        np.full(n, np.nan), pedestal=r.pedestal[:, None, :], name=f"run{j}"))
+    return dict(rig=rig, runs=runs, naive=naive, tests=tests, rec=rec, tracks=tracks,
+                ident=rotorid.identify_synchronous(rig.rotor, runs),
+                ident_naive=rotorid.identify_synchronous(rig.rotor, naive))
+
+
 def _calls(tmp):
     """Every public function beyond the model, simulation and identification (fuzzed above), with good
     arguments; files go to the folder ``tmp``."""
     f = _fixtures()
+    fp = _pedestal_fixtures()
     rotor, brg, rec, kp, x, track = f["rotor"], f["brg"], f["rec"], f["kp"], f["x"], f["track"]
     n = track.speed_rpm.size
     runout = rawsim.Runout()
-    models = [rotor, brg, f["imb"], rawsim.Runout(amplitudes_m=(1e-6,)), rawsim.PulseShape.notch(), (1e-6, 2e-6)]
+    models = [rotor, brg, f["imb"], rawsim.Runout(amplitudes_m=(1e-6,)), rawsim.PulseShape.notch(), (1e-6, 2e-6),
+              PEDESTALS]
+    ped_track = fp["tracks"][0]
+    ped_columns = tables.save_1x_table(ped_track, str(tmp / "ped_1x.csv"), accel_unit="g")
     lab_names = ["out.npz", "out.csv", "out.tdms", "out.uff", "no/such/folder/out.csv", ".", "Run 1", "a/b",
                  "float32", "int16", {"x1": "mil"}, {"x1": "Prox\nX"}, {"kp": "mV"}, {"x1": "kg"}, {"zz": "m"},
                  {"x1": ""}, {"x1": "a,b"}, {"x1": "x" * 100}, {"x1": 3}, ["g1", "g2"], ["g", "g"], ["g1"], [1, 2]]
@@ -349,14 +400,16 @@ def _calls(tmp):
                     f["slow"], np.ones((3, 4), complex), np.eye(8), np.array([3500.0, 4000.0]),
                     {**tables.EXAMPLE_COLUMNS, "x1": tables.EXAMPLE_COLUMNS["y1"]},
                     {k: v for k, v in tables.EXAMPLE_COLUMNS.items() if k != "y2"},
-                    {**tables.EXAMPLE_COLUMNS, "x1": {"amplitude": "DE X 1X Amp (mil pp)"}}]
+                    {**tables.EXAMPLE_COLUMNS, "x1": {"amplitude": "DE X 1X Amp (mil pp)"}},
+                    PEDESTALS, ped_track, fp["tracks"], ped_columns, "m/s^2", "0-pk", "g", ped_track.pedestal,
+                    str(tmp / "ped_1x.csv")]
     unc_values = [f["rig"].rotor, f["runs"], f["runs"][:1], [f["runs"][0], "x"], (5.0, 40.0), (40.0, 5.0),
                   (np.nan, 30.0), (1.0, 2.0, 3.0), [0, 0, 1], ["a", "b"], f["rig"].bearings.k[None],
                   np.ones((1, 2, 2)), np.full((1, 2, 2, 2), np.nan), np.eye(16)[None], np.eye(8)[None, None],
                   np.ones((1, 2, 4), complex), 0.95, 5]
     sig_values = ["rising", "falling", "auto", "positive", "up", "down", kp, rec, x, f["template"], kp.times,
                   kp.times[::-1], kp.times[:3], np.zeros(64), np.ones((4, 3)), [np.ones(256)], [np.ones((4, 256))],
-                  0.5, 2.5, 64, 3000]
+                  0.5, 2.5, 64, 3000, PEDESTALS, fp["rec"]]
     k, c = f["rig"].bearings.k[None], f["rig"].bearings.c[None]
     written = {}
     for ext, write in (("npz", save_recording), ("tdms", save_tdms)):
@@ -372,19 +425,37 @@ def _calls(tmp):
         # rawsim
         "imbalance_recording": Call(rawsim.imbalance_recording, dict(
             rotor=rotor, bearings=brg, speeds_rpm=[3000.0], added=f["imb"], remnant=f["remnant"], runout=runout,
-            noise_m=5e-7, dwell_s=0.1, fs_hz=2000.0, seed=0, kind="imbalance", theta0=0.3), extras=models),
+            noise_m=5e-7, dwell_s=0.1, fs_hz=2000.0, seed=0, kind="imbalance", theta0=0.3, pedestals=None,
+            accel_noise_ms2=0.02), extras=models),
+        "pedestals:imbalance_recording": Call(rawsim.imbalance_recording, dict(
+            rotor=rotor, bearings=brg, speeds_rpm=[3000.0], added=f["imb"], remnant=f["remnant"], runout=runout,
+            noise_m=5e-7, dwell_s=0.1, fs_hz=2000.0, seed=0, kind="imbalance", theta0=0.3, pedestals=PEDESTALS,
+            accel_noise_ms2=0.02), extras=models),
         "coastdown_recording": Call(rawsim.coastdown_recording, dict(
             rotor=rotor, bearings=brg, start_rpm=4000.0, stop_rpm=3000.0, duration_s=0.2, added=f["imb"],
             remnant=f["remnant"], runout=runout, noise_m=5e-7, fs_hz=2000.0, seed=0, theta0=0.3), extras=models),
         "impact_recording": Call(rawsim.impact_recording, dict(
             rotor=rotor, bearings=brg, speed_rpm=1000.0, plane=0.0, direction="x", impact_times_s=(0.1, 0.2),
             peak_N=4000.0, duration_s=2e-3, record_s=0.3, remnant=f["remnant"], runout=runout, noise_m=5e-7,
-            force_noise_N=2.0, fs_hz=2000.0, seed=0, theta0=0.3, double_hit_at=None), extras=models + ["y"]),
+            force_noise_N=2.0, fs_hz=2000.0, seed=0, theta0=0.3, double_hit_at=None, pedestals=None,
+            accel_noise_ms2=0.02), extras=models + ["y"]),
+        "pedestals:impact_recording": Call(rawsim.impact_recording, dict(
+            rotor=rotor, bearings=brg, speed_rpm=1000.0, plane=0.0, direction="x", impact_times_s=(0.1, 0.2),
+            peak_N=4000.0, duration_s=2e-3, record_s=0.3, remnant=f["remnant"], runout=runout, noise_m=5e-7,
+            force_noise_N=2.0, fs_hz=2000.0, seed=0, theta0=0.3, double_hit_at=None, pedestals=PEDESTALS,
+            accel_noise_ms2=0.02), extras=models + ["y"]),
         "lab_imbalance_recording": Call(rawsim.lab_imbalance_recording, dict(
             rotor=rotor, bearings=brg, speeds_rpm=[3000.0, 3500.0], added=f["imb"], remnant=f["remnant"],
             runout_1x_m=(3e-6,) * 4, kp_shape=rawsim.PulseShape("trapezoid", 2.0, duty=0.03), mark_angle_deg=0.0,
             kp_delay_s=0.0, probe_delay_s=(0.0,) * 4, adc_bits=16, probe_range_m=2e-3, kp_range_v=20.0, noise_m=3e-7,
-            dwell_s=0.1, gap_s=0.1, fs_hz=2048.0, segmented=True, seed=0), extras=models),
+            dwell_s=0.1, gap_s=0.1, fs_hz=2048.0, segmented=True, seed=0, pedestals=None, accel_noise_ms2=0.02,
+            accel_delay_s=(0.0,) * 4, accel_range_ms2=200.0), extras=models),
+        "pedestals:lab_imbalance_recording": Call(rawsim.lab_imbalance_recording, dict(
+            rotor=rotor, bearings=brg, speeds_rpm=[3000.0, 3500.0], added=f["imb"], remnant=f["remnant"],
+            runout_1x_m=(3e-6,) * 4, kp_shape=rawsim.PulseShape("trapezoid", 2.0, duty=0.03), mark_angle_deg=0.0,
+            kp_delay_s=0.0, probe_delay_s=(0.0,) * 4, adc_bits=16, probe_range_m=2e-3, kp_range_v=20.0, noise_m=3e-7,
+            dwell_s=0.1, gap_s=0.1, fs_hz=2048.0, segmented=True, seed=0, pedestals=PEDESTALS, accel_noise_ms2=0.02,
+            accel_delay_s=(1.5e-4, 2.5e-4, 2e-4, 3e-4), accel_range_ms2=200.0), extras=models),
         "event_times": Call(rawsim.event_times, dict(speed_rpm=3000.0, duration_s=0.2, t0_s=0.0, mark_time_s=0.0137)),
         "pulse_train": Call(rawsim.pulse_train, dict(t=np.arange(400) / 2000.0, event_times=rawsim.event_times(
             3000.0, 0.2), fs_hz=2000.0, shape=rawsim.PulseShape(), seed=0), extras=models),
@@ -415,12 +486,24 @@ def _calls(tmp):
         "load_1x_table": Call(tables.load_1x_table, dict(
             path=os.path.join(tables.EXAMPLE_DIR, "run_S0.csv"), columns=tables.EXAMPLE_COLUMNS, speed_column="auto",
             amplitude="pk-pk", unit="mil", phase="lag", phase_unit="deg", sheet=None, skip_rows="auto", name=None,
-            meta=None, amplitude_std=None, phase_std_deg=None), extras=table_values, check=_a_table),
+            meta=None, amplitude_std=None, phase_std_deg=None, accel_unit="g", accel_amplitude=None,
+            accel_amplitude_std=None), extras=table_values, check=_a_table),
+        "pedestals:load_1x_table": Call(tables.load_1x_table, dict(
+            path=str(tmp / "ped_1x.csv"), columns=ped_columns, speed_column="auto", amplitude="pk-pk", unit="mil",
+            phase="lag", phase_unit="deg", sheet=None, skip_rows="auto", name=None, meta=None, amplitude_std=0.01,
+            phase_std_deg=0.5, accel_unit="g", accel_amplitude=None, accel_amplitude_std=1e-4), extras=table_values,
+            check=_a_table_with_pedestal),
         "save_1x_table": Call(tables.save_1x_table, dict(track=track, path=str(tmp / "t.csv"), layout="adre",
-                                                         amplitude="pk-pk", unit="mil", phase="lag", preamble=None),
+                                                         amplitude="pk-pk", unit="mil", phase="lag", preamble=None,
+                                                         accel_unit="g", accel_amplitude=None),
                               extras=table_values),
-        "match_speeds": Call(tables.match_speeds, dict(tracks=[track, track], grid=None, tolerance_rpm=2.0),
-                             extras=table_values),
+        "pedestals:save_1x_table": Call(tables.save_1x_table, dict(
+            track=ped_track, path=str(tmp / "tp.csv"), layout="adre", amplitude="pk-pk", unit="mil", phase="lag",
+            preamble=None, accel_unit="m/s^2", accel_amplitude="0-pk"), extras=table_values),
+        "match_speeds": Call(tables.match_speeds, dict(tracks=[track, track], grid=None, tolerance_rpm=2.0,
+                                                       pedestal=False), extras=table_values),
+        "pedestals:match_speeds": Call(tables.match_speeds, dict(tracks=fp["tracks"], grid=None, tolerance_rpm=2.0,
+                                                                 pedestal=True), extras=table_values),
         "tables.slow_roll_vector": Call(tables.slow_roll_vector, dict(track=f["slow"], max_rpm=None),
                                         extras=table_values),
         "example_tables": Call(tables.example_tables, dict(out_dir=str(tmp / "daq")), extras=["t.csv"]),
@@ -431,7 +514,13 @@ def _calls(tmp):
         "SyncTrack.order": Call(track.order, dict(n=1), extras=[2, np.int64(1)]),
         "SyncTrack": Call(signals.SyncTrack, dict(
             speed_rpm=track.speed_rpm, vectors=track.vectors, orders=(1,), n_revs=np.full(n, 10),
-            scatter=np.zeros((n, 4)), t_mid=np.zeros(n), keyphasors=[], cov=None, dof=None), extras=table_values),
+            scatter=np.zeros((n, 4)), t_mid=np.zeros(n), keyphasors=[], cov=None, dof=None, pedestal=None,
+            pedestal_cov=None, pedestal_cross=None), extras=table_values),
+        "pedestals:SyncTrack": Call(signals.SyncTrack, dict(
+            speed_rpm=ped_track.speed_rpm, vectors=ped_track.vectors, orders=(1,), n_revs=np.full(5, 10),
+            scatter=np.zeros((5, 4)), t_mid=np.zeros(5), keyphasors=[], cov=np.broadcast_to(np.eye(8) * 1e-14, (5, 8, 8)),
+            dof=np.full(5, 9.0), pedestal=ped_track.pedestal, pedestal_cov=np.broadcast_to(np.eye(8) * 1e-16, (5, 8, 8)),
+            pedestal_cross=np.zeros((5, 8, 8))), extras=table_values),
         # kcm, phasecal, uncertainty
         "fit_kcm": Call(lambda **kw: rotorid.fit_kcm(**{"ident": _impact_fit()[0], **kw}), dict(
             band_hz=None, rotor=f["rig"].rotor, only_ok=True), args=["ident", "band_hz", "rotor", "only_ok"],
@@ -453,7 +542,14 @@ def _calls(tmp):
             rotor=f["rig"].rotor, w=np.array([om]), spin=np.array([om]), qs=np.stack([r.q[:1] for r in f["runs"]]),
             e=np.stack([r.imbalance.generalized(f["rig"].rotor) for r in f["runs"]]), gain=np.array([om ** 2]),
             sigma=None, covs=np.broadcast_to(np.eye(8) * 1e-14, (2, 1, 8, 8)), identical=False, method="forces",
-            bias=False, shared=None), args=["qs", "covs", "shared", "bias"], extras=unc_values, nan_ok=True,
+            bias=False, shared=None, q_ped=None), args=["qs", "covs", "shared", "bias", "q_ped"], extras=unc_values,
+            nan_ok=True, check=_whole_points),
+        "pedestals:propagate": Call(uncertainty.propagate, dict(
+            rotor=f["rig"].rotor, w=np.array([om]), spin=np.array([om]), qs=np.stack([r.q[:1] for r in f["runs"]]),
+            e=np.stack([r.imbalance.generalized(f["rig"].rotor) for r in f["runs"]]), gain=np.array([om ** 2]),
+            sigma=None, covs=np.broadcast_to(np.eye(16) * 1e-14, (2, 1, 16, 16)), identical=False, method="forces",
+            bias=False, shared=None, q_ped=np.stack([r.q[:1] for r in f["runs"]]) * 0.2),
+            args=["qs", "covs", "shared", "bias", "q_ped"], extras=unc_values, nan_ok=True,
             check=_whole_points),
         # outputs (its methods: test_results_folder_fails_only_with_rotorid_errors)
         "ResultsFolder": Call(outputs.ResultsFolder, dict(path=str(tmp / "res"), patterns=["*.csv"], overwrite=True,
@@ -489,7 +585,12 @@ def _calls(tmp):
             max_speed_step=None, source=""), extras=sig_values),
         "track": Call(signals.track, dict(rec=rec, orders=(1, 2), revs_per_block=None, steady=True,
                                           points_per_rev=None, kp=None, min_revs=8, settle_revs=2,
-                                          speed_tolerance=0.005, keyphasor=None), extras=sig_values),
+                                          speed_tolerance=0.005, keyphasor=None, pedestal=False),
+                       extras=sig_values),
+        "pedestals:track": Call(signals.track, dict(rec=fp["rec"], orders=(1, 2), revs_per_block=None, steady=True,
+                                                    points_per_rev=None, kp=None, min_revs=8, settle_revs=2,
+                                                    speed_tolerance=0.005, keyphasor=None, pedestal=True),
+                                extras=sig_values),
     }
 
 
@@ -497,12 +598,14 @@ CALL_NAMES = [
     "KCMFit.interval", "Keyphasor.from_times", "PhaseCalibration.apply", "PulseShape", "ResultsFolder", "Runout",
     "SyncTrack", "SyncTrack.at_speeds", "SyncTrack.order", "TableTrack.minus", "calibrate_phase", "check_clipping",
     "coastdown_recording", "detect_impacts", "event_times", "example_tables", "exponential_window", "fit_kcm",
-    "force_window", "frf_h1", "imbalance_recording", "impact_recording", "keyphasor_times", "lab_imbalance_recording",
-    "list_groups", "load_1x_table", "load_recording", "load_segmented", "match_speeds", "polar_covariance",
-    "propagate", "pulse_train", "relative_std", "report_vector", "revolution_signature", "runout_filter",
-    "save_1x_table", "save_csv", "save_recording", "save_tdms", "save_tdms_segmented", "save_uff58",
-    "signals.slow_roll_vector", "state_levels", "std_from_cov", "steady_segments", "t_quantile",
-    "tables.slow_roll_vector", "track", "with_jackknife"]
+    "force_window", "frf_h1", "imbalance_recording", "impact_recording", "keyphasor_times",
+    "lab_imbalance_recording", "list_groups", "load_1x_table", "load_recording", "load_segmented", "match_speeds",
+    "pedestals:SyncTrack", "pedestals:imbalance_recording", "pedestals:impact_recording",
+    "pedestals:lab_imbalance_recording", "pedestals:load_1x_table", "pedestals:match_speeds", "pedestals:propagate",
+    "pedestals:save_1x_table", "pedestals:track", "polar_covariance", "propagate", "pulse_train", "relative_std",
+    "report_vector", "revolution_signature", "runout_filter", "save_1x_table", "save_csv", "save_recording",
+    "save_tdms", "save_tdms_segmented", "save_uff58", "signals.slow_roll_vector", "state_levels", "std_from_cov",
+    "steady_segments", "t_quantile", "tables.slow_roll_vector", "track", "with_jackknife"]
 
 
 @pytest.mark.parametrize("name", CALL_NAMES)
@@ -510,6 +613,8 @@ def test_every_argument_refuses_every_bad_value(tmp_path, monkeypatch, name):
     """The sweep: each argument in turn set to each bad value (the others good)."""
     monkeypatch.chdir(tmp_path)  # relative paths among the bad values land in tmp_path
     call = _calls(tmp_path)[name]
+    if not call.args:  # nothing to corrupt: the call itself must answer sanely
+        call.run({})
     for arg in call.args:
         for value in SWEEP:
             call.run({arg: value})
@@ -638,6 +743,30 @@ def _chain_fixtures():
     return dict(rotor=rotor, runs=runs, base=base, impacts=impacts)
 
 
+@functools.lru_cache(maxsize=None)
+def _pedestal_chain_fixtures():
+    """The chains' recordings on flexible pedestals (with the housing accelerometers)."""
+    rotor, brg, remnant = rawsim.example_rig()
+    imb = [rotorid.Imbalance((5e-3, 5e-3), a) for a in ((0.0, 0.0), (0.0, 180.0))]
+    speeds = [3000.0, 3500.0, 4000.0]
+    runs = [rawsim.imbalance_recording(rotor, brg, speeds_rpm=speeds, added=i, remnant=remnant, dwell_s=0.3, seed=s,
+                                       pedestals=PEDESTALS) for s, i in enumerate(imb)]
+    base = rawsim.imbalance_recording(rotor, brg, speeds_rpm=speeds, added=None, remnant=remnant, dwell_s=0.3, seed=5,
+                                      pedestals=PEDESTALS)
+    impacts = [rawsim.impact_recording(rotor, brg, speed_rpm=3000.0, plane=0.0, direction=d, impact_times_s=(0.3, 0.8),
+                                       record_s=1.2, seed=j, pedestals=PEDESTALS) for j, d in enumerate("xy")]
+    return dict(rotor=rotor, runs=runs, base=base, impacts=impacts)
+
+
+def _motion_finite(out, kw):
+    """A response or modal result on flexible pedestals: the rotor's and the housings' motion (and
+    the eigenvalues and mode shapes) are finite."""
+    for name in ("q", "pedestal", "pedestal_accel", "eigenvalues", "shapes"):
+        v = getattr(out, name, None)
+        if v is not None:
+            _finite(np.asarray(v), f"{type(out).__name__}.{name}")
+
+
 def _batch_solved(out, kw):
     """identify_synchronous_batch: k and c of the solved points are finite (std unknown: NaN)."""
     ok = np.isfinite(out["cond"])
@@ -680,6 +809,9 @@ def _owned_calls(tmp):
     modal = rotorid.modal_analysis(rotor, brg, speed_rpm=[1000.0, 2000.0])
     rec = rotorid.Recording(1000.0, {"x1": np.zeros(16)})
     chain = _chain_fixtures()
+    fp = _pedestal_fixtures()
+    pchain = _pedestal_chain_fixtures()
+    ped_rpm = fp["runs"][0].speed_rpm
 
     def plotting(fn):
         def call(**kw):
@@ -694,7 +826,9 @@ def _owned_calls(tmp):
     q = np.stack([r.q for r in runs])[None]
     e = np.stack([rig.imbalances[s].generalized(rotor) for s in "AB"])[None]
     values = [rotor, brg, rig.imbalances["A"], runs, tests, ident, modal, rec, "x", "y", "probes", "bearings", "report",
-              "mil", "length", np.ones((2, 4), complex), np.ones((2, 2, 2)), [1e-3, 1e-3], (0.0, 90.0)]
+              "mil", "length", np.ones((2, 4), complex), np.ones((2, 2, 2)), [1e-3, 1e-3], (0.0, 90.0), PEDESTALS,
+              fp["runs"], fp["tests"], fp["ident"], fp["runs"][0].pedestal, np.ones((2, 2, 2, 2))]
+    ped_kw = dict(mass_kg=20.0, k=[[2.0e7, 2.6e7], [2.2e7, 2.8e7]], c=2500.0)
     return {
         "RigidRotor": Call(rotorid.RigidRotor, dict(mass_kg=45.3, it_kgm2=0.7, ip_kgm2=0.3, l1=0.2, l2=0.2,
                                                     d=(0.1, 0.1), r=(0.05, 0.05), s=(0.2, 0.2)), extras=values),
@@ -702,18 +836,38 @@ def _owned_calls(tmp):
         "Imbalance": Call(rotorid.Imbalance, dict(mass_kg=(1e-3, 1e-3), angle_deg=(0.0, 0.0), name="A"),
                           extras=values),
         "ProbeResolution": Call(rotorid.ProbeResolution, dict(amplitude_m=25.4e-9, phase_deg=1.0, noise_m=0.0)),
-        "SyncResponse": Call(rotorid.SyncResponse, dict(speed_rpm=rpm, q=runs[0].q, imbalance=rig.imbalances["A"]),
+        "SyncResponse": Call(rotorid.SyncResponse, dict(speed_rpm=rpm, q=runs[0].q, imbalance=rig.imbalances["A"],
+                                                        pedestal=None, pedestal_cov=None, pedestal_cross=None),
                              extras=values),
+        "pedestals:SyncResponse": Call(rotorid.SyncResponse, dict(
+            speed_rpm=ped_rpm, q=fp["runs"][0].q, imbalance=rig.imbalances["A"], cov=np.broadcast_to(
+                np.eye(8) * 1e-14, (8, 8, 8)), pedestal=fp["runs"][0].pedestal, pedestal_cov=np.broadcast_to(
+                np.eye(8) * 1e-16, (8, 8, 8)), pedestal_cross=np.zeros((8, 8, 8))), extras=values),
         "ImpactResponse": Call(rotorid.ImpactResponse, dict(speed_rpm=1000.0, freq_hz=[20.0, 40.0], q=tests[0].q,
-                                                            plane=0.0, direction="x"), extras=values),
+                                                            plane=0.0, direction="x", pedestal=None, pedestal_cov=None,
+                                                            pedestal_cross=None), extras=values),
+        "pedestals:ImpactResponse": Call(rotorid.ImpactResponse, dict(
+            speed_rpm=1000.0, freq_hz=fp["tests"][0].freq_hz, q=fp["tests"][0].q, plane=0.0, direction="x",
+            pedestal=fp["tests"][0].pedestal, pedestal_cov=np.broadcast_to(np.eye(8) * 1e-16, (10, 8, 8)),
+            pedestal_cross=np.zeros((10, 8, 8))), extras=values),
         "imbalance_response": Call(rotorid.imbalance_response, dict(rotor=rotor, bearings=brg,
                                                                     imbalance=rig.imbalances["A"], speed_rpm=rpm,
-                                                                    at="bearings"), extras=values),
+                                                                    at="bearings", pedestals=None), extras=values),
+        "pedestals:imbalance_response": Call(rotorid.imbalance_response, dict(
+            rotor=rotor, bearings=brg, imbalance=rig.imbalances["A"], speed_rpm=rpm, at="bearings",
+            pedestals=PEDESTALS), extras=values, check=_motion_finite),
         "impact_frf": Call(rotorid.impact_frf, dict(rotor=rotor, bearings=brg, speed_rpm=1000.0, freq_hz=[20.0, 40.0],
-                                                    plane=0.0, direction="x", at="bearings", name=None), extras=values),
+                                                    plane=0.0, direction="x", at="bearings", name=None,
+                                                    pedestals=None), extras=values),
+        "pedestals:impact_frf": Call(rotorid.impact_frf, dict(
+            rotor=rotor, bearings=brg, speed_rpm=1000.0, freq_hz=[20.0, 40.0], plane=0.0, direction="x", at="bearings",
+            name=None, pedestals=PEDESTALS), extras=values, check=_motion_finite),
         "impact_time_response": Call(rotorid.impact_time_response, dict(
             rotor=rotor, bearings=brg, speed_rpm=1000.0, force_N=np.r_[np.hanning(10), np.zeros(90)], fs_hz=1e4,
-            plane=0.0, direction="x", at="bearings"), extras=values),
+            plane=0.0, direction="x", at="bearings", pedestals=None), extras=values),
+        "pedestals:impact_time_response": Call(rotorid.impact_time_response, dict(
+            rotor=rotor, bearings=brg, speed_rpm=1000.0, force_N=np.r_[np.hanning(10), np.zeros(90)], fs_hz=1e4,
+            plane=0.0, direction="x", at="bearings", pedestals=PEDESTALS), extras=values, check=_motion_finite),
         "impact_vector": Call(rotorid.impact_vector, dict(plane=0.0, direction="x"), extras=values),
         "half_sine_pulse": Call(rotorid.half_sine_pulse, dict(peak_N=100.0, duration_s=1e-3, fs_hz=1e4, n_samples=100,
                                                               t0_s=0.0)),
@@ -722,18 +876,48 @@ def _owned_calls(tmp):
                                    extras=values),
         "identify_synchronous": Call(rotorid.identify_synchronous, dict(
             rotor=rotor, runs=runs, method="forces", identical=False, cond_max=1e4, min_rel_amplitude=0.08,
-            max_rel_std=0.1, estimator="ls", shared_cov=None), extras=values),
+            max_rel_std=0.1, estimator="ls", shared_cov=None, accel_gain_std=0.0, accel_phase_std_deg=0.0),
+            extras=values),
+        "pedestals:identify_synchronous": Call(rotorid.identify_synchronous, dict(
+            rotor=rotor, runs=fp["runs"], method="forces", identical=False, cond_max=1e4, min_rel_amplitude=0.08,
+            max_rel_std=0.1, estimator="ls", shared_cov=None, accel_gain_std=0.02, accel_phase_std_deg=1.0),
+            extras=values),
         "identify_impact": Call(rotorid.identify_impact, dict(
             rotor=rotor, tests=tests, method="forces", identical=False, cond_max=1e4, min_rel_amplitude=0.01,
-            max_rel_std=0.1, extra_flags=None, estimator="ls"), extras=values),
+            max_rel_std=0.1, extra_flags=None, estimator="ls", accel_gain_std=0.0, accel_phase_std_deg=0.0),
+            extras=values),
+        "pedestals:identify_impact": Call(rotorid.identify_impact, dict(
+            rotor=rotor, tests=fp["tests"], method="forces", identical=False, cond_max=1e4, min_rel_amplitude=0.01,
+            max_rel_std=0.1, extra_flags=None, estimator="ls", accel_gain_std=0.02, accel_phase_std_deg=1.0),
+            extras=values),
+        "identify_pedestals": Call(rotorid.identify_pedestals, dict(
+            rotor=rotor, runs=fp["runs"], cross_coupled=False, freq_range_hz=None, accel_gain_std=0.02,
+            accel_phase_std_deg=1.0), extras=values),
+        "identify_pedestals:impacts": Call(rotorid.identify_pedestals, dict(
+            rotor=rotor, runs=fp["tests"], cross_coupled=True, freq_range_hz=(10.0, 50.0), accel_gain_std=0.0,
+            accel_phase_std_deg=0.0), extras=values),
+        "Pedestals": Call(rotorid.Pedestals, ped_kw, extras=values),
+        "example_pedestals": Call(rotorid.example_pedestals, {}),
+        "Pedestals.dynamic_stiffness": Call(PEDESTALS.dynamic_stiffness, dict(freq_hz=[0.0, 50.0, 200.0]),
+                                            extras=values),
+        "Pedestals.matrices": Call(lambda **kw: rotorid.Pedestals(**kw).matrices(), ped_kw, extras=values),
+        "pedestal.displacement_from_acceleration": Call(rotorid.pedestal.displacement_from_acceleration, dict(
+            accel=fp["runs"][0].pedestal * -(ped_rpm * np.pi / 30.0)[:, None] ** 2, freq_hz=ped_rpm / 60.0,
+            phase_deg=2.0, sensitivity=1.01), extras=values),
         "identify_synchronous_batch": Call(rotorid.identify_synchronous_batch, dict(
             rotor=rotor, speed_rpm=rpm, q=q, imbalances=e, method="forces", identical=False, with_std=False,
             at="bearings"), extras=values, nan_ok=True, check=_batch_solved),
         "Identification.interval": Call(ident.interval, dict(level=0.95), nan_ok=True),
-        "modal_analysis": Call(rotorid.modal_analysis, dict(rotor=rotor, bearings=brg, speed_rpm=[1000.0]),
-                               extras=values),
+        "modal_analysis": Call(rotorid.modal_analysis, dict(rotor=rotor, bearings=brg, speed_rpm=[1000.0],
+                                                            pedestals=None), extras=values),
+        "pedestals:modal_analysis": Call(rotorid.modal_analysis, dict(rotor=rotor, bearings=brg, speed_rpm=[1000.0],
+                                                                      pedestals=PEDESTALS), extras=values,
+                                         check=_motion_finite),
         "critical_speeds": Call(rotorid.critical_speeds, dict(rotor=rotor, bearings=brg, max_rpm=5000.0, n_grid=50,
-                                                              order=1.0), extras=values),
+                                                              order=1.0, pedestals=None), extras=values),
+        "pedestals:critical_speeds": Call(rotorid.critical_speeds, dict(rotor=rotor, bearings=brg, max_rpm=5000.0,
+                                                                        n_grid=50, order=1.0, pedestals=PEDESTALS),
+                                          extras=values),
         "Recording": Call(rotorid.Recording, dict(fs_hz=1000.0, channels={"x1": np.zeros(8)}, meta={}, units={},
                                                   t0_s=0.0, source=""), extras=values),
         "Recording.segment": Call(rec.segment, dict(start_s=0.0, stop_s=0.01)),
@@ -752,20 +936,32 @@ def _owned_calls(tmp):
         "plot.coefficients": Call(plotting(plot.coefficients), dict(ident=ident, truth=None, title="",
                                                                     path=str(tmp / "c.png"), show_flagged=True,
                                                                     ylim_factor=3.0), extras=values),
+        "plot.pedestal_compensation": Call(plotting(plot.pedestal_compensation), dict(
+            without=fp["ident_naive"], with_pedestal=fp["ident"], truth=fp["rig"].bearings, title="",
+            path=str(tmp / "p.png")), extras=values),
         "plot.campbell": Call(plotting(plot.campbell), dict(modal_result=modal, crit=None, path=str(tmp / "m.png"),
                                                             title=""), extras=values),
         "imbalance_chain": Call(pipeline.imbalance_chain, dict(
             rotor=chain["rotor"], runs=chain["runs"], baseline=chain["base"], speeds_rpm=None, steady=True,
             orders=(1,), method="forces", keyphasor=None, speed_match_rpm=None, points_per_rev=None, min_revs=8,
-            settle_revs=2, speed_tolerance=0.005, revs_per_block=None), extras=values),
+            settle_revs=2, speed_tolerance=0.005, revs_per_block=None, pedestal_motion=None), extras=values),
+        "pedestals:imbalance_chain": Call(pipeline.imbalance_chain, dict(
+            rotor=pchain["rotor"], runs=pchain["runs"], baseline=pchain["base"], speeds_rpm=None, steady=True,
+            orders=(1,), method="forces", keyphasor=None, speed_match_rpm=None, points_per_rev=None, min_revs=8,
+            settle_revs=2, speed_tolerance=0.005, revs_per_block=None, pedestal_motion=True), extras=values),
         "impact_segments": Call(pipeline.impact_segments, dict(
             rec=chain["impacts"][0], record_s=0.2, pre_s=0.01, revs_before=8, runout=True, kp=None, points_per_rev=64,
-            exp_window_tau_s=None, detect=None), extras=values),
+            exp_window_tau_s=None, detect=None, pedestal=False), extras=values),
         "impact_chain": Call(pipeline.impact_chain, dict(
             rotor=chain["rotor"], recordings=chain["impacts"], band_hz=(5.0, 150.0), record_s=0.2, runout=True,
             identical=False, method="forces", exp_window_tau_s=None, pre_s=0.01, zero_pad_s=None, revs_before=8,
             points_per_rev=64, keyphasor=None, coherence_min=0.9, threshold_N=None, min_separation_s=0.2,
-            double_hit_window_s=0.02, overload_N=None, kcm_band_hz=None), extras=values),
+            double_hit_window_s=0.02, overload_N=None, kcm_band_hz=None, pedestal_motion=None), extras=values),
+        "pedestals:impact_chain": Call(pipeline.impact_chain, dict(
+            rotor=pchain["rotor"], recordings=pchain["impacts"], band_hz=(5.0, 150.0), record_s=0.2, runout=True,
+            identical=False, method="forces", exp_window_tau_s=None, pre_s=0.01, zero_pad_s=None, revs_before=8,
+            points_per_rev=64, keyphasor=None, coherence_min=0.9, threshold_N=None, min_separation_s=0.2,
+            double_hit_window_s=0.02, overload_N=None, kcm_band_hz=None, pedestal_motion=True), extras=values),
         "run_config": Call(pipeline.run_config, dict(path=os.path.join(example.path(), "imbalance.toml"),
                                                      kind="imbalance", out_dir=str(tmp / "out"), overwrite=True,
                                                      log=lambda *a: None), args=["path", "kind"]),
@@ -778,6 +974,8 @@ def _owned_calls(tmp):
                                                         log=lambda *a: None), args=["step_rpm", "resolution", "out"]),
         "demo.impact": Call(demo.impact, dict(out=str(tmp / "demo"), speed_rpm=1000.0, log=lambda *a: None),
                             args=["out", "speed_rpm"]),
+        "demo.pedestal": Call(demo.pedestal, dict(out=str(tmp / "demo_ped"), step_rpm=1000.0, probe_noise_um=0.025,
+                                                  accel_noise_ms2=0.002, seed=12, log=lambda *a: None)),
         "demo.cross_coupling": Call(demo.cross_coupling, dict(out=str(tmp / "demo5"), speed_rpm=[3000.0, 4000.0],
                                                               resolution=None, log=lambda *a: None),
                                     args=["out", "speed_rpm", "resolution"]),
@@ -824,13 +1022,19 @@ def _owned_calls(tmp):
 
 
 OWNED_NAMES = [
-    "BearingCoefficients", "Identification.interval", "Imbalance", "ImpactResponse", "ProbeResolution", "Recording",
-    "Recording.segment", "RigidRotor", "SegmentedRecording", "SegmentedRecording.from_arrays", "SyncResponse",
-    "bearings_to_probes", "config.load_config", "config.parse_config", "critical_speeds", "demo.cross_coupling",
-    "demo.impact", "demo.synchronous", "example.copy_example", "half_sine_pulse", "identify_impact",
-    "identify_synchronous", "identify_synchronous_batch", "imbalance_chain", "imbalance_response", "impact_chain",
-    "impact_frf", "impact_segments", "impact_time_response", "impact_vector", "modal_analysis", "plot.bode",
-    "plot.campbell", "plot.coefficients", "probes_to_bearings", "run_config", "sensitivity.cross_coupling_ratio",
+    "BearingCoefficients", "Identification.interval", "Imbalance", "ImpactResponse", "Pedestals",
+    "Pedestals.dynamic_stiffness", "Pedestals.matrices", "ProbeResolution", "Recording", "Recording.segment",
+    "RigidRotor", "SegmentedRecording", "SegmentedRecording.from_arrays", "SyncResponse", "bearings_to_probes",
+    "config.load_config", "config.parse_config", "critical_speeds", "demo.cross_coupling", "demo.impact",
+    "demo.pedestal", "demo.synchronous", "example.copy_example", "example_pedestals", "half_sine_pulse",
+    "identify_impact", "identify_pedestals", "identify_pedestals:impacts", "identify_synchronous",
+    "identify_synchronous_batch", "imbalance_chain", "imbalance_response", "impact_chain", "impact_frf",
+    "impact_segments", "impact_time_response", "impact_vector", "modal_analysis",
+    "pedestal.displacement_from_acceleration", "pedestals:ImpactResponse", "pedestals:SyncResponse",
+    "pedestals:critical_speeds", "pedestals:identify_impact", "pedestals:identify_synchronous",
+    "pedestals:imbalance_chain", "pedestals:imbalance_response", "pedestals:impact_chain", "pedestals:impact_frf",
+    "pedestals:impact_time_response", "pedestals:modal_analysis", "plot.bode", "plot.campbell", "plot.coefficients",
+    "plot.pedestal_compensation", "probes_to_bearings", "run_config", "sensitivity.cross_coupling_ratio",
     "sensitivity.cross_coupling_sensitivity", "sensitivity.scale_cross_coupling", "sensitivity.speed_range_errors",
     "studies.ImpactErrors", "studies.SyncErrors", "studies.TrialMassRig", "studies.design_impact_plan",
     "studies.design_trial_masses", "studies.dwell_noise_m", "studies.frf_random_error", "studies.impact_study",
@@ -847,6 +1051,8 @@ def test_the_sweeps_list_every_call(tmp_path):
 def test_every_argument_of_the_rest_refuses_every_bad_value(tmp_path, monkeypatch, name):
     monkeypatch.chdir(tmp_path)
     call = _owned_calls(tmp_path)[name]
+    if not call.args:  # nothing to corrupt: the call itself must answer sanely
+        call.run({})
     for arg in call.args:
         for value in SWEEP:
             call.run({arg: value})

@@ -382,12 +382,38 @@ def _h1(forces, responses, fs, zero_pad_s):
     return signals.frf_h1(forces, responses, fs)
 
 
-def _impact_response(frf, sel, speed, plane, direction, at, sigma, name) -> ImpactResponse:
+def _delay_rotation(phase):
+    """Real (n, 2C, 2C) map of [Re, Im] (grouped per 4 channels) for multiplying channel j by
+    e^{j phase[:, j]}."""
+    n, C = phase.shape
+    R = np.zeros((n, 2 * C, 2 * C))
+    c, s = np.cos(phase), np.sin(phase)
+    for j in range(C):
+        g, k = divmod(j, 4)
+        re, im = 8 * g + k, 8 * g + 4 + k
+        R[:, re, re], R[:, re, im], R[:, im, re], R[:, im, im] = c[:, j], -s[:, j], s[:, j], c[:, j]
+    return R
+
+
+def _impact_response(frf, sel, speed, plane, direction, at, sigma, name, delays=None) -> ImpactResponse:
     """The ImpactResponse of an averaged H1 over the band ``sel``; with 8 channels the last four
     are housing accelerometers, whose FRFs A become pedestal displacement FRFs A / s² with
-    s = sigma + j w (their covariance mapped alike)."""
+    s = sigma + j w (their covariance mapped alike). ``delays`` (C,): each response channel's
+    delay less the force channel's (s); the FRFs are advanced by e^{j w delay}."""
     h = frf.h[sel]
     cov = None if frf.cov is None else frf.cov[sel]
+    if delays is not None and np.any(delays):
+        # measured x(t - d) has the spectrum X e^{-j w d}: undo it (the exponential window's decay
+        # rate sigma does not change the phase of a pure delay's correction at s = sigma + j w
+        # beyond the factor e^{sigma d}, a gain that is applied too)
+        om = 2 * np.pi * frf.freq_hz[sel]
+        h = h * np.exp((sigma + 1j * om)[:, None] * delays[None, :])
+        if cov is not None:
+            R = _delay_rotation(om[:, None] * delays[None, :])
+            gain = np.exp(sigma * delays)
+            G = np.concatenate([gain[g:g + 4] for g in range(0, delays.size, 4) for _ in (0, 1)])
+            R = R * G[None, :, None]
+            cov = R @ cov @ np.swapaxes(R, 1, 2)
     dof = None if cov is None else np.full(cov.shape[0], frf.dof)
     if h.shape[1] == 4:
         return ImpactResponse(speed_rpm=speed, freq_hz=frf.freq_hz[sel], q=h, plane=plane, direction=direction, at=at,
@@ -520,7 +546,14 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
                                      points_per_rev=points_per_rev, detect=detect, pedestal=ped)
         dropped += d
         key = (float(meta["plane"]), str(meta["direction"]), meta.get("probes_at", "probes"), rec.fs_hz)
-        g = groups.setdefault(key, ([], [], []))
+        # channel delays (the channel map's delay_s): each response channel relative to the force
+        dl = rec.meta.get("channel_delays_s", {}) or {}
+        rel = np.array([float(dl.get(c, 0.0)) for c in channels]) - float(dl.get("force", 0.0))
+        g = groups.setdefault(key, ([], [], [], rel))
+        if not np.allclose(g[3], rel, rtol=0.0, atol=1e-12):
+            raise RotoridError(f"impact recording {rec.source!r} has other channel delays than the other recordings "
+                               f"of its test ({meta['direction']} at {float(meta['plane']):g} m): one FRF needs one "
+                               "set of delays")
         g[0].extend(f)
         g[1].extend(r)
         g[2].extend(u)
@@ -541,7 +574,7 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
         raise RotoridError("the running speed of the impact tests cannot be known: the recordings have no keyphasor "
                            "and no speed_rpm in their metadata; give speed_rpm")
     tests, frfs, used = [], [], []
-    for (plane, direction, at, fs), (fl, rl, ul) in groups.items():
+    for (plane, direction, at, fs), (fl, rl, ul, rel) in groups.items():
         if not fl:
             raise RotoridError(f"no clean impact left for the test in {direction} at plane {plane:g} m")
         frf = _h1(fl, rl, fs, zero_pad_s)
@@ -554,7 +587,7 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
                           f"{int((coh < coherence_min).sum())} of {coh.size} points below {coherence_min:g}")
         sigma = 0.0 if exp_window_tau_s is None else 1.0 / exp_window_tau_s
         tests.append(_impact_response(frf, sel, speed, plane, direction, at, sigma,
-                                      f"{direction}@{plane:g}m x{len(fl)}"))
+                                      f"{direction}@{plane:g}m x{len(fl)}", rel))
         frfs.append(frf)
         used.append(ul)
     # low coherence at a frequency (any test, any channel) flags the point: its FRFs are unreliable
@@ -570,17 +603,17 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
         from .kcm import fit_kcm, with_jackknife
 
         kcm = fit_kcm(ident, band_hz=kcm_band_hz, rotor=rotor)
-        group_data = [(fl, rl, fs) for (_, _, _, fs), (fl, rl, _) in groups.items()]
+        group_data = [(fl, rl, fs, rel) for (_, _, _, fs), (fl, rl, _, rel) in groups.items()]
         if all(len(g[0]) >= 2 for g in group_data):
             reps, labels = [], []
-            for gi, (fl, rl, fs) in enumerate(group_data):
+            for gi, (fl, rl, fs, rel) in enumerate(group_data):
                 for i in range(len(fl)):
                     frf = _h1(fl[:i] + fl[i + 1:], rl[:i] + rl[i + 1:], fs, zero_pad_s)
                     sel = (frf.freq_hz >= band_hz[0]) & (frf.freq_hz <= band_hz[1])
                     t0 = tests[gi]
                     rep_tests = list(tests)
                     rep_tests[gi] = _impact_response(frf, sel, t0.speed_rpm, t0.plane, t0.direction, t0.at,
-                                                     t0.sigma, t0.name)
+                                                     t0.sigma, t0.name, rel)
                     with warnings.catch_warnings():
                         warnings.simplefilter("ignore")
                         rid = identify_impact(rotor, rep_tests, identical=identical, method=method, extra_flags=flags,

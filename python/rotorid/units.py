@@ -45,7 +45,9 @@ def factor(unit: str, quantity: str | None = None) -> float:
         raise RotoridError(f"unknown unit {unit!r}; known: {sorted(_UNITS)}")
     q, f = _UNITS[key]
     if quantity is not None and q != quantity:
-        raise RotoridError(f"unit {unit!r} is a {q}, expected a {quantity}")
+        def an(w):
+            return f"{'an' if w[:1] in 'aeiou' else 'a'} {w}"
+        raise RotoridError(f"unit {unit!r} is {an(q)}, expected {an(quantity)}")
     return f
 
 

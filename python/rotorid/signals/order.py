@@ -316,9 +316,15 @@ def track(rec, *, orders=(1, 2, 3), revs_per_block: int | None = None, steady: b
     from ..recording import SegmentedRecording
 
     if isinstance(rec, SegmentedRecording):
+        import dataclasses
+
+        # channel delays given for the whole recording reach the blocks that state none
+        top = (rec.meta or {}).get("channel_delays_s")
+        blocks = [dataclasses.replace(b, meta={**b.meta, "channel_delays_s": top})
+                  if top and not b.meta.get("channel_delays_s") else b for b in rec.blocks]
         parts = [track(b, orders=orders, revs_per_block=revs_per_block, steady=steady, points_per_rev=points_per_rev,
                        kp=None, min_revs=min_revs, settle_revs=settle_revs, speed_tolerance=speed_tolerance,
-                       keyphasor=keyphasor, pedestal=pedestal) for b in rec.blocks]
+                       keyphasor=keyphasor, pedestal=pedestal) for b in blocks]
         ped = {}
         if parts[0].has_pedestal:
             ped = {name: np.concatenate([getattr(p, name) for p in parts])
