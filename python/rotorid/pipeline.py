@@ -258,8 +258,9 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
             pc, cr = t.pedestal_cov_at_speeds(grid)
             pk = dict(pedestal=ped_on_grid[i], pedestal_cov=pc, pedestal_cross=cr)
             if not (np.all(np.isfinite(cov)) and np.all(np.isfinite(pc))):
-                pk.pop("pedestal_cross")
-                pk["pedestal_cov"] = pc if np.all(np.isfinite(pc)) else None
+                # unknown (NaN) where either is: the points are flagged "uncertainty unknown", as
+                # without pedestal motion
+                pk["pedestal_cross"] = None
         responses.append(SyncResponse(grid, q, imb, at, name, cov, np.where(np.isnan(dof), np.inf, dof), **pk))
     if ped:
         ratio = max(float(np.nanmax(r.pedestal_ratio)) for r in responses)
