@@ -518,9 +518,10 @@ def _calls(tmp):
             pedestal_cov=None, pedestal_cross=None), extras=table_values),
         "pedestals:SyncTrack": Call(signals.SyncTrack, dict(
             speed_rpm=ped_track.speed_rpm, vectors=ped_track.vectors, orders=(1,), n_revs=np.full(5, 10),
-            scatter=np.zeros((5, 4)), t_mid=np.zeros(5), keyphasors=[], cov=np.broadcast_to(np.eye(8) * 1e-14, (5, 8, 8)),
-            dof=np.full(5, 9.0), pedestal=ped_track.pedestal, pedestal_cov=np.broadcast_to(np.eye(8) * 1e-16, (5, 8, 8)),
-            pedestal_cross=np.zeros((5, 8, 8))), extras=table_values),
+            scatter=np.zeros((5, 4)), t_mid=np.zeros(5), keyphasors=[],
+            cov=np.broadcast_to(np.eye(8) * 1e-14, (5, 8, 8)), dof=np.full(5, 9.0), pedestal=ped_track.pedestal,
+            pedestal_cov=np.broadcast_to(np.eye(8) * 1e-16, (5, 8, 8)), pedestal_cross=np.zeros((5, 8, 8))),
+            extras=table_values),
         # kcm, phasecal, uncertainty
         "fit_kcm": Call(lambda **kw: rotorid.fit_kcm(**{"ident": _impact_fit()[0], **kw}), dict(
             band_hz=None, rotor=f["rig"].rotor, only_ok=True), args=["ident", "band_hz", "rotor", "only_ok"],

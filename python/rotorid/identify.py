@@ -320,6 +320,17 @@ def _check_threshold(name, value, lo, hi=np.inf):
     return v
 
 
+def _flag_list(extra_flags) -> list:
+    """``extra_flags`` as a list of pairs (checked in full where the points are known, in
+    ``_finish``); None is an empty list."""
+    if extra_flags is None:
+        return []
+    if isinstance(extra_flags, (str, bytes, dict)) or not isinstance(extra_flags, (list, tuple)):
+        raise RotoridError(f"extra_flags must be a list of (mask over the points, reason) pairs, got "
+                           f"{type(extra_flags).__name__}")
+    return list(extra_flags)
+
+
 def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", identical: bool = False,
                          cond_max: float = COND_MAX, min_rel_amplitude: float = MIN_REL_AMPLITUDE,
                          max_rel_std: float = MAX_REL_STD, estimator: str = "ls",
@@ -644,7 +655,7 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
         cs[np.isnan(cov).any(axis=(1, 2))] = np.nan
         unknown = np.isnan(cov).any(axis=(1, 2))
         if unknown.any():
-            extra_flags = list(extra_flags or []) + [(unknown, "uncertainty unknown")]
+            extra_flags = _flag_list(extra_flags) + [(unknown, "uncertainty unknown")]
         source = "measurement covariance"
         dof = np.min(dofs, axis=0) if dofs is not None else np.full(axis.size, np.inf)
         dof = np.where(np.isnan(cov).any(axis=(1, 2)), np.nan, dof)
@@ -677,7 +688,7 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
         else:
             rejected = resid[0] > 0.01
         if rejected.any():
-            extra_flags = list(extra_flags or []) + [(rejected, "identical bearings rejected by the data")]
+            extra_flags = _flag_list(extra_flags) + [(rejected, "identical bearings rejected by the data")]
     return _finish(axis_name, axis, amp[0], k[0], c[0], cond[0], resid[0], ks, cs, cond_max, min_rel_amplitude,
                    method, labels, source, dof, cov, max_rel_std, extra_flags, ks_res, cs_res, bias_k, bias_c,
                    estimator, rel_std, std_known)
@@ -769,6 +780,7 @@ def identify_impact(rotor: RigidRotor, tests, *, method: str = "forces", identic
         raise RotoridError(f"rotor must be a rotorid.RigidRotor, got {type(rotor).__name__}")
     choice("method", method, {"forces", "report"})
     _check_bool("identical", identical)
+    extra_flags = None if extra_flags is None else _flag_list(extra_flags)
     tests = list(tests.values()) if isinstance(tests, dict) else tests
     if not isinstance(tests, (list, tuple)):
         raise RotoridError(f"tests must be a list or dict of ImpactResponse, got {type(tests).__name__}")
@@ -794,7 +806,7 @@ def identify_impact(rotor: RigidRotor, tests, *, method: str = "forces", identic
     q_ped = cal = None
     if _has_pedestal(tests, labels):
         qs, q_ped, covs, dofs, pflags = _pedestal_inputs(rotor, tests, labels, "freq_hz", f)
-        extra_flags = list(extra_flags or []) + pflags
+        extra_flags = _flag_list(extra_flags) + pflags
         cal = _calibration_inputs(rotor, tests, labels, accel_gain_std, accel_phase_std_deg)
     else:
         _no_calibration(accel_gain_std, accel_phase_std_deg)

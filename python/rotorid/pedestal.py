@@ -25,6 +25,12 @@ import numpy as np
 from ._validate import real_array
 from .errors import IdentifiabilityError, RotoridError
 
+#: largest angular frequency (rad/s) the pedestal functions accept: w² stays far from overflow
+#: (1e12 rad/s is 160 GHz, beyond any vibration)
+MAX_W = 1e12
+#: smallest angular frequency they accept (1e-6 rad/s: one turn in 72 days)
+MIN_W = 1e-6
+
 #: pedestal degrees of freedom, the order of ``SyncResponse.pedestal`` (as q = [x1, x2, y1, y2])
 PEDESTAL_DOFS = ("xp1", "xp2", "yp1", "yp2")
 #: accelerometer channel of each pedestal degree of freedom (recordings, 1X tables)
@@ -113,6 +119,9 @@ class Pedestals:
     def dynamic_stiffness(self, freq_hz) -> np.ndarray:
         """D(w) = K_p - w² M_p + j w C_p, complex (n, 2, 2, 2) [point, pedestal, i, j]."""
         w = 2 * np.pi * np.atleast_1d(real_array("freq_hz", freq_hz, nonneg=True))
+        if np.any(w > MAX_W):
+            raise RotoridError(f"freq_hz up to {w.max() / (2 * np.pi):.3g} Hz: above {MAX_W / (2 * np.pi):.3g} Hz the "
+                               "dynamic stiffness overflows")
         m = np.zeros((2, 2, 2))
         m[:, 0, 0] = self.mass_kg[:, 0]
         m[:, 1, 1] = self.mass_kg[:, 1]
@@ -169,10 +178,22 @@ def displacement_from_acceleration(accel, freq_hz, *, phase_deg=0.0, sensitivity
     ph = real_array("phase_deg", phase_deg)
     s = real_array("sensitivity", sensitivity, positive=True)
     w = 2 * np.pi * f
+    if np.any(w < MIN_W) or np.any(w > MAX_W):
+        raise RotoridError(f"freq_hz must lie between {MIN_W / (2 * np.pi):.3g} and {MAX_W / (2 * np.pi):.3g} Hz "
+                           f"(the division by w² stays finite), got {f.min():.3g} to {f.max():.3g} Hz")
+    if np.any(s < 1e-6) or np.any(s > 1e6):
+        raise RotoridError(f"sensitivity is a correction factor near 1 (measured / true), got {s.min():.3g} to "
+                           f"{s.max():.3g}")
     try:
         wb = np.broadcast_to(w[..., None] if (w.ndim == 1 and a.ndim == 2 and a.shape[0] == w.size) else w, a.shape)
     except ValueError:
         raise RotoridError(f"freq_hz has shape {f.shape}, which does not fit accel of shape {a.shape}") from None
+    for name, v in (("phase_deg", ph), ("sensitivity", s)):
+        try:
+            np.broadcast_to(v, a.shape)
+        except ValueError:
+            raise RotoridError(f"{name} has shape {v.shape}, which does not fit accel of shape {a.shape} (a value, or "
+                               "one per channel)") from None
     return -a * np.exp(1j * np.deg2rad(ph)) / s / wb ** 2
 
 
