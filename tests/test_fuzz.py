@@ -760,12 +760,22 @@ def _pedestal_chain_fixtures():
 
 
 def _motion_finite(out, kw):
-    """A response or modal result on flexible pedestals: the rotor's and the housings' motion (and
-    the eigenvalues and mode shapes) are finite."""
-    for name in ("q", "pedestal", "pedestal_accel", "eigenvalues", "shapes"):
+    """A response or modal result on flexible pedestals: the rotor's and the housings' motion are
+    finite; a modal result's eigenvalues and shapes are finite except the documented NaN padding
+    (an overdamped mode has no damped frequency: its eigenvalue and shape are NaN together, after
+    the oscillating modes)."""
+    for name in ("q", "pedestal", "pedestal_accel"):
         v = getattr(out, name, None)
         if v is not None:
             _finite(np.asarray(v), f"{type(out).__name__}.{name}")
+    lam = getattr(out, "eigenvalues", None)
+    if lam is not None:
+        lam, shapes = np.asarray(lam), np.asarray(out.shapes)
+        pad = np.isnan(lam)
+        assert not np.isinf(lam).any(), "ModalResult.eigenvalues holds inf"
+        assert np.all(np.isnan(shapes).all(axis=-1) == pad), "NaN eigenvalues and NaN shapes differ"
+        assert np.all(np.isfinite(shapes).all(axis=-1) == ~pad), "a mode shape is partly non-finite"
+        assert np.all(np.sort(pad, axis=1) == pad), "NaN padding is not after the oscillating modes"
 
 
 def _batch_solved(out, kw):
