@@ -388,20 +388,19 @@ def _check_sheet(v):
     raise _err(f"must be a sheet name or a sheet index >= 0, got {_describe(v)}")
 
 
-def _check_length_unit(v):
-    _check_text(v)
-    problem = _unit_problem(v, "length", "the 1X amplitudes are lengths")
-    if problem:
-        raise _err(problem, keyless=True)
-    return v
+def _unit_of(quantity: str, subject: str):
+    """A validator of a unit string that must be a unit of ``quantity``."""
+    def check(v):
+        _check_text(v)
+        problem = _unit_problem(v, quantity, subject)
+        if problem:
+            raise _err(problem, keyless=True)
+        return v
+    return check
 
 
-def _check_accel_unit(v):
-    _check_text(v)
-    problem = _unit_problem(v, "acceleration", "the accelerometer amplitudes are accelerations")
-    if problem:
-        raise _err(problem, keyless=True)
-    return v
+_check_length_unit = _unit_of("length", "the 1X amplitudes are lengths")
+_check_accel_unit = _unit_of("acceleration", "the accelerometer amplitudes are accelerations")
 
 
 def _unit_problem(unit: str, quantity: str, subject: str):

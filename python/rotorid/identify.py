@@ -460,8 +460,9 @@ def _pedestal_inputs(rotor, runs, labels, axis_name, axis):
         warnings.warn(f"only {sum(c is not None for c in jcs)} of {len(jcs)} runs carry measurement covariances (cov "
                       "and pedestal_cov): the uncertainty falls back to the residual of redundant runs")
     dofs = _run_dofs(runs) if covs is not None else None
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = np.stack([np.sqrt(np.sum(np.abs(p) ** 2, 1) / np.sum(np.abs(q) ** 2, 1)) for q, p in zip(qs, qps)])
+    from .simulate import pedestal_ratio
+
+    ratio = np.stack([pedestal_ratio(p, q) for q, p in zip(qs, qps)])
     worst = np.nanmax(np.where(np.isfinite(ratio), ratio, np.nan), axis=0) if np.isfinite(ratio).any() else \
         np.zeros(axis.size)
     big = worst > PEDESTAL_RATIO_MAX
@@ -509,11 +510,24 @@ def _calibration_inputs(rotor, runs, labels, accel_gain_std, accel_phase_std_deg
     The step acts on the measured pedestal motion before the probe transform (the relative motion
     at the bearings depends on it when the probes are away from the bearings). None when both
     uncertainties are zero."""
-    import dataclasses
-
     g, ph = _calibration_std(accel_gain_std, accel_phase_std_deg)
     out = []
-    for std, kind in ((g, "gain"), (ph, "phase")):
+    for std, plus, minus in calibration_perturbations(runs, g, ph):
+        sides = []
+        for moved in (plus, minus):
+            frames = [_pedestal_frame(rotor, r, lab) for r, lab in zip(moved, labels)]
+            sides.append(([fr[0] for fr in frames], [fr[1] for fr in frames]))
+        out.append((std, sides[0], sides[1]))
+    return out or None
+
+
+def calibration_perturbations(runs, gain_std, phase_std_rad):
+    """For each accelerometer j (xp1, xp2, yp1, yp2) and each of gain and phase with a nonzero
+    uncertainty: (std, runs with accelerometer j's gain or phase stepped by +_CAL_STEP, the same
+    by -_CAL_STEP) — the central differences of any estimate with respect to the calibration."""
+    import dataclasses
+
+    for std, kind in ((gain_std, "gain"), (phase_std_rad, "phase")):
         if not std:
             continue
         for j in range(4):
@@ -521,11 +535,8 @@ def _calibration_inputs(rotor, runs, labels, accel_gain_std, accel_phase_std_deg
             for sign in (1.0, -1.0):
                 f = np.ones(4, complex)
                 f[j] = 1.0 + sign * _CAL_STEP if kind == "gain" else np.exp(1j * sign * _CAL_STEP)
-                frames = [_pedestal_frame(rotor, dataclasses.replace(r, pedestal=r.pedestal * f[None, :]), lab)
-                          for r, lab in zip(runs, labels)]
-                sides.append(([fr[0] for fr in frames], [fr[1] for fr in frames]))
-            out.append((std, sides[0], sides[1]))
-    return out or None
+                sides.append([dataclasses.replace(r, pedestal=r.pedestal * f[None, :]) for r in runs])
+            yield std, sides[0], sides[1]
 
 
 def _calibration_cov(rotor, w, spin, e, gain, sigma, identical, method, calibration):

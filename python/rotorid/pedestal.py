@@ -552,27 +552,20 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
 def _add_calibration(fit, rotor, runs, gain_std, phase_std_rad, **kw):
     """Add the accelerometers' calibration uncertainty to a pedestal fit's standard errors: central
     differences of the whole fit with respect to each accelerometer's gain and phase."""
-    import dataclasses
     import warnings
 
-    from .identify import _CAL_STEP
+    from .identify import _CAL_STEP, calibration_perturbations
 
     var = [np.zeros_like(fit.mass_kg), np.zeros_like(fit.k), np.zeros_like(fit.c)]
-    for std, kind in ((gain_std, "gain"), (phase_std_rad, "phase")):
-        if not std:
-            continue
-        for j in range(4):
-            est = []
-            for sign in (1.0, -1.0):
-                f = np.ones(4, complex)
-                f[j] = 1.0 + sign * _CAL_STEP if kind == "gain" else np.exp(1j * sign * _CAL_STEP)
-                moved = [dataclasses.replace(r, pedestal=r.pedestal * f[None, :]) for r in runs]
-                with warnings.catch_warnings():
-                    warnings.simplefilter("ignore")  # the nominal fit has warned already
-                    e = identify_pedestals(rotor, moved, **kw)
-                est.append((e.mass_kg, e.k, e.c))
-            for v, a, b in zip(var, est[0], est[1]):
-                v += (std * (a - b) / (2.0 * _CAL_STEP)) ** 2
+    for std, plus, minus in calibration_perturbations(runs, gain_std, phase_std_rad):
+        est = []
+        for moved in (plus, minus):
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # the nominal fit has warned already
+                e = identify_pedestals(rotor, moved, **kw)
+            est.append((e.mass_kg, e.k, e.c))
+        for v, a, b in zip(var, est[0], est[1]):
+            v += (std * (a - b) / (2.0 * _CAL_STEP)) ** 2
     fit.mass_std = np.sqrt(fit.mass_std ** 2 + var[0])
     fit.k_std = np.sqrt(fit.k_std ** 2 + var[1])
     fit.c_std = np.sqrt(fit.c_std ** 2 + var[2])

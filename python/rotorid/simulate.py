@@ -129,6 +129,25 @@ def _pedestal_transform(T):
     return T, T - np.eye(2)
 
 
+def _polar_columns(data, names, vectors, cov):
+    """Amplitude (µm) and phase (deg) columns of 1X vectors (n, 4), with their standard errors
+    from the (n, 8, 8) covariance when given, into the dict ``data``."""
+    for j, nm in enumerate(names):
+        data[f"{nm}_amp_um"] = 1e6 * np.abs(vectors[:, j])
+        data[f"{nm}_phase_deg"] = np.rad2deg(np.angle(vectors[:, j]))
+        if cov is not None:
+            sa, sp = polar_std(vectors[:, j], cov, j)
+            data[f"{nm}_amp_std_um"] = 1e6 * sa
+            data[f"{nm}_phase_std_deg"] = np.rad2deg(sp)
+
+
+def pedestal_ratio(p, q) -> np.ndarray:
+    """(n,) pedestal motion ``p`` relative to the motion relative to the pedestals ``q`` (both
+    (n, 4)): rms over the four coordinates of |p| / |q| (inf or NaN where q is zero)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.sqrt(np.sum(np.abs(p) ** 2, 1) / np.sum(np.abs(q) ** 2, 1))
+
+
 def _check_pedestal(obj, n):
     """Validate the pedestal motion fields of a response (q shape (n, 4))."""
     if obj.pedestal is None:
@@ -286,10 +305,7 @@ class SyncResponse:
     def pedestal_ratio(self):
         """Pedestal motion relative to the journal's motion in its housing, (n,): rms over the four
         coordinates of |pedestal| / |q| (None without pedestal motion)."""
-        if self.pedestal is None:
-            return None
-        with np.errstate(divide="ignore", invalid="ignore"):
-            return np.sqrt(np.sum(np.abs(self.pedestal) ** 2, 1) / np.sum(np.abs(self.q) ** 2, 1))
+        return None if self.pedestal is None else pedestal_ratio(self.pedestal, self.q)
 
     @property
     def amplitude(self):
@@ -305,23 +321,11 @@ class SyncResponse:
         import pandas as pd
 
         data = {"speed_rpm": self.speed_rpm}
-        for j, nm in enumerate(DOFS):
-            data[f"{nm}_amp_um"] = 1e6 * np.abs(self.q[:, j])
-            data[f"{nm}_phase_deg"] = np.rad2deg(np.angle(self.q[:, j]))
-            if self.cov is not None:
-                sa, sp = polar_std(self.q[:, j], self.cov, j)
-                data[f"{nm}_amp_std_um"] = 1e6 * sa
-                data[f"{nm}_phase_std_deg"] = np.rad2deg(sp)
+        _polar_columns(data, DOFS, self.q, self.cov)
         if self.pedestal is not None:
             from .pedestal import PEDESTAL_DOFS
 
-            for j, nm in enumerate(PEDESTAL_DOFS):
-                data[f"{nm}_amp_um"] = 1e6 * np.abs(self.pedestal[:, j])
-                data[f"{nm}_phase_deg"] = np.rad2deg(np.angle(self.pedestal[:, j]))
-                if self.pedestal_cov is not None:
-                    sa, sp = polar_std(self.pedestal[:, j], self.pedestal_cov, j)
-                    data[f"{nm}_amp_std_um"] = 1e6 * sa
-                    data[f"{nm}_phase_std_deg"] = np.rad2deg(sp)
+            _polar_columns(data, PEDESTAL_DOFS, self.pedestal, self.pedestal_cov)
         return pd.DataFrame(data)
 
 
@@ -528,10 +532,7 @@ class ImpactResponse:
     def pedestal_ratio(self):
         """(n,) pedestal motion relative to the motion relative to the pedestals: rms over the four
         coordinates of |pedestal| / |q| (None without pedestal motion)."""
-        if self.pedestal is None:
-            return None
-        with np.errstate(divide="ignore", invalid="ignore"):
-            return np.sqrt(np.sum(np.abs(self.pedestal) ** 2, 1) / np.sum(np.abs(self.frf()) ** 2, 1))
+        return None if self.pedestal is None else pedestal_ratio(self.pedestal, self.frf())
 
     def frf(self) -> np.ndarray:
         """Response per unit force (m/N), (n, 4)."""

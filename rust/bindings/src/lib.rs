@@ -128,6 +128,42 @@ fn to_py<'py, T: numpy::Element>(py: Python<'py>, v: Vec<T>, shape: &[usize]) ->
     PyArray1::from_vec(py, v).reshape(shape.to_vec())
 }
 
+/// The argument shapes of a forced response (k, c (n or 1, 8); spin (n,); force (n or 1, nrhs >= 1,
+/// 4); gain (n,)) and its output memory (`per_point` complex values per point and force vector);
+/// returns nrhs.
+#[allow(clippy::too_many_arguments)]
+fn forced_shapes(
+    what: &str,
+    n: usize,
+    k: &PyReadonlyArrayDyn<'_, f64>,
+    c: &PyReadonlyArrayDyn<'_, f64>,
+    spin: &PyReadonlyArrayDyn<'_, f64>,
+    force: &PyReadonlyArrayDyn<'_, C64>,
+    gain: Option<&PyReadonlyArrayDyn<'_, f64>>,
+    per_point: usize,
+) -> PyResult<usize> {
+    for (name, a) in [("k", k), ("c", c)] {
+        let sh = a.shape();
+        if sh.len() != 2 || sh[1] != 8 || !(sh[0] == n || sh[0] == 1) {
+            return Err(PyValueError::new_err(format!("{name} has shape {sh:?}, expected ({n} or 1, 8)")));
+        }
+    }
+    check_shape("spin", spin.shape(), &[n])?;
+    let fs = force.shape().to_vec();
+    if fs.len() != 3 || fs[2] != 4 || !(fs[0] == n || fs[0] == 1) {
+        return Err(PyValueError::new_err(format!("force has shape {fs:?}, expected (n or 1, nrhs, 4)")));
+    }
+    let nrhs = fs[1];
+    if nrhs == 0 {
+        return Err(PyValueError::new_err("force has no force vectors (shape (n, 0, 4))"));
+    }
+    if let Some(g) = gain {
+        check_shape("gain", g.shape(), &[n])?;
+    }
+    check_alloc(what, n.checked_mul(nrhs).and_then(|v| v.checked_mul(per_point)), 16)?;
+    Ok(nrhs)
+}
+
 /// Batched forced response H q = F (see forced.rs); with `gain` (n,), q_i = gain_i H_i^-1 F
 /// (an imbalance: F broadcast, gain = Omega^2). Returns (q, n_singular).
 #[pyfunction]
@@ -145,26 +181,8 @@ fn forced_response<'py>(
 ) -> PyResult<(Bound<'py, PyArrayDyn<C64>>, usize)> {
     let rot = rotor_of(&rotor)?;
     let n = w.len();
-    for (name, a) in [("k", &k), ("c", &c)] {
-        let sh = a.shape();
-        if sh.len() != 2 || sh[1] != 8 || !(sh[0] == n || sh[0] == 1) {
-            return Err(PyValueError::new_err(format!("{name} has shape {sh:?}, expected ({n} or 1, 8)")));
-        }
-    }
-    check_shape("spin", spin.shape(), &[n])?;
-    let fs = force.shape().to_vec();
-    if fs.len() != 3 || fs[2] != 4 || !(fs[0] == n || fs[0] == 1) {
-        return Err(PyValueError::new_err(format!("force has shape {fs:?}, expected (n or 1, nrhs, 4)")));
-    }
-    let nrhs = fs[1];
-    if nrhs == 0 {
-        return Err(PyValueError::new_err("force has no force vectors (shape (n, 0, 4))"));
-    }
-    check_alloc("forced_response", n.checked_mul(nrhs).and_then(|v| v.checked_mul(4)), 16)?;
+    let nrhs = forced_shapes("forced_response", n, &k, &c, &spin, &force, gain.as_ref(), 4)?;
     let (ks, cs, ss, ws, fsl) = (slice(&k, "k")?, slice(&c, "c")?, slice(&spin, "spin")?, slice(&w, "w")?, slice(&force, "force")?);
-    if let Some(g) = &gain {
-        check_shape("gain", g.shape(), &[n])?;
-    }
     let gs: Option<&[f64]> = match &gain {
         Some(g) => Some(slice(g, "gain")?),
         None => None,
@@ -427,6 +445,22 @@ fn flag_codes<'py>(
     Ok((to_py(py, code, &[n])?, to_py(py, rel, &[n])?))
 }
 
+/// The arguments of a modal analysis: k, c (n, 8), spin (n,) as slices, with the output memory
+/// (`per_point` complex values per speed) checked.
+fn modal_args<'a>(
+    what: &str,
+    n: usize,
+    k: &'a PyReadonlyArrayDyn<'_, f64>,
+    c: &'a PyReadonlyArrayDyn<'_, f64>,
+    spin: &'a PyReadonlyArrayDyn<'_, f64>,
+    per_point: usize,
+) -> PyResult<(&'a [f64], &'a [f64], &'a [f64])> {
+    check_shape("k", k.shape(), &[n, 8])?;
+    check_shape("c", c.shape(), &[n, 8])?;
+    check_alloc(what, n.checked_mul(per_point), 16)?;
+    Ok((slice(k, "k")?, slice(c, "c")?, slice(spin, "spin")?))
+}
+
 /// Batched eigen-analysis (see modal.rs). Returns (lam (n, 4), shapes (n, 4, 4), n_failed).
 #[pyfunction]
 #[pyo3(name = "modal")]
@@ -439,10 +473,7 @@ fn py_modal<'py>(
 ) -> PyResult<(Bound<'py, PyArrayDyn<C64>>, Bound<'py, PyArrayDyn<C64>>, usize)> {
     let rot = rotor_of(&rotor)?;
     let n = spin.len();
-    check_shape("k", k.shape(), &[n, 8])?;
-    check_shape("c", c.shape(), &[n, 8])?;
-    let (ks, cs, ss) = (slice(&k, "k")?, slice(&c, "c")?, slice(&spin, "spin")?);
-    check_alloc("modal", n.checked_mul(20), 16)?;
+    let (ks, cs, ss) = modal_args("modal", n, &k, &c, &spin, 20)?;
     let (lam, sh, nf) = py.detach(|| {
         guarded(|| {
             let mut lam = vec![C64::new(0.0, 0.0); n * 4];
@@ -477,22 +508,8 @@ fn forced_response_pedestal<'py>(
     let rot = rotor_of(&rotor)?;
     let ped = pedestals_of(&pedestals)?;
     let n = w.len();
-    for (name, a) in [("k", &k), ("c", &c)] {
-        let sh = a.shape();
-        if sh.len() != 2 || sh[1] != 8 || !(sh[0] == n || sh[0] == 1) {
-            return Err(PyValueError::new_err(format!("{name} has shape {sh:?}, expected ({n} or 1, 8)")));
-        }
-    }
-    check_shape("spin", spin.shape(), &[n])?;
-    let fs = force.shape().to_vec();
-    if fs.len() != 3 || fs[2] != 4 || !(fs[0] == n || fs[0] == 1) || fs[1] == 0 {
-        return Err(PyValueError::new_err(format!("force has shape {fs:?}, expected (n or 1, nrhs >= 1, 4)")));
-    }
-    let nrhs = fs[1];
-    if let Some(g) = &gain {
-        check_shape("gain", g.shape(), &[n])?;
-    }
-    check_alloc("forced_response_pedestal", n.checked_mul(nrhs).and_then(|v| v.checked_mul(10)), 16)?;
+    // q_abs and q_ped (4 + 4 per point) and the core's k_eff, c_eff, transfer (about 2 more)
+    let nrhs = forced_shapes("forced_response_pedestal", n, &k, &c, &spin, &force, gain.as_ref(), 10)?;
     let (ks, cs, ss, ws, fsl) = (slice(&k, "k")?, slice(&c, "c")?, slice(&spin, "spin")?, slice(&w, "w")?, slice(&force, "force")?);
     let gs: &[f64] = match &gain {
         Some(g) => slice(g, "gain")?,
@@ -551,10 +568,7 @@ fn modal_pedestal<'py>(
     let rot = rotor_of(&rotor)?;
     let ped = pedestals_of(&pedestals)?;
     let n = spin.len();
-    check_shape("k", k.shape(), &[n, 8])?;
-    check_shape("c", c.shape(), &[n, 8])?;
-    let (ks, cs, ss) = (slice(&k, "k")?, slice(&c, "c")?, slice(&spin, "spin")?);
-    check_alloc("modal_pedestal", n.checked_mul(72), 16)?;
+    let (ks, cs, ss) = modal_args("modal_pedestal", n, &k, &c, &spin, 72)?;
     let (lam, sh, nf) = py
         .detach(|| {
             guarded(|| {
