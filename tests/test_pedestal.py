@@ -926,3 +926,56 @@ def test_calibration_without_pedestal_motion_is_an_error():
              for d in "xy"]
     with pytest.raises(RotoridError, match="no pedestal motion"):
         rotorid.identify_impact(rig.rotor, tests, accel_phase_std_deg=1.0)
+
+
+def test_pedestal_fit_accounts_for_a_baseline_shared_by_the_runs():
+    """Both runs less the same baseline: half of each run's error is common to both. Ignoring that
+    makes the pedestal intervals too narrow; with shared_cov they cover."""
+    rig = rotorid.nsf_rig()
+    ped = rotorid.example_pedestals()
+    rpm = np.linspace(3000.0, 6000.0, 16)
+    exact = [rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=rpm, at="probes",
+                                        pedestals=ped) for s in "BD"]
+    n = rpm.size
+    sq = 0.005 * np.mean([np.abs(r.q).mean() for r in exact])
+    sp = 0.005 * np.mean([np.abs(r.pedestal).mean() for r in exact])
+    C = np.repeat((2 * sq ** 2 * np.eye(8))[None], n, 0)
+    P = np.repeat((2 * sp ** 2 * np.eye(8))[None], n, 0)
+    shared = np.zeros((n, 16, 16))
+    shared[:, :8, :8], shared[:, 8:, 8:] = C / 2, P / 2
+    rng = np.random.default_rng(4)
+    hits = {True: [], False: []}
+    for _ in range(250):
+        bq, bp = rng.normal(size=(n, 8)) * sq, rng.normal(size=(n, 8)) * sp
+        runs = []
+        for r in exact:
+            zq, zp = rng.normal(size=(n, 8)) * sq - bq, rng.normal(size=(n, 8)) * sp - bp
+            runs.append(SyncResponse(rpm, r.q + zq[:, :4] + 1j * zq[:, 4:], r.imbalance, "probes", r.name, C, None,
+                                     r.pedestal + zp[:, :4] + 1j * zp[:, 4:], P))
+        for use in (True, False):
+            lo, hi = rotorid.identify_pedestals(rig.rotor, runs, shared_cov=shared if use else None).interval()["k"]
+            hits[use].append([(lo[b, i, i] <= ped.k[b, i, i] <= hi[b, i, i]) for b in range(2) for i in range(2)])
+    with_shared, without = np.mean(hits[True]), np.mean(hits[False])
+    assert 0.935 <= with_shared <= 0.975, with_shared
+    assert without < with_shared - 0.015, (without, with_shared)
+
+
+def test_pedestal_fit_refuses_impacts_at_different_speeds():
+    rig = rotorid.nsf_rig()
+    ped = rotorid.example_pedestals()
+    f = np.arange(20.0, 120.0, 5.0)
+    tests = [rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=rpm, freq_hz=f, direction=d, pedestals=ped)
+             for rpm, d in ((3000.0, "x"), (6000.0, "y"))]
+    with pytest.raises(RotoridError, match="different running speeds"):
+        rotorid.identify_pedestals(rig.rotor, tests)
+
+
+def test_pedestal_cross_must_make_a_joint_covariance():
+    rig = rotorid.nsf_rig()
+    r = rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances["A"], speed_rpm=[3000.0, 4000.0],
+                                   pedestals=rotorid.example_pedestals())
+    cov = np.broadcast_to(np.eye(8) * 1e-18, (2, 8, 8)).copy()
+    with pytest.raises(RotoridError, match="joint covariance .* not positive semi-definite"):
+        SyncResponse(r.speed_rpm, r.q, r.imbalance, "bearings", "A", cov, None, r.pedestal, cov.copy(), 3.0 * cov)
+    ok = SyncResponse(r.speed_rpm, r.q, r.imbalance, "bearings", "A", cov, None, r.pedestal, cov.copy(), 0.5 * cov)
+    assert ok.pedestal_cross is not None

@@ -887,8 +887,9 @@ class PedestalsSection(_Model):
 
     measured: bool = Field(description="true: identify with the housings' motion from the accelerometers; "
                                        "false: ignore accelerometer channels")
-    identify: bool = Field(True, description="also identify the pedestals' mass, stiffness and damping "
-                                             "(pedestals.csv); needs measured = true")
+    identify: Optional[bool] = Field(None, description="also identify the pedestals' mass, stiffness and damping "
+                                                       "(pedestals_<kind>.csv); needs measured = true; default: "
+                                                       "as measured")
     cross_coupled: bool = Field(False, description="pedestal stiffness and damping with xy, yx terms")
     freq_range_hz: Optional[Band] = Field(None, description="Hz: points used for the pedestal fit (default all)")
     accel_gain_std: _number(ge=0, lt=0.5) = Field(0.0, description="relative calibration uncertainty of each "
@@ -899,9 +900,14 @@ class PedestalsSection(_Model):
     @model_validator(mode="after")
     def _identify_needs_measured(self):
         if self.identify and not self.measured:
-            raise _err("needs measured = true (the pedestal parameters come from the accelerometers); set "
-                       "identify = false to ignore them", "identify")
+            raise _err("needs measured = true (the pedestal parameters come from the accelerometers); leave it "
+                       "out or set it false when the accelerometers are ignored", "identify")
         return self
+
+    @property
+    def fit_pedestals(self) -> bool:
+        """Whether the pedestals' parameters are identified (``identify``, by default ``measured``)."""
+        return self.measured if self.identify is None else self.identify
 
 
 class OutputSection(_Model):

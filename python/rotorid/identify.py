@@ -670,6 +670,20 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
         source = "measurement covariance"
         dof = np.min(dofs, axis=0) if dofs is not None else np.full(axis.size, np.inf)
         dof = np.where(np.isnan(cov).any(axis=(1, 2)), np.nan, dof)
+    if identical and redundant:
+        # (before the calibration is added: it is common to both bearings' equations)
+        # the identical-bearing hypothesis is testable: the two bearings' equations must agree within
+        # the measurement errors (residual-based errors no larger than the propagated ones), or, without
+        # a covariance, within 1 % of the forces
+        if cov is not None:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                ratio = np.nanmedian(np.concatenate([(ks_res / ks).reshape(axis.size, -1),
+                                                     (cs_res / cs).reshape(axis.size, -1)], 1), axis=1)
+            rejected = ratio > 3.0
+        else:
+            rejected = resid[0] > 0.01
+        if rejected.any():
+            extra_flags = _flag_list(extra_flags) + [(rejected, "identical bearings rejected by the data")]
     if calibration is not None:
         # accelerometer calibration: a systematic error common to all runs, added to the covariance
         ccal = _calibration_cov(rotor, w, spin, e, gain, sigma, identical, method, calibration)
@@ -687,19 +701,6 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
             # (without any estimate of the random errors the standard errors stay unknown)
             rel_std = None
             source = f"{source} + accelerometer calibration"
-    if identical and redundant:
-        # the identical-bearing hypothesis is testable: the two bearings' equations must agree within
-        # the measurement errors (residual-based errors no larger than the propagated ones), or, without
-        # a covariance, within 1 % of the forces
-        if cov is not None:
-            with np.errstate(divide="ignore", invalid="ignore"):
-                ratio = np.nanmedian(np.concatenate([(ks_res / ks).reshape(axis.size, -1),
-                                                     (cs_res / cs).reshape(axis.size, -1)], 1), axis=1)
-            rejected = ratio > 3.0
-        else:
-            rejected = resid[0] > 0.01
-        if rejected.any():
-            extra_flags = _flag_list(extra_flags) + [(rejected, "identical bearings rejected by the data")]
     return _finish(axis_name, axis, amp[0], k[0], c[0], cond[0], resid[0], ks, cs, cond_max, min_rel_amplitude,
                    method, labels, source, dof, cov, max_rel_std, extra_flags, ks_res, cs_res, bias_k, bias_c,
                    estimator, rel_std, std_known)

@@ -204,16 +204,15 @@ class Imbalance:
 
 @dataclass(frozen=True)
 class Rig:
-    """A rotor with its bearings and named imbalance sets (and impact tests, if any), on rigid
-    pedestals or on flexible ones (``pedestals``)."""
+    """A rotor with its bearings and named imbalance sets (and impact tests, if any). Flexible
+    pedestals are passed where they act (``pedestals=`` of the simulators and the modal analysis),
+    not carried here: the studies do not model them yet."""
 
     rotor: RigidRotor
     bearings: BearingCoefficients
     imbalances: dict
     impacts: dict = field(default_factory=dict)
     name: str = ""
-    #: flexible pedestals (rotorid.Pedestals) or None for rigid ones
-    pedestals: object = None
 
 
 def nsf_rig() -> Rig:

@@ -325,7 +325,7 @@ def _design(s, p, b, i, cross):
 
 
 def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_hz=None, accel_gain_std: float = 0.0,
-                       accel_phase_std_deg: float = 0.0) -> PedestalIdentification:
+                       accel_phase_std_deg: float = 0.0, shared_cov=None) -> PedestalIdentification:
     """Each pedestal's mass, stiffness and damping from imbalance runs (or impact tests) that carry
     pedestal motion.
 
@@ -344,6 +344,9 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
     unweighted and takes the larger of the propagated (sandwich) and residual (HC3) variances.
     ``accel_gain_std`` (relative) and ``accel_phase_std_deg``: the accelerometers' calibration
     uncertainty, added to the standard errors (the pedestal stiffness scales with 1/gain).
+    ``shared_cov`` (n, 16, 16): the covariance of [Re q, Im q, Re p, Im p] common to every pair of
+    runs (all runs less the same baseline run; see :func:`rotorid.identify_synchronous`): the
+    equations of one point are then correlated across runs, and weighted and propagated as such.
 
     Examples
     --------
@@ -389,6 +392,10 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
         e = np.stack([r.excitation() for r in runs]).astype(complex)
         if any(r.force is not None for r in runs):
             raise RotoridError("identify_pedestals needs FRFs (force=None) for impact tests")
+        speeds = {float(r.speed_rpm) for r in runs}
+        if max(speeds) - min(speeds) > 1e-6 * max(max(speeds), 1.0):
+            raise RotoridError(f"the impact tests were taken at different running speeds ({sorted(speeds)} rpm): the "
+                               "pedestal fit needs one speed (identify each speed separately)")
         sig = {r.sigma for r in runs}
         if len(sig) != 1:
             raise RotoridError(f"the impact tests have different exponential windows (sigma {sorted(sig)} 1/s): "
@@ -409,7 +416,10 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
         ref = runs[0].freq_hz if impact else runs[0].speed_rpm
         if ax.shape != ref.shape or not np.allclose(ax, ref, rtol=1e-9):
             raise RotoridError(f"{lab} is not on the same {'frequencies' if impact else 'speeds'} as {labels[0]}")
+    from .identify import _shared
+
     frames = [_pedestal_frame(rotor, r, lab) for r, lab in zip(runs, labels)]
+    shared = _shared(rotor, runs, shared_cov, size=16)
     q = np.stack([fr[0] for fr in frames])
     p = np.stack([fr[1] for fr in frames])
     covs = [fr[2] for fr in frames]
@@ -461,6 +471,7 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
                               "(NaN) in some run: the weighted pedestal fit leaves them out")
                 sel = sel & ~unknown
             S = np.nan_to_num(S)
+            Sh = None if shared is None else np.nan_to_num(shared)
     mass = np.zeros((2, 2))
     kk = np.zeros((2, 2, 2))
     cc = np.zeros((2, 2, 2))
@@ -484,12 +495,17 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
                                            "distinct frequencies, or no pedestal motion in that direction)")
             m_rows = y.size
             if have_cov:
-                Xr = np.stack([Xs[:m_rows // 2], Xs[m_rows // 2:]], 1)   # (Rn, 2, u)
-                yr = np.stack([y[:m_rows // 2], y[m_rows // 2:]], 1)     # (Rn, 2)
+                ns = int(sel.sum())
+                # the equations of one point, all runs together: (ns, 2R, u) and (ns, 2R), rows
+                # [Re, Im] of run 0, run 1, ... (the runs' errors may be correlated: shared_cov)
+                Xp = np.stack([Xs[:m_rows // 2], Xs[m_rows // 2:]], 1).reshape(R, ns, 2, nu)
+                Xp = Xp.transpose(1, 0, 2, 3).reshape(ns, 2 * R, nu)
+                yp = np.stack([y[:m_rows // 2], y[m_rows // 2:]], 1).reshape(R, ns, 2)
+                yp = yp.transpose(1, 0, 2).reshape(ns, 2 * R)
 
-                def row_cov(theta):
-                    """2 x 2 (Re, Im) covariance of each equation's residual
-                    r = F_col - D_own p_own - D_oth p_oth at the estimate ``theta``."""
+                def point_cov(theta):
+                    """(ns, 2R, 2R) covariance of each point's residuals r = F_col - D_own p_own -
+                    D_oth p_oth (Re, Im per run) at the estimate ``theta``."""
                     th = theta / scale
                     D_own = th[0] + s_lap ** 2 * th[1] + s_lap * th[2]
                     D_oth = (th[3] + s_lap * th[4]) if cross else 0.0 * w
@@ -500,14 +516,21 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
                         oc = 2 * (1 - i) + b
                         g[:, :, 8 + oc] -= D_oth[None]
                         g[:, :, 12 + oc] -= 1j * D_oth[None]
-                    G2 = np.stack([g.real, g.imag], -2)           # (R, n, 2, 16)
-                    return (G2 @ S @ np.swapaxes(G2, -1, -2))[:, sel].reshape(-1, 2, 2)
+                    G2 = np.stack([g.real, g.imag], -2)[:, sel]   # (R, ns, 2, 16)
+                    V = np.zeros((ns, 2 * R, 2 * R))
+                    for r in range(R):
+                        for t in range(R):
+                            if r != t and Sh is None:
+                                continue
+                            M = S[r][sel] if r == t else Sh[sel]
+                            V[:, 2 * r:2 * r + 2, 2 * t:2 * t + 2] = G2[r] @ M @ np.swapaxes(G2[t], -1, -2)
+                    return V
 
                 if weighted:
                     for _ in range(2):  # weights depend on the estimate (D p carries the pedestal noise)
-                        Li = np.linalg.inv(np.linalg.cholesky(row_cov(theta) + 1e-300 * np.eye(2)))  # whitening
-                        Xw = (Li @ Xr).reshape(-1, nu)
-                        yw = (Li @ yr[..., None])[..., 0].ravel()
+                        Lc = np.linalg.cholesky(point_cov(theta) + 1e-300 * np.eye(2 * R))
+                        Xw = np.linalg.solve(Lc, Xp).reshape(-1, nu)                  # whitened
+                        yw = np.linalg.solve(Lc, yp[..., None])[..., 0].ravel()
                         theta, *_ = np.linalg.lstsq(Xw, yw, rcond=None)
                     covt = np.linalg.inv(Xw.T @ Xw)
                     rw = yw - Xw @ theta
@@ -519,9 +542,9 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
                     # covariances from a few repeats (impacts: dof = impacts - 1) are too noisy to
                     # weigh with (the inverse of a poorly estimated covariance overweights the rows
                     # whose variance happens to come out small): unweighted least squares with the
-                    # sandwich of the propagated row covariances
+                    # sandwich of the propagated covariances
                     XtXi = np.linalg.inv(Xs.T @ Xs)
-                    meat = np.einsum("rau,rab,rbv->uv", Xr, row_cov(theta), Xr)
+                    meat = np.einsum("kau,kab,kbv->uv", Xp, point_cov(theta), Xp)
                     covt = XtXi @ meat @ XtXi
                     # the residual (HC3) covariance as well: it also sees errors the measurement
                     # covariance misses (run-out filter leftovers, low-coherence bins); the larger
@@ -545,7 +568,8 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
             resid[b, i] = np.sqrt(np.sum((y - fit) ** 2) / max(np.sum(y ** 2), 1e-300))
     out = PedestalIdentification(mass, kk, cc, ms, ks, cs, dof, resid, src, cross, R * int(sel.sum()), labels)
     if cal_g or cal_ph:
-        _add_calibration(out, rotor, runs, cal_g, cal_ph, cross_coupled=cross, freq_range_hz=freq_range_hz)
+        _add_calibration(out, rotor, runs, cal_g, cal_ph, cross_coupled=cross, freq_range_hz=freq_range_hz,
+                         shared_cov=shared_cov)
     return out
 
 

@@ -41,6 +41,7 @@ class ImbalanceChainResult:
     tracks: list             # raw SyncTrack per run
     identification: Identification
     notes: list = field(default_factory=list)
+    shared_cov: np.ndarray | None = None   # the baseline's covariance common to every run (None without)
 
 
 def _near_only(track, speeds, tol, label, what):
@@ -77,7 +78,9 @@ def _pedestal_choice(pedestal_motion, runs, labels):
     is an error that names the run and channel)."""
     from ._validate import flag
 
-    found = [(lab, _accelerometers_of(r)) for lab, r in zip(labels, runs)]
+    # runs of a wrong type are reported by the chain's own type check, not as missing channels
+    kinds = (Recording, SegmentedRecording, signals.SyncTrack)
+    found = [(lab, _accelerometers_of(r)) for lab, r in zip(labels, runs) if isinstance(r, kinds)]
     if pedestal_motion is None:
         having = [(lab, ch) for lab, ch in found if ch]
         if having:
@@ -182,6 +185,15 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
     track_kw = dict(points_per_rev=points_per_rev, min_revs=min_revs, settle_revs=settle_revs,
                     speed_tolerance=speed_tolerance, revs_per_block=revs_per_block)
     kw = dict(orders=orders, steady=steady, track_kw=track_kw, keyphasor=keyphasor, pedestal=ped)
+    if not ped:
+        # pedestal_motion=False: 1X tables' accelerometer columns are ignored too
+        def rigid(r):
+            if isinstance(r, signals.SyncTrack) and r.has_pedestal:
+                return dataclasses.replace(r, pedestal=None, pedestal_cov=None, pedestal_cross=None)
+            return r
+        runs = [rigid(r) for r in runs]
+        baseline = rigid(baseline)
+        slow_roll = rigid(slow_roll)
     sr, sr_cov = None, None
     if slow_roll is not None:
         if isinstance(slow_roll, signals.SyncTrack):
@@ -257,10 +269,8 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
         if ped:
             pc, cr = t.pedestal_cov_at_speeds(grid)
             pk = dict(pedestal=ped_on_grid[i], pedestal_cov=pc, pedestal_cross=cr)
-            if not (np.all(np.isfinite(cov)) and np.all(np.isfinite(pc))):
-                # unknown (NaN) where either is: the points are flagged "uncertainty unknown", as
-                # without pedestal motion
-                pk["pedestal_cross"] = None
+            # where either covariance is unknown (NaN) the joint one is too: those points are flagged
+            # "uncertainty unknown", as without pedestal motion; elsewhere the cross terms stay
         responses.append(SyncResponse(grid, q, imb, at, name, cov, np.where(np.isnan(dof), np.inf, dof), **pk))
     if ped:
         ratio = max(float(np.nanmax(r.pedestal_ratio)) for r in responses)
@@ -278,7 +288,7 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
         if np.all(np.isfinite(shared)):
             ident_kw = dict(ident_kw, shared_cov=shared)
     ident = identify_synchronous(rotor, responses, method=method, **ident_kw)
-    return ImbalanceChainResult(responses, tracks, ident, notes)
+    return ImbalanceChainResult(responses, tracks, ident, notes, ident_kw.get("shared_cov"))
 
 
 @dataclass
@@ -623,7 +633,34 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
                         reps.append(fit_kcm(rid, band_hz=kcm_band_hz, rotor=rotor))
                     labels.append(gi)
             kcm = with_jackknife(kcm, reps, labels, rotor)
+        g_std, ph_std = ident_kw.get("accel_gain_std", 0.0), ident_kw.get("accel_phase_std_deg", 0.0)
+        if ped and (g_std or ph_std):
+            kcm = _kcm_with_calibration(kcm, rotor, tests, ident, kcm_band_hz, identical, method, flags, ident_kw)
     return ImpactChainResult(tests, frfs, used, dropped, ident, kcm)
+
+
+def _kcm_with_calibration(kcm, rotor, tests, ident, band_hz, identical, method, flags, ident_kw):
+    """The K-C-M fit's standard errors with the accelerometers' calibration added: one error common
+    to every frequency, which neither the fit's weights nor the jackknife over impacts sees
+    (central differences of the whole identification and fit)."""
+    from .identify import _CAL_STEP, _calibration_std, calibration_perturbations
+    from .kcm import fit_kcm
+
+    g, ph = _calibration_std(ident_kw.get("accel_gain_std", 0.0), ident_kw.get("accel_phase_std_deg", 0.0))
+    var = {name: np.zeros((2, 2, 2)) for name in ("K", "M", "C")}
+    for std, plus, minus in calibration_perturbations(tests, g, ph):
+        fits = []
+        for moved in (plus, minus):
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                rid = identify_impact(rotor, moved, identical=identical, method=method, extra_flags=flags, **ident_kw)
+            rid.ok = ident.ok  # the same points as the nominal fit
+            fits.append(fit_kcm(rid, band_hz=band_hz, rotor=rotor))
+        for name in var:
+            var[name] += (std * (getattr(fits[0], name) - getattr(fits[1], name)) / (2.0 * _CAL_STEP)) ** 2
+    return dataclasses.replace(kcm, K_std=np.sqrt(kcm.K_std ** 2 + var["K"]), M_std=np.sqrt(kcm.M_std ** 2 + var["M"]),
+                               C_std=np.sqrt(kcm.C_std ** 2 + var["C"]),
+                               std_method=f"{kcm.std_method} + accelerometer calibration")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -772,9 +809,14 @@ def run_config(path, kind: str, *, out_dir=None, log=print, overwrite: bool = Fa
             else:
                 log("  " + cal.message)
                 if sec.phase_calibration == "apply":
-                    ident = identify_synchronous(rotor, cal.apply(res.responses), method=sec.method, **ident_kw)
+                    # the corrected vectors serve everything downstream: the identification (with the
+                    # baseline's shared covariance, which a common phase turn leaves as it is to first
+                    # order), the pedestal fit and the written tables
+                    responses = cal.apply(res.responses)
+                    ident = identify_synchronous(rotor, responses, method=sec.method, shared_cov=res.shared_cov,
+                                                 **ident_kw)
                     log("  phase calibration applied to the 1X vectors")
-        for i, r in enumerate(res.responses):
+        for i, r in enumerate(responses):
             write_csv(r.to_dataframe(), f"sync_vectors_{i}_{_safe(r.name)}.csv", float_format="%.6g")
         kps = [(i, k) for i, t in enumerate(res.tracks) for k in t.keyphasors]
         if kps:
@@ -823,12 +865,13 @@ def run_config(path, kind: str, *, out_dir=None, log=print, overwrite: bool = Fa
             write_csv(fit.to_dataframe(), "kcm_fit.csv", float_format="%.6g")
             log(f"  K-C-M fit over {fit.band_hz[0]:g}-{fit.band_hz[1]:g} Hz ({fit.n_points} points)"
                 + (f"; {fit.mass_check}" if fit.mass_check else ""))
-    if ped_cfg is not None and ped_cfg.measured and ped_cfg.identify:
+    if ped_cfg is not None and ped_cfg.measured and ped_cfg.fit_pedestals:
         from .pedestal import identify_pedestals
 
         try:
+            shared = res.shared_cov if kind == "imbalance" else None
             pfit = identify_pedestals(rotor, responses, cross_coupled=ped_cfg.cross_coupled,
-                                      freq_range_hz=ped_cfg.freq_range_hz, **cal_kw)
+                                      freq_range_hz=ped_cfg.freq_range_hz, shared_cov=shared, **cal_kw)
         except RotoridError as exc:
             log(f"  pedestals not identified: {exc}")
         else:

@@ -161,6 +161,9 @@ def _check_pedestal(obj, n):
         if obj.cov is None or obj.pedestal_cov is None:
             raise RotoridError("pedestal_cross (the covariance between q and pedestal) needs both cov and pedestal_cov")
         obj.pedestal_cross = real_array("pedestal_cross", obj.pedestal_cross, shape=(n, 8, 8), finite=False)
+        # the three blocks must make one covariance: the joint 16 x 16 matrix is checked too
+        check_cov("the joint covariance of q and pedestal (cov, pedestal_cov, pedestal_cross)", joint_cov(obj), n,
+                  16)
 
 
 def _with_pedestal_at(resp, rotor, where):
