@@ -55,7 +55,7 @@ for t in range(trials):
         base = rawsim.imbalance_recording(rotor, brg, speeds_rpm=speeds, added=None, remnant=rem, dwell_s=2.0,
                                           fs_hz=5000.0, pedestals=ped, seed=s + 5)
         chain = pipeline.imbalance_chain(rotor, runs, baseline=base, pedestal_motion=True)
-        fit = rotorid.identify_pedestals(rotor, chain.responses)
+        fit = rotorid.identify_pedestals(rotor, chain.responses, shared_cov=chain.shared_cov)
         recs = [rawsim.impact_recording(rotor, brg, speed_rpm=2000.0, plane=0.0, direction=d, remnant=rem,
                                         fs_hz=5000.0, pedestals=ped, seed=s + 7 + i) for i, d in enumerate("xy")]
         ichain = pipeline.impact_chain(rotor, recs, pedestal_motion=True)
