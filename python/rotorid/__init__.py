@@ -17,6 +17,7 @@ if TYPE_CHECKING:
     from .model import REPORT_ORDER, BearingCoefficients, Imbalance, RigidRotor, Rig, nsf_rig
     from .pedestal import PedestalIdentification, Pedestals, example_pedestals, identify_pedestals
     from .recording import Recording
+    from .support import series_impedance
     from .simulate import (
         ImpactResponse,
         ProbeResolution,
@@ -43,13 +44,15 @@ _LAZY_NAMES = {
     **dict.fromkeys(("REPORT_ORDER", "BearingCoefficients", "Imbalance", "RigidRotor", "Rig", "nsf_rig"), "model"),
     "Recording": "recording",
     **dict.fromkeys(("PedestalIdentification", "Pedestals", "example_pedestals", "identify_pedestals"), "pedestal"),
+    "series_impedance": "support",
     **dict.fromkeys(("ImpactResponse", "ProbeResolution", "SyncResponse", "TimeResponse", "bearings_to_probes",
                      "half_sine_pulse", "imbalance_response", "impact_frf", "impact_time_response", "impact_vector",
                      "probes_to_bearings"), "simulate"),
 }
 # submodules that an eager ``import rotorid`` used to leave as attributes of the package
 _LAZY_SUBMODULES = frozenset(("io", "pipeline", "rawsim", "signals", "errors", "identify", "kcm", "phasecal", "modal",
-                              "model", "pedestal", "recording", "simulate", "units", "studies", "_core", "_corecall", "_validate"))
+                              "model", "pedestal", "recording", "simulate", "support", "units", "studies", "_core",
+                              "_corecall", "_validate"))
 
 
 def __getattr__(name):
@@ -76,6 +79,6 @@ __all__ = [
     "bearings_to_probes", "critical_speeds", "identify_synchronous", "identify_synchronous_batch",
     "imbalance_response", "modal_analysis", "nsf_rig", "probes_to_bearings",
     "Recording", "load_recording", "save_recording", "io", "pipeline", "rawsim", "signals", "studies", "KCMFit", "fit_kcm", "PhaseCalibration", "calibrate_phase",
-    "Pedestals", "PedestalIdentification", "example_pedestals", "identify_pedestals",
+    "Pedestals", "PedestalIdentification", "example_pedestals", "identify_pedestals", "series_impedance", "support",
 ]
 __version__ = "0.1.0"

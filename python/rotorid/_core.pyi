@@ -82,6 +82,14 @@ def modal_pedestal(
 ) -> tuple[npt.NDArray[np.complex128], npt.NDArray[np.complex128], int]:
     """8-DOF eigenvalues (n, 8), shapes (n, 8, 8) over [x1, x2, y1, y2, xp1, xp2, yp1, yp2], n_failed."""
 
+def series_impedance(
+    z_bearing: npt.NDArray[np.complex128],  # (n or 1, 2, 2)
+    z_damper: npt.NDArray[np.complex128],  # (n or 1, 2, 2)
+    journal_mass: npt.NDArray[np.float64],  # (n or 1,)
+    w: npt.NDArray[np.float64],  # (n,) rad/s
+) -> tuple[npt.NDArray[np.complex128], int]:
+    """Z_eq = Z_b - Z_b (Z_b + Z_d - w^2 m_j I)^-1 Z_b (n, 2, 2), n_singular (NaN there)."""
+
 def bearing_forces(
     rotor: npt.NDArray[np.float64],
     w: npt.NDArray[np.float64],

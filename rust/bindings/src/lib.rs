@@ -4,7 +4,7 @@
 //! become a `RuntimeError` (a panic never crosses into Python).
 
 use rotorid_core::study::{self, Excitation, ImpactErrors, Method, Study, SyncErrors};
-use rotorid_core::{forced, identify, modal, order, pedestal, timesim, CoreError, Rotor, C64};
+use rotorid_core::{forced, identify, modal, order, pedestal, series, timesim, CoreError, Rotor, C64};
 use numpy::{PyArray1, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyMemoryError, PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -581,6 +581,42 @@ fn modal_pedestal<'py>(
     Ok((to_py(py, lam, &[n, 8])?, to_py(py, sh, &[n, 8, 8])?, nf))
 }
 
+/// Bearing film in series with a damper through the damper journal's mass (see series.rs):
+/// z_bearing, z_damper (n or 1, 2, 2) complex, journal_mass (n or 1,), w (n,) rad/s. Returns
+/// (z_eq (n, 2, 2), n_singular).
+#[pyfunction]
+fn series_impedance<'py>(
+    py: Python<'py>,
+    z_bearing: PyReadonlyArrayDyn<'py, C64>,
+    z_damper: PyReadonlyArrayDyn<'py, C64>,
+    journal_mass: PyReadonlyArrayDyn<'py, f64>,
+    w: PyReadonlyArrayDyn<'py, f64>,
+) -> PyResult<(Bound<'py, PyArrayDyn<C64>>, usize)> {
+    let n = w.len();
+    for (name, a) in [("z_bearing", &z_bearing), ("z_damper", &z_damper)] {
+        let sh = a.shape();
+        if sh.len() != 3 || sh[1] != 2 || sh[2] != 2 || !(sh[0] == n || sh[0] == 1) {
+            return Err(PyValueError::new_err(format!("{name} has shape {sh:?}, expected ({n} or 1, 2, 2)")));
+        }
+    }
+    let ms = journal_mass.shape();
+    if ms.len() != 1 || !(ms[0] == n || ms[0] == 1) {
+        return Err(PyValueError::new_err(format!("journal_mass has shape {ms:?}, expected ({n} or 1,)")));
+    }
+    check_alloc("series_impedance", n.checked_mul(4), 16)?;
+    let (zb, zd, m, ws) =
+        (slice(&z_bearing, "z_bearing")?, slice(&z_damper, "z_damper")?, slice(&journal_mass, "journal_mass")?, slice(&w, "w")?);
+    let (out, nb) = py
+        .detach(|| {
+            guarded(|| {
+                let mut out = vec![C64::new(0.0, 0.0); n * 4];
+                series::series_impedance(zb, zd, m, ws, &mut out).map(|nb| (out, nb))
+            })
+        })?
+        .map_err(core_err)?;
+    Ok((to_py(py, out, &[n, 2, 2])?, nb))
+}
+
 /// Bearing reaction forces from the rotor equations (see identify::bearing_forces): arguments as
 /// `identify`. Returns (B, R, n, 4) [f1x, f2x, f1y, f2y].
 #[pyfunction]
@@ -993,6 +1029,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(effective_coefficients, m)?)?;
     m.add_function(wrap_pyfunction!(modal_pedestal, m)?)?;
     m.add_function(wrap_pyfunction!(bearing_forces, m)?)?;
+    m.add_function(wrap_pyfunction!(series_impedance, m)?)?;
     m.add_function(wrap_pyfunction!(relative_std, m)?)?;
     m.add_function(wrap_pyfunction!(flag_codes, m)?)?;
     m.add_function(wrap_pyfunction!(lti_run, m)?)?;

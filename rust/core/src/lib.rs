@@ -33,6 +33,7 @@ pub mod modal;
 pub mod model;
 pub mod order;
 pub mod pedestal;
+pub mod series;
 pub mod study;
 pub mod timesim;
 

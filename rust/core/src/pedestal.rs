@@ -28,6 +28,7 @@ use crate::eig8;
 use crate::error::{expect_len, expect_len_or_broadcast, product, CoreError};
 use crate::forced;
 use crate::model::{assemble, Rotor, C64};
+use crate::series::C2;
 use rayon::prelude::*;
 
 /// Mass, stiffness and damping of the two pedestals.
@@ -41,7 +42,6 @@ pub struct Pedestals {
     pub c: [f64; 8],
 }
 
-type C2 = [[C64; 2]; 2];
 
 impl Pedestals {
     /// From `[m (4), k (8), c (8)]`; masses must be >= 0, every value finite.
@@ -75,30 +75,7 @@ impl Pedestals {
     }
 }
 
-#[inline]
-fn mul2(a: &C2, b: &C2) -> C2 {
-    let mut o = [[C64::new(0.0, 0.0); 2]; 2];
-    for i in 0..2 {
-        for j in 0..2 {
-            o[i][j] = a[i][0] * b[0][j] + a[i][1] * b[1][j];
-        }
-    }
-    o
-}
-
-/// (Z + D)^-1 Z and D (Z + D)^-1 Z; None when Z + D is singular (to 1e-14 of its scale).
-#[inline]
-pub fn series(z: &C2, d: &C2) -> Option<(C2, C2)> {
-    let s = [[z[0][0] + d[0][0], z[0][1] + d[0][1]], [z[1][0] + d[1][0], z[1][1] + d[1][1]]];
-    let det = s[0][0] * s[1][1] - s[0][1] * s[1][0];
-    let scale = s.iter().flatten().map(|v| v.norm_sqr()).sum::<f64>();
-    if !(det.norm() > 1e-14 * scale) || !det.is_finite() {
-        return None;
-    }
-    let inv = [[s[1][1] / det, -s[0][1] / det], [-s[1][0] / det, s[0][0] / det]];
-    let t = mul2(&inv, z);
-    Some((t, mul2(d, &t)))
-}
+pub use crate::series::series;
 
 /// Bearing impedance Z_b = K_b + j w C_b from 8 coefficients [bearing][i][j].
 #[inline]
