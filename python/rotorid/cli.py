@@ -44,6 +44,12 @@ def main(argv=None):
     s.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
     s.add_argument("--scheduler", default=None, help="run on a Dask cluster: its scheduler address, e.g. "
                    "tcp://10.0.0.5:8786 (needs rotorid[dask]; default: this machine's cores)")
+    cp = sub.add_parser("compare", help="put predicted support coefficients next to identified ones (tables and a plot)")
+    cp.add_argument("identified", help="coefficient table written by rotorid identify (coefficients_*.csv)")
+    cp.add_argument("predicted", help="predicted coefficients: the same axis column (speed_rpm or freq_hz) and "
+                    "Kxx1 ... Cyy2 (SI, or with rotorid's US suffixes)")
+    cp.add_argument("--out", default="rotorid_compare", help="output directory")
+    cp.add_argument("--overwrite", action="store_true", help="replace the results of an earlier comparison")
     e = sub.add_parser("example", help="write the bundled example data set (raw recordings + configs) to a directory")
     e.add_argument("--out", default="rotorid_example")
     e.add_argument("--overwrite", action="store_true", help="replace files of the example already in the folder")
@@ -101,9 +107,40 @@ def main(argv=None):
             return 0
         if args.cmd == "demo":
             return _demo(args)
+        if args.cmd == "compare":
+            return _compare(args)
     except RotoridError as exc:
         print(f"rotorid: error: {exc}", file=sys.stderr)
         return 2
+    return 0
+
+
+def _compare(args):
+    from . import plot
+    from .outputs import ResultsFolder
+    import numpy as np
+
+    from .support.compare import compare_tables
+
+    cmp = compare_tables(args.identified, args.predicted)     # read and checked before anything is written
+    folder = ResultsFolder(args.out, patterns=["comparison*"], overwrite=args.overwrite,
+                           command=f"rotorid compare {args.identified} {args.predicted}")
+    with folder.atomic("comparison.csv") as tmp:
+        cmp.to_dataframe().to_csv(tmp, index=False, float_format="%.6g")
+    summary = cmp.summary()
+    with folder.atomic("comparison_summary.csv") as tmp:
+        summary.to_csv(tmp, index=False, float_format="%.4g")
+    with folder.atomic("comparison.png") as tmp:
+        plot.comparison(cmp, path=tmp, title=f"Predicted vs identified: {os.path.basename(args.identified)}")
+    folder.finish()
+    ok = summary[summary.points > 0]
+    if ok.empty:
+        print(f"compared {cmp.axis.size} points: none is ok with a known uncertainty (see comparison.csv)")
+    else:
+        worst = ok.loc[ok.median_abs_z.idxmax()]
+        print(f"compared {cmp.axis.size} points ({int(cmp.ok.sum())} ok): prediction inside the 95 % interval at "
+              f"{100 * float(np.nanmean(ok.inside_fraction)):.0f} % of ok points; largest median |z| "
+              f"{worst.median_abs_z:.2g} ({worst.coefficient}); wrote 3 files to {args.out}/")
     return 0
 
 

@@ -206,6 +206,52 @@ def pedestal_compensation(without, with_pedestal, truth, *, title="", path=None)
     return finish(fig, path)
 
 
+def comparison(cmp, *, title="", path=None):
+    """Identified coefficients (points, 95 % intervals; hollow where flagged) and predicted ones
+    (lines) of a :class:`rotorid.support.compare.Comparison`, in four panels: direct and
+    cross-coupled stiffness and damping of both bearings."""
+    from .support.compare import Comparison
+
+    _v.instance("cmp", cmp, Comparison, what="rotorid.support.compare.Comparison")
+    title, path = _v.text("title", title), _path(path)
+    plt = _plt()
+    x = cmp.axis
+    idx = {n: j for j, n in enumerate(cmp.names)}
+    groups = [(("Kxx1", "Kyy1", "Kxx2", "Kyy2"), "Direct stiffness (MN/m)", 1e-6),
+              (("Kxy1", "Kyx1", "Kxy2", "Kyx2"), "Cross-coupled stiffness (MN/m)", 1e-6),
+              (("Cxx1", "Cyy1", "Cxx2", "Cyy2"), "Direct damping (kN·s/m)", 1e-3),
+              (("Cxy1", "Cyx1", "Cxy2", "Cyx2"), "Cross-coupled damping (kN·s/m)", 1e-3)]
+    fig, axes = plt.subplots(2, 2, figsize=(13, 8.5), sharex=True)
+    ok = cmp.ok
+    for ax, (names, label, scale) in zip(axes.flat, groups):
+        for m, name in enumerate(names):
+            j = idx[name]
+            y, p = cmp.identified[:, j] * scale, cmp.predicted[:, j] * scale
+            lo, hi = cmp.lower[:, j] * scale, cmp.upper[:, j] * scale
+            line = ax.plot(x, p, "-", lw=1.2, label=f"{name} predicted")[0]
+            col = line.get_color()
+            has = ok & np.isfinite(lo) & np.isfinite(hi)
+            ax.errorbar(x[has], y[has], yerr=[y[has] - lo[has], hi[has] - y[has]], fmt="osv^"[m], ms=3.5, color=col,
+                        elinewidth=0.8, capsize=1.5, label=f"{name} identified")
+            if (~ok).any():
+                ax.plot(x[~ok], y[~ok], "osv^"[m], ms=3.5, mfc="none", color=col, alpha=0.5)
+        # the range of the prediction and of the identified points (robust to wild flagged ones)
+        vals = np.concatenate([cmp.predicted[:, idx[n]] * scale for n in names] +
+                              [cmp.identified[ok if ok.any() else slice(None), idx[n]] * scale for n in names])
+        vals = vals[np.isfinite(vals)]
+        lo_, hi_ = (np.percentile(vals, 2), np.percentile(vals, 98)) if vals.size else (0.0, 1.0)
+        span = max(hi_ - lo_, 0.25 * max(abs(hi_), abs(lo_)), 1e-12)
+        ax.set_ylim(lo_ - 1.5 * span, hi_ + 1.5 * span)
+        ax.set_ylabel(label)
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=7, ncol=2)
+    for ax in axes[1]:
+        ax.set_xlabel("Rotor speed (rpm)" if cmp.axis_name == "speed_rpm" else "Frequency (Hz)")
+    fig.suptitle(title + f"\n(lines: predicted; points: identified with {int(100 * cmp.level)} % intervals; hollow: "
+                         "flagged)")
+    return finish(fig, path)
+
+
 def campbell(modal_result, *, crit=None, path=None, title="Campbell diagram"):
     """Damped natural frequencies (cpm) over speed with the 1X line; ``crit``, the DataFrame of
     :func:`rotorid.critical_speeds`, marks the critical speeds."""
