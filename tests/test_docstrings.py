@@ -9,7 +9,8 @@ import pytest
 MODULES = ["rotorid.signals.keyphasor", "rotorid.signals.order", "rotorid.identify", "rotorid.kcm",
            "rotorid.phasecal", "rotorid.config", "rotorid.tables", "rotorid.io", "rotorid.studies.errors",
            "rotorid.studies.monte_carlo", "rotorid.studies.sensitivity", "rotorid.studies.design",
-           "rotorid.studies.config", "rotorid.studies.run", "rotorid.studies.report"]
+           "rotorid.studies.config", "rotorid.studies.run", "rotorid.studies.report", "rotorid.pedestal",
+           "rotorid.support.series", "rotorid.support.sfd", "rotorid.support.tpjb", "rotorid.support.compare"]
 
 
 @pytest.mark.parametrize("name", MODULES)
