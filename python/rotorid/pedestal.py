@@ -88,7 +88,7 @@ class Pedestals:
     --------
     >>> import rotorid
     >>> ped = rotorid.Pedestals(mass_kg=20.0, k=[[1.2e7, 2.0e7], [1.4e7, 2.2e7]], c=3.0e3)
-    >>> ped.k[0, 1, 1]
+    >>> float(ped.k[0, 1, 1])
     20000000.0
     """
 
