@@ -158,7 +158,8 @@ def _demo(args):
                          args.phase_resolution_deg is None or args.phase_resolution_deg >= 0)):
         if not ok or (v is not None and v != v):
             raise RotoridError(f"{name} must be >= 0, got {v:g}")
-    folder = ResultsFolder(args.out, patterns=["table5_*", "campbell.*", "figure*", "pedestal_*", "impact_time_*"],
+    folder = ResultsFolder(args.out, patterns=["table5_*", "campbell.*", "figure*", "pedestal_*", "impact_time_*",
+                                                 "series_support*"],
                            overwrite=args.overwrite,
                            command="rotorid demo")
     base = ProbeResolution()
@@ -169,7 +170,8 @@ def _demo(args):
     out = demo.synchronous(args.out, step_rpm=args.step_rpm, resolution=res)
     imp = demo.impact(args.out)
     ped = demo.pedestal(args.out)
-    files = out["files"] + imp["files"] + ped["files"]
+    ser = demo.series_support(args.out)
+    files = out["files"] + imp["files"] + ped["files"] + ser["files"]
     for f in files:
         folder.record(os.path.basename(f))
     folder.finish()

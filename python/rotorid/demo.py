@@ -391,3 +391,101 @@ def pedestal(out: str, *, step_rpm: float = 100.0, probe_noise_um: float = 0.025
     log("  " + fit.summary())
     return dict(with_pedestal=with_ped, without=without, pedestals=fit, files=files, err_with=err_with,
                 err_without=err_without)
+
+
+def illustrative_tpjb():
+    """An *illustrative* flexure-pivot tilting-pad bearing table for the NSF rig: not from the
+    report (which gives no bearing coefficients), built only to show the series support. Direct
+    stiffness 1.2e7 + 1000 N/m per rpm (4 times a 3.75e6 N/m damper spring at 3000 rpm, the
+    report's "3.5 to 4.5 times at the first critical speed"), direct damping 3000 N s/m at
+    3000 rpm falling as speed^-0.3, a preloaded bearing's weak frequency dependence (+-7 % over
+    frequency ratios 0.1-4), no cross-coupling."""
+    from .support.tpjb import BearingTable
+
+    rpm = np.array([500.0, 1000.0, 2000.0, 3000.0, 4000.0, 6000.0, 8000.0, 10000.0])
+    ratio = np.array([0.1, 0.25, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0])
+    kd = 1.2e7 + 1000.0 * rpm[:, None] * np.ones(ratio.size)
+    cd = 3000.0 * (rpm[:, None] / 3000.0) ** -0.3 * np.ones(ratio.size)
+    kd = kd * (1.0 - 0.05 * (ratio - 1.0) / 2.0)[None, :]
+    cd = cd * (1.0 + 0.05 * (ratio - 1.0) / 2.0)[None, :]
+    k = np.zeros((rpm.size, ratio.size, 2, 2))
+    c = np.zeros_like(k)
+    k[..., 0, 0], k[..., 1, 1] = kd, 1.1 * kd
+    c[..., 0, 0], c[..., 1, 1] = cd, 1.1 * cd
+    return BearingTable(rpm, ratio, k, c, freq_axis="ratio", name="illustrative FPJB")
+
+
+def series_support(out: str, *, spring_stiffness_n_m: float = 3.75e6, journal_mass_kg: float = 1.5, log=print):
+    """Predicted coefficients of the report's series support (issue 13): the NSF integral squeeze
+    film damper of Table 1 (``nsf_damper``, full film, fluid inertia) in series with an
+    *illustrative* tilting-pad table (:func:`illustrative_tpjb`) through the damper journal's mass.
+
+    Writes ``series_support.png``: direct K and C of film, damper and series support against
+    speed at w = Omega (what an imbalance identification measures) and against frequency at
+    3000 rpm (what impacts at 3000 rpm measure), and ``series_support.csv``.
+
+    Examples
+    --------
+    >>> import tempfile, rotorid.demo as demo
+    >>> r = demo.series_support(tempfile.mkdtemp(), log=lambda m: None)
+    >>> sorted(r)
+    ['files', 'frequency', 'synchronous']
+    """
+    import warnings
+
+    import pandas as pd
+
+    from .support.series import coefficients_of
+    from .support.compare import SeriesSupport
+    from .support.sfd import SFDValidityWarning, nsf_damper
+
+    log = _log(log)
+    out = _out_dir(out)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SFDValidityWarning)  # the NSF lands are short: docs/sfd.md
+        damper = nsf_damper(spring_stiffness_n_m=spring_stiffness_n_m)
+    film = illustrative_tpjb()
+    support = SeriesSupport(film, damper, journal_mass_kg, "NSF series support")
+    rpm = np.arange(500.0, 10000.0 + 1e-9, 100.0)
+    f_sync = rpm / 60.0
+    f_imp = np.arange(5.0, 150.0 + 1e-9, 1.0)
+    rows = {}
+    for tag, s, f in (("synchronous", rpm, f_sync), ("frequency", np.full(f_imp.size, 3000.0), f_imp)):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", SFDValidityWarning)
+            zb = film.impedance(s, f)
+            zd = damper.impedance(f)
+            ze = support.impedance(s, f)
+        rows[tag] = {name: coefficients_of(z, f) for name, z in (("film", zb), ("damper", zd), ("series", ze))}
+    plt = plot._plt()
+    fig, axes = plt.subplots(2, 2, figsize=(13, 8), sharex="col")
+    for col, (tag, x, xlabel) in enumerate((("synchronous", rpm, "Rotor speed (rpm), w = Omega"),
+                                            ("frequency", f_imp, "Frequency (Hz), 3000 rpm"))):
+        for name, style in (("film", ":"), ("damper", "--"), ("series", "-")):
+            k, c = rows[tag][name]
+            axes[0, col].plot(x, k[:, 0, 0] * 1e-6, style, label=f"{name} Kxx")
+            axes[1, col].plot(x, c[:, 0, 0] * 1e-3, style, label=f"{name} Cxx")
+        axes[1, col].set_xlabel(xlabel)
+    axes[0, 0].set_ylabel("Direct stiffness (MN/m)")
+    axes[1, 0].set_ylabel("Direct damping (kN·s/m)")
+    for ax in axes.flat:
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.suptitle("NSF series support: Table 1 squeeze film damper (full film, fluid inertia) in series with an "
+                 "ILLUSTRATIVE tilting-pad table\n(not from the report; spring "
+                 f"{spring_stiffness_n_m:.3g} N/m and journal mass {journal_mass_kg:g} kg assumed)")
+    p = os.path.join(out, "series_support.png")
+    plot.finish(fig, p)
+    data = {"speed_rpm": rpm}
+    for name in ("film", "damper", "series"):
+        k, c = rows["synchronous"][name]
+        data[f"{name}_Kxx"], data[f"{name}_Cxx"] = k[:, 0, 0], c[:, 0, 0]
+    csv = os.path.join(out, "series_support.csv")
+    pd.DataFrame(data).to_csv(csv, index=False, float_format="%.6g")
+    ks, cs = rows["synchronous"]["series"]
+    kf, cf = rows["frequency"]["series"]
+    i3 = int(np.argmin(np.abs(rpm - 3000.0)))
+    log(f"Series support (NSF damper + illustrative FPJB table): at 3000 rpm synchronous Kxx "
+        f"{ks[i3, 0, 0]:.3g} N/m, Cxx {cs[i3, 0, 0]:.3g} N s/m; at 3000 rpm and 100 Hz Kxx "
+        f"{kf[np.argmin(np.abs(f_imp - 100.0)), 0, 0]:.3g} N/m: impacts and imbalance measure different coefficients")
+    return dict(synchronous=rows["synchronous"], frequency=rows["frequency"], files=[p, csv])
