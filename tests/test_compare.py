@@ -176,3 +176,24 @@ def test_bad_arguments():
         compare("ident", np.zeros((1, 2, 2, 2)), np.zeros((1, 2, 2, 2)))
     with pytest.raises(RotoridError, match="missing.csv"):
         compare_tables("missing.csv", "missing.csv")
+
+
+def test_impact_identification_compared_over_frequency():
+    """Impacts at one speed measure the support over frequency: predicting at that speed over the
+    FRF frequencies agrees; predicting synchronously (w = Omega) at the same speed does not."""
+    rig = rotorid.nsf_rig()
+    sup = _supports()
+    f = np.arange(20.0, 120.0, 5.0)
+    k, c = predict_coefficients(sup, speed_rpm=3000.0, freq_hz=f)
+    brg = rotorid.BearingCoefficients(k, c, freq_hz=f)
+    tests = [rotorid.impact_frf(rig.rotor, brg, speed_rpm=3000.0, freq_hz=f, direction=d) for d in "xy"]
+    for t in tests:
+        t.cov = np.broadcast_to(np.eye(8) * (1e-3 * np.abs(t.q).max()) ** 2, (f.size, 8, 8))
+    ident = rotorid.identify_impact(rig.rotor, tests)
+    cmp = compare(ident, k, c)
+    assert cmp.axis_name == "freq_hz"
+    assert np.all(np.abs(cmp.z[np.isfinite(cmp.z)]) < 1e-4)
+    ks, cs = predict_coefficients(sup, speed_rpm=np.full(1, 3000.0))       # the synchronous point only
+    wrong = compare(ident, np.repeat(ks, f.size, 0), np.repeat(cs, f.size, 0))
+    j = REPORT_ORDER.index("Kxx1")
+    assert np.nanmax(np.abs(wrong.z[:, j])) > 10 * np.nanmax(np.abs(cmp.z[:, j])) + 1.0

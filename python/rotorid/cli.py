@@ -44,6 +44,11 @@ def main(argv=None):
     s.add_argument("--quiet", "-q", action="store_true", help="no progress bar")
     s.add_argument("--scheduler", default=None, help="run on a Dask cluster: its scheduler address, e.g. "
                    "tcp://10.0.0.5:8786 (needs rotorid[dask]; default: this machine's cores)")
+    pr = sub.add_parser("predict", help="predicted coefficients of series supports (bearing table + squeeze film "
+                        "damper) from a TOML config, as a table rotorid compare reads")
+    pr.add_argument("config", help="prediction config (TOML; every key: docs/config.md, 'Prediction configs')")
+    pr.add_argument("--out", default=None, help="output directory (default: [output] dir of the config)")
+    pr.add_argument("--overwrite", action="store_true", help="replace the results of an earlier prediction")
     cp = sub.add_parser("compare", help="put predicted support coefficients next to identified ones (tables and a plot)")
     cp.add_argument("identified", help="coefficient table written by rotorid identify (coefficients_*.csv)")
     cp.add_argument("predicted", help="predicted coefficients: the same axis column (speed_rpm or freq_hz) and "
@@ -83,7 +88,13 @@ def main(argv=None):
             from .config import read_toml
             from .studies.config import is_study_config, parse_study_config
 
-            data, src, _ = read_toml(args.config)
+            data, src, where = read_toml(args.config)
+            from .support.config import is_predict_config, parse_predict_config
+
+            if is_predict_config(data):
+                pcfg = parse_predict_config(data, source=src, base_dir=where, check_files=True)
+                print(f"{args.config}: valid (prediction, {pcfg.predict.kind}; 2 supports, bearing tables present)")
+                return 0
             if is_study_config(data):
                 scfg = parse_study_config(data, source=src)
                 print(f"{args.config}: valid ({scfg.study.kind} study{' with a test design' if scfg.design else ''})")
@@ -109,6 +120,15 @@ def main(argv=None):
             return _demo(args)
         if args.cmd == "compare":
             return _compare(args)
+        if args.cmd == "predict":
+            import warnings
+
+            from .support.config import run_predict_config
+
+            with warnings.catch_warnings():
+                warnings.simplefilter("default")   # validity warnings: one line each (formatwarning above)
+                run_predict_config(args.config, out_dir=args.out, overwrite=args.overwrite)
+            return 0
     except RotoridError as exc:
         print(f"rotorid: error: {exc}", file=sys.stderr)
         return 2
