@@ -47,12 +47,7 @@ def _cov_transform(T, cov):
     (y1, y2) of q."""
     if cov is None:
         return None
-    A4 = np.zeros((4, 4))
-    A4[0:2, 0:2] = T
-    A4[2:4, 2:4] = T
-    A8 = np.zeros((8, 8))
-    A8[:4, :4] = A4
-    A8[4:, 4:] = A4
+    A8 = _plane_matrix8(T)
     return A8 @ np.asarray(cov) @ A8.T
 
 

@@ -344,13 +344,9 @@ def _check_headers(where, cols, speed_col, unit, amp_kind, phase_kind, angle_kin
 
 
 def _decode(path: Path) -> str:
-    raw = path.read_bytes()
-    for enc in ("utf-8-sig", "cp1252"):
-        try:
-            return raw.decode(enc)
-        except UnicodeDecodeError:
-            continue
-    return raw.decode("latin-1")
+    from .io._common import decode_text
+
+    return decode_text(path.read_bytes())
 
 
 def _split(line: str, sep: str) -> list:

@@ -19,6 +19,17 @@ from .. import units as _units
 from ..errors import RotoridError
 from ..recording import DISPLACEMENTS, KNOWN, Recording
 
+def decode_text(raw: bytes) -> str:
+    """Text of a lab file's bytes: UTF-8 (with or without a byte-order mark), else Windows-1252
+    (what DAQ PCs write), else Latin-1 (which decodes anything)."""
+    for encoding in ("utf-8-sig", "cp1252"):
+        try:
+            return raw.decode(encoding)
+        except UnicodeDecodeError:
+            continue
+    return raw.decode("latin-1")
+
+
 FORMAT_NAME = "rotorid-recording"
 FORMAT_VERSION = 1
 #: values of load_recording's ``fmt``

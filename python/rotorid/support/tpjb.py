@@ -437,13 +437,9 @@ _ACCEPTED = ("speed_rpm, freq_hz (or freq_ratio with freq_axis='ratio'), Kxx Kxy
 
 
 def _decode(p: Path) -> str:
-    raw = p.read_bytes()
-    for enc in ("utf-8-sig", "cp1252"):
-        try:
-            return raw.decode(enc)
-        except UnicodeDecodeError:
-            continue
-    return raw.decode("latin-1")
+    from ..io._common import decode_text
+
+    return decode_text(p.read_bytes())
 
 
 def _blank(v) -> bool:
