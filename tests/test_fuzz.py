@@ -19,6 +19,7 @@ from rotorid.io import (check_clipping, list_groups, load_recording, load_segmen
                         save_tdms, save_tdms_segmented, save_uff58)
 from rotorid.pedestal import PedestalIdentification, Pedestals
 from rotorid.recording import SegmentedRecording
+from rotorid.support import BearingTable, Comparison, SFDCoefficients, SqueezeFilmDamper
 from strategies import bad_kwargs, bad_values
 
 FUZZ = settings(max_examples=120, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow,
@@ -222,6 +223,18 @@ def _finite(out, where="result"):
     elif isinstance(out, PedestalIdentification):
         for name in ("mass_kg", "k", "c", "mass_std", "k_std", "c_std", "residual"):
             _finite(getattr(out, name), f"{where}.{name}")
+    elif isinstance(out, SFDCoefficients):
+        for name in ("freq_hz", "K", "C", "M", "Re_s"):
+            _finite(getattr(out, name), f"{where}.{name}")
+    elif isinstance(out, SqueezeFilmDamper):  # its coefficients, which do not depend on frequency
+        for name in ("stiffness_matrix", "damping_matrix", "added_mass_matrix"):
+            _finite(getattr(out, name)(), f"{where}.{name}()")
+    elif isinstance(out, BearingTable):
+        for name in ("speed_rpm", "freq", "k", "c", "m"):
+            _finite(getattr(out, name), f"{where}.{name}")
+    elif isinstance(out, Comparison):  # the identified side may hold NaN (unknown std): it is the input's
+        _finite(out.axis, f"{where}.axis")
+        _finite(out.predicted, f"{where}.predicted")
     elif isinstance(out, np.ndarray) and out.dtype.kind in "fc":
         assert np.all(np.isfinite(out)), f"{where} holds NaN or inf without a flag"
     elif isinstance(out, (float, complex, np.floating, np.complexfloating)):
@@ -803,6 +816,105 @@ def _no_check(out, kw):
     """Objects (error models, designs): built or refused; their numbers are checked elsewhere."""
 
 
+@functools.lru_cache(maxsize=None)
+def _support_fixtures():
+    """Good arguments of rotorid.support (issue 13), built on first use: bearing tables (the demo's
+    illustrative one over frequency ratio, one over Hz, a single node with added mass), dampers
+    (a full ring without validity warnings, the NSF one that always warns), two series supports,
+    an identification with intervals and predicted coefficients at its speeds, and the CSV
+    tables (as text) that load_bearing_table and compare_tables read."""
+    import pandas as pd
+
+    from rotorid import demo, support
+    from rotorid.model import REPORT_ORDER, _REPORT_TO_BIJ
+
+    ratio = demo.illustrative_tpjb()
+    eye = np.eye(2)
+    k = np.array([[1e7 * eye, 1.1e7 * eye], [2e7 * eye, 2.2e7 * eye]])
+    hz = BearingTable([1000.0, 3000.0], [0.0, 100.0], k, np.zeros((2, 2, 2, 2)) + 3e3 * eye, name="hz")
+    one = np.ones((1, 1, 2, 2)) * eye
+    single = BearingTable([3000.0], [50.0], 1e7 * one, 1e3 * one, m=0.5 * one, name="single")
+    ring = SqueezeFilmDamper(radius_m=0.05, clearance_m=2e-4, length_m=0.02, land_arcs_deg=[(0.0, 360.0)],
+                             viscosity_pa_s=0.01, spring_stiffness_n_m=1e6)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", support.sfd.SFDValidityWarning)  # the NSF lands are short: always warns
+        nsf = support.nsf_damper(spring_stiffness_n_m=3.75e6)
+    supports = [support.SeriesSupport(ratio, nsf, 1.5, "bearing 1"),
+                support.SeriesSupport(ratio, ring, 1.2, "bearing 2")]
+    # the ratio table as a bearing code's CSV, with (zero) added-mass columns
+    cols = {"speed_rpm": [], "freq_ratio": [], **{p + ij: [] for p in "KCM" for ij in ("xx", "xy", "yx", "yy")}}
+    for i, rpm in enumerate(ratio.speed_rpm):
+        for j, r in enumerate(ratio.freq):
+            cols["speed_rpm"].append(rpm)
+            cols["freq_ratio"].append(r)
+            for p, a in (("K", ratio.k), ("C", ratio.c), ("M", ratio.m)):
+                for ij in ("xx", "xy", "yx", "yy"):
+                    cols[p + ij].append(a[i, j, "xy".index(ij[0]), "xy".index(ij[1])])
+    bearing_csv = pd.DataFrame(cols).to_csv(index=False)
+    # an imbalance identification with intervals (noisy responses with a covariance), and a prediction
+    rig = rotorid.nsf_rig()
+    rpm = np.array([3000.0, 4000.0, 5000.0])
+    runs = [rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=rpm) for s in "ABCD"]
+    rng = np.random.default_rng(3)
+    for r in runs:
+        r.q = r.q + 0.05e-6 * (rng.standard_normal(r.q.shape) + 1j * rng.standard_normal(r.q.shape))
+        r.cov = np.broadcast_to(np.eye(8) * (0.05e-6) ** 2, (rpm.size, 8, 8))
+    ident = rotorid.identify_synchronous(rig.rotor, runs)
+    pk, pc = rig.bearings.at()
+    pk, pc = np.repeat(pk, rpm.size, 0) * 1.05, np.repeat(pc, rpm.size, 0)
+    pred = {"speed_rpm": rpm}
+    rk, rc = pk.reshape(-1, 8)[:, _REPORT_TO_BIJ], pc.reshape(-1, 8)[:, _REPORT_TO_BIJ]
+    for j, name in enumerate(REPORT_ORDER):
+        pred[name] = (rk if j < 8 else rc)[:, j % 8]
+    return dict(ratio=ratio, hz=hz, single=single, ring=ring, nsf=nsf, supports=supports, bearing_csv=bearing_csv,
+                ident=ident, pk=pk, pc=pc, ident_csv=ident.to_dataframe().to_csv(index=False),
+                pred_csv=pd.DataFrame(pred).to_csv(index=False))
+
+
+def _support_files(tmp):
+    """The support fixtures' CSV tables written to the folder ``tmp``: {name: path}."""
+    fs = _support_fixtures()
+    out = {}
+    for key, name in (("bearing_csv", "fpjb.csv"), ("ident_csv", "coefficients_imbalance.csv"),
+                      ("pred_csv", "predicted_synchronous.csv")):
+        out[key] = tmp / name
+        if not out[key].exists():
+            out[key].write_text(fs[key], encoding="utf-8")
+    return {k: str(v) for k, v in out.items()}
+
+
+def _damper_answers(out, kw):
+    """A squeeze film damper that was built gives finite coefficients and impedance (or a
+    RotoridError) at ordinary frequencies: nothing it accepted breaks it later."""
+    _outcome(lambda: out.coefficients([0.0, 50.0, 200.0]))
+    _outcome(lambda: out.impedance([0.0, 50.0, 200.0]))
+
+
+def _table_answers(out, kw):
+    """A bearing table that was built or read answers inside its own range: the corner nodes."""
+    s, f = out.speed_rpm[[0, -1]], out.freq[[0, -1]]
+    if out.freq_axis == "ratio":
+        s = np.maximum(s, 1.0)
+        f = f * s / 60.0
+    _outcome(lambda: out.impedance(s, f))
+
+
+def _support_answers(out, kw):
+    """A series support that was built gives a finite impedance or a RotoridError."""
+    _outcome(lambda: out.impedance([2000.0, 3000.0], [20.0, 50.0]))
+
+
+def _predict_config_usable(out, kw):
+    """A prediction config that validated builds its supports and predicts: finite or a RotoridError."""
+    from rotorid.support import predict_coefficients
+
+    def run():
+        rpm, f = out.predict.points()
+        return predict_coefficients(out.build_supports(), speed_rpm=rpm, freq_hz=f)
+
+    _outcome(run)
+
+
 def _owned_calls(tmp):
     import matplotlib
 
@@ -810,6 +922,9 @@ def _owned_calls(tmp):
     from rotorid import config, demo, example, pipeline, plot, units
     from rotorid import studies
     from rotorid.studies import sensitivity
+    from rotorid import support
+    from rotorid.support.config import parse_predict_config
+    from rotorid.support.series import coefficients_of
 
     rig = rotorid.nsf_rig()
     rotor, brg = rig.rotor, rig.bearings
@@ -840,6 +955,14 @@ def _owned_calls(tmp):
               "mil", "length", np.ones((2, 4), complex), np.ones((2, 2, 2)), [1e-3, 1e-3], (0.0, 90.0), PEDESTALS,
               fp["runs"], fp["tests"], fp["ident"], fp["runs"][0].pedestal, np.ones((2, 2, 2, 2))]
     ped_kw = dict(mass_kg=20.0, k=[[2.0e7, 2.6e7], [2.2e7, 2.8e7]], c=2500.0)
+    fs = _support_fixtures()
+    files = _support_files(tmp)
+    sup_values = [fs["ratio"], fs["hz"], fs["single"], fs["ring"], fs["nsf"], fs["supports"], fs["supports"][0],
+                  fs["ident"], fs["pk"], np.ones((2, 2), complex), np.ones((3, 2, 2), complex), [(0.0, 120.0)],
+                  [(0.0, 180.0), (90.0, 180.0)], "ratio", "hz", "pi", "none", files["bearing_csv"],
+                  files["ident_csv"], files["pred_csv"], "lbf/in", "lbf*s/in", 0.5, [1000.0, 2000.0]]
+    sup_cfg = {"bearing": {"file": "fpjb.csv", "freq_axis": "ratio"}, "journal_mass_kg": 1.5,
+               "damper": {"builtin": "nsf", "spring_stiffness_n_m": 3.75e6}}
     return {
         "RigidRotor": Call(rotorid.RigidRotor, dict(mass_kg=45.3, it_kgm2=0.7, ip_kgm2=0.3, l1=0.2, l2=0.2,
                                                     d=(0.1, 0.1), r=(0.05, 0.05), s=(0.2, 0.2)), extras=values),
@@ -1019,6 +1142,67 @@ def _owned_calls(tmp):
         "studies.design_impact_plan": Call(studies.design_impact_plan, dict(
             rotor=rotor, bearings=brg, planes_m=[0.0], freq_hz=[40.0, 80.0], speed_rpm=1000.0, impacts_total=4,
             coherence=0.95, errors=None, tests=(2,), trials=4, seed=0, at="probes", compare=None), check=_no_check),
+        # rotorid.support (issue 13): series supports, squeeze film dampers, bearing tables, comparisons
+        # (one matrix for every point, or one point: a bad scalar still fits the other arguments' shapes)
+        "support.series_impedance": Call(support.series_impedance, dict(
+            z_bearing=np.diag([1.2e7, 1.3e7]) + 2e5j * np.eye(2), z_damper=np.diag([3e6, 3.5e6]) + 1e5j * np.eye(2),
+            journal_mass_kg=1.5, freq_hz=[50.0, 100.0]), extras=sup_values),
+        "support.coefficients_of": Call(coefficients_of, dict(z=(np.diag([1.2e7, 1.3e7]) + 2e5j * np.eye(2))[None],
+                                                              freq_hz=[50.0]), extras=sup_values),
+        "support.SqueezeFilmDamper": Call(support.SqueezeFilmDamper, dict(
+            radius_m=0.05, clearance_m=2e-4, length_m=0.02, land_arcs_deg=[(0.0, 360.0)], viscosity_pa_s=0.01,
+            spring_stiffness_n_m=1e6, density_kg_m3=850.0, cavitation="none", inertia=True), extras=sup_values,
+            check=_damper_answers),
+        "support.SqueezeFilmDamper.equal_lands": Call(support.SqueezeFilmDamper.equal_lands, dict(
+            n=4, extent_deg=60.0, first_center_deg=0.0, radius_m=0.05, clearance_m=2e-4, length_m=0.01,
+            viscosity_pa_s=0.01, spring_stiffness_n_m=[[2e6, 0.0], [0.0, 2.5e6]], density_kg_m3=850.0,
+            cavitation="pi", inertia=False), extras=sup_values, check=_damper_answers),
+        "support.SqueezeFilmDamper.coefficients": Call(fs["ring"].coefficients, dict(freq_hz=[0.0, 50.0, 200.0]),
+                                                       extras=sup_values),
+        "support.SqueezeFilmDamper.impedance": Call(fs["ring"].impedance, dict(freq_hz=[0.0, 50.0, 200.0]),
+                                                    extras=sup_values),
+        "support.SqueezeFilmDamper.squeeze_reynolds": Call(fs["ring"].squeeze_reynolds, dict(
+            freq_hz=[0.0, 50.0, 200.0]), extras=sup_values),
+        "support.nsf_damper": Call(support.nsf_damper, dict(
+            spring_stiffness_n_m=3.75e6, viscosity_pa_s=15.76e-3, density_kg_m3=850.0, cavitation="none",
+            inertia=True, first_center_deg=0.0), extras=sup_values, check=_damper_answers),
+        "support.BearingTable": Call(support.BearingTable, dict(
+            speed_rpm=[1000.0, 3000.0], freq=[0.0, 100.0], k=fs["hz"].k, c=fs["hz"].c, m=np.zeros((2, 2, 2, 2)),
+            freq_axis="hz", name="fpjb"), extras=sup_values, check=_table_answers),
+        "support.BearingTable:single": Call(support.BearingTable, dict(
+            speed_rpm=3000.0, freq=50.0, k=fs["single"].k, c=fs["single"].c, m=fs["single"].m, freq_axis="hz",
+            name="single"), extras=sup_values, check=_table_answers),
+        "support.BearingTable.impedance": Call(fs["ratio"].impedance, dict(speed_rpm=[1000.0, 3000.0],
+                                                                           freq_hz=[10.0, 50.0]), extras=sup_values),
+        "support.BearingTable.impedance:single": Call(fs["single"].impedance, dict(speed_rpm=3000.0,
+                                                                                   freq_hz=[10.0, 50.0]),
+                                                      extras=sup_values),
+        "support.BearingTable.coefficients": Call(fs["hz"].coefficients, dict(speed_rpm=[1000.0, 2500.0],
+                                                                              freq_hz=[0.0, 75.0]), extras=sup_values),
+        "support.BearingTable.synchronous": Call(fs["ratio"].synchronous, dict(speed_rpm=[1000.0, 4000.0]),
+                                                 extras=sup_values),
+        "support.load_bearing_table": Call(support.load_bearing_table, dict(
+            path=files["bearing_csv"], stiffness_unit="N/m", damping_unit="N*s/m", freq_axis="ratio", sheet=None,
+            mass_unit="kg", name=None), extras=sup_values, check=_table_answers),
+        "support.SeriesSupport": Call(support.SeriesSupport, dict(bearing=fs["ratio"], damper=fs["ring"],
+                                                                  journal_mass_kg=1.5, name="bearing 1"),
+                                      extras=sup_values, check=_support_answers),
+        "support.SeriesSupport.impedance": Call(fs["supports"][0].impedance, dict(
+            speed_rpm=[2000.0, 3000.0], freq_hz=[20.0, 50.0]), extras=sup_values),
+        "support.predict_coefficients": Call(support.predict_coefficients, dict(
+            supports=fs["supports"], speed_rpm=[2000.0, 3000.0], freq_hz=None), extras=sup_values),
+        "support.predict_coefficients:impacts": Call(support.predict_coefficients, dict(
+            supports=fs["supports"], speed_rpm=3000.0, freq_hz=[20.0, 60.0, 120.0]), extras=sup_values),
+        "support.compare": Call(support.compare, dict(identification=fs["ident"], predicted_k=fs["pk"],
+                                                      predicted_c=fs["pc"], level=0.95), extras=sup_values),
+        "support.compare_tables": Call(support.compare_tables, dict(
+            identified_csv=files["ident_csv"], predicted_csv=files["pred_csv"], level=0.95), extras=sup_values),
+        "support.config.parse_predict_config": Call(parse_predict_config, dict(
+            data={"supports": [sup_cfg, dict(sup_cfg, journal_mass_kg=1.2)], "predict": {
+                "kind": "synchronous", "speeds_rpm": {"start": 1000, "stop": 3000, "step": 1000}}},
+            source="<fuzz>", base_dir=str(tmp), check_files=True), extras=sup_values, check=_predict_config_usable),
+        "demo.series_support": Call(demo.series_support, dict(out=str(tmp / "demo_sup"), spring_stiffness_n_m=3.75e6,
+                                                              journal_mass_kg=1.5, log=lambda *a: None)),
         "sensitivity.cross_coupling_ratio": Call(sensitivity.cross_coupling_ratio, dict(bearings=brg, definition="rms"),
                                                  extras=values),
         "sensitivity.scale_cross_coupling": Call(sensitivity.scale_cross_coupling, dict(
@@ -1037,8 +1221,8 @@ OWNED_NAMES = [
     "Pedestals.dynamic_stiffness", "Pedestals.matrices", "ProbeResolution", "Recording", "Recording.segment",
     "RigidRotor", "SegmentedRecording", "SegmentedRecording.from_arrays", "SyncResponse", "bearings_to_probes",
     "config.load_config", "config.parse_config", "critical_speeds", "demo.cross_coupling", "demo.impact",
-    "demo.pedestal", "demo.synchronous", "example.copy_example", "example_pedestals", "half_sine_pulse",
-    "identify_impact", "identify_pedestals", "identify_pedestals:impacts", "identify_synchronous",
+    "demo.pedestal", "demo.series_support", "demo.synchronous", "example.copy_example", "example_pedestals",
+    "half_sine_pulse", "identify_impact", "identify_pedestals", "identify_pedestals:impacts", "identify_synchronous",
     "identify_synchronous_batch", "imbalance_chain", "imbalance_response", "impact_chain", "impact_frf",
     "impact_segments", "impact_time_response", "impact_vector", "modal_analysis",
     "pedestal.displacement_from_acceleration", "pedestals:ImpactResponse", "pedestals:SyncResponse",
@@ -1049,8 +1233,15 @@ OWNED_NAMES = [
     "sensitivity.cross_coupling_sensitivity", "sensitivity.scale_cross_coupling", "sensitivity.speed_range_errors",
     "studies.ImpactErrors", "studies.SyncErrors", "studies.TrialMassRig", "studies.design_impact_plan",
     "studies.design_trial_masses", "studies.dwell_noise_m", "studies.frf_random_error", "studies.impact_study",
-    "studies.percentiles_from_counts", "studies.synchronous_study", "units.factor", "units.from_si",
-    "units.quantity_of", "units.to_si"]
+    "studies.percentiles_from_counts", "studies.synchronous_study", "support.BearingTable",
+    "support.BearingTable.coefficients", "support.BearingTable.impedance", "support.BearingTable.impedance:single",
+    "support.BearingTable.synchronous", "support.BearingTable:single", "support.SeriesSupport",
+    "support.SeriesSupport.impedance", "support.SqueezeFilmDamper", "support.SqueezeFilmDamper.coefficients",
+    "support.SqueezeFilmDamper.equal_lands", "support.SqueezeFilmDamper.impedance",
+    "support.SqueezeFilmDamper.squeeze_reynolds", "support.coefficients_of", "support.compare",
+    "support.compare_tables", "support.config.parse_predict_config", "support.load_bearing_table", "support.nsf_damper",
+    "support.predict_coefficients", "support.predict_coefficients:impacts", "support.series_impedance", "units.factor",
+    "units.from_si", "units.quantity_of", "units.to_si"]
 
 
 def test_the_sweeps_list_every_call(tmp_path):

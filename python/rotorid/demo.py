@@ -471,9 +471,12 @@ def series_support(out: str, *, spring_stiffness_n_m: float = 3.75e6, journal_ma
     for ax in axes.flat:
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=8)
+    spring = np.asarray(damper.stiffness_matrix())
+    spring_text = f"{spring[0, 0]:.3g}" if np.allclose(spring, spring[0, 0] * np.eye(2)) else \
+        f"[{spring[0, 0]:.3g}, {spring[1, 1]:.3g}] (xx, yy)"
     fig.suptitle("NSF series support: Table 1 squeeze film damper (full film, fluid inertia) in series with an "
-                 "ILLUSTRATIVE tilting-pad table\n(not from the report; spring "
-                 f"{spring_stiffness_n_m:.3g} N/m and journal mass {journal_mass_kg:g} kg assumed)")
+                 f"ILLUSTRATIVE tilting-pad table\n(not from the report; spring {spring_text} N/m and journal mass "
+                 f"{support.journal_mass_kg:g} kg assumed)")
     p = os.path.join(out, "series_support.png")
     plot.finish(fig, p)
     data = {"speed_rpm": rpm}

@@ -108,7 +108,10 @@ def predict_coefficients(supports, *, speed_rpm, freq_hz=None):
     >>> k.shape
     (2, 2, 2, 2)
     """
-    supports = list(supports) if not isinstance(supports, SeriesSupport) else [supports]
+    if isinstance(supports, SeriesSupport) or not isinstance(supports, (list, tuple)):
+        raise RotoridError(f"supports must be a list of two SeriesSupport (bearing 1, bearing 2), got "
+                           f"{type(supports).__name__}")
+    supports = list(supports)
     if len(supports) != 2 or not all(isinstance(s, SeriesSupport) for s in supports):
         raise RotoridError("supports must be two SeriesSupport, bearing 1 then bearing 2")
     rpm = np.atleast_1d(real_array("speed_rpm", speed_rpm, positive=True))

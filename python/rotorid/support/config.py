@@ -176,6 +176,10 @@ def is_predict_config(data) -> bool:
 
 def parse_predict_config(data, *, source="<config>", base_dir=".", check_files=False) -> PredictConfig:
     """Validate a prediction config given as a table. Raises ConfigError (one line)."""
+    from .._validate import flag, path as _path
+
+    check_files = flag("check_files", check_files)
+    base_dir = _path("base_dir", base_dir)
     if not isinstance(data, dict):
         raise ConfigError.from_problems(source, [f"a config must be a table of sections, got {_describe(data)}"])
     try:

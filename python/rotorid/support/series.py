@@ -60,6 +60,8 @@ def series_impedance(z_bearing, z_damper, journal_mass_kg, freq_hz) -> np.ndarra
     750000.0
     """
     f = np.atleast_1d(real_array("freq_hz", freq_hz, nonneg=True))
+    if np.any(f > 1e6):
+        raise RotoridError(f"freq_hz up to {f.max():.3g} Hz: beyond 1e6 Hz (a unit error?)")
     if f.ndim != 1 or f.size == 0:
         raise RotoridError(f"freq_hz must be a non-empty 1-D array of frequencies, got shape {f.shape}")
     n = f.size
@@ -87,6 +89,8 @@ def coefficients_of(z, freq_hz):
     (1000000.0, 500.0)
     """
     f = np.atleast_1d(real_array("freq_hz", freq_hz, positive=True))
+    if np.any(f < 1e-6):
+        raise RotoridError(f"freq_hz down to {f.min():.3g} Hz: C = Im Z / w needs w well above 0 (>= 1e-6 Hz)")
     z = complex_array("z", z)
     if z.ndim != 3 or z.shape[1:] != (2, 2) or z.shape[0] != f.size:
         raise RotoridError(f"z has shape {z.shape}, expected ({f.size}, 2, 2) to match freq_hz")

@@ -302,9 +302,13 @@ class SqueezeFilmDamper:
     inertia: bool = True
 
     def __post_init__(self):
-        for name in ("radius_m", "clearance_m", "length_m", "viscosity_pa_s"):
-            object.__setattr__(self, name, number(name, getattr(self, name), positive=True))
-        object.__setattr__(self, "density_kg_m3", number("density_kg_m3", self.density_kg_m3, nonneg=True))
+        for name in ("radius_m", "clearance_m", "length_m", "viscosity_pa_s", "density_kg_m3"):
+            v = number(name, getattr(self, name), positive=name != "density_kg_m3", nonneg=True)
+            lo, hi, unit = _RANGES[name]
+            if not (lo <= v <= hi) and not (name == "density_kg_m3" and v == 0.0):
+                raise RotoridError(f"{name} = {v:g} {unit} is outside {lo:g} to {hi:g} {unit}: not a squeeze film "
+                                   "damper (a unit error?)")
+            object.__setattr__(self, name, v)
         object.__setattr__(self, "land_arcs_deg", _lands(self.land_arcs_deg))
         object.__setattr__(self, "spring_stiffness_n_m", _spring(self.spring_stiffness_n_m))
         choice("cavitation", self.cavitation, ("none", "pi"))
@@ -517,8 +521,17 @@ class SqueezeFilmDamper:
         return self.coefficients(freq_hz).impedance()
 
 
+#: physical ranges of the damper's parameters (beyond them the numbers overflow or are a unit error)
+_RANGES = {"radius_m": (1e-4, 10.0, "m"), "clearance_m": (1e-7, 0.1, "m"), "length_m": (1e-4, 10.0, "m"),
+           "viscosity_pa_s": (1e-6, 1e3, "Pa s"), "density_kg_m3": (1.0, 1e5, "kg/m^3")}
+#: highest frequency the models accept (Hz): far above any rotor vibration, far from overflow
+MAX_FREQ_HZ = 1e6
+
+
 def _freqs(freq_hz) -> np.ndarray:
     f = real_array("freq_hz", freq_hz, nonneg=True)
+    if np.any(f > MAX_FREQ_HZ):
+        raise RotoridError(f"freq_hz up to {np.max(f):.3g} Hz: above {MAX_FREQ_HZ:g} Hz (a unit error?)")
     if f.ndim > 1:
         raise RotoridError(f"freq_hz must be a scalar or a 1-D array, got shape {f.shape}")
     f = np.atleast_1d(f).astype(float)

@@ -216,8 +216,13 @@ class BearingTable:
     # ---------------------------------------------------------------------------------------------
 
     def _points(self, speed_rpm, freq_hz):
+        from .sfd import MAX_FREQ_HZ
+
         s = real_array("speed_rpm", speed_rpm, nonneg=True)
         f = real_array("freq_hz", freq_hz, nonneg=True)
+        if np.any(f > MAX_FREQ_HZ) or np.any(s > 60.0 * MAX_FREQ_HZ):
+            raise RotoridError(f"{self._where()}: freq_hz up to {np.max(f):.3g} Hz or speed_rpm up to {np.max(s):.3g} "
+                               f"rpm is beyond {MAX_FREQ_HZ:g} Hz (a unit error?)")
         try:
             s, f = np.broadcast_arrays(np.atleast_1d(s), np.atleast_1d(f))
         except ValueError:
