@@ -197,3 +197,60 @@ def test_impact_identification_compared_over_frequency():
     wrong = compare(ident, np.repeat(ks, f.size, 0), np.repeat(cs, f.size, 0))
     j = REPORT_ORDER.index("Kxx1")
     assert np.nanmax(np.abs(wrong.z[:, j])) > 10 * np.nanmax(np.abs(cmp.z[:, j])) + 1.0
+
+
+def test_tables_without_uncertainty_non_numeric_cells_and_empty_tables(tmp_path, identified, capsys):
+    ident, k, c = identified
+    ip, pp = _tables(tmp_path, ident, k, c)
+    df = pd.read_csv(ip)
+    # no uncertainty at all: the columns are absent; the comparison is made, no point counts
+    df.drop(columns=[col for col in df.columns if col.endswith(("_std", "_lo95", "_hi95"))]).to_csv(
+        tmp_path / "nostd.csv", index=False)
+    cmp = compare_tables(tmp_path / "nostd.csv", pp)
+    assert np.all(np.isnan(cmp.z)) and (cmp.summary().points == 0).all()
+    bad = df.copy()
+    bad["Kxx1"] = bad["Kxx1"].astype(object)
+    bad.loc[2, "Kxx1"] = "1.2e6x"
+    bad.to_csv(tmp_path / "text.csv", index=False)
+    with pytest.raises(RotoridError, match="column 'Kxx1' row 3 holds '1.2e6x'"):
+        compare_tables(tmp_path / "text.csv", pp)
+    df.iloc[:0].to_csv(tmp_path / "empty.csv", index=False)
+    with pytest.raises(RotoridError, match="has no rows"):
+        compare_tables(tmp_path / "empty.csv", pp)
+    odd = df.copy()
+    odd["ok"] = ["yes"] * len(odd)
+    odd.to_csv(tmp_path / "ok.csv", index=False)
+    with pytest.raises(RotoridError, match="'ok' must hold True/False"):
+        compare_tables(tmp_path / "ok.csv", pp)
+    for name in ("text.csv", "empty.csv", "ok.csv"):
+        assert cli.main(["compare", str(tmp_path / name), str(pp), "--out", str(tmp_path / "o")]) == 2
+        assert capsys.readouterr().err.count("\n") == 1
+
+
+def test_impact_tables_must_be_at_the_same_running_speed(tmp_path):
+    ident = pd.DataFrame({"freq_hz": [20.0, 40.0], "speed_rpm": [2000.0, 2000.0], "ok": [True, True],
+                          **{n: [1e6, 1e6] for n in REPORT_ORDER}})
+    pred = pd.DataFrame({"freq_hz": [10.0, 50.0], "speed_rpm": [4000.0, 4000.0], **{n: [1e6, 1e6] for n in REPORT_ORDER}})
+    ident.to_csv(tmp_path / "i.csv", index=False)
+    pred.to_csv(tmp_path / "p.csv", index=False)
+    with pytest.raises(RotoridError, match="impacts ran at 2000 rpm but the prediction is for 4000 rpm"):
+        compare_tables(tmp_path / "i.csv", tmp_path / "p.csv")
+    pred.assign(speed_rpm=2000.0).to_csv(tmp_path / "p.csv", index=False)
+    assert compare_tables(tmp_path / "i.csv", tmp_path / "p.csv").axis_name == "freq_hz"
+    pred.drop(columns="speed_rpm").to_csv(tmp_path / "p.csv", index=False)
+    with pytest.warns(UserWarning, match="only the identified table states its running speed"):
+        compare_tables(tmp_path / "i.csv", tmp_path / "p.csv")
+
+
+def test_series_support_reports_misused_objects():
+    from rotorid.support import nsf_damper
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        damper = nsf_damper(spring_stiffness_n_m=4e6)
+    swapped = SeriesSupport(bearing=damper, damper=np.eye(2) * 1e7, journal_mass_kg=1.0)
+    with pytest.raises(RotoridError, match="bearing.impedance"):
+        swapped.impedance([3000.0], [50.0])
+    with pytest.raises(RotoridError, match="name must be a string"):
+        SeriesSupport(np.eye(2), np.eye(2), 1.0, name=3)

@@ -13,6 +13,8 @@ from rotorid.config import ConfigError
 from rotorid.model import REPORT_ORDER
 from rotorid.support import config as PC
 from rotorid.support.compare import predict_coefficients
+import rotorid.errors as rotorid_errors
+import rotorid.support as rotorid_support
 
 DOCS = os.path.join(os.path.dirname(__file__), "..", "docs")
 
@@ -76,7 +78,8 @@ def test_frequency_kind_and_compare(tmp_path, recwarn):
     path = _config(tmp_path, predict='kind = "frequency"\nspeed_rpm = 3000\nfreq_hz = [10.0, 50.0, 100.0, 140.0]')
     assert cli.main(["predict", str(path), "--out", str(tmp_path / "p")]) == 0
     df = pd.read_csv(tmp_path / "p" / "predicted_frequency.csv")
-    assert list(df.columns) == ["freq_hz"] + list(REPORT_ORDER)
+    assert list(df.columns) == ["freq_hz", "speed_rpm"] + list(REPORT_ORDER)
+    assert np.all(df.speed_rpm == 3000.0)
     assert cli.main(["predict", str(path), "--out", str(tmp_path / "p")]) == 2     # no overwrite unasked
     assert cli.main(["check", str(path)]) == 0
 
@@ -116,3 +119,42 @@ def test_every_key_is_documented():
     section = doc[doc.index("## Prediction configs"):]
     missing = sorted(k for k in keys if f"`{k}`" not in section and f"[{k}]" not in section and f"[[{k}]]" not in section)
     assert not missing, f"keys missing from docs/config.md 'Prediction configs': {missing}"
+
+
+@pytest.mark.parametrize("edit, match", [
+    (lambda t: t.replace("n_lands = 4, land_extent_deg = 52.0", "n_lands = 8, land_extent_deg = 52.0"),
+     r"\[\[supports\]\] 2 damper:.*360"),
+    (lambda t: t.replace('{ file = "fpjb.csv", freq_axis = "ratio" }',
+                         '{ file = "fpjb.csv", freq_axis = "ratio", stiffness_unit = "kg" }', 1),
+     r"\[\[supports\]\] 1 bearing 'fpjb.csv':.*stiffness"),
+    (lambda t: t.replace('{ file = "fpjb.csv", freq_axis = "ratio" }', '{ file = "fpjb.csv" }', 1),
+     r"\[\[supports\]\] 1 bearing"),
+    (lambda t: t.replace("stop = 6000", "stop = 20000"), r"\[\[supports\]\] 1 at the \[predict\] points"),
+    (lambda t: t.replace("[[4.0e6, 0.0], [0.0, 4.4e6]]", "[[4.0e6, 0.0], [0.0, -4.4e6]]"), "direct stiffnesses"),
+])
+def test_check_finds_what_predict_would(tmp_path, capsys, edit, match):
+    """Problems inside the models and tables are found by rotorid check too, each naming its support."""
+    path = _config(tmp_path)
+    text = path.read_text()
+    edited = edit(text)
+    assert edited != text
+    path.write_text(edited)
+    with pytest.raises(ConfigError, match=match):
+        PC.load_predict_config(path)
+    assert cli.main(["check", str(path)]) == 2
+    assert capsys.readouterr().err.count("\n") == 1
+
+
+def test_impacts_at_standstill_can_be_predicted(tmp_path, recwarn):
+    t = demo.illustrative_tpjb()
+    from rotorid.support.tpjb import BearingTable
+
+    hz = BearingTable(np.array([0.0, 3000.0]), np.array([5.0, 150.0]), t.k[[0, 3]][:, [2, 5]], t.c[[0, 3]][:, [2, 5]])
+    cfg = PC.parse_predict_config({"supports": [{"bearing": {"file": "x.csv"}, "journal_mass_kg": 1.0,
+                                                 "damper": {"builtin": "nsf", "spring_stiffness_n_m": 4e6}}] * 2,
+                                   "predict": {"kind": "frequency", "speed_rpm": 0, "freq_hz": [10.0, 20.0]}})
+    sup = [rotorid_support.SeriesSupport(hz, cfg.supports[0].damper.build(), 1.0)] * 2
+    k, c = predict_coefficients(sup, speed_rpm=0.0, freq_hz=[10.0, 20.0])
+    assert np.all(np.isfinite(k)) and np.all(np.isfinite(c))
+    with pytest.raises(rotorid_errors.RotoridError, match="speeds > 0"):
+        predict_coefficients(sup, speed_rpm=[0.0, 100.0])

@@ -398,8 +398,8 @@ def illustrative_tpjb():
     report (which gives no bearing coefficients), built only to show the series support. Direct
     stiffness 1.2e7 + 1000 N/m per rpm (4 times a 3.75e6 N/m damper spring at 3000 rpm, the
     report's "3.5 to 4.5 times at the first critical speed"), direct damping 3000 N s/m at
-    3000 rpm falling as speed^-0.3, a preloaded bearing's weak frequency dependence (+-7 % over
-    frequency ratios 0.1-4), no cross-coupling."""
+    3000 rpm falling as speed^-0.3, a preloaded bearing's weak frequency dependence (stiffness
+    +2.25 % to -7.5 %, damping the opposite, over frequency ratios 0.1-4), no cross-coupling."""
     from .support.tpjb import BearingTable
 
     rpm = np.array([500.0, 1000.0, 2000.0, 3000.0, 4000.0, 6000.0, 8000.0, 10000.0])

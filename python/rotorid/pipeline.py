@@ -878,6 +878,9 @@ def run_config(path, kind: str, *, out_dir=None, log=print, overwrite: bool = Fa
             write_csv(pfit.to_dataframe(us=us), f"pedestals_{kind}.csv", float_format="%.6g")
             log("  " + pfit.summary(us=us))
     df = ident.to_dataframe()
+    if kind == "impact":
+        # the running speed of the impacts (rotorid compare checks a prediction against it)
+        df.insert(1, "speed_rpm", float(res.tests[0].speed_rpm))
     if us:
         from .units import from_si
 

@@ -42,7 +42,10 @@ class SeriesSupport:
     ``bearing``: an object with ``impedance(speed_rpm, freq_hz) -> (n, 2, 2)`` (a
     :class:`~rotorid.support.tpjb.BearingTable`) or a constant 2 x 2 complex impedance;
     ``damper``: an object with ``impedance(freq_hz) -> (n, 2, 2)`` (a
-    :class:`~rotorid.support.sfd.SqueezeFilmDamper`) or a constant 2 x 2 complex impedance.
+    :class:`~rotorid.support.sfd.SqueezeFilmDamper`) or a constant 2 x 2 complex impedance. A
+    constant complex impedance K + jH is hysteretic (its imaginary part is the same at every
+    frequency, so its damping H / w falls with frequency); a viscous damper needs an object whose
+    impedance is K + j w C at each frequency.
 
     Examples
     --------
@@ -68,12 +71,23 @@ class SeriesSupport:
                 raise RotoridError(f"{nm} must have an impedance method or be a 2 x 2 complex impedance, got "
                                    f"{type(obj).__name__}")
         object.__setattr__(self, "journal_mass_kg", number("journal_mass_kg", self.journal_mass_kg, nonneg=True))
+        if not isinstance(self.name, str):
+            raise RotoridError(f"name must be a string, got {type(self.name).__name__}")
 
     def _part(self, name, obj, n, *args):
         if callable(getattr(obj, "impedance", None)):
-            z = np.asarray(obj.impedance(*args), dtype=complex)
+            try:
+                z = np.asarray(obj.impedance(*args), dtype=complex)
+            except RotoridError:
+                raise
+            except (TypeError, ValueError) as exc:
+                raise RotoridError(f"{name}.impedance{'(speed_rpm, freq_hz)' if name == 'bearing' else '(freq_hz)'} "
+                                   f"failed ({type(exc).__name__}: {exc}); is the {name} the right object (a bearing "
+                                   "table for bearing, a damper for damper)?") from None
             if z.shape != (n, 2, 2):
                 raise RotoridError(f"{name}.impedance returned shape {z.shape}, expected ({n}, 2, 2)")
+            if not np.all(np.isfinite(z)):
+                raise RotoridError(f"{name}.impedance returned NaN or inf")
             return z
         return np.broadcast_to(_const_impedance(name, obj), (n, 2, 2))
 
@@ -114,10 +128,12 @@ def predict_coefficients(supports, *, speed_rpm, freq_hz=None):
     supports = list(supports)
     if len(supports) != 2 or not all(isinstance(s, SeriesSupport) for s in supports):
         raise RotoridError("supports must be two SeriesSupport, bearing 1 then bearing 2")
-    rpm = np.atleast_1d(real_array("speed_rpm", speed_rpm, positive=True))
+    rpm = np.atleast_1d(real_array("speed_rpm", speed_rpm, nonneg=True))
     if freq_hz is None:
         if rpm.ndim != 1:
             raise RotoridError(f"speed_rpm must be 1-D, got shape {rpm.shape}")
+        if np.any(rpm <= 0):
+            raise RotoridError("synchronous coefficients (w = Omega) need speeds > 0 rpm")
         f = rpm / 60.0
     else:
         if rpm.size != 1:
@@ -157,8 +173,10 @@ class Comparison:
 
     @property
     def z(self):
+        """(predicted - identified) / std; NaN where the std is unknown or not positive."""
+        std = np.where(self.std > 0, self.std, np.nan)
         with np.errstate(divide="ignore", invalid="ignore"):
-            return (self.predicted - self.identified) / self.std
+            return (self.predicted - self.identified) / std
 
     @property
     def inside(self):
@@ -178,12 +196,13 @@ class Comparison:
     def summary(self):
         """Per coefficient over the ok points with a known uncertainty: median and largest |z|,
         the fraction of points whose interval holds the prediction, and the median relative
-        difference (predicted / identified - 1)."""
+        difference (predicted / identified - 1; little meaning for a coefficient near zero, such as
+        a cross-coupled one: read its z)."""
         import pandas as pd
 
         rows = []
         for j, name in enumerate(self.names):
-            sel = self.ok & np.isfinite(self.std[:, j])
+            sel = self.ok & (self.std[:, j] > 0)
             z = np.abs(self.z[sel, j])
             with np.errstate(divide="ignore", invalid="ignore"):
                 rel = self.predicted[sel, j] / self.identified[sel, j] - 1
@@ -258,17 +277,32 @@ def _read_table(path, what):
         raise RotoridError(f"{what}: {str(p)!r} is not a readable CSV table ({exc})") from None
 
 
-def _column(df, name, suffix_kind, path, what):
-    """A coefficient column in SI: ``name`` (SI) or ``name`` + US suffix (converted)."""
+def _numbers(df, col, path, what):
+    """A column as floats (empty cells NaN); a non-numeric cell is an error naming it."""
+    import pandas as pd
+
+    v = pd.to_numeric(df[col], errors="coerce")
+    bad = v.isna() & df[col].notna() & (df[col].astype(str).str.strip() != "")
+    if bad.any():
+        i = int(np.argmax(bad.to_numpy()))
+        raise RotoridError(f"{what} {str(path)!r}: column {col!r} row {i + 1} holds {df[col].iloc[i]!r}, not a number")
+    return v.to_numpy(float)
+
+
+def _column(df, name, suffix_kind, path, what, required=True):
+    """A coefficient column in SI: ``name`` (SI) or ``name`` + US suffix (converted); None when
+    not ``required`` and absent."""
     from ..units import to_si
 
     if name in df.columns:
-        return df[name].to_numpy(float)
+        return _numbers(df, name, path, what)
     suffix, unit = _US_SUFFIX[suffix_kind]
     stem, _, tail = name.partition("_")
     us = f"{stem}{('_' + tail) if tail else ''}{suffix}"
     if us in df.columns:
-        return np.asarray(to_si(df[us].to_numpy(float), unit), float)
+        return np.asarray(to_si(_numbers(df, us, path, what), unit), float)
+    if not required:
+        return None
     raise RotoridError(f"{what} {str(path)!r} has no column {name!r} (nor {us!r}); it has {list(df.columns)[:12]}")
 
 
@@ -301,16 +335,35 @@ def compare_tables(identified_csv, predicted_csv, *, level: float = 0.95) -> Com
 
     level = number("level", level)
     ident, pred = _read_table(identified_csv, "identified"), _read_table(predicted_csv, "predicted")
-    axes = [a for a in ("speed_rpm", "freq_hz") if a in ident.columns]
-    if len(axes) != 1:
-        raise RotoridError(f"identified {str(identified_csv)!r} must have one axis column, speed_rpm or freq_hz; it has "
+    for df, path, what in ((ident, identified_csv, "identified"), (pred, predicted_csv, "predicted")):
+        if len(df) == 0:
+            raise RotoridError(f"{what} {str(path)!r} has no rows")
+    # impacts: freq_hz is the axis (a speed_rpm column is then the running speed); imbalance: speed_rpm
+    axis_name = "freq_hz" if "freq_hz" in ident.columns else "speed_rpm" if "speed_rpm" in ident.columns else None
+    if axis_name is None:
+        raise RotoridError(f"identified {str(identified_csv)!r} has no axis column, speed_rpm or freq_hz; it has "
                            f"{list(ident.columns)[:8]}")
-    axis_name = axes[0]
     if axis_name not in pred.columns:
         raise RotoridError(f"predicted {str(predicted_csv)!r} has no {axis_name} column: it must be given on the same "
                            f"axis as the identification ({axis_name})")
-    x = ident[axis_name].to_numpy(float)
-    xp = pred[axis_name].to_numpy(float)
+    if axis_name == "freq_hz":
+        # the running speed of impacts: the prediction must be for the same one
+        speeds = [(_numbers(df, "speed_rpm", path, what), what) for df, path, what in
+                  ((ident, identified_csv, "identified"), (pred, predicted_csv, "predicted")) if "speed_rpm" in df.columns]
+        if len(speeds) == 2:
+            a, b = np.nanmedian(speeds[0][0]), np.nanmedian(speeds[1][0])
+            if not abs(a - b) <= 0.01 * max(abs(a), abs(b), 1.0):
+                raise RotoridError(f"the impacts ran at {a:g} rpm but the prediction is for {b:g} rpm: predict at the "
+                                   "tests' speed")
+        elif len(speeds) == 1:
+            import warnings
+
+            warnings.warn(f"only the {speeds[0][1]} table states its running speed (speed_rpm): check that the "
+                          "prediction is for the impacts' speed")
+    x = _numbers(ident, axis_name, identified_csv, "identified")
+    xp = _numbers(pred, axis_name, predicted_csv, "predicted")
+    if not np.all(np.isfinite(x)):
+        raise RotoridError(f"identified {str(identified_csv)!r}: {axis_name} has empty or NaN cells")
     if not (np.all(np.isfinite(xp)) and np.all(np.diff(xp) > 0)):
         raise RotoridError(f"predicted {str(predicted_csv)!r}: {axis_name} must be finite and strictly increasing")
     tol = 1e-9 * max(abs(xp).max(), 1.0)
@@ -319,12 +372,21 @@ def compare_tables(identified_csv, predicted_csv, *, level: float = 0.95) -> Com
                            f"{xp[0]:g}-{xp[-1]:g}: extend the predicted table")
     cols = {}
     for key in ("", "_std", "_lo95", "_hi95"):
-        cols[key] = np.stack([_column(ident, n + key, n[0], identified_csv, "identified") for n in REPORT_ORDER], 1)
+        # an identification without any uncertainty has no _std, _lo95, _hi95 columns: unknown (NaN)
+        got = [_column(ident, n + key, n[0], identified_csv, "identified", required=key == "") for n in REPORT_ORDER]
+        cols[key] = np.stack([g if g is not None else np.full(x.size, np.nan) for g in got], 1)
     predicted = np.stack([np.interp(x, xp, _column(pred, n, n[0], predicted_csv, "predicted")) for n in REPORT_ORDER],
                          1)
     if not np.all(np.isfinite(predicted)):
         raise RotoridError(f"predicted {str(predicted_csv)!r} contains NaN or empty cells")
-    ok = ident["ok"].to_numpy(bool) if "ok" in ident.columns else np.ones(x.size, bool)
+    if "ok" in ident.columns:
+        raw = ident["ok"].astype(str).str.strip().str.lower()
+        if not raw.isin(["true", "false", "1", "0"]).all():
+            raise RotoridError(f"identified {str(identified_csv)!r}: column 'ok' must hold True/False, got "
+                               f"{sorted(set(raw) - {'true', 'false', '1', '0'})[:3]}")
+        ok = raw.isin(["true", "1"]).to_numpy()
+    else:
+        ok = np.ones(x.size, bool)
     if abs(level - 0.95) > 1e-12:
         raise RotoridError("tables carry 95 % intervals: level must be 0.95 here")
     return Comparison(axis_name, x, tuple(REPORT_ORDER), cols[""], cols["_std"], cols["_lo95"], cols["_hi95"],

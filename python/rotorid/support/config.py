@@ -24,6 +24,7 @@ import numpy as np
 from pydantic import Field, PrivateAttr, ValidationError, model_validator
 
 from ..config import ConfigError, PathStr, Text, _choice, _describe, _err, _messages, _Model, read_toml
+from ..errors import RotoridError
 from ..studies.config import Axis, _axis_values, _matrix2, _number
 
 #: built-in dampers (``[supports.damper] builtin``)
@@ -62,7 +63,11 @@ class DamperSection(_Model):
     @classmethod
     def _spring(cls, data):
         if isinstance(data, dict) and isinstance(data.get("spring_stiffness_n_m"), list):
-            data = dict(data, spring_stiffness_n_m=_matrix2(data["spring_stiffness_n_m"]))
+            m = _matrix2(data["spring_stiffness_n_m"])
+            if not (m[0][0] > 0 and m[1][1] > 0):
+                raise _err(f"the direct stiffnesses (xx, yy) of spring_stiffness_n_m must be > 0, got {m[0][0]:g} and "
+                           f"{m[1][1]:g}")
+            data = dict(data, spring_stiffness_n_m=m)
         return data
 
     @model_validator(mode="after")
@@ -110,7 +115,7 @@ class PredictSection(_Model):
                                                                    "(imbalance runs); frequency: one speed_rpm over "
                                                                    "freq_hz (impacts)")
     speeds_rpm: Optional[Axis] = None
-    speed_rpm: Optional[_number(gt=0)] = None
+    speed_rpm: Optional[_number(ge=0)] = None
     freq_hz: Optional[Axis] = None
 
     @model_validator(mode="after")
@@ -192,7 +197,49 @@ def parse_predict_config(data, *, source="<config>", base_dir=".", check_files=F
                    for i, s in enumerate(cfg.supports) if not cfg.resolve(s.bearing.file).is_file()]
         if missing:
             raise ConfigError.from_problems(source, missing)
+        # the files read and the models built, here, so that `rotorid check` finds what `predict` would
+        problems = _semantic_problems(cfg)
+        if problems:
+            raise ConfigError.from_problems(source, problems)
     return cfg
+
+
+def _semantic_problems(cfg) -> list:
+    """Each support's damper built and bearing table read, and the prediction points inside every
+    table: the problems, each naming its [[supports]] entry."""
+    import warnings
+
+    from .compare import SeriesSupport
+    from .tpjb import load_bearing_table
+
+    out = []
+    rpm, f = cfg.predict.points()
+    for i, s in enumerate(cfg.supports):
+        where = f"[[supports]] {i + 1}"
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # validity warnings come when the prediction runs
+                damper = s.damper.build()
+        except RotoridError as exc:
+            out.append(f"{where} damper: {exc}")
+            continue
+        b = s.bearing
+        try:
+            table = load_bearing_table(cfg.resolve(b.file), stiffness_unit=b.stiffness_unit,
+                                       damping_unit=b.damping_unit, mass_unit=b.mass_unit, freq_axis=b.freq_axis,
+                                       sheet=b.sheet)
+        except RotoridError as exc:
+            out.append(f"{where} bearing {b.file!r}: {exc}")
+            continue
+        sup = SeriesSupport(table, damper, s.journal_mass_kg)
+        ss, ff = (rpm, rpm / 60.0) if f is None else (np.full(f.size, rpm[0]), f)
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                sup.impedance(ss, ff)
+        except RotoridError as exc:
+            out.append(f"{where} at the [predict] points: {exc}")
+    return out
 
 
 def load_predict_config(path) -> PredictConfig:
@@ -221,6 +268,8 @@ def run_predict_config(path, *, out_dir=None, overwrite: bool = False, log=print
     kind = cfg.predict.kind
     axis_name, axis = ("speed_rpm", rpm) if f is None else ("freq_hz", f)
     data = {axis_name: axis}
+    if f is not None:
+        data["speed_rpm"] = np.full(f.size, rpm[0])  # the running speed, which rotorid compare checks
     us = cfg.output.units.upper() == "US"
     from ..units import from_si
 

@@ -89,6 +89,8 @@ def coefficients_of(z, freq_hz):
     (1000000.0, 500.0)
     """
     f = np.atleast_1d(real_array("freq_hz", freq_hz, positive=True))
+    if f.ndim != 1:
+        raise RotoridError(f"freq_hz must be a 1-D array of frequencies, got shape {f.shape}")
     if np.any(f < 1e-6):
         raise RotoridError(f"freq_hz down to {f.min():.3g} Hz: C = Im Z / w needs w well above 0 (>= 1e-6 Hz)")
     z = complex_array("z", z)

@@ -9,7 +9,9 @@ coefficients a bearing code predicts for it. A :class:`BearingTable` holds them 
 What a table is
 ---------------
 A rectangular grid of *running speeds* (rpm) times *excitation frequencies*, and at every node
-the 2 x 2 stiffness K (N/m), damping C (N s/m) and, optionally, added mass M (kg) over (x, y):
+the 2 x 2 stiffness K (N/m), damping C (N s/m) and, optionally, added mass M (kg) over (x, y),
+with rotorid's axes: x horizontal, y vertical (many bearing codes put x along the load, usually
+vertical: swap their xx and yy, and xy and yx, before giving the table to rotorid):
 
     k[i, j], c[i, j], m[i, j]   at   speed_rpm[i], freq[j]        shape (ns, nf, 2, 2)
 
