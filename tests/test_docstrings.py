@@ -10,7 +10,8 @@ MODULES = ["rotorid.signals.keyphasor", "rotorid.signals.order", "rotorid.identi
            "rotorid.phasecal", "rotorid.config", "rotorid.tables", "rotorid.io", "rotorid.studies.errors",
            "rotorid.studies.monte_carlo", "rotorid.studies.sensitivity", "rotorid.studies.design",
            "rotorid.studies.config", "rotorid.studies.run", "rotorid.studies.report", "rotorid.pedestal",
-           "rotorid.support.series", "rotorid.support.sfd", "rotorid.support.tpjb", "rotorid.support.compare"]
+           "rotorid.support.series", "rotorid.support.sfd", "rotorid.support.tpjb", "rotorid.support.compare",
+           "rotorid.exports"]
 
 
 @pytest.mark.parametrize("name", MODULES)

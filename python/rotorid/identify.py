@@ -148,6 +148,30 @@ class Identification:
         kw = {self.axis_name: self.axis[sel]}
         return BearingCoefficients(self.k[sel], self.c[sel], **kw)
 
+    def to_xarray(self, *, units: str = "SI", level: float = 0.95):
+        """Labeled arrays (see :func:`rotorid.exports.to_xarray`)."""
+        from .exports import to_xarray
+
+        return to_xarray(self, units=units, level=level)
+
+    def to_netcdf(self, path, *, units: str = "SI", overwrite: bool = False) -> str:
+        """NetCDF file of :meth:`to_xarray` (see :func:`rotorid.exports.to_netcdf`)."""
+        from .exports import to_netcdf
+
+        return to_netcdf(self, path, units=units, overwrite=overwrite)
+
+    def to_excel(self, path, *, units: str = "SI", overwrite: bool = False) -> str:
+        """Excel workbook with a units row (see :func:`rotorid.exports.to_excel`)."""
+        from .exports import to_excel
+
+        return to_excel(self, path, units=units, overwrite=overwrite)
+
+    def to_json(self, path=None, *, units: str = "SI", overwrite: bool = False):
+        """JSON document, or its text without ``path`` (see :func:`rotorid.exports.to_json`)."""
+        from .exports import to_json
+
+        return to_json(self, path, units=units, overwrite=overwrite)
+
     def to_dataframe(self):
         import pandas as pd
 

@@ -1,0 +1,269 @@
+"""Identification results in the files and structures of the field (issue 14, item 2): labeled
+arrays (xarray, NetCDF), Excel workbooks with a units row, JSON. SI or US customary units.
+
+The coefficients keep their structure: dimensions (speed_rpm or freq_hz, bearing, i, j) with
+bearing = 1, 2 and i, j = x, y; the standard errors and 95 % intervals travel with them, so no
+exported number loses its error bar.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+
+import numpy as np
+
+from .errors import RotoridError
+
+#: output unit systems: stiffness, damping units and their names in labels
+UNIT_SYSTEMS = {"SI": ("N/m", "N*s/m"), "US": ("lbf/in", "lbf*s/in")}
+
+
+def _units(units):
+    from ._validate import text
+
+    u = text("units", units).upper()
+    if u not in UNIT_SYSTEMS:
+        raise RotoridError(f"units must be 'SI' or 'US' (US customary: lbf/in, lbf*s/in), got {units!r}")
+    return u
+
+
+def _check_ident(ident):
+    from .identify import Identification
+
+    if not isinstance(ident, Identification):
+        raise RotoridError(f"expected a rotorid Identification, got {type(ident).__name__}")
+
+
+def _target(path, overwrite, suffixes):
+    """The output path, checked: its suffix, an existing file only with ``overwrite``."""
+    from ._validate import flag, path as _path
+
+    p = _path("path", path)
+    overwrite = flag("overwrite", overwrite)
+    if p.suffix.lower() not in suffixes:
+        raise RotoridError(f"path {str(p)!r} must end in {' or '.join(suffixes)}")
+    if p.exists() and not overwrite:
+        raise RotoridError(f"{str(p)!r} exists; pass overwrite=True to replace it")
+    if p.exists() and p.is_dir():
+        raise RotoridError(f"{str(p)!r} is a folder")
+    if not p.parent.exists():
+        raise RotoridError(f"the folder of {str(p)!r} does not exist")
+    return p
+
+
+def to_xarray(ident, *, units: str = "SI", level: float = 0.95):
+    """The identification as an :class:`xarray.Dataset`.
+
+    Variables ``K``, ``C`` and their ``*_std``, ``*_lower``, ``*_upper`` (the ``level`` interval)
+    over (axis, bearing, i, j); ``cond`` (axis, bearing); ``residual``, ``rel_amplitude``, ``dof``,
+    ``ok``, ``flag`` over the axis. Units as attributes (``units``), the method and the source of
+    the uncertainty as dataset attributes.
+
+    Examples
+    --------
+    >>> import numpy as np, rotorid
+    >>> rig = rotorid.nsf_rig()
+    >>> runs = [rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=[3000.0, 4000.0])
+    ...         for s in "ABC"]
+    >>> ds = rotorid.identify_synchronous(rig.rotor, runs).to_xarray()
+    >>> ds.K.dims, [str(v) for v in ds.i.values]
+    (('speed_rpm', 'bearing', 'i', 'j'), ['x', 'y'])
+    >>> round(float(ds.K.sel(speed_rpm=3000.0, bearing=1, i="x", j="x")) / 1e6, 6)
+    3.0
+    """
+    import xarray as xr
+
+    from ._validate import number
+    from .units import from_si
+
+    _check_ident(ident)
+    u = _units(units)
+    level = number("level", level)
+    if not 0.0 < level < 1.0:
+        raise RotoridError(f"level must be between 0 and 1, got {level:g}")
+    ku, cu = UNIT_SYSTEMS[u]
+
+    def conv(a, unit):
+        return np.asarray(from_si(np.asarray(a, float), unit), float) if u == "US" else np.asarray(a, float)
+
+    iv = ident.interval(level)
+    dims = (ident.axis_name, "bearing", "i", "j")
+    data = {}
+    for name, arr, unit in (("K", ident.k, ku), ("C", ident.c, cu), ("K_std", ident.k_std, ku),
+                            ("C_std", ident.c_std, cu), ("K_lower", iv.k_lower, ku), ("K_upper", iv.k_upper, ku),
+                            ("C_lower", iv.c_lower, cu), ("C_upper", iv.c_upper, cu)):
+        attrs = {"units": unit}
+        if name.endswith(("_lower", "_upper")):
+            attrs["confidence_level"] = level
+        data[name] = (dims, conv(arr, unit), attrs)
+    n = ident.axis.size
+    data["cond"] = ((ident.axis_name, "bearing"), np.asarray(ident.cond, float), {"units": "1"})
+    data["residual"] = ((ident.axis_name,), np.asarray(ident.residual, float), {"units": "1"})
+    data["rel_amplitude"] = ((ident.axis_name,), np.asarray(ident.rel_amplitude, float), {"units": "1"})
+    data["dof"] = ((ident.axis_name,), np.asarray(ident.dof if ident.dof is not None else np.full(n, np.nan), float),
+                   {"units": "1", "long_name": "degrees of freedom of the standard errors"})
+    data["ok"] = ((ident.axis_name,), np.asarray(ident.ok, bool), {})
+    data["flag"] = ((ident.axis_name,), np.asarray(ident.flag, dtype=str), {})
+    coords = {ident.axis_name: (ident.axis_name, np.asarray(ident.axis, float),
+                                {"units": "rpm" if ident.axis_name == "speed_rpm" else "Hz"}),
+              "bearing": ("bearing", np.array([1, 2])), "i": ("i", np.array(["x", "y"])),
+              "j": ("j", np.array(["x", "y"]))}
+    from . import __version__
+
+    attrs = {"title": "rotorid identification", "method": ident.method, "std_source": ident.std_source,
+             "estimator": ident.estimator, "unit_system": u, "rotorid_version": __version__,
+             "conventions": "bearing 1, 2; i, j over x (horizontal), y (vertical); force = -(K X + C dX/dt)"}
+    return xr.Dataset(data, coords=coords, attrs=attrs)
+
+
+def to_netcdf(ident, path, *, units: str = "SI", overwrite: bool = False) -> str:
+    """Write :func:`to_xarray` to a NetCDF file (NetCDF 3 through scipy, no extra library; the
+    flags as fixed-width text). Refuses an existing file unless ``overwrite``."""
+    p = _target(path, overwrite, (".nc",))
+    ds = to_xarray(ident, units=units)
+    ds["ok"] = ds["ok"].astype("i1")
+    ds["ok"].attrs["flag_values"] = "0: flagged, 1: ok"
+    ds["flag"] = ds["flag"].astype("S")
+    for name in ("i", "j"):
+        ds[name] = ds[name].astype("S")
+    try:
+        ds.to_netcdf(p, engine="scipy")
+    except OSError as exc:
+        raise RotoridError(f"cannot write {str(p)!r}: {exc}") from None
+    return str(p)
+
+
+def _wide_with_units(ident, units):
+    """to_dataframe in the chosen units, and the unit of every column."""
+    from .units import from_si
+
+    df = ident.to_dataframe()
+    ku, cu = UNIT_SYSTEMS[units]
+    col_units = {}
+    for col in df.columns:
+        if col[:1] in "KC" and col[1:3] in ("xx", "xy", "yx", "yy"):
+            unit = ku if col[0] == "K" else cu
+            if units == "US":
+                df[col] = from_si(df[col].to_numpy(float), unit)
+            col_units[col] = unit
+        elif col == "speed_rpm":
+            col_units[col] = "rpm"
+        elif col == "freq_hz":
+            col_units[col] = "Hz"
+        else:
+            col_units[col] = ""
+    return df, col_units
+
+
+def to_excel(ident, path, *, units: str = "SI", overwrite: bool = False) -> str:
+    """An Excel workbook: sheet ``coefficients`` (a row per point: the 16 coefficients, their
+    standard errors and 95 % intervals, diagnostics, ok and flag; a units row under the header,
+    so read it back with ``skiprows=[1]``)
+    and sheet ``about`` (method, source of the uncertainty, unit system, rotorid version).
+    Refuses an existing file unless ``overwrite``.
+
+    Examples
+    --------
+    >>> import os, tempfile, numpy as np, pandas as pd, rotorid
+    >>> rig = rotorid.nsf_rig()
+    >>> runs = [rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=[3000.0])
+    ...         for s in "AB"]
+    >>> p = rotorid.identify_synchronous(rig.rotor, runs).to_excel(os.path.join(tempfile.mkdtemp(), "k.xlsx"))
+    >>> units = pd.read_excel(p, sheet_name="coefficients", nrows=1)
+    >>> units["Kxx1"][0], units["Cxx1"][0]
+    ('N/m', 'N*s/m')
+    >>> sheet = pd.read_excel(p, sheet_name="coefficients", skiprows=[1])
+    >>> round(float(sheet["Kxx1"][0]) / 1e6, 6)
+    3.0
+    """
+    import pandas as pd
+
+    from . import __version__
+
+    _check_ident(ident)
+    u = _units(units)
+    p = _target(path, overwrite, (".xlsx",))
+    df, col_units = _wide_with_units(ident, u)
+    # the header, then one row of units, then the points (read back with skiprows=[1])
+    df = pd.concat([pd.DataFrame([col_units], columns=df.columns), df.astype(object)], ignore_index=True)
+    about = pd.DataFrame({"item": ["method", "std_source", "estimator", "unit_system", "axis", "rotorid_version",
+                                   "conventions"],
+                          "value": [ident.method, ident.std_source, ident.estimator, u, ident.axis_name, __version__,
+                                    "bearing 1, 2; x horizontal, y vertical; intervals at 95 %"]})
+    tmp = p.with_name(p.name + ".part")
+    try:
+        with pd.ExcelWriter(tmp, engine="openpyxl") as xw:
+            df.to_excel(xw, sheet_name="coefficients", index=False)
+            about.to_excel(xw, sheet_name="about", index=False)
+        os.replace(tmp, p)
+    except OSError as exc:
+        raise RotoridError(f"cannot write {str(p)!r}: {exc}") from None
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+    return str(p)
+
+
+def _jsonable(a):
+    a = np.asarray(a)
+    if a.dtype.kind == "f":
+        return [_jsonable(x) for x in a] if a.ndim else (None if not np.isfinite(a) else float(a))
+    if a.dtype.kind == "b":
+        return a.tolist()
+    return a.tolist()
+
+
+def to_json(ident, path=None, *, units: str = "SI", overwrite: bool = False):
+    """A JSON document of the identification: the axis, K and C and their standard errors and 95 %
+    intervals as nested lists [point][bearing][i][j], the diagnostics, flags, units and
+    provenance; NaN as null. With ``path`` written there (refusing an existing file unless
+    ``overwrite``) and the path returned; without, the text returned.
+
+    Examples
+    --------
+    >>> import json, rotorid
+    >>> rig = rotorid.nsf_rig()
+    >>> runs = [rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=[3000.0])
+    ...         for s in "AB"]
+    >>> doc = json.loads(rotorid.identify_synchronous(rig.rotor, runs).to_json())
+    >>> doc["units"]["K"], round(doc["K"][0][0][0][0] / 1e6, 6)
+    ('N/m', 3.0)
+    """
+    from . import __version__
+    from .units import from_si
+
+    _check_ident(ident)
+    u = _units(units)
+    ku, cu = UNIT_SYSTEMS[u]
+
+    def conv(a, unit):
+        return np.asarray(from_si(np.asarray(a, float), unit), float) if u == "US" else np.asarray(a, float)
+
+    iv = ident.interval(0.95)
+    doc = {"format": "rotorid-identification", "version": 1, "rotorid_version": __version__,
+           "axis_name": ident.axis_name, "axis": _jsonable(ident.axis),
+           "units": {"K": ku, "C": cu, ident.axis_name: "rpm" if ident.axis_name == "speed_rpm" else "Hz"},
+           "layout": "[point][bearing 1, 2][i: x, y][j: x, y]",
+           "method": ident.method, "std_source": ident.std_source, "estimator": ident.estimator,
+           "K": _jsonable(conv(ident.k, ku)), "C": _jsonable(conv(ident.c, cu)),
+           "K_std": _jsonable(conv(ident.k_std, ku)), "C_std": _jsonable(conv(ident.c_std, cu)),
+           "K_lower95": _jsonable(conv(iv.k_lower, ku)), "K_upper95": _jsonable(conv(iv.k_upper, ku)),
+           "C_lower95": _jsonable(conv(iv.c_lower, cu)), "C_upper95": _jsonable(conv(iv.c_upper, cu)),
+           "cond": _jsonable(ident.cond), "residual": _jsonable(ident.residual),
+           "dof": _jsonable(ident.dof if ident.dof is not None else np.full(ident.axis.size, np.nan)),
+           "ok": [bool(v) for v in ident.ok], "flag": [str(f) for f in ident.flag]}
+    text = json.dumps(doc, indent=1, allow_nan=False)
+    if path is None:
+        return text
+    p = _target(path, overwrite, (".json",))
+    tmp = p.with_name(p.name + ".part")
+    try:
+        tmp.write_text(text, encoding="utf-8")
+        os.replace(tmp, p)
+    except OSError as exc:
+        raise RotoridError(f"cannot write {str(p)!r}: {exc}") from None
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+    return str(p)
