@@ -125,3 +125,30 @@ def test_impact_results_export_over_frequency(tmp_path):
     assert json.loads(ident.to_json())["units"]["freq_hz"] == "Hz"
     sheet = pd.read_excel(ident.to_excel(tmp_path / "i.xlsx"), sheet_name="coefficients", skiprows=[1])
     np.testing.assert_allclose(sheet["freq_hz"], f)
+
+
+def test_config_output_formats(tmp_path):
+    import os
+    import warnings
+
+    from rotorid import pipeline
+    from rotorid.config import ConfigError, parse_config
+
+    from rotorid import example
+
+    ex = example.copy_example(str(tmp_path / "ex"))
+    cfg = os.path.join(ex, "imbalance.toml")
+    text = open(cfg, encoding="utf-8").read().replace('units = "SI"', 'units = "US"\nformats = ["xlsx", "json", "nc"]')
+    open(cfg, "w", encoding="utf-8").write(text)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ident, files = pipeline.run_config(cfg, "imbalance", out_dir=str(tmp_path / "out"), log=lambda m: None)
+    names = {os.path.basename(f) for f in files}
+    assert {"coefficients_imbalance.xlsx", "coefficients_imbalance.json", "coefficients_imbalance.nc"} <= names
+    doc = json.loads(open(tmp_path / "out" / "coefficients_imbalance.json", encoding="utf-8").read())
+    assert doc["units"]["K"] == "lbf/in"
+    np.testing.assert_allclose(np.array(doc["K"], float) * LBF_IN, ident.k, rtol=1e-12)
+    base = {"rig": {"builtin": "nsf"}, "imbalance": {"runs": ["a.tdms"]}}
+    for bad, match in ((["xlsx", "xlsx"], "twice"), (["pdf"], "formats")):
+        with pytest.raises(ConfigError, match=match):
+            parse_config({**base, "output": {"formats": bad}})

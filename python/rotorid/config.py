@@ -915,6 +915,14 @@ class OutputSection(_Model):
 
     dir: Optional[Text] = None
     units: _choice("SI", "US", ignore_case=True) = "SI"
+    formats: tuple[_choice("xlsx", "json", "nc"), ...] = Field((), description="coefficient files besides the CSV")
+
+    @field_validator("formats", mode="before")
+    @classmethod
+    def _unique_formats(cls, v):
+        if isinstance(v, list) and len(set(map(str, v))) != len(v):
+            raise _err(f"lists a format twice: {v}")
+        return tuple(v) if isinstance(v, list) else v
 
 
 def _structure_problems(data) -> list:

@@ -892,6 +892,13 @@ def run_config(path, kind: str, *, out_dir=None, log=print, overwrite: bool = Fa
         df = df.rename(columns={c: c + ("_lbf_per_in" if c[0] == "K" else "_lbf_s_per_in") for c in df.columns
                                 if c[:1] in "KC" and c[1:3] in ("xx", "xy", "yx", "yy")})
     write_csv(df, f"coefficients_{kind}.csv", float_format="%.6g")
+    for ext in cfg.output.formats:
+        # the same coefficients with their standard errors and intervals (rotorid.exports)
+        name = f"coefficients_{kind}.{ext}"
+        writer = {"xlsx": ident.to_excel, "json": ident.to_json, "nc": ident.to_netcdf}[ext]
+        with folder.atomic(name) as tmp:
+            writer(tmp, units="US" if us else "SI")
+        files.append(os.path.join(out, name))
     with folder.atomic(f"coefficients_{kind}.png") as tmp:
         plot.coefficients(ident, None, path=tmp, title=f"Identified coefficients ({kind}), {os.path.basename(str(path))}")
     files.append(os.path.join(out, f"coefficients_{kind}.png"))
