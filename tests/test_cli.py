@@ -43,3 +43,13 @@ def test_check_validates_a_config_in_one_line(tmp_path, capsys):
     assert cli.main(["check", str(bad)]) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "did you mean 'steady'" in err and "did you mean 'angle_deg'" in err
+
+
+def test_version(capsys):
+    import pytest as _pytest
+
+    from rotorid import __version__
+
+    with _pytest.raises(SystemExit) as exc:
+        cli.main(["--version"])
+    assert exc.value.code == 0 and capsys.readouterr().out.strip() == f"rotorid {__version__}"

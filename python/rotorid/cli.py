@@ -17,6 +17,9 @@ def main(argv=None):
 
     warnings.formatwarning = _one_line_warning
     ap = argparse.ArgumentParser(prog="rotorid", description="Bearing coefficient identification for rigid rotors")
+    from . import __version__
+
+    ap.add_argument("--version", action="version", version=f"rotorid {__version__}")
     sub = ap.add_subparsers(dest="cmd", required=True)
     d = sub.add_parser("demo", help="run the report's numerical experiments on the built-in NSF rig")
     d.add_argument("--out", default="rotorid_demo", help="output directory for PNG figures and CSV tables")

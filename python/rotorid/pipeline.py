@@ -264,7 +264,9 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
         imb = _imbalance_of(r, None if imbalances is None else imbalances[i])
         meta = getattr(r, "meta", {}) or {}
         at = meta.get("probes_at", "probes")
-        name = imb.name or getattr(r, "name", None) or os.path.basename(getattr(r, "source", "") or "") or f"run {i}"
+        # a name from the file keeps no extension (sync_vectors_0_plain.csv, not ..._plain.csv.csv)
+        name = imb.name or getattr(r, "name", None) or \
+            os.path.splitext(os.path.basename(getattr(r, "source", "") or ""))[0] or f"run {i}"
         pk = {}
         if ped:
             pc, cr = t.pedestal_cov_at_speeds(grid)
