@@ -11,6 +11,10 @@ DOF_TITLES = ("Drive end (1), horizontal x", "Free end (2), horizontal x", "Driv
               "Free end (2), vertical y")
 
 
+#: resolution of saved figures (dots per inch): print quality
+DPI = 150
+
+
 def _plt():
     import matplotlib
 
@@ -35,7 +39,7 @@ def finish(fig, path=None):
     fig.tight_layout()
     if path is not None:
         try:
-            fig.savefig(path, dpi=110)
+            fig.savefig(path, dpi=DPI)
         except (OSError, ValueError) as exc:  # no such folder, no permission, an unknown image format
             _plt().close(fig)
             raise RotoridError(f"cannot save the plot to {str(path)!r}: {exc}") from None
@@ -74,10 +78,14 @@ def bode(response, *, title="", path=None, x_label="Rotor speed (rpm)", axis=Non
     fig, axes = plt.subplots(2, 4, figsize=(15, 6), sharex=True)
     for j in range(4):
         amp = 1e6 * np.abs(q[:, j])
-        lag = np.rad2deg(np.unwrap(-np.angle(q[:, j])))
+        # phase lag as a DAQ shows it: wrapped to 0-360 deg (a slowly turning unwrapped phase
+        # climbs past 360 and reads like a different angle)
+        lag = np.mod(np.rad2deg(-np.angle(q[:, j])), 360.0)
         axes[0, j].plot(x, amp)
         axes[0, j].set_title(DOF_TITLES[j], fontsize=9)
-        axes[1, j].plot(x, lag)
+        axes[1, j].plot(x, lag, ".", ms=2.5)
+        axes[1, j].set_ylim(0, 360)
+        axes[1, j].set_yticks([0, 90, 180, 270, 360])
         axes[1, j].set_xlabel(x_label)
     axes[0, 0].set_ylabel("Amplitude (µm 0-pk)")
     axes[1, 0].set_ylabel("Phase lag (deg)")
@@ -137,6 +145,11 @@ def coefficients(ident, truth=None, *, title="", path=None, show_flagged=True, y
                     ax.plot(x, tv, "-", color=line.get_color(), lw=1)
                     tvals.append(tv)
                 m += 1
+        # what the line styles and hollow markers mean, in the legend
+        if truth is not None:
+            ax.plot([], [], "-", color="0.3", lw=1, label="truth")
+        if show_flagged and (~ident.ok).any():
+            ax.plot([], [], "o", ms=3.5, mfc="none", color="0.3", label="flagged")
         if tvals:
             tv = np.concatenate(tvals)
             lo, hi = tv.min(), tv.max()
@@ -274,13 +287,19 @@ def campbell(modal_result, *, crit=None, path=None, title="Campbell diagram"):
         ax.plot(rpm, f[:, m], label=f"mode {m + 1}")
     ax.plot(rpm, rpm, "k--", lw=1, label="1X")
     if crit is not None and len(crit):
-        ax.plot(crit.speed_rpm, crit.freq_hz * 60, "ko", mfc="none")
-        for _, r in crit.iterrows():
-            ax.annotate(f"{r.speed_rpm:.0f} cpm\nζ={r.damping_ratio_wd:.3f} {r.whirl[:3]}", (r.speed_rpm, r.freq_hz * 60),
-                        textcoords="offset points", xytext=(6, -22), fontsize=8)
+        ax.plot(crit.speed_rpm, crit.freq_hz * 60, "ko", mfc="none", label="critical speeds")
+        # labels right of each crossing, stepped down where crossings lie close together, never cut
+        last_y = np.inf
+        for _, r in crit.sort_values("speed_rpm", ascending=False).iterrows():
+            y = min(r.freq_hz * 60, last_y - 0.06 * max(rpm.max(), 1.0))
+            last_y = y
+            ax.annotate(f"{r.speed_rpm:.0f} rpm, ζ = {r.damping_ratio_wd:.3f}, {r.whirl}",
+                        (r.speed_rpm, r.freq_hz * 60), xytext=(r.speed_rpm + 0.02 * rpm.max(), y), fontsize=8,
+                        va="center", arrowprops=dict(arrowstyle="-", lw=0.5, color="0.5"), annotation_clip=False)
     ax.set_xlabel("Rotor speed (rpm)")
     ax.set_ylabel("Damped natural frequency (cpm)")
+    ax.set_xlim(rpm.min(), rpm.max() * 1.45)   # room for the labels on the right
     ax.grid(True, alpha=0.3)
-    ax.legend()
+    ax.legend(fontsize=8, loc="upper left")
     ax.set_title(title)
     return finish(fig, path)
