@@ -53,3 +53,30 @@ def test_version(capsys):
     with _pytest.raises(SystemExit) as exc:
         cli.main(["--version"])
     assert exc.value.code == 0 and capsys.readouterr().out.strip() == f"rotorid {__version__}"
+
+
+def test_identify_quiet_no_plot_and_strict(tmp_path, capsys):
+    import os
+
+    from rotorid import example
+
+    ex = example.copy_example(str(tmp_path / "ex"))
+    cfg = os.path.join(ex, "pedestal_imbalance.toml")
+    # with the accelerometers' calibration in the error bars some points turn "uncertain"
+    text = open(cfg, encoding="utf-8").read().replace("measured = true\n", "measured = true\naccel_gain_std = 0.02\n")
+    open(cfg, "w", encoding="utf-8").write(text)
+    out = tmp_path / "o"
+    assert cli.main(["identify", "imbalance", cfg, "--out", str(out), "-q", "--no-plot"]) == 0
+    captured = capsys.readouterr()
+    assert captured.out == ""                                     # quiet: no progress lines
+    assert not any(f.endswith(".png") for f in os.listdir(out))   # tables only
+    assert "coefficients_imbalance.csv" in os.listdir(out)
+    # strict: the same results, but flagged points (this example has some) exit with 3
+    code = cli.main(["identify", "imbalance", cfg, "--out", str(out), "--overwrite", "-q", "--strict"])
+    err = capsys.readouterr().err
+    import pandas as pd
+
+    flagged = (~pd.read_csv(out / "coefficients_imbalance.csv").ok).sum()
+    assert flagged > 0
+    assert code == 3 and "strict:" in err.splitlines()[-1]
+    assert cli.main(["identify", "imbalance", cfg, "--out", str(out), "--overwrite", "-q"]) == 0

@@ -36,6 +36,10 @@ def main(argv=None):
     i.add_argument("--out", default=None, help="output directory (default: [output] dir of the config)")
     i.add_argument("--overwrite", action="store_true", help="replace the results of an earlier run in the folder "
                    "(stale ones are removed); without it such a folder is refused")
+    i.add_argument("--no-plot", action="store_true", help="write the tables only (no PNG figures)")
+    i.add_argument("--quiet", "-q", action="store_true", help="no progress lines (errors and warnings still print)")
+    i.add_argument("--strict", action="store_true", help="exit with 3 when points are flagged or warnings fired "
+                   "(the results are written all the same)")
     c = sub.add_parser("check", help="validate a TOML config (keys, types, units, files) without processing anything")
     c.add_argument("config", help="TOML config file (every key: docs/config.md)")
     s = sub.add_parser("study", help="Monte Carlo study of a test's accuracy (and trial-mass design) from a TOML config")
@@ -66,11 +70,25 @@ def main(argv=None):
         from .errors import RotoridError
         from .pipeline import run_config
 
+        shown = []
+
+        def show(message, category, filename, lineno, file=None, line=None):
+            shown.append(message)
+            print(_one_line_warning(message, category, filename, lineno), end="", file=sys.stderr)
+
         try:
-            run_config(args.config, args.kind, out_dir=args.out, overwrite=args.overwrite)
+            with warnings.catch_warnings():
+                warnings.simplefilter("default")
+                warnings.showwarning = show
+                ident, _ = run_config(args.config, args.kind, out_dir=args.out, overwrite=args.overwrite,
+                                      log=(lambda m: None) if args.quiet else print, plots=not args.no_plot)
         except RotoridError as exc:
             print(f"rotorid: error: {exc}", file=sys.stderr)
             return 2
+        if args.strict and (shown or not ident.ok.all()):
+            print(f"rotorid: strict: {int((~ident.ok).sum())} of {ident.ok.size} points flagged, {len(shown)} "
+                  "warning(s): exit 3", file=sys.stderr)
+            return 3
         return 0
     if args.cmd == "study":
         from .errors import RotoridError

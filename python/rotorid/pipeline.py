@@ -738,13 +738,13 @@ RESULT_PATTERNS = {"imbalance": ["sync_vectors_*.csv", "keyphasor.csv", "coeffic
                               "pedestals_impact.csv"]}
 
 
-def run_config(path, kind: str, *, out_dir=None, log=print, overwrite: bool = False):
+def run_config(path, kind: str, *, out_dir=None, log=print, overwrite: bool = False, plots: bool = True):
     """Run the imbalance or impact chain described by a TOML config; write CSV tables and plots.
 
     The config is validated completely (keys, types, units, files) before anything is read, and
     the output folder is checked: results of an earlier run are replaced only with
-    ``overwrite=True`` (stale ones removed, see :mod:`rotorid.outputs`). Returns
-    (Identification, list of written files)."""
+    ``overwrite=True`` (stale ones removed, see :mod:`rotorid.outputs`). ``plots=False`` writes the
+    tables only. Returns (Identification, list of written files)."""
     from ._validate import choice, flag
     from ._validate import path as _path
     from .outputs import ResultsFolder
@@ -753,6 +753,7 @@ def run_config(path, kind: str, *, out_dir=None, log=print, overwrite: bool = Fa
 
     choice("kind", kind, {"imbalance", "impact"})
     overwrite = flag("overwrite", overwrite)
+    plots = flag("plots", plots)
     if out_dir is not None and not (isinstance(out_dir, str) and out_dir == ""):  # "": the config's folder
         _path("out_dir", out_dir)
     if not callable(log):
@@ -901,9 +902,11 @@ def run_config(path, kind: str, *, out_dir=None, log=print, overwrite: bool = Fa
         with folder.atomic(name) as tmp:
             writer(tmp, units="US" if us else "SI")
         files.append(os.path.join(out, name))
-    with folder.atomic(f"coefficients_{kind}.png") as tmp:
-        plot.coefficients(ident, None, path=tmp, title=f"Identified coefficients ({kind}), {os.path.basename(str(path))}")
-    files.append(os.path.join(out, f"coefficients_{kind}.png"))
+    if plots:
+        with folder.atomic(f"coefficients_{kind}.png") as tmp:
+            plot.coefficients(ident, None, path=tmp,
+                              title=f"Identified coefficients ({kind}), {os.path.basename(str(path))}")
+        files.append(os.path.join(out, f"coefficients_{kind}.png"))
     stale = folder.finish()
     if stale:
         log(f"  removed {len(stale)} stale file(s) of the earlier run: {', '.join(stale[:5])}")
