@@ -52,6 +52,21 @@ def _target(path, overwrite, suffixes):
     return p
 
 
+def _atomic(p, write) -> str:
+    """``write(tmp)`` to a temporary file beside ``p`` (same suffix), then moved onto ``p``: a
+    failed write leaves no half file."""
+    tmp = p.with_name(f".{p.stem}.part{p.suffix}")
+    try:
+        write(tmp)
+        os.replace(tmp, p)
+    except OSError as exc:
+        raise RotoridError(f"cannot write {str(p)!r}: {exc}") from None
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+    return str(p)
+
+
 def to_xarray(ident, *, units: str = "SI", level: float = 0.95):
     """The identification as an :class:`xarray.Dataset`.
 
@@ -191,18 +206,12 @@ def to_excel(ident, path, *, units: str = "SI", overwrite: bool = False) -> str:
                                    "conventions"],
                           "value": [ident.method, ident.std_source, ident.estimator, u, ident.axis_name, __version__,
                                     "bearing 1, 2; x horizontal, y vertical; intervals at 95 %"]})
-    tmp = p.with_name(p.name + ".part")
-    try:
+    def write(tmp):
         with pd.ExcelWriter(tmp, engine="openpyxl") as xw:
             df.to_excel(xw, sheet_name="coefficients", index=False)
             about.to_excel(xw, sheet_name="about", index=False)
-        os.replace(tmp, p)
-    except OSError as exc:
-        raise RotoridError(f"cannot write {str(p)!r}: {exc}") from None
-    finally:
-        if tmp.exists():
-            tmp.unlink()
-    return str(p)
+
+    return _atomic(p, write)
 
 
 def _jsonable(a):
@@ -257,13 +266,4 @@ def to_json(ident, path=None, *, units: str = "SI", overwrite: bool = False):
     if path is None:
         return text
     p = _target(path, overwrite, (".json",))
-    tmp = p.with_name(p.name + ".part")
-    try:
-        tmp.write_text(text, encoding="utf-8")
-        os.replace(tmp, p)
-    except OSError as exc:
-        raise RotoridError(f"cannot write {str(p)!r}: {exc}") from None
-    finally:
-        if tmp.exists():
-            tmp.unlink()
-    return str(p)
+    return _atomic(p, lambda tmp: tmp.write_text(text, encoding="utf-8"))
