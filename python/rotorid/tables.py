@@ -476,33 +476,12 @@ def _read_text(path: Path, wanted, skip_rows):
 
 
 def _read_excel(path: Path, wanted, skip_rows, sheet):
-    import pandas as pd
+    from .io._common import read_excel_sheet
 
+    raw, sh, names = read_excel_sheet(path, sheet)
     where = str(path) if sheet is None else f"{path} (sheet {sheet!r})"
-    try:
-        import openpyxl  # noqa: F401
-    except ImportError:
-        raise RotoridError(f"reading {path} needs openpyxl: pip install openpyxl (or export the table as CSV)") from None
-    try:
-        book = pd.ExcelFile(path, engine="openpyxl")
-    except Exception as exc:
-        raise RotoridError(f"cannot read {path} as an Excel workbook: {type(exc).__name__}: {exc}") from None
-    with book:
-        names = book.sheet_names
-        if sheet is None:
-            sh = names[0]
-        elif isinstance(sheet, (int, np.integer)) and not isinstance(sheet, bool):
-            if not 0 <= sheet < len(names):
-                raise RotoridError(f"{path}: sheet index {sheet} out of range; the workbook has sheets {names}")
-            sh = names[int(sheet)]
-        elif str(sheet) in names:
-            sh = str(sheet)
-        else:
-            raise RotoridError(f"{path}: no sheet {sheet!r}; the workbook has sheets {names}")
-        if sheet is None and len(names) > 1:
-            where = f"{path} (sheet {sh!r})"
-        # na_filter=False: a cell "n/a" is text (reported), not a silently blank cell
-        raw = pd.read_excel(book, sheet_name=sh, header=None, dtype=object, na_filter=False)
+    if sheet is None and len(names) > 1:
+        where = f"{path} (sheet {sh!r})"
     grid = [["" if _blank_obj(v) else v for v in row] for row in raw.itertuples(index=False, name=None)]
     text_rows = [[_cell_text(v) for v in row] for row in grid]
     i, cells = _find_header(text_rows, wanted, skip_rows, where)

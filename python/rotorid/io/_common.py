@@ -30,6 +30,36 @@ def decode_text(raw: bytes) -> str:
     return raw.decode("latin-1")
 
 
+def read_excel_sheet(path, sheet):
+    """(raw cells as an object DataFrame without header, sheet name, all sheet names) of one sheet
+    of a workbook:
+    ``sheet`` None (the first), an index or a name. Every cell is read as written: no NA guessing
+    (a cell "n/a" stays text for the caller to report)."""
+    import pandas as pd
+
+    try:
+        import openpyxl  # noqa: F401
+    except ImportError:
+        raise RotoridError(f"reading {path} needs openpyxl: pip install openpyxl (or export the table as CSV)") from None
+    try:
+        book = pd.ExcelFile(path, engine="openpyxl")
+    except Exception as exc:  # openpyxl and zipfile raise many kinds for a damaged workbook
+        raise RotoridError(f"cannot read {path} as an Excel workbook: {type(exc).__name__}: {exc}") from None
+    with book:
+        names = book.sheet_names
+        if sheet is None:
+            sh = names[0]
+        elif isinstance(sheet, (int, np.integer)) and not isinstance(sheet, (bool, np.bool_)):
+            if not 0 <= sheet < len(names):
+                raise RotoridError(f"{path}: sheet index {sheet} out of range; the workbook has sheets {names}")
+            sh = names[int(sheet)]
+        elif str(sheet) in names:
+            sh = str(sheet)
+        else:
+            raise RotoridError(f"{path}: no sheet {sheet!r}; the workbook has sheets {names}")
+        return pd.read_excel(book, sheet_name=sh, header=None, dtype=object, na_filter=False), sh, names
+
+
 FORMAT_NAME = "rotorid-recording"
 FORMAT_VERSION = 1
 #: values of load_recording's ``fmt``

@@ -491,29 +491,9 @@ def _read_text(p: Path):
 
 
 def _read_excel(p: Path, sheet):
-    try:
-        import openpyxl  # noqa: F401
-        import pandas as pd
-    except ImportError:
-        raise RotoridError(f"reading {p} needs pandas and openpyxl: pip install pandas openpyxl (or export the "
-                           "table as CSV)") from None
-    try:
-        book = pd.ExcelFile(p, engine="openpyxl")
-    except Exception as exc:
-        raise RotoridError(f"cannot read {p} as an Excel workbook: {type(exc).__name__}: {exc}") from None
-    with book:
-        names = book.sheet_names
-        if sheet is None:
-            sh = names[0]
-        elif isinstance(sheet, (int, np.integer)) and not isinstance(sheet, (bool, np.bool_)):
-            if not 0 <= sheet < len(names):
-                raise RotoridError(f"{p}: sheet index {sheet} out of range; the workbook has sheets {names}")
-            sh = names[int(sheet)]
-        elif isinstance(sheet, str) and sheet in names:
-            sh = sheet
-        else:
-            raise RotoridError(f"{p}: no sheet {sheet!r}; the workbook has sheets {names}")
-        raw = pd.read_excel(book, sheet_name=sh, header=None, dtype=object, na_filter=False)
+    from ..io._common import read_excel_sheet
+
+    raw, sh, _ = read_excel_sheet(p, sheet)
     where = f"{p} (sheet {sh!r})"
     grid = [(n + 1, list(r)) for n, r in enumerate(raw.itertuples(index=False, name=None))
             if not all(_blank(v) for v in r)]
