@@ -301,31 +301,11 @@ fn py_identify<'py>(
 ) -> PyResult<IdentTuple<'py>> {
     let rot = rotor_of(&rotor)?;
     let resp = responses(q)?;
-    let (batch, runs, n) = (resp.batch, resp.runs, resp.n);
-    if runs == 0 {
-        return Err(PyValueError::new_err("at least one run is needed"));
-    }
-    check_shape("w", w.shape(), &[n])?;
-    for (name, a) in [("spin", &spin), ("gain", &gain)] {
-        if a.shape() != [n] && a.shape() != [1] {
-            return Err(PyValueError::new_err(format!("{name} has shape {:?}, expected ({n},) or (1,)", a.shape())));
-        }
-    }
-    let es = e.shape().to_vec();
-    if es.len() != 3 || es[1] != runs || es[2] != 4 || !(es[0] == 1 || es[0] == batch) {
-        return Err(PyValueError::new_err(format!("e has shape {es:?}, expected (1 or {batch}, {runs}, 4)")));
-    }
+    let (batch, n) = (resp.batch, resp.n);
     let report = match method {
         "forces" => false,
         "report" => true,
         other => return Err(PyValueError::new_err(format!("method must be 'forces' or 'report', got {other:?}"))),
-    };
-    if let Some(sg) = &sigma {
-        check_shape("sigma", sg.shape(), &[n])?;
-    }
-    let sigma_sl: &[f64] = match &sigma {
-        Some(sg) => slice(sg, "sigma")?,
-        None => &[],
     };
     let blocks = resp.blocks()?;
     let ped = pedestal_responses(q_ped, &resp)?;
@@ -333,20 +313,7 @@ fn py_identify<'py>(
         Some(pr) => pr.blocks()?,
         None => Vec::new(),
     };
-    let prob = identify::IdentProblem {
-        rotor: rot,
-        w: slice(&w, "w")?,
-        spin: slice(&spin, "spin")?,
-        q: &blocks,
-        e: slice(&e, "e")?,
-        gain: slice(&gain, "gain")?,
-        sigma: sigma_sl,
-        q_ped: &ped_blocks,
-        batch,
-        runs,
-        identical,
-    };
-    prob.check().map_err(core_err)?;
+    let prob = ident_problem(rot, &resp, &w, &spin, &e, &gain, &sigma, &blocks, &ped_blocks, identical)?;
     let npts = batch.checked_mul(n).ok_or_else(|| PyMemoryError::new_err("identify: batch x points overflows"))?;
     let want_std = with_std && !report;
     check_alloc("identify", npts.checked_mul(if want_std { 37 } else { 20 }), 8)?;
@@ -617,6 +584,59 @@ fn series_impedance<'py>(
     Ok((to_py(py, out, &[n, 2, 2])?, nb))
 }
 
+/// The arguments `identify` and `bearing_forces` share, their shapes checked (each named), as the
+/// core's problem; it borrows the caller's blocks of q and q_ped.
+#[allow(clippy::too_many_arguments)]
+fn ident_problem<'a>(
+    rotor: Rotor,
+    resp: &Responses<'_>,
+    w: &'a PyReadonlyArrayDyn<'_, f64>,
+    spin: &'a PyReadonlyArrayDyn<'_, f64>,
+    e: &'a PyReadonlyArrayDyn<'_, C64>,
+    gain: &'a PyReadonlyArrayDyn<'_, f64>,
+    sigma: &'a Option<PyReadonlyArrayDyn<'_, f64>>,
+    q: &'a [&'a [C64]],
+    q_ped: &'a [&'a [C64]],
+    identical: bool,
+) -> PyResult<identify::IdentProblem<'a>> {
+    let (batch, runs, n) = (resp.batch, resp.runs, resp.n);
+    if runs == 0 {
+        return Err(PyValueError::new_err("at least one run is needed"));
+    }
+    check_shape("w", w.shape(), &[n])?;
+    for (name, a) in [("spin", spin), ("gain", gain)] {
+        if a.shape() != [n] && a.shape() != [1] {
+            return Err(PyValueError::new_err(format!("{name} has shape {:?}, expected ({n},) or (1,)", a.shape())));
+        }
+    }
+    let es = e.shape().to_vec();
+    if es.len() != 3 || es[1] != runs || es[2] != 4 || !(es[0] == 1 || es[0] == batch) {
+        return Err(PyValueError::new_err(format!("e has shape {es:?}, expected (1 or {batch}, {runs}, 4)")));
+    }
+    let sigma: &[f64] = match sigma {
+        Some(sg) => {
+            check_shape("sigma", sg.shape(), &[n])?;
+            slice(sg, "sigma")?
+        }
+        None => &[],
+    };
+    let prob = identify::IdentProblem {
+        rotor,
+        w: slice(w, "w")?,
+        spin: slice(spin, "spin")?,
+        q,
+        e: slice(e, "e")?,
+        gain: slice(gain, "gain")?,
+        sigma,
+        q_ped,
+        batch,
+        runs,
+        identical,
+    };
+    prob.check().map_err(core_err)?;
+    Ok(prob)
+}
+
 /// Bearing reaction forces from the rotor equations (see identify::bearing_forces): arguments as
 /// `identify`. Returns (B, R, n, 4) [f1x, f2x, f1y, f2y].
 #[pyfunction]
@@ -642,24 +662,7 @@ fn bearing_forces<'py>(
         Some(pr) => pr.blocks()?,
         None => Vec::new(),
     };
-    let sigma_sl: &[f64] = match &sigma {
-        Some(sg) => slice(sg, "sigma")?,
-        None => &[],
-    };
-    let prob = identify::IdentProblem {
-        rotor: rot,
-        w: slice(&w, "w")?,
-        spin: slice(&spin, "spin")?,
-        q: &blocks,
-        e: slice(&e, "e")?,
-        gain: slice(&gain, "gain")?,
-        sigma: sigma_sl,
-        q_ped: &ped_blocks,
-        batch,
-        runs,
-        identical: false,
-    };
-    prob.check().map_err(core_err)?;
+    let prob = ident_problem(rot, &resp, &w, &spin, &e, &gain, &sigma, &blocks, &ped_blocks, false)?;
     let total = batch.checked_mul(runs).and_then(|v| v.checked_mul(n)).and_then(|v| v.checked_mul(4));
     check_alloc("bearing_forces", total, 16)?;
     let total = total.unwrap_or(0);
