@@ -326,6 +326,7 @@ fn py_identify<'py>(
             let mut amp = out_buf(npts);
             let mut ks = if want_std { out_buf(npts * 8) } else { Vec::new() };
             let mut cs = if want_std { out_buf(npts * 8) } else { Vec::new() };
+            let mut rel = if want_std { out_buf(npts) } else { Vec::new() };
             let out = identify::IdentOut {
                 k: &mut k,
                 c: &mut c,
@@ -334,13 +335,9 @@ fn py_identify<'py>(
                 amp: &mut amp,
                 k_std: if want_std { Some(&mut ks[..]) } else { None },
                 c_std: if want_std { Some(&mut cs[..]) } else { None },
+                rel_std: if want_std { Some(&mut rel[..]) } else { None },
             };
             let nbad = if report { identify::identify_report(&prob, out) } else { identify::identify_forces(&prob, out) }?;
-            let mut rel = Vec::new();
-            if want_std {
-                rel = out_buf(npts);
-                identify::relative_std(&k, &c, &ks, &cs, &mut rel)?;
-            }
             Ok::<_, CoreError>((k, c, cond, resid, amp, ks, cs, rel, nbad))
         })
     })?

@@ -109,7 +109,7 @@ fn main() {
         let (mut k, mut cc, mut cond, mut res, mut amp) = (vec![0.0; 8 * n], vec![0.0; 8 * n], vec![0.0; 2 * n], vec![0.0; n], vec![0.0; n]);
         let t_id = best_s(|| {
             for _ in 0..50 {
-                let o = IdentOut { k: &mut k, c: &mut cc, cond: &mut cond, resid: &mut res, amp: &mut amp, k_std: None, c_std: None };
+                let o = IdentOut { k: &mut k, c: &mut cc, cond: &mut cond, resid: &mut res, amp: &mut amp, k_std: None, c_std: None, rel_std: None };
                 black_box(identify_forces(&p, o).unwrap());
             }
         }) / (50 * n) as f64;

@@ -317,6 +317,9 @@ pub struct IdentOut<'a> {
     pub amp: &'a mut [f64],
     pub k_std: Option<&'a mut [f64]>, // (B, n, 8)
     pub c_std: Option<&'a mut [f64]>, // (B, n, 8)
+    /// [`relative_std`] of `k_std`, `c_std`, (B, n), filled in the same pass (no second read of the
+    /// four (B, n, 8) arrays); only with `k_std` and `c_std`, and only by [`identify_forces`]
+    pub rel_std: Option<&'a mut [f64]>,
 }
 
 impl IdentOut<'_> {
@@ -331,6 +334,12 @@ impl IdentOut<'_> {
         }
         if let Some(cs) = &self.c_std {
             expect_len("c_std", cs, points * 8)?;
+        }
+        if let Some(rs) = &self.rel_std {
+            if self.k_std.is_none() || self.c_std.is_none() {
+                return Err(CoreError::value("rel_std", "needs k_std and c_std"));
+            }
+            expect_len("rel_std", rs, points)?;
         }
         Ok(())
     }
@@ -419,12 +428,13 @@ struct Outs<'a> {
     amp: &'a mut [f64],
     ks: Option<&'a mut [f64]>,
     cs: Option<&'a mut [f64]>,
+    rel: Option<&'a mut [f64]>,
 }
 
 /// One chunk of consecutive points starting at flat index `start` (= b * n + i), L at a time.
 #[inline(always)]
 fn forces_chunk(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize {
-    let Outs { k, c, cond, resid, amp, mut ks, mut cs } = out;
+    let Outs { k, c, cond, resid, amp, mut ks, mut cs, rel: mut rel_out } = out;
     let n = p.w.len();
     let npts = resid.len();
     let shared_e = p.e.len() == p.runs * 4;
@@ -625,6 +635,12 @@ fn forces_chunk(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize
         if let (Some(ks), Some(cs)) = (ks.as_deref_mut(), cs.as_deref_mut()) {
             put(ks, &sv);
             put(cs, &csv);
+            if let Some(rel_out) = rel_out.as_deref_mut() {
+                for t in g0..g0 + nl {
+                    let at = |a: &[f64]| -> [f64; 8] { a[8 * t..8 * t + 8].try_into().unwrap() };
+                    rel_out[t] = relative_std_point(&at(k), &at(c), &at(ks), &at(cs));
+                }
+            }
         }
         for l in 0..nl {
             let t = g0 + l;
@@ -656,9 +672,9 @@ pub fn identify_forces(p: &IdentProblem, out: IdentOut) -> Result<usize, CoreErr
 
 fn forces_all(p: &IdentProblem, out: IdentOut) -> usize {
     let kc = Consts::new(&p.rotor);
-    let IdentOut { k, c, cond, resid, amp, k_std, c_std } = out;
+    let IdentOut { k, c, cond, resid, amp, k_std, c_std, rel_std } = out;
     if resid.len() < SERIAL_BELOW {
-        return forces_chunk_dispatch(p, &kc, 0, Outs { k, c, cond, resid, amp, ks: k_std, cs: c_std });
+        return forces_chunk_dispatch(p, &kc, 0, Outs { k, c, cond, resid, amp, ks: k_std, cs: c_std, rel: rel_std });
     }
     let base = (
         k.par_chunks_mut(8 * CHUNK),
@@ -667,19 +683,26 @@ fn forces_all(p: &IdentProblem, out: IdentOut) -> usize {
         resid.par_chunks_mut(CHUNK),
         amp.par_chunks_mut(CHUNK),
     );
-    match (k_std, c_std) {
-        (Some(ks), Some(cs)) => (base.0, base.1, base.2, base.3, base.4, ks.par_chunks_mut(8 * CHUNK), cs.par_chunks_mut(8 * CHUNK))
+    match (k_std, c_std, rel_std) {
+        (Some(ks), Some(cs), Some(rs)) => (base.0, base.1, base.2, base.3, base.4, ks.par_chunks_mut(8 * CHUNK), cs.par_chunks_mut(8 * CHUNK), rs.par_chunks_mut(CHUNK))
+            .into_par_iter()
+            .enumerate()
+            .map(|(j, (k, c, cond, resid, amp, ks, cs, rs))| {
+                forces_chunk_dispatch(p, &kc, j * CHUNK, Outs { k, c, cond, resid, amp, ks: Some(ks), cs: Some(cs), rel: Some(rs) })
+            })
+            .sum(),
+        (Some(ks), Some(cs), None) => (base.0, base.1, base.2, base.3, base.4, ks.par_chunks_mut(8 * CHUNK), cs.par_chunks_mut(8 * CHUNK))
             .into_par_iter()
             .enumerate()
             .map(|(j, (k, c, cond, resid, amp, ks, cs))| {
-                forces_chunk_dispatch(p, &kc, j * CHUNK, Outs { k, c, cond, resid, amp, ks: Some(ks), cs: Some(cs) })
+                forces_chunk_dispatch(p, &kc, j * CHUNK, Outs { k, c, cond, resid, amp, ks: Some(ks), cs: Some(cs), rel: None })
             })
             .sum(),
         _ => base
             .into_par_iter()
             .enumerate()
             .map(|(j, (k, c, cond, resid, amp))| {
-                forces_chunk_dispatch(p, &kc, j * CHUNK, Outs { k, c, cond, resid, amp, ks: None, cs: None })
+                forces_chunk_dispatch(p, &kc, j * CHUNK, Outs { k, c, cond, resid, amp, ks: None, cs: None, rel: None })
             })
             .sum(),
     }
@@ -861,20 +884,27 @@ pub fn relative_std(k: &[f64], c: &[f64], k_std: &[f64], c_std: &[f64], out: &mu
         expect_len(name, a, product(name, &[n, 8])?)?;
     }
     out.par_iter_mut().with_min_len(4096).enumerate().for_each(|(i, o)| {
-        let mut worst = f64::NEG_INFINITY;
-        for (v, sd) in [(k, k_std), (c, c_std)] {
-            for b in 0..2 {
-                let z = &v[8 * i + 4 * b..8 * i + 4 * b + 4];
-                let s = &sd[8 * i + 4 * b..8 * i + 4 * b + 4];
-                let scale = (z[0] * z[3]).abs().sqrt();
-                let top = max_nan(max_nan(s[0], s[1]), max_nan(s[2], s[3]));
-                // no error at all is relative error 0 whatever the scale (0 / 0 is not unknown)
-                worst = max_nan(worst, if top == 0.0 { 0.0 } else { top / scale });
-            }
-        }
-        *o = worst;
+        let at = |a: &[f64]| -> [f64; 8] { a[8 * i..8 * i + 8].try_into().unwrap() };
+        *o = relative_std_point(&at(k), &at(c), &at(k_std), &at(c_std));
     });
     Ok(())
+}
+
+/// [`relative_std`] of one point (the identification kernel calls it on the values it has just
+/// written, so both give the same bits).
+#[inline(always)]
+fn relative_std_point(k: &[f64; 8], c: &[f64; 8], k_std: &[f64; 8], c_std: &[f64; 8]) -> f64 {
+    let mut worst = f64::NEG_INFINITY;
+    for (v, sd) in [(k, k_std), (c, c_std)] {
+        for b in 0..2 {
+            let (z, s) = (&v[4 * b..4 * b + 4], &sd[4 * b..4 * b + 4]);
+            let scale = (z[0] * z[3]).abs().sqrt();
+            let top = max_nan(max_nan(s[0], s[1]), max_nan(s[2], s[3]));
+            // no error at all is relative error 0 whatever the scale (0 / 0 is not unknown)
+            worst = max_nan(worst, if top == 0.0 { 0.0 } else { top / scale });
+        }
+    }
+    worst
 }
 
 /// Largest value, NaN if any value is NaN (as NumPy's `max`), -inf when empty. Eight independent

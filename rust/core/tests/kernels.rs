@@ -4,7 +4,7 @@ mod common;
 
 use common::*;
 use proptest::prelude::*;
-use rotorid_core::identify::{identify_forces, identify_report, IdentOut, IdentProblem};
+use rotorid_core::identify::{identify_forces, identify_report, relative_std, IdentOut, IdentProblem};
 use rotorid_core::{forced, modal, order, timesim, CoreError, Rotor, C64};
 
 fn cfg(cases: u32) -> ProptestConfig {
@@ -41,6 +41,7 @@ fn run_identify(p: &IdentProblem, report: bool) -> Result<Identified, CoreError>
     let (mut k, mut cc, mut cond) = (vec![0.0; npts * 8], vec![0.0; npts * 8], vec![0.0; npts * 2]);
     let (mut resid, mut amp) = (vec![0.0; npts], vec![0.0; npts]);
     let (mut ks, mut cs) = (vec![0.0; npts * 8], vec![0.0; npts * 8]);
+    let mut rel = vec![-1.0; npts];
     let out = IdentOut {
         k: &mut k,
         c: &mut cc,
@@ -49,9 +50,39 @@ fn run_identify(p: &IdentProblem, report: bool) -> Result<Identified, CoreError>
         amp: &mut amp,
         k_std: Some(&mut ks),
         c_std: Some(&mut cs),
+        rel_std: if report { None } else { Some(&mut rel) },
     };
     let nbad = if report { identify_report(p, out)? } else { identify_forces(p, out)? };
+    if !report {
+        // the relative standard error filled inside the kernel is the separate pass's, bit for bit
+        let mut sep = vec![0.0; npts];
+        relative_std(&k, &cc, &ks, &cs, &mut sep)?;
+        for (i, (a, b)) in rel.iter().zip(&sep).enumerate() {
+            assert!(a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()), "point {i}: fused {a} vs separate {b}");
+        }
+    }
     Ok(Identified { k, c: cc, cond, resid, k_std: ks, nbad })
+}
+
+/// The fused relative standard error on the parallel path (more points than the serial limit),
+/// with NaN points among them, and refused without the standard errors it is made of.
+#[test]
+fn fused_relative_std_matches_the_separate_pass_on_the_parallel_path() {
+    let r = Rotor { m: 10.0, it: 0.1, ip: 0.02, l1: 0.1, l2: 0.12 };
+    let n = 9000;
+    let w: Vec<f64> = (0..n).map(|i| 20.0 + i as f64 * 0.1).collect();
+    let mut q: Vec<C64> = (0..3 * n * 4).map(|i| c(1e-6 * (1.0 + (i % 7) as f64), 1e-6 * ((i % 5) as f64 - 2.0))).collect();
+    q[4 * 17 + 2] = c(f64::NAN, 0.0);
+    let e: Vec<C64> = (0..12).map(|i| c(1e-4 * (i % 3) as f64, 1e-5 * (i % 4) as f64)).collect();
+    let gain: Vec<f64> = w.iter().map(|v| v * v).collect();
+    let bl = blocks(&q, n);
+    let p = IdentProblem { rotor: r, w: &w, spin: &w, q: &bl, e: &e, gain: &gain, sigma: &[], q_ped: &[], batch: 1, runs: 3, identical: false };
+    let id = run_identify(&p, false).unwrap();
+    assert_eq!(id.nbad, 1);
+    let (mut k, mut cc, mut cond, mut resid, mut amp, mut rel) = (vec![0.0; 8 * n], vec![0.0; 8 * n], vec![0.0; 2 * n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    let out = IdentOut { k: &mut k, c: &mut cc, cond: &mut cond, resid: &mut resid, amp: &mut amp, k_std: None, c_std: None, rel_std: Some(&mut rel) };
+    let err = identify_forces(&p, out).unwrap_err();
+    assert_eq!(err.name(), "rel_std");
 }
 
 /// Largest error of the identified impedances K + j w C per bearing, relative to the largest

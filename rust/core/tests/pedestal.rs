@@ -570,7 +570,7 @@ fn exact_runs(r: &Rotor, pv: &[f64; 20], w: &[f64]) -> (Vec<C64>, Vec<C64>) {
 fn identify(p: &IdentProblem, report: bool) -> (Vec<f64>, Vec<f64>, usize) {
     let npts = p.w.len();
     let (mut k, mut cc, mut cond, mut resid, mut amp) = (vec![0.0; npts * 8], vec![0.0; npts * 8], vec![0.0; npts * 2], vec![0.0; npts], vec![0.0; npts]);
-    let out = IdentOut { k: &mut k, c: &mut cc, cond: &mut cond, resid: &mut resid, amp: &mut amp, k_std: None, c_std: None };
+    let out = IdentOut { k: &mut k, c: &mut cc, cond: &mut cond, resid: &mut resid, amp: &mut amp, k_std: None, c_std: None, rel_std: None };
     let nbad = if report { identify_report(p, out).unwrap() } else { identify_forces(p, out).unwrap() };
     (k, cc, nbad)
 }
@@ -623,9 +623,9 @@ fn identification_with_pedestal_motion_recovers_the_bearings() {
     let short: Vec<&[C64]> = pb.iter().map(|b| &b[..4]).collect();
     let npts = n;
     let (mut k, mut cc, mut cond, mut resid, mut amp) = (vec![0.0; npts * 8], vec![0.0; npts * 8], vec![0.0; npts * 2], vec![0.0; npts], vec![0.0; npts]);
-    let out = IdentOut { k: &mut k, c: &mut cc, cond: &mut cond, resid: &mut resid, amp: &mut amp, k_std: None, c_std: None };
+    let out = IdentOut { k: &mut k, c: &mut cc, cond: &mut cond, resid: &mut resid, amp: &mut amp, k_std: None, c_std: None, rel_std: None };
     assert_eq!(identify_forces(&IdentProblem { q_ped: &short, ..p }, out).unwrap_err().name(), "q_ped");
-    let out = IdentOut { k: &mut k, c: &mut cc, cond: &mut cond, resid: &mut resid, amp: &mut amp, k_std: None, c_std: None };
+    let out = IdentOut { k: &mut k, c: &mut cc, cond: &mut cond, resid: &mut resid, amp: &mut amp, k_std: None, c_std: None, rel_std: None };
     assert_eq!(identify_forces(&IdentProblem { q_ped: &pb[..1], ..p }, out).unwrap_err().name(), "q_ped (blocks)");
 }
 
