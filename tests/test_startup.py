@@ -37,7 +37,7 @@ def test_import_rotorid_loads_no_heavy_dependency():
 
 
 @pytest.mark.parametrize("argv", [["--help"], ["demo", "--help"], ["identify", "--help"], ["check", "--help"],
-                                  ["example", "--help"], ["study", "--help"]])
+                                  ["example", "--help"], ["study", "--help"], ["report", "--help"]])
 def test_cli_help_loads_no_heavy_dependency(argv):
     code = f"""
 import contextlib, io

@@ -40,6 +40,19 @@ def main(argv=None):
     i.add_argument("--quiet", "-q", action="store_true", help="no progress lines (errors and warnings still print)")
     i.add_argument("--strict", action="store_true", help="exit with 3 when points are flagged or warnings fired "
                    "(the results are written all the same)")
+    i.add_argument("--report", default=None, metavar="PAGE.html",
+                   help="also write a self-contained HTML report of the run there (default: the config's [output] "
+                        "report, none unless set; docs/report.md)")
+    rp = sub.add_parser("report", help="a self-contained HTML report of an identification written by rotorid identify")
+    rp.add_argument("result", help="the output folder of rotorid identify, or its result_<kind>.json")
+    rp.add_argument("--out", default=None, metavar="PAGE.html",
+                    help="the HTML file to write (default: report_<kind>.html beside the result)")
+    rp.add_argument("--overwrite", action="store_true", help="replace an existing report file")
+    rp.add_argument("--units", default=None, type=str.upper, choices=["SI", "US"],
+                    help="units of the tables (default: those of the run's config, else SI)")
+    rp.add_argument("--truth", default=None, metavar="TRUTH.toml",
+                    help="known coefficients to compare with: a TOML file with k and c as [bearing][i][j] in N/m and "
+                         "N*s/m (as the example data set's truth.toml)")
     c = sub.add_parser("check", help="validate a TOML config (keys, types, units, files) without processing anything")
     c.add_argument("config", help="TOML config file (every key: docs/config.md)")
     s = sub.add_parser("study", help="Monte Carlo study of a test's accuracy (and trial-mass design) from a TOML config")
@@ -81,7 +94,8 @@ def main(argv=None):
                 warnings.simplefilter("default")
                 warnings.showwarning = show
                 ident, _ = run_config(args.config, args.kind, out_dir=args.out, overwrite=args.overwrite,
-                                      log=(lambda m: None) if args.quiet else print, plots=not args.no_plot)
+                                      log=(lambda m: None) if args.quiet else print, plots=not args.no_plot,
+                                      report=args.report)
         except RotoridError as exc:
             print(f"rotorid: error: {exc}", file=sys.stderr)
             return 2
@@ -141,6 +155,8 @@ def main(argv=None):
             return _demo(args)
         if args.cmd == "compare":
             return _compare(args)
+        if args.cmd == "report":
+            return _report(args)
         if args.cmd == "predict":
             import warnings
 
@@ -153,6 +169,44 @@ def main(argv=None):
     except RotoridError as exc:
         print(f"rotorid: error: {exc}", file=sys.stderr)
         return 2
+    return 0
+
+
+def _read_truth(path):
+    """Known coefficients from a TOML file: k and c as [bearing][i][j] (N/m, N*s/m)."""
+    import tomllib
+
+    from .errors import RotoridError
+    from .model import BearingCoefficients
+
+    try:
+        with open(path, "rb") as fh:
+            t = tomllib.load(fh)
+    except OSError as exc:
+        raise RotoridError(f"cannot read --truth {path!r}: {exc.strerror or exc}") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise RotoridError(f"--truth {path!r} is not valid TOML: {exc}") from None
+    if "k" not in t or "c" not in t:
+        raise RotoridError(f"--truth {path!r} must hold k and c as [bearing][i][j] (N/m, N*s/m)")
+    try:
+        return BearingCoefficients(t["k"], t["c"])
+    except RotoridError as exc:
+        raise RotoridError(f"--truth {path!r}: {exc}") from None
+
+
+def _report(args):
+    from .report import find_result, load_result, write_report
+
+    result = find_result(args.result)
+    ident, context = load_result(result)
+    if args.units:
+        context["units"] = args.units
+    truth = _read_truth(args.truth) if args.truth else None
+    kind = context.get("kind") or ("imbalance" if ident.axis_name == "speed_rpm" else "impact")
+    out = args.out or os.path.join(os.path.dirname(os.path.abspath(result)), f"report_{kind}.html")
+    path = write_report(out, ident, overwrite=args.overwrite, truth=truth, **context)
+    flagged = int((~ident.ok).sum())
+    print(f"wrote {path} ({ident.axis.size} points, {flagged} flagged)")
     return 0
 
 

@@ -910,12 +910,28 @@ class PedestalsSection(_Model):
         return self.measured if self.identify is None else self.identify
 
 
+def _check_report(v):
+    """``[output] report``: true/false, or a plain file name ending in .html (in the output folder)."""
+    if isinstance(v, bool):
+        return v
+    if isinstance(v, str):
+        if not v.lower().endswith((".html", ".htm")):
+            raise _err(f"must be true, false or a file name ending in .html, got {_describe(v)}")
+        if os.path.basename(v) != v or v.startswith("."):
+            raise _err(f"must be a plain file name in the output folder (no folder part), got {_describe(v)}; "
+                       "rotorid identify --report PATH writes elsewhere")
+        return v
+    raise _err(f"must be true, false or a file name ending in .html, got {_describe(v)}")
+
+
 class OutputSection(_Model):
     """``[output]``: where the tables and plots go and in which units."""
 
     dir: Optional[Text] = None
     units: _choice("SI", "US", ignore_case=True) = "SI"
     formats: tuple[_choice("xlsx", "json", "nc"), ...] = Field((), description="coefficient files besides the CSV")
+    report: Annotated[Union[bool, str], PlainValidator(_check_report)] = Field(
+        False, description="an HTML report in the output folder: true (report_<kind>.html) or its file name")
 
     @field_validator("formats", mode="before")
     @classmethod

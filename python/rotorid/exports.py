@@ -223,11 +223,18 @@ def _jsonable(a):
     return a.tolist()
 
 
-def to_json(ident, path=None, *, units: str = "SI", overwrite: bool = False):
+def to_json(ident, path=None, *, units: str = "SI", overwrite: bool = False, context=None):
     """A JSON document of the identification: the axis, K and C and their standard errors and 95 %
     intervals as nested lists [point][bearing][i][j], the diagnostics, flags, units and
     provenance; NaN as null. With ``path`` written there (refusing an existing file unless
     ``overwrite``) and the path returned; without, the text returned.
+
+    Everything the result object holds besides the covariance matrices travels too (the relative
+    amplitudes and standard errors, the estimator's bias, the residual-based errors, the flag codes
+    and reasons, the run labels), so :func:`from_json` gives back an equal
+    :class:`~rotorid.Identification`. ``context``: an optional JSON-serializable dict stored under
+    ``"context"`` (``rotorid identify`` puts the settings, input files with SHA-256, warnings and
+    its log there; :mod:`rotorid.report` shows them).
 
     Examples
     --------
@@ -262,8 +269,187 @@ def to_json(ident, path=None, *, units: str = "SI", overwrite: bool = False):
            "cond": _jsonable(ident.cond), "residual": _jsonable(ident.residual),
            "dof": _jsonable(ident.dof if ident.dof is not None else np.full(ident.axis.size, np.nan)),
            "ok": [bool(v) for v in ident.ok], "flag": [str(f) for f in ident.flag]}
-    text = json.dumps(doc, indent=1, allow_nan=False)
+    # the rest of the result (additions to version 1: readers of the keys above are unaffected)
+    n = ident.axis.size
+
+    def opt(a, unit=None):
+        return None if a is None else _jsonable(conv(a, unit) if unit else np.asarray(a, float))
+
+    doc.update({"rel_amplitude": _jsonable(ident.rel_amplitude), "rel_std": opt(ident.rel_std),
+                "K_bias": opt(ident.k_bias, ku), "C_bias": opt(ident.c_bias, cu),
+                "K_std_residual": opt(ident.k_std_residual, ku), "C_std_residual": opt(ident.c_std_residual, cu),
+                # "dof" holds null for infinite degrees of freedom (a known covariance)
+                "dof_infinite": [bool(v) for v in np.isinf(np.asarray(
+                    ident.dof if ident.dof is not None else np.full(n, np.nan), float))],
+                "flag_code": [int(v) for v in np.asarray(ident.flag_code).reshape(n)],
+                "flag_reasons": [str(r) for r in ident.flag_reasons], "runs": [str(r) for r in ident.runs]})
+    if context is not None:
+        if not isinstance(context, dict):
+            raise RotoridError(f"context must be a dict (JSON-serializable), got {type(context).__name__}")
+        doc["context"] = context
+    try:
+        text = json.dumps(doc, indent=1, allow_nan=False)
+    except (TypeError, ValueError) as exc:
+        raise RotoridError(f"context cannot be written as JSON: {exc}") from None
     if path is None:
         return text
     p = _target(path, overwrite, (".json",))
     return _atomic(p, lambda tmp: tmp.write_text(text, encoding="utf-8"))
+
+
+#: the identification's keys every rotorid JSON document has (version 1)
+_REQUIRED = ("axis_name", "axis", "units", "method", "K", "C", "K_std", "C_std", "cond", "residual", "ok", "flag")
+
+
+def read_json_document(source) -> dict:
+    """The JSON document of :func:`to_json` (a path, or the text itself), checked to be one.
+
+    Raises RotoridError naming the file for a missing, unreadable or garbled file and for a JSON
+    document that is not a rotorid identification (or is of a newer version)."""
+    from ._validate import path as _path
+
+    if isinstance(source, str) and source.lstrip().startswith("{"):
+        name, text = "the JSON text", source
+    else:
+        p = _path("source", source)
+        name = repr(str(p))
+        if p.is_dir():
+            raise RotoridError(f"{name} is a folder, not a rotorid JSON result")
+        try:
+            text = p.read_text(encoding="utf-8")
+        except FileNotFoundError:
+            raise RotoridError(f"{name} not found") from None
+        except UnicodeDecodeError:
+            raise RotoridError(f"{name} is not UTF-8 text (not a rotorid JSON result)") from None
+        except OSError as exc:
+            raise RotoridError(f"cannot read {name}: {exc.strerror or exc}") from None
+    try:
+        doc = json.loads(text)
+    except ValueError as exc:
+        where = f" (line {exc.lineno}, column {exc.colno}: {exc.msg})" if hasattr(exc, "lineno") else ""
+        raise RotoridError(f"{name} is not valid JSON{where}") from None
+    if not isinstance(doc, dict) or doc.get("format") != "rotorid-identification":
+        raise RotoridError(f"{name} is JSON but not a rotorid identification (no \"format\": "
+                           "\"rotorid-identification\")")
+    version = doc.get("version")
+    if not isinstance(version, int) or isinstance(version, bool) or version < 1:
+        raise RotoridError(f"{name}: version must be a positive integer, got {version!r}")
+    if version > 1:
+        raise RotoridError(f"{name} is version {version} of the format, written by a newer rotorid; this one reads "
+                           "version 1")
+    missing = [k for k in _REQUIRED if k not in doc]
+    if missing:
+        raise RotoridError(f"{name}: missing {', '.join(repr(m) for m in missing)}")
+    doc["_name"] = name
+    return doc
+
+
+def from_json(source):
+    """The :class:`~rotorid.Identification` of a :func:`to_json` document (a file or the text),
+    in SI whatever units it was written in.
+
+    Documents of earlier rotorid versions (without the relative amplitudes, bias, flag codes)
+    load too: the missing arrays are NaN, the flag codes are rebuilt from the flag strings, and the
+    estimator's bias from the stored 95 % intervals, so :meth:`~rotorid.Identification.interval`
+    gives the written bounds. The covariance matrices are not stored (``cov`` is None).
+
+    Examples
+    --------
+    >>> import numpy as np, rotorid
+    >>> from rotorid.exports import from_json
+    >>> rig = rotorid.nsf_rig()
+    >>> runs = [rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=[3000.0, 4000.0])
+    ...         for s in "ABC"]
+    >>> ident = rotorid.identify_synchronous(rig.rotor, runs)
+    >>> back = from_json(ident.to_json(units="US"))
+    >>> bool(np.allclose(back.k, ident.k, rtol=1e-12)), list(back.flag) == list(ident.flag)
+    (True, True)
+    """
+    from .identify import Identification, _BASE_REASONS, _flag_strings
+    from .units import to_si
+
+    doc = read_json_document(source)
+    name = doc["_name"]
+    axis_name = doc["axis_name"]
+    if axis_name not in ("speed_rpm", "freq_hz"):
+        raise RotoridError(f"{name}: axis_name must be 'speed_rpm' or 'freq_hz', got {axis_name!r}")
+    units = doc["units"] if isinstance(doc["units"], dict) else {}
+    ku, cu = units.get("K"), units.get("C")
+    if (ku, cu) not in set(UNIT_SYSTEMS.values()):
+        raise RotoridError(f"{name}: units of K and C must be one of {list(UNIT_SYSTEMS.values())}, got {(ku, cu)}")
+
+    def arr(key, shape, unit=None, optional=False):
+        v = doc.get(key)
+        if v is None:
+            if optional:
+                return None
+            raise RotoridError(f"{name}: {key!r} is missing")
+        try:
+            a = np.array(v, dtype=float)   # null -> nan
+        except (TypeError, ValueError):
+            raise RotoridError(f"{name}: {key!r} must be (nested lists of) numbers") from None
+        if a.shape != shape:
+            raise RotoridError(f"{name}: {key!r} must have shape {shape}, got {a.shape}")
+        return np.asarray(to_si(a, unit), float) if unit and unit not in ("N/m", "N*s/m") else a
+
+    if not isinstance(doc["axis"], list):
+        raise RotoridError(f"{name}: 'axis' must be a list of numbers")
+    axis = arr("axis", (len(doc["axis"]),))
+    n = axis.size
+    if n == 0:
+        raise RotoridError(f"{name}: no points")
+    s4 = (n, 2, 2, 2)
+    k, c = arr("K", s4, ku), arr("C", s4, cu)
+    k_std, c_std = arr("K_std", s4, ku), arr("C_std", s4, cu)
+    cond, residual = arr("cond", (n, 2)), arr("residual", (n,))
+    dof = arr("dof", (n,), optional=True)
+    rel_amp = arr("rel_amplitude", (n,), optional=True)
+    rel_std = arr("rel_std", (n,), optional=True)
+    k_bias, c_bias = arr("K_bias", s4, ku, optional=True), arr("C_bias", s4, cu, optional=True)
+    k_res, c_res = arr("K_std_residual", s4, ku, optional=True), arr("C_std_residual", s4, cu, optional=True)
+    inf = doc.get("dof_infinite")
+    if dof is not None and isinstance(inf, list) and len(inf) == n:
+        dof[np.array(inf, dtype=bool)] = np.inf
+    elif dof is not None and "K_upper95" in doc:
+        # older documents: null is infinite where the intervals are known
+        known = np.isfinite(arr("K_upper95", s4, ku)).any(axis=(1, 2, 3))
+        dof[np.isnan(dof) & known] = np.inf
+    ok, flag = doc["ok"], doc["flag"]
+    if not (isinstance(ok, list) and len(ok) == n and all(isinstance(v, bool) for v in ok)):
+        raise RotoridError(f"{name}: 'ok' must be a list of {n} true/false")
+    if not (isinstance(flag, list) and len(flag) == n and all(isinstance(v, str) for v in flag)):
+        raise RotoridError(f"{name}: 'flag' must be a list of {n} strings")
+    ok = np.array(ok, dtype=bool)
+    code = doc.get("flag_code")
+    reasons = doc.get("flag_reasons")
+    if code is not None and reasons is not None:
+        code = np.array(code, dtype=np.int64)
+        reasons = tuple(str(r) for r in reasons)
+        if code.shape != (n,) or list(_flag_strings(code, reasons)) != flag:
+            code = None
+    if code is None or reasons is None:
+        # rebuilt from the strings (documents written before the codes were stored)
+        found = [r.strip() for f in flag for r in f.split(";") if r.strip()]
+        reasons = tuple(_BASE_REASONS) + tuple(dict.fromkeys(r for r in found if r not in _BASE_REASONS))
+        code = np.zeros(n, dtype=np.int64)
+        for i, f in enumerate(flag):
+            for r in (p.strip() for p in f.split(";")):
+                if r:
+                    code[i] |= 1 << reasons.index(r)
+    estimator = str(doc.get("estimator", "ls"))
+    if k_bias is None and estimator == "ls" and "K_upper95" in doc and "C_upper95" in doc:
+        from .uncertainty import t_quantile
+
+        t = t_quantile(0.95, dof if dof is not None else np.full(n, np.nan))[:, None, None, None]
+        hk = 0.5 * (arr("K_upper95", s4, ku) - arr("K_lower95", s4, ku))
+        hc = 0.5 * (arr("C_upper95", s4, cu) - arr("C_lower95", s4, cu))
+        with np.errstate(invalid="ignore"):
+            bk, bc = hk - t * k_std, hc - t * c_std
+            k_bias = np.where(np.isfinite(bk), np.where(bk > 1e-9 * np.abs(hk), bk, 0.0), np.nan)
+            c_bias = np.where(np.isfinite(bc), np.where(bc > 1e-9 * np.abs(hc), bc, 0.0), np.nan)
+        if not (np.nanmax(k_bias, initial=0.0) > 0 or np.nanmax(c_bias, initial=0.0) > 0):
+            k_bias = c_bias = None
+    return Identification(axis_name, axis, k, c, cond, residual,
+                          rel_amp if rel_amp is not None else np.full(n, np.nan), k_std, c_std, ok, code,
+                          str(doc["method"]), [str(r) for r in doc.get("runs", [])], str(doc.get("std_source", "none")),
+                          dof, None, rel_std, k_res, c_res, k_bias, c_bias, estimator, reasons)

@@ -733,18 +733,61 @@ def _load_table(cfg, entry, name=None):
 
 
 RESULT_PATTERNS = {"imbalance": ["sync_vectors_*.csv", "keyphasor.csv", "coefficients_imbalance.*",
-                                 "pedestals_imbalance.csv"],
+                                 "pedestals_imbalance.csv", "result_imbalance.json"],
                    "impact": ["frf_*.csv", "dropped_impacts.csv", "kcm_fit.csv", "coefficients_impact.*",
-                              "pedestals_impact.csv"]}
+                              "pedestals_impact.csv", "result_impact.json"]}
 
 
-def run_config(path, kind: str, *, out_dir=None, log=print, overwrite: bool = False, plots: bool = True):
+def run_config(path, kind: str, *, out_dir=None, log=print, overwrite: bool = False, plots: bool = True,
+               report=None):
     """Run the imbalance or impact chain described by a TOML config; write CSV tables and plots.
 
     The config is validated completely (keys, types, units, files) before anything is read, and
     the output folder is checked: results of an earlier run are replaced only with
     ``overwrite=True`` (stale ones removed, see :mod:`rotorid.outputs`). ``plots=False`` writes the
-    tables only. Returns (Identification, list of written files)."""
+    tables only. Returns (Identification, list of written files).
+
+    The folder also gets ``result_<kind>.json``: the identification (SI) with the settings, the
+    input files with their SHA-256, the warnings and the log of the run, which ``rotorid report``
+    reads. ``report``: an HTML page of the run (:mod:`rotorid.report`): a path (``--report``),
+    True (``report_<kind>.html`` in the output folder), False (none) or None (the config's
+    ``[output] report``)."""
+    from .report._run import warning_log
+
+    if not callable(log):
+        raise RotoridError(f"log must be a function taking a message (e.g. print), got {type(log).__name__}")
+    lines = []
+
+    def logged(message):
+        lines.append(str(message))
+        log(message)
+
+    with warning_log() as seen:
+        return _run_config(path, kind, out_dir=out_dir, log=logged, overwrite=overwrite, plots=plots, report=report,
+                           seen=seen, lines=lines)
+
+
+def _report_target(report, cfg, kind, folder_path):
+    """(file name in the output folder, None) or (None, outside path) or (None, None)."""
+    from ._validate import path as _path
+
+    if report is None:
+        report = cfg.output.report
+    if report is False:
+        return None, None
+    if report is True:
+        return f"report_{kind}.html", None
+    if isinstance(report, str) and os.path.basename(report) == report and report == cfg.output.report:
+        return report, None   # the config's file name: in the output folder
+    p = os.path.abspath(str(_path("report", report)))
+    if not p.lower().endswith((".html", ".htm")):
+        raise RotoridError(f"the report {p} must end in .html")
+    if os.path.dirname(p) == folder_path:
+        return os.path.basename(p), None
+    return None, p
+
+
+def _run_config(path, kind, *, out_dir, log, overwrite, plots, report, seen, lines):
     from ._validate import choice, flag
     from ._validate import path as _path
     from .outputs import ResultsFolder
@@ -761,7 +804,15 @@ def run_config(path, kind: str, *, out_dir=None, log=print, overwrite: bool = Fa
     cfg = load_config(path)
     sec = cfg.section(kind)
     rotor = cfg.rotor()
-    folder = ResultsFolder(str(out_dir) if out_dir else str(cfg.output_dir(kind)), patterns=RESULT_PATTERNS[kind],
+    folder_path = os.path.abspath(str(out_dir) if out_dir else str(cfg.output_dir(kind)))
+    if report is not None and not isinstance(report, bool):
+        flag("overwrite", overwrite)
+    report_name, report_path = _report_target(report, cfg, kind, folder_path)
+    if report_path is not None:
+        from .exports import _target
+
+        _target(report_path, overwrite, (".html", ".htm"))   # refused before anything is computed
+    folder = ResultsFolder(folder_path, patterns=RESULT_PATTERNS[kind] + ([report_name] if report_name else []),
                            overwrite=overwrite, command=f"rotorid identify {kind} {path}")
     out = folder.path
     us = cfg.output.units.upper() == "US"
@@ -907,6 +958,25 @@ def run_config(path, kind: str, *, out_dir=None, log=print, overwrite: bool = Fa
             plot.coefficients(ident, None, path=tmp,
                               title=f"Identified coefficients ({kind}), {os.path.basename(str(path))}")
         files.append(os.path.join(out, f"coefficients_{kind}.png"))
+    # the machine-readable result (rotorid report RESULT) and the HTML page of the run
+    from .report import write_report
+    from .report._run import run_context
+
+    context = run_context(cfg, path, kind, command=f"rotorid identify {kind} {path}", units="US" if us else "SI",
+                          responses=responses if kind == "imbalance" else None, warnings=seen, log=lines)
+    with folder.atomic(f"result_{kind}.json") as tmp:
+        _to_json(ident, tmp, context)
+    files.append(os.path.join(out, f"result_{kind}.json"))
+    if report_name or report_path:
+        target = report_path
+        if report_name:
+            with folder.atomic(report_name) as tmp:
+                write_report(tmp, ident, overwrite=True, **context)
+            target = os.path.join(out, report_name)
+        else:
+            write_report(report_path, ident, overwrite=overwrite, **context)
+        files.append(target)
+        log(f"  report: {target}")
     stale = folder.finish()
     if stale:
         log(f"  removed {len(stale)} stale file(s) of the earlier run: {', '.join(stale[:5])}")
@@ -918,6 +988,12 @@ def run_config(path, kind: str, *, out_dir=None, log=print, overwrite: bool = Fa
         log("  median over ok points: " + ", ".join(f"{n} {v:.4g}" for n, v in zip(REPORT_NAMES, med)))
     log(f"  wrote {len(files)} files to {out}/")
     return ident, files
+
+
+def _to_json(ident, path, context):
+    from .exports import to_json
+
+    return to_json(ident, path, overwrite=True, context=context)
 
 
 def _safe(name, limit: int = 60):
