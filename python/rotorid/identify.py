@@ -166,11 +166,24 @@ class Identification:
 
         return to_excel(self, path, units=units, overwrite=overwrite)
 
-    def to_json(self, path=None, *, units: str = "SI", overwrite: bool = False):
+    def to_json(self, path=None, *, units: str = "SI", overwrite: bool = False, context=None):
         """JSON document, or its text without ``path`` (see :func:`rotorid.exports.to_json`)."""
         from .exports import to_json
 
-        return to_json(self, path, units=units, overwrite=overwrite)
+        return to_json(self, path, units=units, overwrite=overwrite, context=context)
+
+    @classmethod
+    def from_json(cls, source) -> "Identification":
+        """An identification from a :meth:`to_json` document, path or text (see :func:`rotorid.exports.from_json`)."""
+        from .exports import from_json
+
+        return from_json(source)
+
+    def to_ross(self, *, nodes, **kwargs):
+        """Two ROSS bearing elements, or stochastic ones (see :func:`rotorid.ross.to_ross`; needs ``rotorid[ross]``)."""
+        from .ross import to_ross
+
+        return to_ross(self, nodes=nodes, **kwargs)
 
     def to_dataframe(self):
         import pandas as pd

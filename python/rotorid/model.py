@@ -69,6 +69,13 @@ class RigidRotor:
     def core_params(self) -> np.ndarray:
         return np.array([self.mass_kg, self.it_kgm2, self.ip_kgm2, self.l1, self.l2])
 
+    @classmethod
+    def from_ross(cls, rotor, bearing_nodes, probe_positions=None, **kwargs) -> "RigidRotor":
+        """The rigid rotor of a ROSS rotor (see :func:`rotorid.ross.rigid_rotor_from_ross`; needs ``rotorid[ross]``)."""
+        from .ross import rigid_rotor_from_ross
+
+        return rigid_rotor_from_ross(rotor, bearing_nodes, probe_positions, **kwargs)
+
     def matrices(self, k=None, c=None):
         """M, G (and K, C of eq. 3 when 2x2x2 bearing arrays k, c are given) as NumPy arrays."""
         m, it, ip, l1, l2, L = self.mass_kg, self.it_kgm2, self.ip_kgm2, self.l1, self.l2, self.span
@@ -200,6 +207,21 @@ class Imbalance:
         f1, f2 = self.forcing(rotor)
         d1, d2 = rotor.d
         return np.array([f1 + f2, -1j * (f1 + f2), -f1 * d1 + f2 * d2, -1j * (f1 * d1 - f2 * d2)])
+
+    def to_ross(self, *, rotor: RigidRotor, ross_rotor, nodes=None) -> dict:
+        """ROSS unbalance arguments, phase convention handled (see :func:`rotorid.ross.imbalance_to_ross`)."""
+        from .ross import imbalance_to_ross
+
+        return imbalance_to_ross(self, rotor=rotor, ross_rotor=ross_rotor, nodes=nodes)
+
+    @classmethod
+    def from_ross(cls, node, unbalance_magnitude, unbalance_phase, *, rotor: RigidRotor, ross_rotor,
+                  name=None) -> "Imbalance":
+        """An imbalance from ROSS unbalance arguments (see :func:`rotorid.ross.imbalance_from_ross`)."""
+        from .ross import imbalance_from_ross
+
+        return imbalance_from_ross(node, unbalance_magnitude, unbalance_phase, rotor=rotor, ross_rotor=ross_rotor,
+                                   name=name)
 
 
 @dataclass(frozen=True)
