@@ -40,7 +40,7 @@ def test_check_validates_a_config_in_one_line(tmp_path, capsys):
     bad = tmp_path / "bad.toml"
     bad.write_text('[rig]\nbuiltin = "nsf"\n[imbalance]\nstedy = false\n[[imbalance.runs]]\nfile = "x.tdms"\n'
                    'mass_g = [1, 1]\nangle_degs = [0, 0]\n')
-    assert cli.main(["check", str(bad)]) == 2
+    assert cli.main(["check", str(bad)]) == 1
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "did you mean 'steady'" in err and "did you mean 'angle_deg'" in err
 
@@ -80,3 +80,65 @@ def test_identify_quiet_no_plot_and_strict(tmp_path, capsys):
     assert flagged > 0
     assert code == 3 and "strict:" in err.splitlines()[-1]
     assert cli.main(["identify", "imbalance", cfg, "--out", str(out), "--overwrite", "-q"]) == 0
+    # -v lists every flagged point with its reasons, one line each
+    assert cli.main(["identify", "imbalance", cfg, "--out", str(out), "--overwrite", "-q", "-v", "--no-plot"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0] == f"{flagged} of {len(pd.read_csv(out / 'coefficients_imbalance.csv'))} points flagged:"
+    assert len(lines) == 1 + flagged and all(" rpm: " in x for x in lines[1:])
+
+
+def test_exit_codes_and_debug(tmp_path, capsys):
+    """0 done, 1 a rotorid error (one line), 2 usage (argparse), --debug adds the traceback."""
+    import pytest as _pytest
+
+    missing = str(tmp_path / "none.toml")
+    assert cli.main(["check", missing]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("rotorid: error:") and "none.toml" in err
+    assert cli.main(["check", missing, "--debug"]) == 1
+    err = capsys.readouterr().err
+    assert "Traceback" in err and err.splitlines()[-1].startswith("rotorid: error:")
+    for argv in (["bogus"], ["identify", "sideways", missing], ["demo", "--step-rpm", "fast"]):
+        with _pytest.raises(SystemExit) as exc:
+            cli.main(argv)
+        assert exc.value.code == 2
+        capsys.readouterr()
+
+
+def test_an_unwritable_output_folder_is_one_line(tmp_path, capsys):
+    import os
+
+    if os.geteuid() == 0:
+        # root writes anywhere: a file where the folder should be is refused by the system all the same
+        blocker = tmp_path / "file"
+        blocker.write_text("x")
+        out = blocker / "sub"
+    else:
+        ro = tmp_path / "ro"
+        ro.mkdir(mode=0o500)
+        out = ro / "sub"
+    assert cli.main(["example", "--out", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("rotorid: error:") and "Traceback" not in err, err
+
+
+def test_an_internal_error_is_one_line_with_a_hint(monkeypatch, capsys):
+    from rotorid import example
+
+    def broken(*a, **k):
+        raise ZeroDivisionError("float division by zero")
+
+    monkeypatch.setattr(example, "copy_example", broken)
+    assert cli.main(["example", "--out", "x"]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "internal error: ZeroDivisionError" in err and "--debug" in err
+
+
+def test_every_command_help_shows_defaults(capsys):
+    import pytest as _pytest
+
+    with _pytest.raises(SystemExit):
+        cli.main(["demo", "--help"])
+    out = capsys.readouterr().out
+    assert "(default: rotorid_demo)" in out and "(default: 50.0)" in out and "(default: 0.0)" in out
+    assert "--debug" in out

@@ -136,7 +136,7 @@ def test_cli_compare(tmp_path, identified, capsys):
     assert cli.main(["compare", str(ip), str(pp), "--out", str(out)]) == 0
     assert {"comparison.csv", "comparison_summary.csv", "comparison.png"} <= set(os.listdir(out))
     assert "compared 7 points" in capsys.readouterr().out
-    assert cli.main(["compare", str(ip), str(pp), "--out", str(out)]) == 2          # no overwrite unasked
+    assert cli.main(["compare", str(ip), str(pp), "--out", str(out)]) == 1          # no overwrite unasked
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--overwrite" in err
     assert cli.main(["compare", str(ip), str(pp), "--out", str(out), "--overwrite"]) == 0
@@ -155,7 +155,7 @@ def test_bad_predicted_tables(tmp_path, identified, capsys, edit, match):
     edit(pd.read_csv(pp)).to_csv(pp, index=False)
     with pytest.raises(RotoridError, match=match):
         compare_tables(ip, pp)
-    assert cli.main(["compare", str(ip), str(pp), "--out", str(tmp_path / "o")]) == 2
+    assert cli.main(["compare", str(ip), str(pp), "--out", str(tmp_path / "o")]) == 1
     assert capsys.readouterr().err.count("\n") == 1
     assert not (tmp_path / "o").exists()          # nothing written before the inputs are checked
 
@@ -223,7 +223,7 @@ def test_tables_without_uncertainty_non_numeric_cells_and_empty_tables(tmp_path,
     with pytest.raises(RotoridError, match="'ok' must hold True/False"):
         compare_tables(tmp_path / "ok.csv", pp)
     for name in ("text.csv", "empty.csv", "ok.csv"):
-        assert cli.main(["compare", str(tmp_path / name), str(pp), "--out", str(tmp_path / "o")]) == 2
+        assert cli.main(["compare", str(tmp_path / name), str(pp), "--out", str(tmp_path / "o")]) == 1
         assert capsys.readouterr().err.count("\n") == 1
 
 

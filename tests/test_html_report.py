@@ -253,7 +253,7 @@ def test_report_subcommand_from_folder_and_file(identified, tmp_path, capsys):
     text = p.read_text(encoding="utf-8")
     assert "lbf/in" in text and "Flagged points and why" in text
     # refused without --overwrite, then replaced with it; the result file itself also works
-    assert cli.main(["report", str(out / "result_impact.json"), "--out", str(p)]) == 2
+    assert cli.main(["report", str(out / "result_impact.json"), "--out", str(p)]) == 1
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "exists" in err and "--overwrite" in err
     assert cli.main(["report", str(out / "result_impact.json"), "--out", str(p), "--overwrite"]) == 0
@@ -272,7 +272,7 @@ def test_report_subcommand_default_name_and_truth(example, tmp_path, capsys):
     assert "Against the known coefficients" in text and "Compensated 1X response" in text
     capsys.readouterr()
     bad = _write(tmp_path / "t.toml", "k = 1\n")
-    assert cli.main(["report", str(out), "--out", str(tmp_path / "x.html"), "--truth", str(bad)]) == 2
+    assert cli.main(["report", str(out), "--out", str(tmp_path / "x.html"), "--truth", str(bad)]) == 1
     assert "--truth" in capsys.readouterr().err
 
 
@@ -285,7 +285,7 @@ def test_report_subcommand_default_name_and_truth(example, tmp_path, capsys):
 ])
 def test_report_subcommand_bad_result(tmp_path, capsys, setup, match):
     target = setup(tmp_path)
-    assert cli.main(["report", str(target), "--out", str(tmp_path / "p.html")]) == 2
+    assert cli.main(["report", str(target), "--out", str(tmp_path / "p.html")]) == 1
     err = capsys.readouterr().err
     assert err.startswith("rotorid: error:") and err.count("\n") == 1 and match in err
     assert not (tmp_path / "p.html").exists()
@@ -316,7 +316,7 @@ def test_config_output_report_key(example, tmp_path):
 def test_identify_report_refused_before_computing(example, tmp_path, capsys):
     page = _write(tmp_path / "page.html", "mine")
     assert cli.main(["identify", "imbalance", f"{example}/imbalance_1x_table.toml", "--out", str(tmp_path / "o"),
-                     "-q", "--report", str(page)]) == 2
+                     "-q", "--report", str(page)]) == 1
     assert "exists" in capsys.readouterr().err and page.read_text() == "mine"
     assert not (tmp_path / "o" / "coefficients_imbalance.csv").exists()
 

@@ -17,7 +17,7 @@ def example(tmp_path_factory):
 
 
 def test_example_refuses_to_overwrite_without_the_flag(example, capsys):
-    assert cli.main(["example", "--out", str(example)]) == 2
+    assert cli.main(["example", "--out", str(example)]) == 1
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "--overwrite" in err
     assert cli.main(["example", "--out", str(example), "--overwrite"]) == 0
@@ -31,7 +31,7 @@ def test_identify_refuses_earlier_results_and_removes_stale_ones_with_overwrite(
     assert "sync_vectors_3_C90.csv" in manifest["files"] and "coefficients_imbalance.png" in manifest["files"]
     before = (out / "coefficients_imbalance.csv").read_bytes()
     capsys.readouterr()
-    assert cli.main(["identify", "imbalance", str(cfg4), "--out", str(out)]) == 2
+    assert cli.main(["identify", "imbalance", str(cfg4), "--out", str(out)]) == 1
     assert "already holds results of an earlier run" in capsys.readouterr().err
     assert (out / "coefficients_imbalance.csv").read_bytes() == before
     # a 3-run analysis into the same folder: the 4th run's vectors are stale and go
@@ -49,7 +49,7 @@ def test_identify_refuses_earlier_results_and_removes_stale_ones_with_overwrite(
 def test_an_output_path_that_is_a_file_is_one_clear_error(example, tmp_path, capsys):
     f = tmp_path / "afile"
     f.write_text("x")
-    assert cli.main(["identify", "impact", str(example / "impact.toml"), "--out", str(f)]) == 2
+    assert cli.main(["identify", "impact", str(example / "impact.toml"), "--out", str(f)]) == 1
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "is a file" in err
 
@@ -58,10 +58,10 @@ def test_demo_refuses_a_folder_with_its_figures_and_checks_its_numbers(tmp_path,
     d = tmp_path / "demo"
     d.mkdir()
     (d / "campbell.png").write_bytes(b"not ours")
-    assert cli.main(["demo", "--out", str(d)]) == 2
+    assert cli.main(["demo", "--out", str(d)]) == 1
     assert (d / "campbell.png").read_bytes() == b"not ours"
     assert "--overwrite" in capsys.readouterr().err
     for bad in (["--noise-um", "-1"], ["--step-rpm", "0"]):
-        assert cli.main(["demo", "--out", str(tmp_path / "d2")] + bad) == 2
+        assert cli.main(["demo", "--out", str(tmp_path / "d2")] + bad) == 1
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and bad[0] in err

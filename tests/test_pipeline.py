@@ -147,7 +147,7 @@ def test_cli_on_the_bundled_example(tmp_path):
     assert len(frfs) == 2 and "x1_coherence" in pd.read_csv(d / "out_impact" / frfs[0]).columns
     # a config pointing at a missing file is a clean error, not a traceback
     (d / "bad.toml").write_text((d / "imbalance.toml").read_text().replace("run_S0.tdms", "nope.tdms"))
-    assert cli.main(["identify", "imbalance", str(d / "bad.toml")]) == 2
+    assert cli.main(["identify", "imbalance", str(d / "bad.toml")]) == 1
 
 
 def test_us_customary_report_units(tmp_path):

@@ -80,7 +80,7 @@ def test_frequency_kind_and_compare(tmp_path, recwarn):
     df = pd.read_csv(tmp_path / "p" / "predicted_frequency.csv")
     assert list(df.columns) == ["freq_hz", "speed_rpm"] + list(REPORT_ORDER)
     assert np.all(df.speed_rpm == 3000.0)
-    assert cli.main(["predict", str(path), "--out", str(tmp_path / "p")]) == 2     # no overwrite unasked
+    assert cli.main(["predict", str(path), "--out", str(tmp_path / "p")]) == 1     # no overwrite unasked
     assert cli.main(["check", str(path)]) == 0
 
 
@@ -106,7 +106,7 @@ def test_bad_configs_are_one_line_errors(tmp_path, capsys, edit, match):
     path.write_text(edited)
     with pytest.raises(ConfigError, match=match):
         PC.load_predict_config(path)
-    assert cli.main(["predict", str(path)]) == 2
+    assert cli.main(["predict", str(path)]) == 1
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "error" in err
 
@@ -141,7 +141,7 @@ def test_check_finds_what_predict_would(tmp_path, capsys, edit, match):
     path.write_text(edited)
     with pytest.raises(ConfigError, match=match):
         PC.load_predict_config(path)
-    assert cli.main(["check", str(path)]) == 2
+    assert cli.main(["check", str(path)]) == 1
     assert capsys.readouterr().err.count("\n") == 1
 
 

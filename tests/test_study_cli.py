@@ -51,7 +51,7 @@ def test_same_seed_same_tables_and_no_overwrite(tmp_path, capsys):
     assert (a / "study_errors.csv").read_bytes() == (b / "study_errors.csv").read_bytes()
     before = (a / "study_errors.csv").read_bytes()
     code, out, err = _run(capsys, EXAMPLES["impact"], "--out", str(a), "--trials", "100", "--seed", "4", "-q")
-    assert code == 2 and err.count("\n") == 1 and "--overwrite" in err
+    assert code == 1 and err.count("\n") == 1 and "--overwrite" in err
     assert (a / "study_errors.csv").read_bytes() == before
     code, _, _ = _run(capsys, EXAMPLES["impact"], "--out", str(a), "--trials", "100", "--seed", "4", "-q", "--overwrite")
     assert code == 0 and (a / "study_errors.csv").read_bytes() != before
@@ -124,16 +124,16 @@ def test_bad_study_configs_are_one_line(tmp_path, capsys, cfg, key):
     p = tmp_path / "s.toml"
     p.write_text(cfg if isinstance(cfg, str) else _toml(cfg), encoding="utf-8")
     code, out, err = _run(capsys, str(p), "--out", str(tmp_path / "o"), "-q")
-    assert code == 2 and err.startswith("rotorid: error: ") and err.count("\n") == 1, err
+    assert code == 1 and err.startswith("rotorid: error: ") and err.count("\n") == 1, err
     assert key in err, err
     assert not (tmp_path / "o").exists()
 
 
 def test_missing_config_and_bad_overrides(tmp_path, capsys):
     code, _, err = _run(capsys, str(tmp_path / "none.toml"))
-    assert code == 2 and "not found" in err and "none.toml" in err and err.count("\n") == 1
+    assert code == 1 and "not found" in err and "none.toml" in err and err.count("\n") == 1
     code, _, err = _run(capsys, EXAMPLES["impact"], "--out", str(tmp_path / "o"), "--trials", "0")
-    assert code == 2 and "--trials" in err
+    assert code == 1 and "--trials" in err
 
 
 def test_example_configs_parse_and_document_every_key():
@@ -156,7 +156,7 @@ def test_check_recognises_study_configs(capsys, tmp_path):
     assert "imbalance study with a test design" in capsys.readouterr().out
     p = tmp_path / "s.toml"
     p.write_text(_toml(_edit(study__trials=-1)), encoding="utf-8")
-    assert main(["check", str(p)]) == 2
+    assert main(["check", str(p)]) == 1
     assert "trials" in capsys.readouterr().err
 
 
@@ -189,6 +189,6 @@ def test_unreachable_scheduler_is_one_line_within_seconds(tmp_path, capsys):
     t = time.monotonic()
     code, _, err = _run(capsys, EXAMPLES["impact"], "--out", str(tmp_path / "o"), "--trials", "20", "-q",
                         "--scheduler", "tcp://127.0.0.1:1")
-    assert code == 2 and err.count("\n") == 1 and "scheduler" in err, err
+    assert code == 1 and err.count("\n") == 1 and "scheduler" in err, err
     assert time.monotonic() - t < 30
     assert not any((tmp_path / "o").glob("study_*"))  # no results of a study that did not run

@@ -12,15 +12,40 @@ def _one_line_warning(message, category, filename, lineno, file=None, line=None)
     return f"rotorid: warning: {message}\n"
 
 
-def main(argv=None):
-    import warnings
+#: exit codes (README, "From raw recordings to coefficients")
+EXIT_OK, EXIT_ERROR, EXIT_USAGE, EXIT_STRICT = 0, 1, 2, 3
 
-    warnings.formatwarning = _one_line_warning
-    ap = argparse.ArgumentParser(prog="rotorid", description="Bearing coefficient identification for rigid rotors")
+
+class _Formatter(argparse.HelpFormatter):
+    """Help that shows every option's default (``--help`` of each command), unless the help already
+    says it or there is none to show (flags, options that are off by default)."""
+
+    def _get_help_string(self, action):
+        text = action.help or ""
+        default = action.default
+        if (not (default is None or default is False or default is argparse.SUPPRESS) and "default" not in text
+                and action.option_strings):
+            text += " (default: %(default)s)"
+        return text
+
+
+def _parser() -> argparse.ArgumentParser:
     from . import __version__
 
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--debug", action="store_true", help="on an error, print the full traceback too")
+    ap = argparse.ArgumentParser(prog="rotorid", description="Bearing coefficient identification for rigid rotors",
+                                 epilog="exit codes: 0 done, 1 error (one line on stderr), 2 usage error, "
+                                        "3 identify --strict: done but with flagged points or warnings",
+                                 formatter_class=_Formatter)
     ap.add_argument("--version", action="version", version=f"rotorid {__version__}")
-    sub = ap.add_subparsers(dest="cmd", required=True)
+    sub = ap.add_subparsers(dest="cmd", required=True, metavar="COMMAND")
+    _add = sub.add_parser
+
+    def add_parser(name, **kw):
+        return _add(name, parents=[common], formatter_class=_Formatter, **kw)
+
+    sub.add_parser = add_parser
     d = sub.add_parser("demo", help="run the report's numerical experiments on the built-in NSF rig")
     d.add_argument("--out", default="rotorid_demo", help="output directory for PNG figures and CSV tables")
     d.add_argument("--step-rpm", type=float, default=50.0,
@@ -30,6 +55,7 @@ def main(argv=None):
     d.add_argument("--phase-resolution-deg", type=float, default=None, help="1X phase resolution (deg)")
     d.add_argument("--noise-um", type=float, default=0.0, help="added complex Gaussian noise (µm rms)")
     d.add_argument("--overwrite", action="store_true", help="replace the results of an earlier demo in the folder")
+    d.add_argument("--quiet", "-q", action="store_true", help="no progress lines")
     i = sub.add_parser("identify", help="identify bearing coefficients from raw recordings described by a TOML config")
     i.add_argument("kind", choices=["imbalance", "impact"])
     i.add_argument("config", help="TOML config file (every key: docs/config.md)")
@@ -38,6 +64,7 @@ def main(argv=None):
                    "(stale ones are removed); without it such a folder is refused")
     i.add_argument("--no-plot", action="store_true", help="write the tables only (no PNG figures)")
     i.add_argument("--quiet", "-q", action="store_true", help="no progress lines (errors and warnings still print)")
+    i.add_argument("--verbose", "-v", action="store_true", help="also list every flagged point and why")
     i.add_argument("--strict", action="store_true", help="exit with 3 when points are flagged or warnings fired "
                    "(the results are written all the same)")
     i.add_argument("--report", default=None, metavar="PAGE.html",
@@ -76,11 +103,50 @@ def main(argv=None):
     cp.add_argument("--out", default="rotorid_compare", help="output directory")
     cp.add_argument("--overwrite", action="store_true", help="replace the results of an earlier comparison")
     e = sub.add_parser("example", help="write the bundled example data set (raw recordings + configs) to a directory")
-    e.add_argument("--out", default="rotorid_example")
+    e.add_argument("--out", default="rotorid_example", help="output directory")
     e.add_argument("--overwrite", action="store_true", help="replace files of the example already in the folder")
-    args = ap.parse_args(argv)
+    return ap
+
+
+def main(argv=None) -> int:
+    """Run the command line; returns the exit code (0 done, 1 rotorid error, 2 usage, 3 --strict).
+
+    Errors print as one line on stderr (``rotorid: error: ...``); ``--debug`` adds the traceback.
+    """
+    import warnings
+
+    warnings.formatwarning = _one_line_warning
+    args = _parser().parse_args(argv)   # usage errors: argparse prints them and exits with 2
+    from .errors import RotoridError
+
+    try:
+        return _run(args)
+    except RotoridError as exc:
+        return _fail(args, f"rotorid: error: {exc}")
+    except OSError as exc:   # a file or folder the system refused (permissions, full disk, ...)
+        where = f" {exc.filename!r}" if getattr(exc, "filename", None) else ""
+        return _fail(args, f"rotorid: error: cannot use{where}: {exc.strerror or exc}")
+    except KeyboardInterrupt:
+        print("rotorid: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:  # noqa: BLE001 - a bug: still one line, the traceback on request
+        return _fail(args, f"rotorid: internal error: {type(exc).__name__}: {exc} (run with --debug for the "
+                           "traceback, and please report it)")
+
+
+def _fail(args, line: str) -> int:
+    if getattr(args, "debug", False):
+        import traceback
+
+        traceback.print_exc()
+    print(line, file=sys.stderr)
+    return EXIT_ERROR
+
+
+def _run(args) -> int:
+    import warnings
+
     if args.cmd == "identify":
-        from .errors import RotoridError
         from .pipeline import run_config
 
         shown = []
@@ -89,87 +155,73 @@ def main(argv=None):
             shown.append(message)
             print(_one_line_warning(message, category, filename, lineno), end="", file=sys.stderr)
 
-        try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("default")
-                warnings.showwarning = show
-                ident, _ = run_config(args.config, args.kind, out_dir=args.out, overwrite=args.overwrite,
-                                      log=(lambda m: None) if args.quiet else print, plots=not args.no_plot,
-                                      report=args.report)
-        except RotoridError as exc:
-            print(f"rotorid: error: {exc}", file=sys.stderr)
-            return 2
+        with warnings.catch_warnings():
+            warnings.simplefilter("default")
+            warnings.showwarning = show
+            ident, _ = run_config(args.config, args.kind, out_dir=args.out, overwrite=args.overwrite,
+                                  log=(lambda m: None) if args.quiet else print, plots=not args.no_plot,
+                                  report=args.report)
+        if args.verbose:
+            _list_flagged(ident)
         if args.strict and (shown or not ident.ok.all()):
             print(f"rotorid: strict: {int((~ident.ok).sum())} of {ident.ok.size} points flagged, {len(shown)} "
                   "warning(s): exit 3", file=sys.stderr)
-            return 3
-        return 0
+            return EXIT_STRICT
+        return EXIT_OK
     if args.cmd == "study":
-        from .errors import RotoridError
         from .studies.run import run_study_config
 
-        try:
-            run_study_config(args.config, out_dir=args.out, overwrite=args.overwrite, trials=args.trials,
-                             seed=args.seed, progress=not args.quiet, scheduler=args.scheduler)
-        except RotoridError as exc:
-            print(f"rotorid: error: {exc}", file=sys.stderr)
-            return 2
-        return 0
+        run_study_config(args.config, out_dir=args.out, overwrite=args.overwrite, trials=args.trials,
+                         seed=args.seed, progress=not args.quiet, scheduler=args.scheduler)
+        return EXIT_OK
     if args.cmd == "check":
-        from .config import load_config
-        from .errors import RotoridError
+        from .config import load_config, read_toml
+        from .studies.config import is_study_config, parse_study_config
+        from .support.config import is_predict_config, parse_predict_config
 
-        try:
-            from .config import read_toml
-            from .studies.config import is_study_config, parse_study_config
-
-            data, src, where = read_toml(args.config)
-            from .support.config import is_predict_config, parse_predict_config
-
-            if is_predict_config(data):
-                pcfg = parse_predict_config(data, source=src, base_dir=where, check_files=True)
-                print(f"{args.config}: valid (prediction, {pcfg.predict.kind}; 2 supports, bearing tables present)")
-                return 0
-            if is_study_config(data):
-                scfg = parse_study_config(data, source=src)
-                print(f"{args.config}: valid ({scfg.study.kind} study{' with a test design' if scfg.design else ''})")
-                return 0
-            cfg = load_config(args.config)
-        except RotoridError as exc:
-            print(f"rotorid: error: {exc}", file=sys.stderr)
-            return 2
+        data, src, where = read_toml(args.config)
+        if is_predict_config(data):
+            pcfg = parse_predict_config(data, source=src, base_dir=where, check_files=True)
+            print(f"{args.config}: valid (prediction, {pcfg.predict.kind}; 2 supports, bearing tables present)")
+            return EXIT_OK
+        if is_study_config(data):
+            scfg = parse_study_config(data, source=src)
+            print(f"{args.config}: valid ({scfg.study.kind} study{' with a test design' if scfg.design else ''})")
+            return EXIT_OK
+        cfg = load_config(args.config)
         kinds = [k for k in ("imbalance", "impact") if getattr(cfg, k) is not None]
         n = len(cfg.entries())
         print(f"{args.config}: valid ({', '.join(kinds)}; {n} recording(s) or table(s), all files present)")
-        return 0
-    from .errors import RotoridError
+        return EXIT_OK
+    if args.cmd == "example":
+        from .example import copy_example
 
-    try:
-        if args.cmd == "example":
-            from .example import copy_example
+        path = copy_example(args.out, overwrite=args.overwrite)
+        print(f"example data set written to {path}/ (try: rotorid identify imbalance {path}/imbalance.toml)")
+        return EXIT_OK
+    if args.cmd == "demo":
+        return _demo(args)
+    if args.cmd == "compare":
+        return _compare(args)
+    if args.cmd == "report":
+        return _report(args)
+    if args.cmd == "predict":
+        from .support.config import run_predict_config
 
-            path = copy_example(args.out, overwrite=args.overwrite)
-            print(f"example data set written to {path}/ (try: rotorid identify imbalance {path}/imbalance.toml)")
-            return 0
-        if args.cmd == "demo":
-            return _demo(args)
-        if args.cmd == "compare":
-            return _compare(args)
-        if args.cmd == "report":
-            return _report(args)
-        if args.cmd == "predict":
-            import warnings
+        with warnings.catch_warnings():
+            warnings.simplefilter("default")   # validity warnings: one line each (formatwarning above)
+            run_predict_config(args.config, out_dir=args.out, overwrite=args.overwrite)
+        return EXIT_OK
+    raise AssertionError(f"unhandled command {args.cmd!r}")  # argparse only lets the commands above through
 
-            from .support.config import run_predict_config
 
-            with warnings.catch_warnings():
-                warnings.simplefilter("default")   # validity warnings: one line each (formatwarning above)
-                run_predict_config(args.config, out_dir=args.out, overwrite=args.overwrite)
-            return 0
-    except RotoridError as exc:
-        print(f"rotorid: error: {exc}", file=sys.stderr)
-        return 2
-    return 0
+def _list_flagged(ident) -> None:
+    """``identify -v``: every flagged point and why, one line each."""
+    axis = "rpm" if ident.axis_name == "speed_rpm" else "Hz"
+    flagged = [(float(x), str(f)) for x, f, ok in zip(ident.axis, ident.flag, ident.ok) if not ok]
+    print(f"{len(flagged)} of {ident.axis.size} points flagged" + (":" if flagged else ""))
+    for x, why in flagged:
+        print(f"  {x:10.5g} {axis}: {why}")
 
 
 def _read_truth(path):
@@ -262,11 +314,20 @@ def _demo(args):
         amplitude_m=base.amplitude_m if args.amplitude_resolution_um is None else args.amplitude_resolution_um * 1e-6,
         phase_deg=base.phase_deg if args.phase_resolution_deg is None else args.phase_resolution_deg,
         noise_m=args.noise_um * 1e-6)
-    out = demo.synchronous(args.out, step_rpm=args.step_rpm, resolution=res)
-    imp = demo.impact(args.out)
-    ped = demo.pedestal(args.out)
-    ser = demo.series_support(args.out)
-    files = out["files"] + imp["files"] + ped["files"] + ser["files"]
+    import time
+
+    files = []
+    log = (lambda m: None) if args.quiet else print
+    steps = [("Table 5, Campbell diagram, imbalance identification (Figures 3-5)",
+              lambda: demo.synchronous(args.out, step_rpm=args.step_rpm, resolution=res, log=log)),
+             ("impact identification (Figures 6-7)", lambda: demo.impact(args.out, log=log)),
+             ("flexible pedestals", lambda: demo.pedestal(args.out, log=log)),
+             ("series support prediction", lambda: demo.series_support(args.out, log=log))]
+    for i, (what, step) in enumerate(steps, 1):
+        t0 = time.perf_counter()
+        log(f"[{i}/{len(steps)}] {what}")
+        files += step()["files"]
+        log(f"[{i}/{len(steps)}] done in {time.perf_counter() - t0:.0f} s")
     for f in files:
         folder.record(os.path.basename(f))
     folder.finish()
