@@ -483,3 +483,83 @@ def test_methods_delegate_to_the_bridge(stiff):
         np.testing.assert_array_equal(ea.frequency, eb.frequency)
         np.testing.assert_array_equal(ea.kxx, eb.kxx)
         np.testing.assert_array_equal(ea.cxy, eb.cxy)
+
+
+# -- regressions ---------------------------------------------------------------------------------------------------
+def test_polar_inertia_is_what_ross_simulates():
+    """Shaft elements built with gyroscopic=False have no gyroscopic terms in ROSS: the rigid rotor's Ip
+    is then the disks' alone (it was rotor.Ip, shaft included: 5 % response error at 40 000 rpm)."""
+    mat = ross.Material(name="StiffGyro", rho=RHO, E=1e4 * STEEL_E, G_s=1e4 * STEEL_E / 2.6)
+    rpm = np.array([3000.0, 20000.0, 40000.0])
+    imb = rotorid.Imbalance((2e-3, 1e-3), (30.0, 100.0))
+    k = np.array([[[3e6, 4e5], [-3e5, 4e6]], [[2e6, 0.0], [0.0, 2.6e6]]])
+    c = np.array([[[1200.0, 0.0], [0.0, 1500.0]], [[900.0, 0.0], [0.0, 1100.0]]])
+    bc = rotorid.BearingCoefficients(k, c)
+    for gyro in (True, False):
+        sh = [ross.ShaftElement(0.1, 0.02, od, material=mat, gyroscopic=gyro) for od in (0.1, 0.12, 0.12, 0.12, 0.12, 0.1)]
+        brg = [ross.BearingElement(n=n, kxx=kb[0, 0], kxy=kb[0, 1], kyx=kb[1, 0], kyy=kb[1, 1], cxx=cb[0, 0],
+                                   cxy=cb[0, 1], cyx=cb[1, 0], cyy=cb[1, 1]) for n, kb, cb in zip((1, 5), k, c)]
+        rot = ross.Rotor(sh, [ross.DiskElement(n=2, m=12.0, Id=0.05, Ip=0.01)], brg)
+        rr = rigid_rotor_from_ross(rot, (1, 5), imbalance_nodes=(2, 4), imbalance_radii=(0.05, 0.05))
+        assert rr.ip_kgm2 == pytest.approx(rot.Ip if gyro else 0.01, rel=1e-12)
+        got = sync_response_from_ross(rot.run_unbalance_response(frequency=rpm * np.pi / 30,
+                                                                  **imbalance_to_ross(imb, rotor=rr, ross_rotor=rot)),
+                                      rotor=rr).q
+        want = rotorid.imbalance_response(rr, bc, imb, speed_rpm=rpm, at="probes").q
+        assert np.abs(got - want).max() < 1e-4 * np.abs(want).max(), gyro  # measured 1e-6 (the shaft's flexibility)
+
+
+def test_multirotor_is_refused():
+    from ross.multi_rotor import two_shaft_rotor_example
+
+    multi = two_shaft_rotor_example()
+    with pytest.raises(RotoridError, match="MultiRotor"):
+        rigid_rotor_from_ross(multi, (0, 2))
+    with pytest.raises(RotoridError, match="MultiRotor"):
+        mass_properties(multi)
+
+
+def test_bad_extra_arguments_are_refused(stiff):
+    """Extra keywords ROSS's BearingElement would swallow silently (a typo) or that clash with what
+    to_ross sets, non-sequence tags, non-numeric unbalances: RotoridError, not TypeError/ValueError."""
+    ident = rotorid.identify_synchronous(stiff["rr"], list(stiff["runs"].values()))
+    for kw, match in ((dict(tags=5), "tags"), (dict(n_lnk=3), "unknown keyword.*n_lnk"), (dict(n=3), "sets n"),
+                      (dict(kxx=1.0), "sets kxx"), (dict(frequency=[1.0, 2.0]), "sets frequency"),
+                      (dict(n_link="a"), "n_link"), (dict(stochastic=True, n_lnk=3), "ST_BearingElement")):
+        with pytest.raises(RotoridError, match=match):
+            quiet(to_ross, ident, nodes=BEARING_NODES, **kw)
+    b1, _ = quiet(to_ross, ident, nodes=BEARING_NODES, mxx=1.5, scale_factor=2.0)
+    assert b1.mxx[0] == 1.5
+    rot, rr = stiff["rot"], stiff["rr"]
+    with pytest.raises(RotoridError, match="unbalance_phase"):
+        imbalance_from_ross([2], [1e-4], ["a"], rotor=rr, ross_rotor=rot)
+    with pytest.raises(RotoridError, match=r"imbalance_nodes must be a pair .*\(imbalance plane 1, imbalance plane 2\)"):
+        rigid_rotor_from_ross(rot, BEARING_NODES, imbalance_nodes=2)
+
+
+def test_stochastic_impact_export_between_frequencies_keeps_the_standard_errors():
+    """Exported at a speed between two identified frequencies, the samples' spread is the interpolated
+    standard error (it was the average of two independent draws: 1/√2 of it midway)."""
+    rig = rotorid.nsf_rig()
+    f = np.linspace(20.0, 120.0, 21)
+    rng = np.random.default_rng(0)
+    tests = []
+    for plane, d in ((0.0, "x"), (0.0, "y"), (0.1, "x"), (0.1, "y")):
+        t = rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=3000.0, freq_hz=f, plane=plane, direction=d)
+        t.q = t.q * (1 + 0.01 * (rng.standard_normal(t.q.shape) + 1j * rng.standard_normal(t.q.shape)))
+        tests.append(t)
+    ident = rotorid.identify_impact(rig.rotor, tests, min_rel_amplitude=0.0)
+    assert ident.std_source == "residual"
+    i = int(np.searchsorted(f, 52.5))  # 50 and 55 Hz bracket 3150 rpm, midway
+    want_k = 0.5 * (ident.k_std[i - 1] + ident.k_std[i])
+    want_c = 0.5 * (ident.c_std[i - 1] + ident.c_std[i])
+    st = quiet(to_ross, ident, nodes=(1, 5), speed_rpm=3150.0, stochastic=True, n_samples=3000, seed=2,
+               drop_flagged=False)
+    for b, s in enumerate(st):
+        els = list(iter(s))
+        k = np.array([e.K(0.0)[:2, :2] for e in els])
+        c = np.array([e.C(0.0)[:2, :2] for e in els])
+        np.testing.assert_allclose(k.std(0), want_k[b], rtol=0.1)
+        np.testing.assert_allclose(c.std(0), want_c[b], rtol=0.1)
+        np.testing.assert_allclose(k.mean(0), 0.5 * (ident.k[i - 1, b] + ident.k[i, b]), rtol=0,
+                                   atol=5 * want_k[b].max() / np.sqrt(3000))

@@ -64,12 +64,12 @@ def _node(name, value):
     return int(value)
 
 
-def _node_pair(name, value):
+def _node_pair(name, value, what="bearing"):
     if isinstance(value, (str, bytes)) or not hasattr(value, "__len__") or len(value) != 2:
-        raise RotoridError(f"{name} must be a pair of ROSS node numbers (bearing 1, bearing 2), got {value!r}")
+        raise RotoridError(f"{name} must be a pair of ROSS node numbers ({what} 1, {what} 2), got {value!r}")
     a, b = _node(f"{name}[0]", value[0]), _node(f"{name}[1]", value[1])
     if a == b:
-        raise RotoridError(f"{name} gives the same node twice ({a}): the two bearings must be at different nodes")
+        raise RotoridError(f"{name} gives the same node twice ({a}): the two {what}s must be at different nodes")
     return a, b
 
 
@@ -123,7 +123,9 @@ def mass_properties(rotor) -> dict:
         ``mass_kg``; ``cg_m``, the CG's axial position in ROSS's frame (``rotor.nodes_pos``);
         ``it_kgm2``, the transverse inertia about the CG (from rigid tilting in the x-z plane);
         ``it_yz_kgm2`` the same from the y-z plane (equal for axisymmetric elements); ``ip_kgm2``,
-        the polar inertia (ROSS's ``rotor.Ip``: shaft elements and disks).
+        the polar inertia from the gyroscopic matrix moved as a rigid body (ROSS's ``rotor.Ip``, shaft
+        elements and disks, unless shaft elements are built with ``gyroscopic=False``: as ROSS
+        simulates them, like the transverse inertia follows ``rotary_inertia=False``).
 
     Examples
     --------
@@ -135,7 +137,11 @@ def mass_properties(rotor) -> dict:
     >>> round(float(p["mass_kg"] - rotor.m), 9), round(float(p["cg_m"] - rotor.CG), 9)
     (0.0, 0.0)
     """
+    ross = _ross()
     _check_ross_rotor(rotor)
+    if isinstance(rotor, getattr(ross, "MultiRotor", ())):
+        raise RotoridError("rotor is a ross.MultiRotor (geared shafts turning at different speeds), not one rigid "
+                           "body: use one of its shafts, rotor.rotors['driving'] or rotor.rotors['driven']")
     dofs = _rotor_dofs(rotor)
     M0 = np.asarray(rotor.M0, dtype=float)
     pos = {n: _z(rotor, n) for n in rotor.nodes}
@@ -159,8 +165,11 @@ def mass_properties(rotor) -> dict:
     cg = float(ux @ M0 @ rigid("x", "beta", 0.0)) / m
     tx = rigid("x", "beta", cg)
     ty = rigid("y", "alpha", cg, sign=-1.0)
+    # the gyroscopic coupling of the two rigid tilts: G0 is skew, ty' G0 tx = Ip (rotor.Ip for the default
+    # elements; without the gyroscopic terms of elements built with gyroscopic=False, as ROSS simulates them)
+    G0 = np.asarray(rotor.G0, dtype=float)
     return dict(mass_kg=m, cg_m=cg, it_kgm2=float(tx @ M0 @ tx), it_yz_kgm2=float(ty @ M0 @ ty),
-                ip_kgm2=float(rotor.Ip))
+                ip_kgm2=float(ty @ G0 @ tx))
 
 
 # -- rotor ----------------------------------------------------------------------------------------
@@ -235,7 +244,7 @@ def rigid_rotor_from_ross(rotor, bearing_nodes, probe_positions=None, *, imbalan
     if imbalance_nodes is None:
         d = (0.0, 0.0)
     else:
-        a, b = _node_pair("imbalance_nodes", imbalance_nodes)
+        a, b = _node_pair("imbalance_nodes", imbalance_nodes, "imbalance plane")
         za = _z(rotor, _rotor_node(rotor, "imbalance_nodes[0]", a))
         zb = _z(rotor, _rotor_node(rotor, "imbalance_nodes[1]", b))
         d = (cg - za, zb - cg)
@@ -323,7 +332,7 @@ def imbalance_to_ross(imbalance, *, rotor, ross_rotor, nodes=None) -> dict:
     if nodes is None:
         nodes = [_node_at(ross_rotor, cg, planes[i], f"imbalance plane {i + 1}", tol) for i in range(2)]
     else:
-        a, b = _node_pair("nodes", nodes)
+        a, b = _node_pair("nodes", nodes, "imbalance plane")
         nodes = [_rotor_node(ross_rotor, "nodes[0]", a), _rotor_node(ross_rotor, "nodes[1]", b)]
         for i, n in enumerate(nodes):
             zr = _z(ross_rotor, n) - cg
@@ -373,8 +382,10 @@ def imbalance_from_ross(node, unbalance_magnitude, unbalance_phase, *, rotor, ro
     rotor = _check_rigid("rotor", rotor)
     _check_ross_rotor(ross_rotor, "ross_rotor")
     nodes = np.atleast_1d(np.asarray(node, dtype=object))
-    mags = np.atleast_1d(np.asarray(unbalance_magnitude, dtype=float))
-    phases = np.atleast_1d(np.asarray(unbalance_phase, dtype=float))
+    from ._validate import real_array
+
+    mags = np.atleast_1d(real_array("unbalance_magnitude (kg·m)", unbalance_magnitude, finite=False))
+    phases = np.atleast_1d(real_array("unbalance_phase (rad)", unbalance_phase, finite=False))
     if nodes.ndim != 1 or not (nodes.size == mags.size == phases.size) or nodes.size == 0:
         raise RotoridError(f"node, unbalance_magnitude and unbalance_phase must have the same length (one unbalance "
                            f"per node), got {nodes.size}, {mags.size} and {phases.size}")
@@ -451,7 +462,7 @@ def sync_response_from_ross(response, *, rotor, at="probes", nodes=None, imbalan
     if nodes is None:
         nodes = [_node_at(ross_rotor, cg, planes[i], f"{what} {i + 1}", tol) for i in range(2)]
     else:
-        a, b = _node_pair("nodes", nodes)
+        a, b = _node_pair("nodes", nodes, what)
         nodes = [_rotor_node(ross_rotor, "nodes[0]", a), _rotor_node(ross_rotor, "nodes[1]", b)]
         for i, n in enumerate(nodes):
             zr = _z(ross_rotor, n) - cg
@@ -501,10 +512,12 @@ def _select(ident, drop_flagged):
     return sel
 
 
-def _samples(ident, sel, n_samples, seed):
+def _samples(ident, sel, n_samples, seed, common=False):
     """(points, samples, 2, 2, 2) normal samples of k and c with the identified uncertainty: the
     full 16 x 16 covariance of each point where the identification carries it, else independent
-    coefficients with the standard errors."""
+    coefficients with the standard errors. Independent between points, or with ``common`` drawn
+    from the same standard normals at every point (so that a sample interpolated between two
+    points has the interpolated standard error, not one shrunk by averaging two independent draws)."""
     from ._validate import index
     from ._validate import seed as check_seed
     from .model import _REPORT_TO_BIJ
@@ -520,18 +533,21 @@ def _samples(ident, sel, n_samples, seed):
     k = np.empty((sel.size, n_samples, 2, 2, 2))
     c = np.empty_like(k)
     cov = ident.cov
+    z0 = rng.standard_normal((n_samples, 16)) if common else None
     for j, i in enumerate(sel):
+        z = z0 if common else rng.standard_normal((n_samples, 16))
         if cov is not None and np.isfinite(cov[i]).all():
             mean = np.concatenate([ident.k[i].reshape(8)[_REPORT_TO_BIJ], ident.c[i].reshape(8)[_REPORT_TO_BIJ]])
-            s = rng.multivariate_normal(mean, cov[i], size=n_samples, method="eigh")
+            lam, vec = np.linalg.eigh(cov[i])
+            s = mean + z @ (vec * np.sqrt(np.clip(lam, 0.0, None))).T
             kk = np.empty((n_samples, 8))
             cc = np.empty((n_samples, 8))
             kk[:, _REPORT_TO_BIJ] = s[:, :8]
             cc[:, _REPORT_TO_BIJ] = s[:, 8:]
             k[j], c[j] = kk.reshape(-1, 2, 2, 2), cc.reshape(-1, 2, 2, 2)
         else:
-            k[j] = ident.k[i] + ks[j] * rng.standard_normal((n_samples, 2, 2, 2))
-            c[j] = ident.c[i] + cs[j] * rng.standard_normal((n_samples, 2, 2, 2))
+            k[j] = ident.k[i] + ks[j] * z[:, :8].reshape(-1, 2, 2, 2)
+            c[j] = ident.c[i] + cs[j] * z[:, 8:].reshape(-1, 2, 2, 2)
     return k, c
 
 
@@ -585,7 +601,9 @@ def to_ross(ident, *, nodes, drop_flagged=True, impact_as="synchronous", speed_r
         Return ``ross.stochastic.ST_BearingElement``s of ``n_samples`` normal samples of the
         coefficients: with the 16 x 16 covariance of each point where the identification carries
         one (measurement covariance), else independent with the standard errors (residual
-        based). Samples are independent between points.
+        based). Samples are independent between points; an impact identification exported at
+        ``speed_rpm`` between two identified frequencies interpolates the samples of the two
+        with the same normal draws, i.e. the standard errors linearly as well.
     n_samples : int
     seed : int, optional
         Random seed of the samples.
@@ -627,8 +645,10 @@ def to_ross(ident, *, nodes, drop_flagged=True, impact_as="synchronous", speed_r
     if not isinstance(drop_flagged, (bool, np.bool_)) or not isinstance(stochastic, (bool, np.bool_)):
         raise RotoridError("drop_flagged and stochastic must be True or False")
     choice("impact_as", impact_as, {"synchronous", "table"})
-    if tags is not None and (isinstance(tags, str) or len(tags) != 2):
+    if tags is not None and (isinstance(tags, (str, bytes)) or not hasattr(tags, "__len__") or len(tags) != 2):
         raise RotoridError(f"tags must be a pair of names (bearing 1, bearing 2), got {tags!r}")
+    _check_element_kwargs(_ross_stochastic().ST_BearingElement if stochastic else ross.BearingElement,
+                          element_kwargs)
     sel = _select(ident, bool(drop_flagged))
     axis = ident.axis[sel]
     at_speed = None
@@ -652,7 +672,8 @@ def to_ross(ident, *, nodes, drop_flagged=True, impact_as="synchronous", speed_r
                 raise RotoridError(f"speed_rpm = {speed_rpm:g} ({at_speed:g} Hz) is outside the identified (and kept) "
                                    f"frequencies {lo:g}..{hi:g} Hz: the 1X coefficients cannot be interpolated")
     if stochastic:
-        k, c = _samples(ident, sel, n_samples, seed)  # (points, samples, 2, 2, 2)
+        # (points, samples, 2, 2, 2); one set of normals for all points when interpolated at 1X below
+        k, c = _samples(ident, sel, n_samples, seed, common=at_speed is not None)
     else:
         k, c = ident.k[sel], ident.c[sel]              # (points, 2, 2, 2)
     if at_speed is not None:
@@ -684,6 +705,26 @@ def to_ross(ident, *, nodes, drop_flagged=True, impact_as="synchronous", speed_r
                 _check_table(el, w, k[:, b], c[:, b], b)
             out.append(el)
     return tuple(out)
+
+
+def _check_element_kwargs(cls, kwargs):
+    """Refuse extra keywords that to_ross sets itself or that the ROSS element does not take
+    (ROSS's BearingElement swallows unknown keywords silently)."""
+    import inspect
+
+    own = {"n", "frequency", "tag", "is_random"} | {a + nm[1:] for a in "kc" for nm, _, _ in _ROSS_NAMES}
+    clash = sorted(set(kwargs) & own)
+    if clash:
+        raise RotoridError(f"to_ross sets {', '.join(clash)} itself (from the identification, nodes= and tags=): "
+                           "leave them out of the extra keywords")
+    params = inspect.signature(cls.__init__).parameters.values()
+    allowed = {p.name for p in params if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)} - own - {"self"}
+    unknown = sorted(set(kwargs) - allowed)
+    if unknown:
+        raise RotoridError(f"unknown keyword(s) {', '.join(unknown)} for ROSS's {cls.__name__}: to_ross passes on "
+                           f"only {', '.join(sorted(allowed))}")
+    if kwargs.get("n_link") is not None:
+        _node("n_link", kwargs["n_link"])
 
 
 def _check_table(el, w, k, c, b):
