@@ -377,3 +377,147 @@ def test_docstring_examples():
 
     res = doctest.testmod(rotorid.report, optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
     assert res.attempted >= 4 and res.failed == 0
+
+
+# --- regressions (review of the report feature) -------------------------------------------------
+
+import rotorid.exports  # noqa: E402  (the lazy package does not load it by attribute)
+
+
+def _zero_point_ident():
+    """Two runs with no response at the second speed: a singular point (cond = inf)."""
+    rig = rotorid.nsf_rig()
+    rpm = np.arange(2000.0, 4001.0, 500.0)
+    runs = [rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=rpm) for s in "AB"]
+    for r in runs:
+        r.q[1] = 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return rotorid.identify_synchronous(rig.rotor, runs)
+
+
+def test_json_round_trip_keeps_infinite_cond_of_singular_points():
+    ident = _zero_point_ident()
+    assert np.isinf(ident.cond[1]).all() and ident.flag[1] == "singular"
+    for units in ("SI", "US"):
+        back = rotorid.exports.from_json(ident.to_json(units=units))
+        np.testing.assert_array_equal(back.cond, ident.cond)      # inf, not NaN (null in "cond")
+    assert "cond ∞ (bearing 1), ∞ (bearing 2)" in render_report(back)
+
+
+def test_json_round_trip_adds_no_bias_where_there_was_none():
+    # noise-free impacts, 3 tests (redundant): no estimator bias; the reader must not rebuild one
+    # from the rounding of the stored intervals (that is for documents without the "K_bias" key)
+    rig = rotorid.nsf_rig()
+    f = np.arange(5.0, 150.01, 5.0)
+    tests = [rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=1000, freq_hz=f, plane=p, direction=d)
+             for p, d in ((0.0, "x"), (0.0, "y"), (0.05, "x"))]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ident = rotorid.identify_impact(rig.rotor, tests)
+    assert ident.k_bias is None
+    for units in ("SI", "US"):
+        back = rotorid.exports.from_json(ident.to_json(units=units))
+        assert back.k_bias is None and back.c_bias is None
+        np.testing.assert_allclose(back.interval().k_upper, ident.interval().k_upper, rtol=1e-12)
+
+
+@pytest.mark.parametrize("key, value", [("flag_code", ["a", "b", "c", "d", "e"]), ("flag_code", [2 ** 70] * 5),
+                                        ("flag_code", [0.5] * 5), ("flag_reasons", 5), ("flag_reasons", "abc")])
+def test_from_json_rebuilds_garbled_flag_codes(key, value):
+    ident = _zero_point_ident()
+    doc = json.loads(ident.to_json())
+    doc[key] = value
+    back = rotorid.exports.from_json(json.dumps(doc))
+    assert list(back.flag) == list(ident.flag) and list(back.ok) == list(ident.ok)
+
+
+def test_from_json_refuses_runs_that_are_not_a_list():
+    doc = json.loads(_zero_point_ident().to_json())
+    doc["runs"] = "S0"
+    with pytest.raises(RotoridError, match="'runs' must be a list"):
+        rotorid.exports.from_json(json.dumps(doc))
+
+
+@pytest.mark.parametrize("key, value, match", [
+    ("input_files", [{"name": "a.csv", "size": "x", "sha256": "00"}], "input_files must be"),
+    ("responses", [{"name": "S0", "axis": [1.0, 2.0], "re": [[1, 2, 3, 4], [1]], "im": [[1, 2, 3, 4], [1]]}],
+     "lists of numbers"),
+])
+def test_garbled_context_is_a_one_line_error(tmp_path, capsys, ident, key, value, match):
+    p = rotorid.exports.to_json(ident, tmp_path / "r.json", context={key: value})
+    assert cli.main(["report", str(p), "--out", str(tmp_path / "p.html")]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("rotorid: error:") and match in err and "internal error" not in err
+    assert not (tmp_path / "p.html").exists()
+
+
+def test_report_truth_with_ragged_lists_is_a_one_line_error(tmp_path, capsys, ident):
+    p = rotorid.exports.to_json(ident, tmp_path / "r.json")
+    bad = _write(tmp_path / "t.toml", "k = [[[1, 2], [3]], [[1, 2], [3, 4]]]\nc = 1\n")
+    assert cli.main(["report", str(p), "--out", str(tmp_path / "p.html"), "--truth", str(bad)]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("rotorid: error: --truth") and "internal error" not in err
+
+
+def test_dollar_signs_in_names_do_not_break_the_figures(ident):
+    rig = rotorid.nsf_rig()
+    runs = [rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=[3000.0, 4000.0])
+            for s in "AB"]
+    runs[0].name = "mass $^$ 5 g"                     # mathtext that matplotlib cannot parse
+    page = render_report(ident, responses=runs, title="rig $\\frac$ day 1")
+    assert "mass $^$ 5 g" in page and "rig $\\frac$ day 1" in page
+
+
+def test_coefficients_json_without_context_keeps_its_units(tmp_path, ident):
+    ident.to_json(tmp_path / "coefficients_imbalance.json", units="US")
+    _, ctx = load_result(tmp_path)
+    assert ctx["units"] == "US"
+
+
+def _table_config(example, tmp_path, extra=""):
+    cfg = os.path.join(example, "imbalance_1x_table.toml")
+    text = open(cfg, encoding="utf-8").read().replace('units = "SI"', 'units = "SI"' + extra)
+    return _write(tmp_path / "c.toml", text.replace('"daq_1x/', f'"{example}/daq_1x/'))
+
+
+def test_report_option_named_like_the_config_key_goes_where_it_says(example, tmp_path, monkeypatch):
+    # [output] report = "day1.html" and --report day1.html: the option's file is in the working folder
+    cfg = _table_config(example, tmp_path, '\nreport = "day1.html"')
+    cwd = tmp_path / "cwd"
+    cwd.mkdir()
+    monkeypatch.chdir(cwd)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert cli.main(["identify", "imbalance", str(cfg), "--out", str(tmp_path / "o"), "-q", "--no-plot",
+                         "--report", "day1.html"]) == 0
+    assert (cwd / "day1.html").is_file() and not (tmp_path / "o" / "day1.html").exists()
+
+
+def test_report_outside_the_folder_that_cannot_be_written(example, tmp_path, monkeypatch):
+    from rotorid import pipeline, report
+
+    cfg = _table_config(example, tmp_path)
+    elsewhere = tmp_path / "share"
+    elsewhere.mkdir()
+    real_access = os.access
+    # a folder without write permission is refused before anything is computed
+    monkeypatch.setattr(os, "access", lambda p, mode: False if str(p) == str(elsewhere) else real_access(p, mode))
+    with pytest.raises(RotoridError, match="not writable"):
+        pipeline.run_config(cfg, "imbalance", out_dir=str(tmp_path / "o"), log=lambda m: None, plots=False,
+                            report=str(elsewhere / "p.html"))
+    assert not (tmp_path / "o").exists()
+    monkeypatch.setattr(os, "access", real_access)
+
+    # a page that fails to be written all the same leaves complete results with their manifest
+    def fail(*a, **k):
+        raise RotoridError("cannot write the page: disk full")
+
+    monkeypatch.setattr(report, "write_report", fail)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        with pytest.raises(RotoridError, match="disk full"):
+            pipeline.run_config(cfg, "imbalance", out_dir=str(tmp_path / "o"), log=lambda m: None, plots=False,
+                                report=str(elsewhere / "p.html"))
+    manifest = json.loads((tmp_path / "o" / "rotorid-manifest.json").read_text())
+    assert "result_imbalance.json" in manifest["files"] and not (elsewhere / "p.html").exists()

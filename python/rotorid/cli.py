@@ -244,6 +244,9 @@ def _read_truth(path):
         return BearingCoefficients(t["k"], t["c"])
     except RotoridError as exc:
         raise RotoridError(f"--truth {path!r}: {exc}") from None
+    except (TypeError, ValueError):   # ragged or mixed lists that numpy refuses
+        raise RotoridError(f"--truth {path!r}: k and c must be 2 x 2 x 2 lists of numbers "
+                           "([bearing][i][j], N/m and N*s/m)") from None
 
 
 def _report(args):

@@ -44,7 +44,7 @@ def _target(path, overwrite, suffixes):
     if p.suffix.lower() not in suffixes:
         raise RotoridError(f"path {str(p)!r} must end in {' or '.join(suffixes)}")
     if p.exists() and not overwrite:
-        raise RotoridError(f"{str(p)!r} exists; pass overwrite=True to replace it")
+        raise RotoridError(f"{str(p)!r} exists; pass overwrite=True (--overwrite) to replace it")
     if p.exists() and p.is_dir():
         raise RotoridError(f"{str(p)!r} is a folder")
     if not p.parent.exists():
@@ -281,6 +281,8 @@ def to_json(ident, path=None, *, units: str = "SI", overwrite: bool = False, con
                 # "dof" holds null for infinite degrees of freedom (a known covariance)
                 "dof_infinite": [bool(v) for v in np.isinf(np.asarray(
                     ident.dof if ident.dof is not None else np.full(n, np.nan), float))],
+                # "cond" holds null for an infinite condition number (a singular point) too
+                "cond_infinite": np.isinf(np.asarray(ident.cond, float)).tolist(),
                 "flag_code": [int(v) for v in np.asarray(ident.flag_code).reshape(n)],
                 "flag_reasons": [str(r) for r in ident.flag_reasons], "runs": [str(r) for r in ident.runs]})
     if context is not None:
@@ -414,6 +416,9 @@ def from_json(source):
         # older documents: null is infinite where the intervals are known
         known = np.isfinite(arr("K_upper95", s4, ku)).any(axis=(1, 2, 3))
         dof[np.isnan(dof) & known] = np.inf
+    cinf = doc.get("cond_infinite")
+    if isinstance(cinf, list) and np.shape(cinf) == (n, 2) and all(isinstance(v, bool) for r in cinf for v in r):
+        cond[np.array(cinf, dtype=bool)] = np.inf   # singular points (null in "cond")
     ok, flag = doc["ok"], doc["flag"]
     if not (isinstance(ok, list) and len(ok) == n and all(isinstance(v, bool) for v in ok)):
         raise RotoridError(f"{name}: 'ok' must be a list of {n} true/false")
@@ -422,10 +427,13 @@ def from_json(source):
     ok = np.array(ok, dtype=bool)
     code = doc.get("flag_code")
     reasons = doc.get("flag_reasons")
-    if code is not None and reasons is not None:
+    if not (isinstance(code, list) and len(code) == n and all(type(v) is int and 0 <= v < 2 ** 62 for v in code)
+            and isinstance(reasons, list) and all(isinstance(r, str) for r in reasons)):
+        code = reasons = None   # absent or garbled: rebuilt from the flag strings below
+    if code is not None:
         code = np.array(code, dtype=np.int64)
-        reasons = tuple(str(r) for r in reasons)
-        if code.shape != (n,) or list(_flag_strings(code, reasons)) != flag:
+        reasons = tuple(reasons)
+        if list(_flag_strings(code, reasons)) != flag:
             code = None
     if code is None or reasons is None:
         # rebuilt from the strings (documents written before the codes were stored)
@@ -437,7 +445,8 @@ def from_json(source):
                 if r:
                     code[i] |= 1 << reasons.index(r)
     estimator = str(doc.get("estimator", "ls"))
-    if k_bias is None and estimator == "ls" and "K_upper95" in doc and "C_upper95" in doc:
+    if "K_bias" not in doc and estimator == "ls" and "K_upper95" in doc and "C_upper95" in doc:
+        # older documents (no "K_bias" key; null in newer ones means no bias)
         from .uncertainty import t_quantile
 
         t = t_quantile(0.95, dof if dof is not None else np.full(n, np.nan))[:, None, None, None]
@@ -449,7 +458,10 @@ def from_json(source):
             c_bias = np.where(np.isfinite(bc), np.where(bc > 1e-9 * np.abs(hc), bc, 0.0), np.nan)
         if not (np.nanmax(k_bias, initial=0.0) > 0 or np.nanmax(c_bias, initial=0.0) > 0):
             k_bias = c_bias = None
+    runs = doc.get("runs", [])
+    if not (isinstance(runs, list) and all(isinstance(r, (str, int, float)) for r in runs)):
+        raise RotoridError(f"{name}: 'runs' must be a list of run or test names")
     return Identification(axis_name, axis, k, c, cond, residual,
                           rel_amp if rel_amp is not None else np.full(n, np.nan), k_std, c_std, ok, code,
-                          str(doc["method"]), [str(r) for r in doc.get("runs", [])], str(doc.get("std_source", "none")),
+                          str(doc["method"]), [str(r) for r in runs], str(doc.get("std_source", "none")),
                           dof, None, rel_std, k_res, c_res, k_bias, c_bias, estimator, reasons)

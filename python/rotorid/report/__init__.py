@@ -90,7 +90,8 @@ def _input_files(files):
     out = file_checksums(paths) if len(paths) == len(files) else []
     if not out:
         for f in files:
-            if not (isinstance(f, dict) and {"size", "sha256"} <= set(f) and ("name" in f or "path" in f)):
+            if not (isinstance(f, dict) and {"size", "sha256"} <= set(f) and ("name" in f or "path" in f)
+                    and type(f["size"]) is int and isinstance(f["sha256"], str)):
                 raise RotoridError("input_files must be a list of paths or of {'name', 'size', 'sha256'} dicts, got "
                                    f"an item {f!r}")
             out.append(f)
@@ -106,8 +107,13 @@ def _responses(responses):
         if isinstance(r, SyncResponse):
             out.append((r.name or f"{len(out)}", np.asarray(r.speed_rpm, float), np.asarray(r.q)))
         elif isinstance(r, dict) and {"axis", "re", "im"} <= set(r):
-            q = np.asarray(r["re"], float) + 1j * np.asarray(r["im"], float)
-            out.append((str(r.get("name", len(out))), np.asarray(r["axis"], float), q))
+            try:
+                q = np.asarray(r["re"], float) + 1j * np.asarray(r["im"], float)
+                axis = np.asarray(r["axis"], float)
+            except (TypeError, ValueError):
+                raise RotoridError(f"response {r.get('name', len(out))!r}: axis, re and im must be lists of numbers "
+                                   "(re and im as [point][x1, x2, y1, y2])") from None
+            out.append((str(r.get("name", len(out))), axis, q))
         else:
             raise RotoridError(f"responses must be SyncResponses (or the dicts of a result file), got "
                                f"{type(r).__name__}")
@@ -348,6 +354,8 @@ def load_result(path):
         raise RotoridError(f"{f!r}: 'context' must be a JSON object")
     out = {k: ctx[k] for k in _CONTEXT_KEYS if ctx.get(k) is not None}
     out.setdefault("version", str(doc.get("rotorid_version", "")) or None)
+    if "units" not in out and doc["units"].get("K") == "lbf/in":
+        out["units"] = "US"   # a document without context (coefficients_<kind>.json): the units it was written in
     if out.get("units") not in ("SI", "US"):
         out.pop("units", None)
     return ident, {k: v for k, v in out.items() if v is not None}

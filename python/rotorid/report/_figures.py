@@ -28,10 +28,15 @@ def data_uri(png: bytes) -> str:
     return "data:image/png;base64," + base64.b64encode(png).decode("ascii")
 
 
+def mpl_text(s) -> str:
+    """A user's text as matplotlib draws it literally (a "$" would start mathtext, which can fail)."""
+    return str(s).replace("$", r"\$")
+
+
 def coefficients(ident, truth, title):
     from .. import plot
 
-    return png_bytes(plot.coefficients(ident, truth, title=title))
+    return png_bytes(plot.coefficients(ident, truth, title=mpl_text(title)))
 
 
 def diagnostics(ident, thresholds):
@@ -79,4 +84,4 @@ def diagnostics(ident, thresholds):
 def bode(name, axis, q):
     from .. import plot
 
-    return png_bytes(plot.bode(q, axis=axis, title=f"Compensated 1X response, run {name}"))
+    return png_bytes(plot.bode(q, axis=axis, title=f"Compensated 1X response, run {mpl_text(name)}"))
