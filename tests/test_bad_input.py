@@ -433,3 +433,22 @@ def test_a_mark_angle_whole_turns_away_is_the_same_mark():
     for turns in (1, -3, 10 ** 6):
         b = rotorid.rawsim.lab_imbalance_recording(rotor, brg, mark_angle_deg=23.0 + 360.0 * turns, **kw)
         np.testing.assert_allclose(b.channels["kp"], a.channels["kp"], atol=1e-3)
+
+
+def test_measured_data_plots_refuse_bad_input():
+    import numpy as np
+
+    import rotorid
+    from rotorid import plot
+
+    with pytest.raises(RotoridError, match="axis"):
+        plot.polar(np.ones((5, 4), complex))
+    with pytest.raises(RotoridError, match=r"\(n, 4\)"):
+        plot.polar(np.ones((5, 3), complex), axis=np.arange(5.0))
+    rig = rotorid.nsf_rig()
+    t = rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=1000, freq_hz=np.arange(2, 50, 1.0), plane=0.0,
+                           direction="x")
+    with pytest.raises(RotoridError, match="coherence must be"):
+        plot.frf(t, np.ones((3, 4)))
+    with pytest.raises(RotoridError, match="coherence_min"):
+        plot.frf(t, np.ones((t.freq_hz.size, 4)), coherence_min=-1)

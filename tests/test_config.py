@@ -269,7 +269,7 @@ def test_wrong_types_in_rotor_and_sections():
     check_message(info.value)
     probs = info.value.problems
     assert "[rotor] mass_kg must be a number > 0, got the string '45.3'" in probs
-    assert "[rotor] d must be an array of 2 numbers [d1, d2], got the array [0.1]" in probs
+    assert "[rotor] d must be an array of 2 numbers [d1, d2], got the array [0.1] (numbers in m or strings with a unit, e.g. '12.5 in')" in probs
     assert "[rotor] r[1] must be > 0, got -0.1" in probs
     assert "[impact.tests][0] plane_m must be a number, got the string '0'" in probs
     assert str(info.value).endswith("and 1 more")

@@ -41,8 +41,10 @@ def test_identify_refuses_earlier_results_and_removes_stale_ones_with_overwrite(
     cfg3.write_text(text[:last] + text[text.index("[output]"):])
     (out / "my_notes.txt").write_text("mine")
     assert cli.main(["identify", "imbalance", str(cfg3), "--out", str(out), "--overwrite"]) == 0
-    assert "removed 1 stale file" in capsys.readouterr().out
-    assert not (out / "sync_vectors_3_C90.csv").exists() and (out / "my_notes.txt").read_text() == "mine"
+    # the table and its two figures (Bode, polar)
+    assert "removed 3 stale file(s)" in capsys.readouterr().out
+    assert not [f for f in os.listdir(out) if f.startswith("sync_vectors_3_C90")]
+    assert (out / "my_notes.txt").read_text() == "mine"
     assert not [f for f in os.listdir(out) if f.endswith(".tmp") or ".tmp." in f]
 
 
@@ -65,3 +67,28 @@ def test_demo_refuses_a_folder_with_its_figures_and_checks_its_numbers(tmp_path,
         assert cli.main(["demo", "--out", str(tmp_path / "d2")] + bad) == 1
         err = capsys.readouterr().err
         assert err.count("\n") == 1 and bad[0] in err
+
+
+def test_measured_data_figures_beside_their_tables(tmp_path):
+    """identify writes the measured 1X vectors (Bode and polar) and the FRFs with their coherence as PNG
+    next to their CSV tables; --no-plot writes none of them."""
+    import os
+
+    from rotorid import example
+
+    ex = example.copy_example(str(tmp_path / "ex"))
+    assert cli.main(["identify", "imbalance", os.path.join(ex, "imbalance_1x_table.toml"), "--out",
+                     str(tmp_path / "i"), "-q"]) == 0
+    names = os.listdir(tmp_path / "i")
+    tables = [n for n in names if n.startswith("sync_vectors_") and n.endswith(".csv")]
+    assert tables
+    for t in tables:
+        for kind in ("bode", "polar"):
+            png = tmp_path / "i" / t.replace(".csv", f"_{kind}.png")
+            assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert cli.main(["identify", "impact", os.path.join(ex, "impact.toml"), "--out", str(tmp_path / "m"), "-q"]) == 0
+    frfs = [n for n in os.listdir(tmp_path / "m") if n.startswith("frf_") and n.endswith(".csv")]
+    assert frfs and all((tmp_path / "m" / f.replace(".csv", ".png")).is_file() for f in frfs)
+    assert cli.main(["identify", "impact", os.path.join(ex, "impact.toml"), "--out", str(tmp_path / "n"), "-q",
+                     "--no-plot"]) == 0
+    assert not any(n.endswith(".png") for n in os.listdir(tmp_path / "n"))

@@ -645,7 +645,7 @@ def test_cli_on_the_pedestal_example(example):
         b, i = int(name[-1]) - 1, "xy".index(name[1])
         ref = (truth.k if name[0] == "K" else truth.c)[b, i, i]
         np.testing.assert_allclose(df[name][sel], ref, rtol=0.05, err_msg=name)
-    frf = sorted(f for f in os.listdir(out) if f.startswith("frf_"))
+    frf = sorted(f for f in os.listdir(out) if f.startswith("frf_") and f.endswith(".csv"))
     assert len(frf) == 2 and "px1_coherence" in pd.read_csv(os.path.join(out, frf[0])).columns
 
 

@@ -177,3 +177,26 @@ def test_exponential_window_on_short_records_is_accounted_for(impact_records):
     e_bare = max(direct_errors(bare, brg, sel))
     e_win = max(direct_errors(win, brg, sel))
     assert e_win < 0.1 and e_bare > 2 * e_win, (e_bare, e_win)
+
+
+def test_1x_tables_without_stated_accuracy_use_the_residual_of_redundant_runs(tmp_path):
+    """A DAQ table without amplitude_std / phase_std_deg carries no covariance: with 4 runs the
+    standard errors come from the residual (they were NaN covariances, every point 'uncertainty
+    unknown'), and their 95 % intervals hold the example's true coefficients."""
+    import tomllib
+
+    from rotorid import example
+    from rotorid.pipeline import run_config
+
+    ex = example.copy_example(str(tmp_path / "ex"))
+    ident, _ = run_config(f"{ex}/imbalance_1x_table.toml", "imbalance", out_dir=str(tmp_path / "o"),
+                          log=lambda m: None, plots=False)
+    assert ident.std_source.startswith("residual")
+    assert ident.ok.all() and np.isfinite(ident.k_std).all()
+    with open(f"{ex}/truth.toml", "rb") as fh:
+        t = tomllib.load(fh)
+    iv = ident.interval(0.95)
+    k, c = np.array(t["k"]), np.array(t["c"])
+    hits = np.concatenate([((iv.k_lower <= k) & (k <= iv.k_upper)).ravel(),
+                           ((iv.c_lower <= c) & (c <= iv.c_upper)).ravel()])
+    assert hits.mean() > 0.85, hits.mean()

@@ -11,7 +11,7 @@ import pytest
 
 import rotorid
 
-HEAVY = ("pandas", "matplotlib", "scipy", "pydantic", "nptdms", "pyuff", "openpyxl")
+HEAVY = ("pandas", "matplotlib", "scipy", "pydantic", "nptdms", "pyuff", "openpyxl", "pint")
 REQUIRED_ABSENT = ("pandas", "matplotlib")  # the must; the rest are checked as well while they hold
 
 _REPORT = f"""

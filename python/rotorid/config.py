@@ -469,17 +469,113 @@ class RigSection(_Model):
         description='built-in rig: "nsf" (the NSF-SFD rig of the report)')
 
 
-class RotorSection(_Model):
-    """``[rotor]``: a rigid rotor on two bearings (all keys required; SI units)."""
+class _Given:
+    """The value of a unit-neutral ``[rotor]`` key (``mass``, ``it``, ``ip``), carried onto its SI
+    key (``mass_kg``, ...) so that both spellings are checked in one place and named as written."""
 
-    mass_kg: Positive = Field(description="rotor mass, kg")
-    it_kgm2: Positive = Field(description="transverse moment of inertia about the CG, kg m^2")
-    ip_kgm2: Positive = Field(description="polar moment of inertia, kg m^2")
-    l1: Finite = Field(description="CG to bearing 1, m")
-    l2: Finite = Field(description="CG to bearing 2, m")
-    d: _pair("d1, d2") = Field(description="imbalance planes [d1, d2] from the CG, m")
-    r: _pair("r1, r2", positive=True) = Field(description="imbalance radii [r1, r2], m")
-    s: _pair("s1, s2") = Field(description="probe planes [s1, s2] from the CG, m")
+    __slots__ = ("key", "value", "conflict")
+
+    def __init__(self, key, value, conflict=False):
+        self.key, self.value, self.conflict = key, value, conflict
+
+
+def _to_si(v, dimension):
+    """A number (SI) or a quantity string (``"12.5 in"``) as an SI float, or a problem raised."""
+    if isinstance(v, str):
+        try:
+            return _units._to_si_float(v, dimension)
+        except RotoridError as exc:
+            raise _err(str(exc)) from None
+    x = _as_float(v)
+    si = _units.DIMENSIONS[dimension]
+    if x is None:
+        raise _err(f"must be a number ({si}) or a string with its unit (e.g. {_units._EXAMPLE[dimension]!r}), got "
+                   f"{_describe(v)}")
+    if not math.isfinite(x):
+        raise _err(f"must be a finite number, got {_toml(v)}")
+    return x
+
+
+def _quantity_check(dimension, *, positive=False):
+    """A number in SI or a quantity string of ``dimension`` (``[rotor] l1 = "7.44 in"``)."""
+    def check(v):
+        x = _to_si(v, dimension)
+        if positive and not x > 0:
+            raise _err(f"must be > 0, got {_toml(v)}")
+        return x
+    return check
+
+
+def _si_key(dimension, si_key, neutral, example):
+    """An SI-named ``[rotor]`` key (``mass_kg``: a number in kg), or the value of its unit-neutral
+    twin (``mass = "68 lb"``) carried onto it by :meth:`RotorSection._unit_neutral`."""
+    number = _number_check(gt=0)
+
+    def check(v):
+        if isinstance(v, _Given):
+            if v.conflict:
+                raise _err(f"give {v.key} or {si_key}, not both", keyless=True)
+            try:
+                return _quantity_check(dimension, positive=True)(v.value)
+            except PydanticCustomError as exc:
+                raise _err(f"{v.key} {exc.context['msg']}", keyless=True) from None
+        if isinstance(v, str) and any(c.isalpha() for c in v):
+            raise _err(f"must be a number > 0 ({_units.DIMENSIONS[dimension]}), got {_describe(v)}; for a value "
+                       f"with its unit write {neutral} = {_toml(v)}")
+        return number(v)
+
+    return Annotated[float, PlainValidator(check)]
+
+
+def _quantity_pair(names: str, dimension: str, *, positive=False):
+    """Two values ``[a, b]``, each a number in SI or a quantity string."""
+    elem = _quantity_check(dimension, positive=positive)
+
+    def check(v):
+        if not isinstance(v, list) or len(v) != 2:
+            raise _err(f"must be an array of 2 numbers [{names}], got {_describe(v)} (numbers in "
+                       f"{_units.DIMENSIONS[dimension]} or strings with a unit, e.g. {_units._EXAMPLE[dimension]!r})")
+        return tuple(_each(v, elem))
+
+    return Annotated[tuple[float, float], PlainValidator(check)]
+
+
+#: unit-neutral [rotor] keys -> (SI key, dimension)
+ROTOR_NEUTRAL_KEYS = {"mass": ("mass_kg", "mass"), "it": ("it_kgm2", "inertia"), "ip": ("ip_kgm2", "inertia")}
+
+
+class RotorSection(_Model):
+    """``[rotor]``: a rigid rotor on two bearings (all quantities required).
+
+    Each value is a number in SI units or a string with its unit (pint, ``"68 lb"``,
+    ``"12.5 in"``; :func:`rotorid.units.quantity`): ``mass``, ``it``, ``ip`` take any unit
+    (``mass_kg``, ``it_kgm2``, ``ip_kgm2``, their SI-named twins, numbers only; give one of each
+    pair), ``l1``, ``l2``, ``d``, ``r``, ``s`` a number in m or a length with its unit. Once
+    validated every field is in SI.
+    """
+
+    mass_kg: _si_key("mass", "mass_kg", "mass", "68 lb") = Field(
+        description='rotor mass: mass = "68 lb" (any mass unit) or mass_kg (kg)')
+    it_kgm2: _si_key("inertia", "it_kgm2", "it", "2405 lb*in**2") = Field(
+        description='transverse moment of inertia about the CG: it = "2405 lb*in**2" or it_kgm2 (kg m^2)')
+    ip_kgm2: _si_key("inertia", "ip_kgm2", "ip", "1022 lb*in**2") = Field(
+        description='polar moment of inertia: ip = "1022 lb*in**2" or ip_kgm2 (kg m^2)')
+    l1: Annotated[float, PlainValidator(_quantity_check("length"))] = Field(description="CG to bearing 1, m")
+    l2: Annotated[float, PlainValidator(_quantity_check("length"))] = Field(description="CG to bearing 2, m")
+    d: _quantity_pair("d1, d2", "length") = Field(description="imbalance planes [d1, d2] from the CG, m")
+    r: _quantity_pair("r1, r2", "length", positive=True) = Field(description="imbalance radii [r1, r2], m")
+    s: _quantity_pair("s1, s2", "length") = Field(description="probe planes [s1, s2] from the CG, m")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _unit_neutral(cls, data):
+        if not isinstance(data, dict) or not any(k in data for k in ROTOR_NEUTRAL_KEYS):
+            return data
+        data = dict(data)
+        for key, (si_key, _) in ROTOR_NEUTRAL_KEYS.items():
+            if key in data:
+                data[si_key] = _Given(key, data.pop(key), conflict=si_key in data)
+        return data
 
     @model_validator(mode="after")
     def _rigid_rotor(self):
@@ -929,6 +1025,10 @@ class OutputSection(_Model):
 
     dir: Optional[Text] = None
     units: _choice("SI", "US", ignore_case=True) = "SI"
+    amplitude: _choice("0-pk", "pk-pk") = Field("0-pk", description="1X amplitudes written and printed: "
+                                                "zero-to-peak or peak-to-peak")
+    phase: _choice("lag", "arg") = Field("lag", description="phases written and printed: lag (as a DAQ shows it, "
+                                         "0-360 deg) or arg (of the complex amplitude, -180..180 deg)")
     formats: tuple[_choice("xlsx", "json", "nc"), ...] = Field((), description="coefficient files besides the CSV")
     report: Annotated[Union[bool, str], PlainValidator(_check_report)] = Field(
         False, description="an HTML report in the output folder: true (report_<kind>.html) or its file name")
@@ -939,6 +1039,17 @@ class OutputSection(_Model):
         if isinstance(v, list) and len(set(map(str, v))) != len(v):
             raise _err(f"lists a format twice: {v}")
         return tuple(v) if isinstance(v, list) else v
+
+    def conventions(self):
+        """The :class:`rotorid.units.OutputUnits` of this section (units, amplitude, phase).
+
+        Examples
+        --------
+        >>> from rotorid.config import OutputSection
+        >>> OutputSection.model_validate({"units": "us", "amplitude": "pk-pk"}).conventions()
+        OutputUnits('US', amplitude='pk-pk', phase='lag')
+        """
+        return _units.OutputUnits(self.units, amplitude=self.amplitude, phase=self.phase)
 
 
 def _structure_problems(data) -> list:

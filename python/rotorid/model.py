@@ -70,6 +70,50 @@ class RigidRotor:
         return np.array([self.mass_kg, self.it_kgm2, self.ip_kgm2, self.l1, self.l2])
 
     @classmethod
+    def from_quantities(cls, *, mass, it, ip, l1, l2, d=(0.0, 0.0), r=(1.0, 1.0), s=None) -> "RigidRotor":
+        """A rigid rotor from values with their units (strings such as ``"99.9 lb"``, or numbers in SI).
+
+        Parameters
+        ----------
+        mass, it, ip : float or str
+            Mass, transverse and polar moments of inertia about the CG (``"2405 lb*in**2"``).
+        l1, l2 : float or str
+            CG to bearing 1 and to bearing 2 (``"7.44 in"``).
+        d, r, s : pair of float or str
+            Imbalance planes, imbalance radii, probe planes (``s`` None: at the bearings).
+
+        Returns
+        -------
+        RigidRotor
+            In SI, as the constructor makes it (every value parsed by :func:`rotorid.units.quantity`).
+
+        Examples
+        --------
+        >>> from rotorid import RigidRotor
+        >>> rotor = RigidRotor.from_quantities(mass="99.87 lb", it="2405 lb*in**2", ip="1022 lb*in**2",
+        ...                                    l1="7.44 in", l2="8.54 in", d=("2.64 in", "4.02 in"),
+        ...                                    r=("4.49 in", "3.74 in"), s=(0.119, 0.146))
+        >>> round(rotor.mass_kg, 2), round(rotor.it_kgm2, 3), rotor.l1, rotor.s
+        (45.3, 0.704, 0.188976, (0.119, 0.146))
+        >>> RigidRotor.from_quantities(mass="3 in", it=0.7, ip=0.3, l1=0.19, l2=0.22)
+        Traceback (most recent call last):
+        ...
+        rotorid.errors.RotoridError: mass: '3 in' is a length, expected a mass (kg)
+        """
+        from .units import quantity
+
+        def pair(name, v):
+            if v is None:
+                return None
+            if isinstance(v, str) or not hasattr(v, "__len__") or len(v) != 2:
+                raise RotoridError(f"{name} must be a pair of lengths ({name}1, {name}2), got {v!r}"[:300])
+            return tuple(quantity(x, "length", f"{name}[{i}]") for i, x in enumerate(v))
+
+        return cls(mass_kg=quantity(mass, "mass", "mass"), it_kgm2=quantity(it, "inertia", "it"),
+                   ip_kgm2=quantity(ip, "inertia", "ip"), l1=quantity(l1, "length", "l1"),
+                   l2=quantity(l2, "length", "l2"), d=pair("d", d), r=pair("r", r), s=pair("s", s))
+
+    @classmethod
     def from_ross(cls, rotor, bearing_nodes, probe_positions=None, **kwargs) -> "RigidRotor":
         """The rigid rotor of a ROSS rotor (see :func:`rotorid.ross.rigid_rotor_from_ross`; needs ``rotorid[ross]``)."""
         from .ross import rigid_rotor_from_ross

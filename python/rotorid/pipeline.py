@@ -42,6 +42,7 @@ class ImbalanceChainResult:
     identification: Identification
     notes: list = field(default_factory=list)
     shared_cov: np.ndarray | None = None   # the baseline's covariance common to every run (None without)
+    slow_roll_1x: np.ndarray | None = None   # the slow-roll run-out 1X vector (4,) subtracted, m (None without)
 
 
 def _near_only(track, speeds, tol, label, what):
@@ -273,7 +274,13 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
             pk = dict(pedestal=ped_on_grid[i], pedestal_cov=pc, pedestal_cross=cr)
             # where either covariance is unknown (NaN) the joint one is too: those points are flagged
             # "uncertainty unknown", as without pedestal motion; elsewhere the cross terms stay
-        responses.append(SyncResponse(grid, q, imb, at, name, cov, np.where(np.isnan(dof), np.inf, dof), **pk))
+        if cov is not None and np.isnan(cov).all() and not pk:
+            # no accuracy known anywhere (a DAQ table without amplitude_std / phase_std_deg): the run
+            # carries no covariance, so redundant runs give residual-based standard errors rather
+            # than every point being "uncertainty unknown"
+            cov = dof = None
+        responses.append(SyncResponse(grid, q, imb, at, name, cov,
+                                      None if dof is None else np.where(np.isnan(dof), np.inf, dof), **pk))
     if ped:
         ratio = max(float(np.nanmax(r.pedestal_ratio)) for r in responses)
         notes.append(f"pedestal motion from accelerometers px1, px2, py1, py2: up to {ratio:.2f} x the motion "
@@ -290,7 +297,8 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
         if np.all(np.isfinite(shared)):
             ident_kw = dict(ident_kw, shared_cov=shared)
     ident = identify_synchronous(rotor, responses, method=method, **ident_kw)
-    return ImbalanceChainResult(responses, tracks, ident, notes, ident_kw.get("shared_cov"))
+    return ImbalanceChainResult(responses, tracks, ident, notes, ident_kw.get("shared_cov"),
+                                None if sr is None else np.asarray(sr[0]))
 
 
 @dataclass
@@ -732,9 +740,9 @@ def _load_table(cfg, entry, name=None):
     return load_1x_table(paths[0], name=name, meta=entry.meta(), **cfg.imbalance.table.reader_kwargs())
 
 
-RESULT_PATTERNS = {"imbalance": ["sync_vectors_*.csv", "keyphasor.csv", "coefficients_imbalance.*",
+RESULT_PATTERNS = {"imbalance": ["sync_vectors_*.csv", "sync_vectors_*.png", "keyphasor.csv", "coefficients_imbalance.*",
                                  "pedestals_imbalance.csv", "result_imbalance.json"],
-                   "impact": ["frf_*.csv", "dropped_impacts.csv", "kcm_fit.csv", "coefficients_impact.*",
+                   "impact": ["frf_*.csv", "frf_*.png", "dropped_impacts.csv", "kcm_fit.csv", "coefficients_impact.*",
                               "pedestals_impact.csv", "result_impact.json"]}
 
 
@@ -773,12 +781,12 @@ def _report_target(report, cfg, kind, folder_path):
 
     if report is None:
         report = cfg.output.report
+        if isinstance(report, str):
+            return report, None   # the config's file name: in the output folder
     if report is False:
         return None, None
     if report is True:
         return f"report_{kind}.html", None
-    if isinstance(report, str) and os.path.basename(report) == report and report == cfg.output.report:
-        return report, None   # the config's file name: in the output folder
     p = os.path.abspath(str(_path("report", report)))
     if not p.lower().endswith((".html", ".htm")):
         raise RotoridError(f"the report {p} must end in .html")
@@ -812,10 +820,13 @@ def _run_config(path, kind, *, out_dir, log, overwrite, plots, report, seen, lin
         from .exports import _target
 
         _target(report_path, overwrite, (".html", ".htm"))   # refused before anything is computed
+        if not os.access(os.path.dirname(report_path), os.W_OK):
+            raise RotoridError(f"the folder of the report {report_path} is not writable")
     folder = ResultsFolder(folder_path, patterns=RESULT_PATTERNS[kind] + ([report_name] if report_name else []),
                            overwrite=overwrite, command=f"rotorid identify {kind} {path}")
     out = folder.path
     us = cfg.output.units.upper() == "US"
+    conv = cfg.output.conventions()   # units, amplitude (0-pk, pk-pk) and phase (lag, arg) of what is written
     files = []
     ped_cfg = cfg.pedestals
     pedestal_motion = None if ped_cfg is None else ped_cfg.measured
@@ -830,6 +841,13 @@ def _run_config(path, kind, *, out_dir, log, overwrite, plots, report, seen, lin
         with folder.atomic(name) as tmp:
             df.to_csv(tmp, index=False, **kw)
         files.append(os.path.join(out, name))
+
+    def write_png(draw, name, **kw):
+        """A figure of the measured data next to its table (skipped with plots=False)."""
+        if plots:
+            with folder.atomic(name) as tmp:
+                draw(path=tmp, **kw)
+            files.append(os.path.join(out, name))
     if kind == "imbalance":
         ident_kw = dict(identical=sec.identical, cond_max=sec.cond_max, min_rel_amplitude=sec.min_rel_amplitude,
                         max_rel_std=sec.max_rel_std, estimator=sec.estimator, **cal_kw)
@@ -871,7 +889,12 @@ def _run_config(path, kind, *, out_dir, log, overwrite, plots, report, seen, lin
                                                  **ident_kw)
                     log("  phase calibration applied to the 1X vectors")
         for i, r in enumerate(responses):
-            write_csv(r.to_dataframe(), f"sync_vectors_{i}_{_safe(r.name)}.csv", float_format="%.6g")
+            stem = f"sync_vectors_{i}_{_safe(r.name)}"
+            write_csv(conv.sync_table(r), f"{stem}.csv", float_format="%.6g")
+            write_png(plot.bode, f"{stem}_bode.png", response=r, title=f"Measured 1X vectors, run {r.name} (compensated)",
+                      units=conv.units, amplitude=conv.amplitude, phase=conv.phase)
+            write_png(plot.polar, f"{stem}_polar.png", response=r, title=f"Measured 1X vectors, run {r.name} (compensated)",
+                      units=conv.units, amplitude=conv.amplitude, phase=conv.phase)
         kps = [(i, k) for i, t in enumerate(res.tracks) for k in t.keyphasors]
         if kps:
             import pandas as pd
@@ -882,6 +905,8 @@ def _run_config(path, kind, *, out_dir, log, overwrite, plots, report, seen, lin
                                          missing=sum(c for _, c in k.missing), note=k.note) for i, k in kps]),
                       "keyphasor.csv", float_format="%.6g")
         for n in res.notes:
+            if n.startswith("slow-roll run-out 1X:") and res.slow_roll_1x is not None:
+                n = _runout_note(res.slow_roll_1x, conv)   # in the output's units and conventions
             log("  " + n)
     else:
         need = set(DISPLACEMENTS) | set(ACCELEROMETERS) | {"kp", "force"}
@@ -906,17 +931,20 @@ def _run_config(path, kind, *, out_dir, log, overwrite, plots, report, seen, lin
         import pandas as pd
 
         for t, frf in zip(res.tests, res.frfs):
-            df = t.to_dataframe()
+            df = conv.frf_table(t)
             sel = (frf.freq_hz >= t.freq_hz[0] - 1e-9) & (frf.freq_hz <= t.freq_hz[-1] + 1e-9)
             for j, nm in enumerate(DISPLACEMENTS + (ACCELEROMETERS if t.pedestal is not None else ())):
                 df[f"{nm}_coherence"] = frf.coherence[sel, j]
             write_csv(df, f"frf_{_safe(t.name)}.csv", float_format="%.6g")
+            write_png(plot.frf, f"frf_{_safe(t.name)}.png", response=t, coherence=frf.coherence[sel, :4],
+                      coherence_min=sec.coherence_min, title=f"H1 FRFs and coherence, test {t.name}",
+                      units=conv.units, phase=conv.phase)
         if res.dropped:
             write_csv(pd.DataFrame(res.dropped, columns=["source", "time_s", "reason"]), "dropped_impacts.csv")
         log(f"  {sum(len(u) for u in res.used)} impacts used, {len(res.dropped)} dropped")
         if res.kcm is not None:
             fit = res.kcm
-            write_csv(fit.to_dataframe(), "kcm_fit.csv", float_format="%.6g")
+            write_csv(_kcm_table(fit, conv), "kcm_fit.csv", float_format="%.6g")
             log(f"  K-C-M fit over {fit.band_hz[0]:g}-{fit.band_hz[1]:g} Hz ({fit.n_points} points)"
                 + (f"; {fit.mass_check}" if fit.mass_check else ""))
     if ped_cfg is not None and ped_cfg.measured and ped_cfg.fit_pedestals:
@@ -955,7 +983,7 @@ def _run_config(path, kind, *, out_dir, log, overwrite, plots, report, seen, lin
         files.append(os.path.join(out, name))
     if plots:
         with folder.atomic(f"coefficients_{kind}.png") as tmp:
-            plot.coefficients(ident, None, path=tmp,
+            plot.coefficients(ident, None, path=tmp, units=conv.units,
                               title=f"Identified coefficients ({kind}), {os.path.basename(str(path))}")
         files.append(os.path.join(out, f"coefficients_{kind}.png"))
     # the machine-readable result (rotorid report RESULT) and the HTML page of the run
@@ -967,17 +995,16 @@ def _run_config(path, kind, *, out_dir, log, overwrite, plots, report, seen, lin
     with folder.atomic(f"result_{kind}.json") as tmp:
         _to_json(ident, tmp, context)
     files.append(os.path.join(out, f"result_{kind}.json"))
-    if report_name or report_path:
-        target = report_path
-        if report_name:
-            with folder.atomic(report_name) as tmp:
-                write_report(tmp, ident, overwrite=True, **context)
-            target = os.path.join(out, report_name)
-        else:
-            write_report(report_path, ident, overwrite=overwrite, **context)
-        files.append(target)
-        log(f"  report: {target}")
+    if report_name:
+        with folder.atomic(report_name) as tmp:
+            write_report(tmp, ident, overwrite=True, **context)
+        files.append(os.path.join(out, report_name))
+        log(f"  report: {files[-1]}")
     stale = folder.finish()
+    if report_path:
+        # outside the folder, after its manifest: a page that cannot be written leaves complete results
+        files.append(write_report(report_path, ident, overwrite=overwrite, **context))
+        log(f"  report: {report_path}")
     if stale:
         log(f"  removed {len(stale)} stale file(s) of the earlier run: {', '.join(stale[:5])}")
     ok = ident.ok
@@ -985,9 +1012,31 @@ def _run_config(path, kind, *, out_dir, log, overwrite, plots, report, seen, lin
         f"{ident.axis.min():.4g}-{ident.axis.max():.4g}")
     if ok.any():
         med = np.median(ident.report_vector()[ok], axis=0)
-        log("  median over ok points: " + ", ".join(f"{n} {v:.4g}" for n, v in zip(REPORT_NAMES, med)))
+        med = [float(conv.coefficient(v, n[0])) for n, v in zip(REPORT_NAMES, med)]
+        log(f"  median over ok points ({conv.stiffness_unit}, {conv.damping_unit}): "
+            + ", ".join(f"{n} {v:.4g}" for n, v in zip(REPORT_NAMES, med)))
     log(f"  wrote {len(files)} files to {out}/")
     return ident, files
+
+
+def _runout_note(v, conv):
+    """The slow-roll run-out note in the output's units and conventions."""
+    amp, ph = conv.amplitude_of(v), conv.phase_of(v)
+    parts = [f"{n} {a:.3g} {conv.length_label} @ {p:.0f}" for n, a, p in zip(DISPLACEMENTS, amp, ph)]
+    return (f"slow-roll run-out 1X ({conv.amplitude}, phase {conv.phase} deg): " + ", ".join(parts))
+
+
+def _kcm_table(fit, conv):
+    """kcm_fit.csv: the K-C-M fit with its units in the headers (SI, or lbf/in, lbf*s/in, lb)."""
+    df = fit.to_dataframe()
+    if conv.units == "SI":
+        return df
+    from .units import from_si
+
+    units = {"K": ("lbf/in", "lbf_per_in"), "C": ("lbf*s/in", "lbf_s_per_in"), "M": ("lb", "lb")}
+    for col in ("K", "K_std", "C", "C_std", "M", "M_std"):
+        df[col] = from_si(df[col], units[col[0]][0])
+    return df.rename(columns={c: f"{c}_{units[c[0]][1]}" for c in ("K", "K_std", "C", "C_std", "M", "M_std")})
 
 
 def _to_json(ident, path, context):
