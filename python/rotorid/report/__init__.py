@@ -221,11 +221,11 @@ def render_report(ident, *, settings=None, input_files=None, truth=None, warning
         ("command", f'<span class="mono">{esc(command)}</span>' if command else "–"),
         ("identified", esc(f"{date}, rotorid {version}")),
     ])
-    figs = [(fg.coefficients(ident, truth, title), "Identified coefficients with their 95 % intervals"
-                                                   + ("; lines: the known truth" if truth is not None else "")
-                                                   + "; hollow markers: flagged points"
-                                                   + ("; the plot is in SI units (MN/m, kN·s/m)" if units == "US" else
-                                                      ""))]
+    figs = [(fg.coefficients(ident, truth, title, units), "Identified coefficients with their 95 % intervals"
+                                                          + ("; lines: the known truth" if truth is not None else "")
+                                                          + "; hollow markers: flagged points; triangles on an edge: "
+                                                            "values beyond the plotted range"
+                                                          + ("; in klbf/in and lbf·s/in" if units == "US" else ""))]
     diag_png = fg.diagnostics(ident, th)
     bodes = [(fg.bode(name, ax, q), f"Compensated 1X response of run {name}") for name, ax, q in resp]
     img = "".join(f'<figure><img alt="{esc(cap)}" src="{fg.data_uri(png)}"><figcaption>{esc(cap)}</figcaption>'

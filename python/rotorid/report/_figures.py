@@ -33,10 +33,10 @@ def mpl_text(s) -> str:
     return str(s).replace("$", r"\$")
 
 
-def coefficients(ident, truth, title):
+def coefficients(ident, truth, title, units="SI"):
     from .. import plot
 
-    return png_bytes(plot.coefficients(ident, truth, title=mpl_text(title)))
+    return png_bytes(plot.coefficients(ident, truth, title=mpl_text(title), units=units))
 
 
 def diagnostics(ident, thresholds):
