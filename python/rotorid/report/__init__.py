@@ -227,7 +227,7 @@ def render_report(ident, *, settings=None, input_files=None, truth=None, warning
                                                             "values beyond the plotted range"
                                                           + ("; in klbf/in and lbf·s/in" if units == "US" else ""))]
     diag_png = fg.diagnostics(ident, th)
-    bodes = [(fg.bode(name, ax, q), f"Compensated 1X response of run {name}") for name, ax, q in resp]
+    bodes = [(fg.bode(name, ax, q, units), f"Compensated 1X response of run {name}") for name, ax, q in resp]
     img = "".join(f'<figure><img alt="{esc(cap)}" src="{fg.data_uri(png)}"><figcaption>{esc(cap)}</figcaption>'
                   "</figure>" for png, cap in figs)
     warn_html = ("".join(f'<div class="warn">{esc(w)}</div>' for w in warnings) if warnings else

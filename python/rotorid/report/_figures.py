@@ -81,7 +81,7 @@ def diagnostics(ident, thresholds):
     return png_bytes(finish(fig))
 
 
-def bode(name, axis, q):
+def bode(name, axis, q, units="SI"):
     from .. import plot
 
-    return png_bytes(plot.bode(q, axis=axis, title=f"Compensated 1X response, run {mpl_text(name)}"))
+    return png_bytes(plot.bode(q, axis=axis, title=f"Compensated 1X response, run {mpl_text(name)}", units=units))
