@@ -168,8 +168,8 @@ fn solve_lanes(rows: &[[Z; 4]]) -> LaneSol {
     let idet = det.recip();
     let cond = (lmax * lmax * idet).sqrt();
     let gc = gxy.conj();
-    let solve = |v: [Z; 2]| -> [Z; 2] { [(v[0].scale(d) - gxy * v[1]).scale(idet), (v[1].scale(a) - gc * v[0]).scale(idet)] };
-    let mut z = [solve(h[0]), solve(h[1])];
+    let solve = |v: &[Z; 2]| -> [Z; 2] { solve_gram(v, a, d, gxy, gc, idet) };
+    let mut z = [solve(&h[0]), solve(&h[1])];
     let mut ahr = [[Z::zero(); 2]; 2];
     let mut res2 = [V::zero(); 2];
     for r in rows {
@@ -181,12 +181,18 @@ fn solve_lanes(rows: &[[Z; 4]]) -> LaneSol {
         }
     }
     for k in 0..2 {
-        let dz = solve(ahr[k]);
+        let dz = solve(&ahr[k]);
         z[k][0] += dz[0];
         z[k][1] += dz[1];
     }
     let total = a + d + rhs2[0] + rhs2[1];
     LaneSol { z, g: [d * idet, a * idet], cond, res2, rhs2, total, qq: a + d }
+}
+
+/// (A^H A)^-1 v for the 2x2 Hermitian Gram matrix [[a, gxy], [conj(gxy), d]] with 1/det = `idet`.
+#[inline(always)]
+fn solve_gram(v: &[Z; 2], a: V, d: V, gxy: Z, gc: Z, idet: V) -> [Z; 2] {
+    [(v[0].scale(d) - gxy * v[1]).scale(idet), (v[1].scale(a) - gc * v[0]).scale(idet)]
 }
 
 /// Exactly determined systems (two rows): Cramer's rule on the 2x2 complex matrix (forward stable
@@ -431,6 +437,25 @@ struct Outs<'a> {
     rel: Option<&'a mut [f64]>,
 }
 
+/// Lanes -> rows of 8 values per point (an 8 x L transpose) for the `nl` points from `g0` on,
+/// stored straight into `dst` ((points, 8)).
+#[inline(always)]
+fn put_rows(dst: &mut [f64], g0: usize, nl: usize, src: &[V; 8]) {
+    for (l, row) in dst[8 * g0..8 * (g0 + nl)].chunks_exact_mut(8).enumerate() {
+        for o in 0..8 {
+            row[o] = src[o].0[l];
+        }
+    }
+}
+
+#[inline(always)]
+fn put_row(row: &mut [Z; 4], x: Z, y: Z, fx: Z, fy: Z) {
+    row[0] = x;
+    row[1] = y;
+    row[2] = fx;
+    row[3] = fy;
+}
+
 /// One chunk of consecutive points starting at flat index `start` (= b * n + i), L at a time.
 #[inline(always)]
 fn forces_chunk(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize {
@@ -547,10 +572,11 @@ fn forces_chunk(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize
             let f1y = (rv1.scale(l2) + rv3).scale(il);
             let f2x = (rv2 + rv0.scale(l1)).scale(il);
             let f2y = (rv1.scale(l1) - rv3).scale(il);
-            rows[0][nr[0]] = [q[0], q[2], f1x, f1y];
+            // stored field by field (a whole [Z; 4] temporary went through memcpy)
+            put_row(&mut rows[0][nr[0]], q[0], q[2], f1x, f1y);
             nr[0] += 1;
             let s2 = if p.identical { 0 } else { 1 };
-            rows[s2][nr[s2]] = [q[1], q[3], f2x, f2y];
+            put_row(&mut rows[s2][nr[s2]], q[1], q[3], f2x, f2y);
             nr[s2] += 1;
         }
         let mut sols = [solve_lanes(&rows[0][..nr[0]]), solve_lanes(&rows[1][..nr[1]])];
@@ -621,20 +647,11 @@ fn forces_chunk(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize
             sv[o] = sv[o] * kfac;
         }
         // lanes -> rows of 8 values per point (an 8 x L transpose), stored as one block
-        let put = |dst: &mut [f64], src: &[V; 8]| {
-            let mut blk = [0.0f64; 8 * L];
-            for l in 0..L {
-                for o in 0..8 {
-                    blk[8 * l + o] = src[o].0[l];
-                }
-            }
-            dst[8 * g0..8 * (g0 + nl)].copy_from_slice(&blk[..8 * nl]);
-        };
-        put(k, &kv);
-        put(c, &cv);
+        put_rows(k, g0, nl, &kv);
+        put_rows(c, g0, nl, &cv);
         if let (Some(ks), Some(cs)) = (ks.as_deref_mut(), cs.as_deref_mut()) {
-            put(ks, &sv);
-            put(cs, &csv);
+            put_rows(ks, g0, nl, &sv);
+            put_rows(cs, g0, nl, &csv);
             if let Some(rel_out) = rel_out.as_deref_mut() {
                 for t in g0..g0 + nl {
                     let at = |a: &[f64]| -> [f64; 8] { a[8 * t..8 * t + 8].try_into().unwrap() };
