@@ -200,3 +200,26 @@ def test_1x_tables_without_stated_accuracy_use_the_residual_of_redundant_runs(tm
     hits = np.concatenate([((iv.k_lower <= k) & (k <= iv.k_upper)).ravel(),
                            ((iv.c_lower <= c) & (c <= iv.c_upper)).ravel()])
     assert hits.mean() > 0.85, hits.mean()
+
+
+def test_accuracy_lost_in_compensation_is_said_not_silent(tmp_path):
+    """Runs with a stated accuracy, compensated by a baseline without one: the compensated vectors'
+    accuracy is unknown, which a warning says (the covariance was dropped silently, every point ok)."""
+    import warnings as _w
+
+    from rotorid import example, tables
+    from rotorid.config import load_config
+    from rotorid.pipeline import imbalance_chain
+
+    ex = example.copy_example(str(tmp_path / "ex"))
+    cfg = load_config(f"{ex}/imbalance_1x_table.toml")
+    kw = cfg.imbalance.table.reader_kwargs()
+    runs = [tables.load_1x_table(f"{ex}/daq_1x/run_{n}.csv", **{**kw, "amplitude_std": 0.001, "phase_std_deg": 0.1})
+            for n in ("S0", "C0")]
+    base = tables.load_1x_table(f"{ex}/daq_1x/baseline.csv", **kw)
+    imbalances = [rotorid.Imbalance(r.mass_kg(), tuple(r.angle_deg), r.name) for r in cfg.imbalance.runs[:2]]
+    with _w.catch_warnings(record=True) as seen:
+        _w.simplefilter("always")
+        res = imbalance_chain(cfg.rotor(), runs, baseline=base, imbalances=imbalances, speed_match_rpm=2.0)
+    assert any("accuracy is lost in the compensation" in str(w.message) for w in seen)
+    assert not res.identification.ok.any()   # "uncertainty unknown": not passed off as trustworthy

@@ -275,10 +275,16 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
             # where either covariance is unknown (NaN) the joint one is too: those points are flagged
             # "uncertainty unknown", as without pedestal motion; elsewhere the cross terms stay
         if cov is not None and np.isnan(cov).all() and not pk:
-            # no accuracy known anywhere (a DAQ table without amplitude_std / phase_std_deg): the run
-            # carries no covariance, so redundant runs give residual-based standard errors rather
-            # than every point being "uncertainty unknown"
-            cov = dof = None
+            own = getattr(r, "cov", None)
+            if own is None or np.isnan(own).all():
+                # no accuracy stated for this run (a DAQ table without amplitude_std / phase_std_deg):
+                # it carries no covariance, so redundant runs give residual-based standard errors
+                # rather than every point being "uncertainty unknown"
+                cov = dof = None
+            else:
+                warnings.warn(f"run {i} ({name}): its stated accuracy is lost in the compensation because the baseline "
+                              "or slow roll has none (give them amplitude_std / phase_std_deg too): its standard "
+                              "errors are unknown")
         responses.append(SyncResponse(grid, q, imb, at, name, cov,
                                       None if dof is None else np.where(np.isnan(dof), np.inf, dof), **pk))
     if ped:
