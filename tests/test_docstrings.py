@@ -25,15 +25,8 @@ def test_docstring_examples(name):
 
 def test_readme_quick_start_runs():
     """The README's quick-start code blocks run as written (no undefined names)."""
-    import os
-    import re
+    from docblocks import read, run_python_blocks
 
-    text = open(os.path.join(os.path.dirname(__file__), "..", "README.md"), encoding="utf-8").read()
-    section = text[text.index("### Quick start"):text.index("### Conventions")]
-    blocks = re.findall(r"```python\n(.*?)```", section, re.S)
-    assert len(blocks) >= 2
-    namespace = {}
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        for block in blocks:
-            exec(compile(block, "README quick start", "exec"), namespace)
+    text = read("README.md")
+    run_python_blocks(text[text.index("### Quick start"):text.index("### Conventions")], "README quick start",
+                      min_blocks=2)

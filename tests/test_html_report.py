@@ -359,14 +359,9 @@ def test_renders_in_headless_chromium(tmp_path, ident):
 
 def test_docs_report_md_python_blocks_run():
     """The ```python blocks of docs/report.md run as written, in order, in one namespace."""
-    path = os.path.join(os.path.dirname(__file__), "..", "docs", "report.md")
-    blocks = re.findall(r"```python\n(.*?)```", open(path, encoding="utf-8").read(), re.S)
-    assert len(blocks) >= 2
-    namespace = {}
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        for block in blocks:
-            exec(compile(block, "docs/report.md", "exec"), namespace)
+    from docblocks import read, run_python_blocks
+
+    namespace = run_python_blocks(read("docs/report.md"), "docs/report.md", min_blocks=2)
     assert "html" in namespace
 
 

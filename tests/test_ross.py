@@ -3,7 +3,6 @@ and ROSS, checked by simulating in ROSS and identifying in rotorid (a round trip
 
 import dataclasses
 import doctest
-import os
 import re
 import subprocess
 import sys
@@ -455,14 +454,9 @@ def test_docstring_examples():
 
 def test_docs_examples_run():
     """Every ```python block of docs/ross.md runs, in order, in one namespace (its asserts included)."""
-    text = open(os.path.join(os.path.dirname(__file__), "..", "docs", "ross.md"), encoding="utf-8").read()
-    blocks = re.findall(r"```python\n(.*?)```", text, re.S)
-    assert len(blocks) >= 4
-    namespace = {}
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        for i, block in enumerate(blocks):
-            exec(compile(block, f"docs/ross.md block {i}", "exec"), namespace)
+    from docblocks import read, run_python_blocks
+
+    run_python_blocks(read("docs/ross.md"), "docs/ross.md", min_blocks=4)
 
 
 def test_methods_delegate_to_the_bridge(stiff):

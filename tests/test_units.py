@@ -38,7 +38,6 @@ import doctest  # noqa: E402
 import shutil  # noqa: E402
 import subprocess  # noqa: E402
 import sys  # noqa: E402
-from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
@@ -306,15 +305,76 @@ def test_output_imperial_is_refused_by_check(example_dir, capsys):
 
 
 def test_units_doc_python_blocks_run():
-    import re
-    import warnings
+    from docblocks import read, run_python_blocks
 
-    text = (Path(__file__).resolve().parent.parent / "docs" / "units.md").read_text(encoding="utf-8")
-    blocks = re.findall(r"```python\n(.*?)```", text, re.S)
-    assert len(blocks) >= 3
-    ns = {}
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        for block in blocks:
-            exec(compile(block, "docs/units.md", "exec"), ns)
+    run_python_blocks(read("docs/units.md"), "docs/units.md", min_blocks=3)
 
+
+
+# ---------------------------------------------------------------------------------------------
+# regressions found by adversarial testing
+
+@pytest.mark.parametrize("text", ["1,5 in", "1, 5 in", "1,500 in", "2 in, 3 in"])
+def test_a_comma_in_a_quantity_is_refused_not_misread(text):
+    """pint drops the comma: "1,5 in" read as 15 in, "1, 5 in" as 5 in (a decimal comma, 10x off)."""
+    with pytest.raises(RotoridError, match="has a comma"):
+        quantity(text, "length", "rotor.l1")
+
+
+def test_a_decimal_comma_in_a_config_is_refused():
+    from rotorid.config import ConfigError, parse_config
+
+    impact = {"tests": [{"file": "hits.tdms", "plane_m": 0.0, "direction": "x"}]}
+    rotor = {"mass": "1,5 lb", "it": 0.7, "ip": 0.3, "l1": 0.19, "l2": 0.22, "d": [0.06, 0.1], "r": [0.11, 0.09],
+             "s": [0.12, 0.15]}
+    with pytest.raises(ConfigError, match=r"\[rotor\] mass .*comma"):
+        parse_config({"rotor": rotor, "impact": impact}, source="rig.toml")
+
+
+def test_pint_quantities_with_numpy_or_decimal_magnitudes_are_read():
+    """A pint Quantity's magnitude is often a numpy scalar (array element * unit); its repr,
+    np.float64(2.0), was passed to pint and refused as the unit 'np'."""
+    import decimal
+    import fractions
+
+    import pint
+
+    ureg = pint.UnitRegistry()
+    assert quantity(ureg.Quantity(np.float64(2.0), "inch"), "length") == pytest.approx(0.0508, rel=1e-15)
+    assert quantity(np.arange(3.0)[2] * ureg.inch, "length") == pytest.approx(0.0508, rel=1e-15)
+    assert quantity(ureg.Quantity(np.int64(2), "lb"), "mass") == pytest.approx(2 * 0.45359237, rel=1e-15)
+    assert quantity(ureg.Quantity(decimal.Decimal("2.5"), "inch"), "length") == pytest.approx(0.0635, rel=1e-15)
+    assert quantity(ureg.Quantity(fractions.Fraction(1, 4), "inch"), "length") == pytest.approx(0.00635, rel=1e-15)
+    for bad in (ureg.Quantity(np.array([1.0, 2.0]), "inch"), ureg.Quantity(2 + 1j, "inch")):
+        with pytest.raises(RotoridError, match="single real value"):
+            quantity(bad, "length", "l1")
+
+
+@pytest.mark.parametrize("value", [10 ** 400, -10 ** 400])
+def test_an_integer_beyond_the_float_range_is_a_rotorid_error(value):
+    with pytest.raises(RotoridError, match="must be finite"):
+        quantity(value, "length", "l1")
+    with pytest.raises(RotoridError, match="mass: must be finite"):
+        rotorid.RigidRotor.from_quantities(mass=value, it=0.7, ip=0.3, l1=0.19, l2=0.22)
+
+
+@pytest.mark.parametrize("pair", [b"ab", {0.1, 0.2}, {"a": 0.1, "b": 0.2}, bytearray(b"ab")])
+def test_from_quantities_pairs_are_sequences(pair):
+    """b"ab" was read as (97 m, 98 m), a set in no order, a dict by its keys ('a' as a year)."""
+    with pytest.raises(RotoridError, match="d must be a pair of lengths"):
+        rotorid.RigidRotor.from_quantities(mass=30.0, it=0.7, ip=0.3, l1=0.19, l2=0.22, d=pair)
+
+
+def test_phases_stay_in_their_documented_ranges():
+    """lag in [0, 360) and arg in (-180, 180]: the mod of a tiny negative angle rounded up to 360,
+    and a -0.0 imaginary part gave arg -180."""
+    z = np.array([complex(1.0, 1e-300), complex(1.0, 1e-14 * np.pi / 180), complex(-1.0, -0.0), complex(-1.0, 0.0),
+                  1j, -1j, 1.0])
+    lag = OutputUnits(phase="lag").phase_of(z)
+    arg = OutputUnits(phase="arg").phase_of(z)
+    assert np.all((lag >= 0) & (lag < 360)), lag
+    assert np.all((arg > -180) & (arg <= 180)), arg
+    np.testing.assert_allclose(np.exp(1j * np.deg2rad(lag)), np.exp(-1j * np.angle(z)), atol=1e-12)
+    np.testing.assert_allclose(np.exp(1j * np.deg2rad(arg)), np.exp(1j * np.angle(z)), atol=1e-12)
+    assert OutputUnits(phase="arg").phase_of(complex(-1.0, -0.0)) == 180.0
+    assert isinstance(OutputUnits().phase_of(np.complex128(1j)), np.floating)   # a scalar stays a scalar
