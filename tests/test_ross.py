@@ -410,7 +410,7 @@ def test_mismatched_positions_between_the_rotors(stiff):
     at_bearings = rigid_rotor_from_ross(rot, BEARING_NODES, imbalance_nodes=IMBALANCE_NODES)
     with pytest.raises(RotoridError, match="no node of the ROSS rotor at probe 1"):
         sync_response_from_ross(resp, rotor=dataclasses.replace(at_bearings, s=(0.25, 0.3)))
-    with pytest.raises(RotoridError, match="do not match the planes"):
+    with pytest.raises(RotoridError, match="do not match the rotor's imbalance plane positions"):
         imbalance_to_ross(SETS["A"], rotor=rr, ross_rotor=rot, nodes=(1, 4))
     with pytest.raises(RotoridError, match="at neither imbalance plane"):
         imbalance_from_ross([3], [1e-4], [0.0], rotor=rr, ross_rotor=rot)

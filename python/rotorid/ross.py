@@ -280,6 +280,21 @@ def _node_at(ross_rotor, cg, z_rel, what, tol):
                        "add a node there or give nodes=")
 
 
+def _nodes_at(ross_rotor, cg, planes, nodes, what, tol):
+    """The two ROSS nodes at the rotorid rotor's planes ``planes`` (m from the CG): found when
+    ``nodes`` is None, else checked to sit there (``what``: "probe", "bearing", "imbalance plane")."""
+    if nodes is None:
+        return [_node_at(ross_rotor, cg, planes[i], f"{what} {i + 1}", tol) for i in range(2)]
+    a, b = _node_pair("nodes", nodes, what)
+    nodes = [_rotor_node(ross_rotor, "nodes[0]", a), _rotor_node(ross_rotor, "nodes[1]", b)]
+    for i, n in enumerate(nodes):
+        zr = _z(ross_rotor, n) - cg
+        if abs(zr - planes[i]) > tol:
+            raise RotoridError(f"nodes[{i}] = {n} is {zr:+g} m from the CG, but {what} {i + 1} of the rotorid rotor "
+                               f"is at {planes[i]:+g} m: the nodes do not match the rotor's {what} positions")
+    return nodes
+
+
 def _tol(ross_rotor):
     return 1e-6 * max(float(max(ross_rotor.nodes_pos) - min(ross_rotor.nodes_pos)), 1e-3)
 
@@ -329,16 +344,7 @@ def imbalance_to_ross(imbalance, *, rotor, ross_rotor, nodes=None) -> dict:
     cg = mass_properties(ross_rotor)["cg_m"]
     tol = _tol(ross_rotor)
     planes = (-rotor.d1, rotor.d2)
-    if nodes is None:
-        nodes = [_node_at(ross_rotor, cg, planes[i], f"imbalance plane {i + 1}", tol) for i in range(2)]
-    else:
-        a, b = _node_pair("nodes", nodes, "imbalance plane")
-        nodes = [_rotor_node(ross_rotor, "nodes[0]", a), _rotor_node(ross_rotor, "nodes[1]", b)]
-        for i, n in enumerate(nodes):
-            zr = _z(ross_rotor, n) - cg
-            if abs(zr - planes[i]) > tol:
-                raise RotoridError(f"nodes[{i}] = {n} is {zr:+g} m from the CG, but imbalance plane {i + 1} of the "
-                                   f"rotorid rotor is at {planes[i]:+g} m: the nodes do not match the planes")
+    nodes = _nodes_at(ross_rotor, cg, planes, nodes, "imbalance plane", tol)
     f = imbalance.forcing(rotor)  # m r exp(-j phi), kg·m
     return dict(node=[int(n) for n in nodes], unbalance_magnitude=[float(abs(x)) for x in f],
                 unbalance_phase=[float(-np.deg2rad(a)) for a in imbalance.angle_deg])
@@ -459,16 +465,7 @@ def sync_response_from_ross(response, *, rotor, at="probes", nodes=None, imbalan
     tol = _tol(ross_rotor)
     planes = (-rotor.s1, rotor.s2) if at == "probes" else (-rotor.l1, rotor.l2)
     what = "probe" if at == "probes" else "bearing"
-    if nodes is None:
-        nodes = [_node_at(ross_rotor, cg, planes[i], f"{what} {i + 1}", tol) for i in range(2)]
-    else:
-        a, b = _node_pair("nodes", nodes, what)
-        nodes = [_rotor_node(ross_rotor, "nodes[0]", a), _rotor_node(ross_rotor, "nodes[1]", b)]
-        for i, n in enumerate(nodes):
-            zr = _z(ross_rotor, n) - cg
-            if abs(zr - planes[i]) > tol:
-                raise RotoridError(f"nodes[{i}] = {n} is {zr:+g} m from the CG, but {what} {i + 1} of the rotorid rotor "
-                                   f"is at {planes[i]:+g} m: the nodes do not match the rotor's {what} positions")
+    nodes = _nodes_at(ross_rotor, cg, planes, nodes, what, tol)
     dofs = _rotor_dofs(ross_rotor)
     idx = [dofs[("x", nodes[0])], dofs[("x", nodes[1])], dofs[("y", nodes[0])], dofs[("y", nodes[1])]]
     q = np.asarray(fr)[idx].T
