@@ -142,3 +142,60 @@ def test_every_command_help_shows_defaults(capsys):
     out = capsys.readouterr().out
     assert "(default: rotorid_demo)" in out and "(default: 50.0)" in out and "(default: 0.0)" in out
     assert "--debug" in out
+
+
+def _table_example(tmp_path, run_name="S0", config_name="c.toml"):
+    """The DAQ 1X table example config (fast), with its first run renamed, as ``config_name``."""
+    import os
+    import re
+
+    from rotorid import example
+
+    ex = example.path()
+    text = open(os.path.join(ex, "imbalance_1x_table.toml"), encoding="utf-8").read()
+    text = re.sub(r'"(daq_1x/[^"]+)"', lambda m: '"' + os.path.join(ex, m.group(1)).replace("\\", "/") + '"', text)
+    text = text.replace('name = "S0"', f'name = "{run_name}"')
+    p = tmp_path / config_name
+    p.write_text(text, encoding="utf-8")
+    return p
+
+
+def test_identify_with_a_dollar_in_names_writes_every_figure(tmp_path, capsys):
+    """A run named "S0 $x^$" (or a config named a$$.toml) made the figures raise a mathtext
+    ValueError: 'internal error' and a folder with only the first run's table."""
+    import os
+
+    cfg = _table_example(tmp_path, run_name="S0 $x^$", config_name="a$$.toml")
+    out = tmp_path / "o"
+    assert cli.main(["identify", "imbalance", str(cfg), "--out", str(out), "-q"]) == 0
+    err = capsys.readouterr().err
+    assert "internal error" not in err, err
+    files = os.listdir(out)
+    assert "rotorid-manifest.json" in files and "coefficients_imbalance.png" in files
+    assert sum(f.endswith("_polar.png") for f in files) == 4
+
+
+def test_an_internal_error_message_stays_on_one_line(monkeypatch, capsys):
+    def boom(args):
+        raise ValueError("first\n  second\n   ^")
+
+    monkeypatch.setattr(cli, "_run", boom)
+    assert cli.main(["check", "x.toml"]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "internal error: ValueError: first second ^" in err, err
+
+
+def test_a_reader_that_goes_away_does_not_stop_identify(tmp_path):
+    """rotorid identify ... | head: the BrokenPipeError of a progress line stopped the run half-way
+    (exit 1, 'cannot use: Broken pipe', a folder without its coefficients)."""
+    import os
+
+    cfg = _table_example(tmp_path)
+    out = tmp_path / "o"
+    p = subprocess.Popen([sys.executable, "-m", "rotorid.cli", "identify", "imbalance", str(cfg), "--out", str(out),
+                          "-v"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    p.stdout.close()                     # the reader is gone before the first line
+    err = p.stderr.read().decode()
+    assert p.wait(timeout=300) == 0, err
+    assert "Broken pipe" not in err and "Exception ignored" not in err, err
+    assert {"rotorid-manifest.json", "coefficients_imbalance.csv"} <= set(os.listdir(out))

@@ -1065,6 +1065,21 @@ def _owned_calls(tmp):
         "units.from_si": Call(units.from_si, dict(value=1.0, unit="mil", quantity=None), extras=values, nan_ok=True,
                               check=_nan_in_nan_out),
         "units.quantity_of": Call(units.quantity_of, dict(unit="mil"), extras=values),
+        "units.quantity": Call(units.quantity, dict(value="12.5 in", dimension="length", name="rotor.l1")),
+        "RigidRotor.from_quantities": Call(rotorid.RigidRotor.from_quantities, dict(
+            mass="99.87 lb", it="2405 lb*in**2", ip="1022 lb in^2", l1="7.44 in", l2="8.54 in", d=("2.64 in", "4.02 in"),
+            r=("4.49 in", "3.74 in"), s=("4.69 in", "5.75 in")), extras=values),
+        "units.OutputUnits": Call(units.OutputUnits, dict(units="US", amplitude="pk-pk", phase="lag"), check=_no_check),
+        "units.OutputUnits.sync_table": Call(units.OutputUnits("US", "pk-pk").sync_table, dict(response=runs[0]),
+                                             extras=values, check=_no_check),
+        "units.OutputUnits.frf_table": Call(units.OutputUnits("US", phase="arg").frf_table, dict(response=tests[0]),
+                                            extras=values, check=_no_check),
+        "plot.polar": Call(plotting(plot.polar), dict(response=runs[0], title="", path=str(tmp / "po.png"), axis=None,
+                                                      labels=5, units="US", amplitude="pk-pk", phase="arg"),
+                           extras=values),
+        "plot.frf": Call(plotting(plot.frf), dict(response=tests[0], coherence=np.ones((2, 4)), coherence_min=0.9,
+                                                  title="", path=str(tmp / "f.png"), axis=None, units="US",
+                                                  phase="lag"), extras=values),
         "plot.bode": Call(plotting(plot.bode), dict(response=runs[0], title="", path=str(tmp / "b.png"),
                                                     x_label="rpm", axis=None), extras=values),
         "plot.coefficients": Call(plotting(plot.coefficients), dict(ident=ident, truth=None, title="",
@@ -1219,7 +1234,7 @@ def _owned_calls(tmp):
 OWNED_NAMES = [
     "BearingCoefficients", "Identification.interval", "Imbalance", "ImpactResponse", "Pedestals",
     "Pedestals.dynamic_stiffness", "Pedestals.matrices", "ProbeResolution", "Recording", "Recording.segment",
-    "RigidRotor", "SegmentedRecording", "SegmentedRecording.from_arrays", "SyncResponse", "bearings_to_probes",
+    "RigidRotor", "RigidRotor.from_quantities", "SegmentedRecording", "SegmentedRecording.from_arrays", "SyncResponse", "bearings_to_probes",
     "config.load_config", "config.parse_config", "critical_speeds", "demo.cross_coupling", "demo.impact",
     "demo.pedestal", "demo.series_support", "demo.synchronous", "example.copy_example", "example_pedestals",
     "half_sine_pulse", "identify_impact", "identify_pedestals", "identify_pedestals:impacts", "identify_synchronous",
@@ -1229,7 +1244,7 @@ OWNED_NAMES = [
     "pedestals:critical_speeds", "pedestals:identify_impact", "pedestals:identify_synchronous",
     "pedestals:imbalance_chain", "pedestals:imbalance_response", "pedestals:impact_chain", "pedestals:impact_frf",
     "pedestals:impact_time_response", "pedestals:modal_analysis", "plot.bode", "plot.campbell", "plot.coefficients",
-    "plot.pedestal_compensation", "probes_to_bearings", "run_config", "sensitivity.cross_coupling_ratio",
+    "plot.frf", "plot.pedestal_compensation", "plot.polar", "probes_to_bearings", "run_config", "sensitivity.cross_coupling_ratio",
     "sensitivity.cross_coupling_sensitivity", "sensitivity.scale_cross_coupling", "sensitivity.speed_range_errors",
     "studies.ImpactErrors", "studies.SyncErrors", "studies.TrialMassRig", "studies.design_impact_plan",
     "studies.design_trial_masses", "studies.dwell_noise_m", "studies.frf_random_error", "studies.impact_study",
@@ -1240,8 +1255,9 @@ OWNED_NAMES = [
     "support.SqueezeFilmDamper.equal_lands", "support.SqueezeFilmDamper.impedance",
     "support.SqueezeFilmDamper.squeeze_reynolds", "support.coefficients_of", "support.compare",
     "support.compare_tables", "support.config.parse_predict_config", "support.load_bearing_table", "support.nsf_damper",
-    "support.predict_coefficients", "support.predict_coefficients:impacts", "support.series_impedance", "units.factor",
-    "units.from_si", "units.quantity_of", "units.to_si"]
+    "support.predict_coefficients", "support.predict_coefficients:impacts", "support.series_impedance", "units.OutputUnits",
+    "units.OutputUnits.frf_table", "units.OutputUnits.sync_table", "units.factor", "units.from_si", "units.quantity",
+    "units.quantity_of", "units.to_si"]
 
 
 def test_the_sweeps_list_every_call(tmp_path):
@@ -1315,3 +1331,152 @@ def test_cli_identify_with_damaged_configs_answers_in_one_line(tmp_path, capsys,
     p = tmp_path / "c.toml"
     p.write_text(_damaged(_example_config("imbalance_1x_table.toml"), edits), encoding="utf-8")
     _cli(["identify", "imbalance", str(p), "--out", str(tmp_path / "out"), "--overwrite"], capsys)
+
+
+# ---------------------------------------------------------------------------------------------
+# units at the edges: quantity strings, [rotor] tables, the CLI's commands and flags
+
+_Q_NUMBERS = st.one_of(st.sampled_from(["2", "-3", "0", "1e3", "1e-400", "1e400", "nan", "inf", "-0", "2.5", ".5", "1,5",
+                                        "1_000", "0x10", "½", "２", "10**99", "9**9**9", "(2)", "3/4", ""]),
+                       st.floats(-1e6, 1e6, allow_nan=False).map(repr))
+_Q_UNITS = st.sampled_from(["in", "mil", "mils", "thou", "µm", "μm", "um", "m", "mm", "lb", "lbm", "kg", "oz", "g", "g0",
+                            "lbf", "N", "klbf/in", "MN/m", "mN/m", "mn/m", "N/m", "lbf·s/in", "lbf⋅s/in", "lbf*s/in",
+                            "N s/m", "lb*in**2", "lb in^2", "lb·in²", "kg*m**2", "rpm", "Hz", "1/min", "/min", "cpm",
+                            "rad/s", "deg/s", "rev/min", "degC", "delta_degC", "kelvin", "percent", "%", "rad", "",
+                            "dimensionless", "s", "ms", "V", "mV", "oz*in", "in**999", "in**2**2", "G", "MIL", "furlong"])
+_Q_GLUE = st.sampled_from([" ", "", "  ", "\t", " * ", " / ", " + ", " - ", ", ", "(", ")", "**", "^", " # ", ";", "\n"])
+
+
+@API
+@given(parts=st.lists(st.one_of(_Q_NUMBERS, _Q_UNITS, _Q_GLUE), min_size=0, max_size=6),
+       dimension=st.sampled_from(sorted(rotorid.units.DIMENSIONS)))
+def test_quantity_strings_give_a_finite_si_value_or_one_line(parts, dimension):
+    """Any string of numbers, units and operators: a finite SI value or a one-line RotoridError
+    naming the field, within a second (no 9**9**9), never another exception."""
+    text = "".join(parts)
+    with warnings.catch_warnings(), _deadline(5):
+        warnings.simplefilter("ignore")
+        try:
+            x = rotorid.units.quantity(text, dimension, "rotor.x")
+        except RotoridError as exc:
+            assert str(exc).startswith("rotor.x: ") and "\n" not in str(exc), str(exc)
+            return
+    assert isinstance(x, float) and np.isfinite(x), (text, x)
+    assert "," not in text, f"{text!r} read as {x} (a comma pint drops)"
+
+
+#: a number and a unit -> the SI value by hand (1 lb = 0.45359237 kg, 1 in = 0.0254 m, mil = 0.001 in)
+_BY_HAND = {"length": {"in": 0.0254, "mil": 25.4e-6, "mils": 25.4e-6, "thou": 25.4e-6, "µm": 1e-6, "μm": 1e-6,
+                       "mm": 1e-3, "m": 1.0},
+            "mass": {"lb": 0.45359237, "kg": 1.0, "oz": 0.028349523125, "g": 1e-3},
+            "inertia": {"lb*in**2": 0.45359237 * 0.0254 ** 2, "lb in^2": 0.45359237 * 0.0254 ** 2,
+                        "lb·in²": 0.45359237 * 0.0254 ** 2, "kg*m**2": 1.0},
+            "stiffness": {"lbf/in": 4.4482216152605 / 0.0254, "klbf/in": 4448.2216152605 / 0.0254, "MN/m": 1e6,
+                          "mN/m": 1e-3, "N/m": 1.0},
+            "damping": {"lbf·s/in": 4.4482216152605 / 0.0254, "lbf*s/in": 4.4482216152605 / 0.0254, "N s/m": 1.0},
+            "speed": {"rpm": np.pi / 30, "Hz": 2 * np.pi, "1/min": np.pi / 30, "rad/s": 1.0, "deg/s": np.pi / 180}}
+
+
+@API
+@given(data=st.data(), x=st.floats(-1e12, 1e12, allow_nan=False), space=st.sampled_from(["", " ", "  "]))
+def test_quantity_strings_match_the_hand_conversions(data, x, space):
+    dimension = data.draw(st.sampled_from(sorted(_BY_HAND)))
+    unit, f = data.draw(st.sampled_from(sorted(_BY_HAND[dimension].items())))
+    text = f"{x!r}{space or ' '}{unit}" if unit[:1].isdigit() else f"{x!r}{space}{unit}"
+    if not space and unit[:1] in "eE":   # "1.0e..." would read as an exponent
+        text = f"{x!r} {unit}"
+    got = rotorid.units.quantity(text, dimension)
+    assert got == pytest.approx(x * f, rel=1e-12, abs=1e-300), (text, got, x * f)
+
+
+_ROTOR_VALUES = {"mass": ("mass", ["99.87 lb", "45.3 kg", 45.3, 45, "1598 oz", "0 lb", "-1 lb", "3 in", "1,5 lb",
+                                   "nan lb", 10 ** 400, True, None, ""]),
+                 "it": ("inertia", ["2405 lb*in**2", "2405 lb in^2", 0.70, "0.7 kg*m**2", "0 lb*in**2", "2 lb", 0]),
+                 "ip": ("inertia", ["1022 lb in^2", "1022 lb·in²", 0.3, "-1 lb*in**2", "x"]),
+                 "l1": ("length", ["7.44 in", 0.189, "189 mm", "7440 mil", "7440 thou", "-7.44 in", "0 in", "7.44 lbf",
+                                   "7,44 in"]),
+                 "l2": ("length", ["8.54 in", 0.217, "217 mm", "8540 mils", 0, "inf in"])}
+_PAIR_VALUES = ["2.64 in", "4.02 in", 0.1, "100 mm", "3937 mil", "0 in", "-2 in", "2 lb", "", None, "1e999 in"]
+
+
+@API
+@given(data=st.data())
+def test_rotor_tables_and_from_quantities_agree(data):
+    """A [rotor] table and RigidRotor.from_quantities of the same values: the same rotor, or both
+    refuse it (config: one line naming the key)."""
+    from rotorid.config import ConfigError, parse_config
+
+    kw = {k: data.draw(st.sampled_from(v), label=k) for k, (_, v) in _ROTOR_VALUES.items()}
+    for k in ("d", "r", "s"):
+        kw[k] = tuple(data.draw(st.lists(st.sampled_from(_PAIR_VALUES), min_size=2, max_size=2), label=k))
+    table = {k: list(v) if isinstance(v, tuple) else v for k, v in kw.items() if v is not None}
+    impact = {"tests": [{"file": "hits.tdms", "plane_m": 0.0, "direction": "x"}]}
+    try:
+        rotor = parse_config({"rotor": table, "impact": impact}, source="rig.toml").rotor()
+    except ConfigError as exc:
+        assert str(exc).startswith("rig.toml: [rotor]") and "\n" not in str(exc), str(exc)
+        rotor = None
+    try:
+        api = rotorid.RigidRotor.from_quantities(**kw)
+    except RotoridError:
+        api = None
+    if rotor is None or api is None:
+        assert rotor is None and (api is None or None in kw.values()), (kw, api)
+        return
+    for name in ("mass_kg", "it_kgm2", "ip_kgm2", "l1", "l2", "d", "r", "s"):
+        assert np.allclose(getattr(rotor, name), getattr(api, name), rtol=1e-14, atol=0), name
+
+
+def _identify_config(d):
+    """The DAQ 1X table example (the fastest identification), in US quantities and pk-pk/arg."""
+    import re
+
+    text = _example_config("imbalance_1x_table.toml").replace('[rig]\nbuiltin = "nsf"\n', "[rotor]\n" + "\n".join(
+        f"{k} = {v}" for k, v in (("mass", '"99.87 lb"'), ("it", '"2405 lb*in**2"'), ("ip", '"1022 lb in^2"'),
+                                  ("l1", '"7.44 in"'), ("l2", '"8.54 in"'), ("d", '["2.64 in", "4.02 in"]'),
+                                  ("r", '["4.49 in", "3.74 in"]'), ("s", '["4.69 in", "5.75 in"]'))) + "\n")
+    text = re.sub(r"\[output\][^\[]*", "", text) + '\n[output]\nunits = "US"\namplitude = "pk-pk"\nphase = "arg"\n'
+    p = os.path.join(d, "us.toml")
+    with open(p, "w", encoding="utf-8") as fh:
+        fh.write(text)
+    return p
+
+
+@functools.lru_cache(maxsize=None)
+def _cli_config():
+    return _identify_config(tempfile.mkdtemp())
+
+
+_CLI_BASES = [["identify", "imbalance", "CONFIG", "--out", "o"], ["identify", "impact", "CONFIG", "--out", "o"],
+              ["check", "CONFIG"], ["report", "o"], ["report", "o/result_imbalance.json", "--out", "r.html"],
+              ["compare", "o/coefficients_imbalance.csv", "o/coefficients_imbalance.csv", "--out", "c"],
+              ["predict", "CONFIG"], ["example", "--out", "ex"], ["identify", "imbalance"], []]
+_CLI_TOKENS = ["--overwrite", "--debug", "-v", "-q", "--strict", "--no-plot", "--report", "r.html", "r.txt", "--units",
+               "US", "us", "--truth", "x.toml", "CONFIG", "o", "", "-", "--", "/proc/x", "nan", "--out", "--seed"]
+
+
+@settings(API, max_examples=15)
+@given(bases=st.lists(st.sampled_from(range(len(_CLI_BASES))), min_size=1, max_size=3),
+       extra=st.lists(st.lists(st.sampled_from(_CLI_TOKENS), max_size=3), min_size=3, max_size=3))
+def test_cli_commands_and_flags_answer_with_documented_codes(tmp_path, capsys, monkeypatch, bases, extra):
+    """Commands in turn (an identification, then its report, comparison, ...) with any flags: exit
+    0, 1 (one line), 2 (usage) or 3 (--strict); a traceback only with --debug, never 'internal
+    error'; no temporary file left behind."""
+    monkeypatch.chdir(tmp_path)
+    import rotorid.example  # noqa: F401 - _example_config reads the bundled data set
+
+    for b, more in zip(bases, extra):
+        argv = [_cli_config() if a == "CONFIG" else a for a in _CLI_BASES[b] + more]
+        with warnings.catch_warnings(), _deadline(120):
+            warnings.simplefilter("ignore")
+            try:
+                code = cli.main(argv)
+            except SystemExit as exc:   # argparse: usage errors (2), --help/--version (0)
+                code = exc.code
+        err = capsys.readouterr().err
+        assert code in (0, 1, 2, 3, None), (argv, code)
+        assert "internal error" not in err and ("Traceback" not in err or "--debug" in argv), err
+        if code == 1 and "--debug" not in argv:
+            assert err.strip().splitlines()[-1].startswith("rotorid: error: "), err
+    for root, _, names in os.walk(tmp_path):
+        assert not [n for n in names if ".tmp" in n], (root, names)

@@ -57,3 +57,47 @@ def test_coefficient_plot_marks_values_beyond_its_range():
     assert f"off scale ({beyond})" in labels
     ok_vals = np.concatenate([ident.k[ident.ok, b, i, i] for b in range(2) for i in range(2)]) * 1e-6
     assert ((ok_vals >= y0) & (ok_vals <= y1)).mean() > 0.9
+
+
+@pytest.mark.parametrize("title", ["run $x^$", "$$", r"$\undefinedcommand$", "cost $5 and $6", r"$\omega$ sweep"])
+def test_titles_that_are_not_valid_mathtext_are_drawn_literally(tmp_path, title):
+    """A '$' pair in a run or file name started matplotlib's mathtext; one it cannot parse made
+    every figure raise ValueError (rotorid identify: 'internal error', half a results folder)."""
+    import matplotlib.pyplot as plt
+
+    import rotorid
+    from rotorid import plot
+
+    rig = rotorid.nsf_rig()
+    r = rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances["A"], speed_rpm=[2000.0, 3000.0])
+    runs = [rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=[2000.0, 3000.0])
+            for s in "AB"]
+    ident = rotorid.identify_synchronous(rig.rotor, runs)
+    try:
+        for draw in (lambda p: plot.bode(r, title=title, x_label=title, path=p), lambda p: plot.polar(r, title=title, path=p),
+                     lambda p: plot.frf(r.q, axis=r.speed_rpm, title=title, path=p),
+                     lambda p: plot.coefficients(ident, title=title, path=p)):
+            p = tmp_path / "f.png"
+            draw(str(p))
+            assert p.stat().st_size > 0
+            p.unlink()
+    finally:
+        plt.close("all")
+    assert plot._text("title", r"$\omega$ sweep") == r"$\omega$ sweep"     # valid mathtext is kept
+    assert plot._text("title", "run $x^$") == r"run \$x^\$"
+
+
+def test_polar_labels_beyond_the_points_are_one_per_point():
+    """labels=10**12 asked numpy for a linspace of 10**12 values (7 TiB)."""
+    import matplotlib.pyplot as plt
+
+    import rotorid
+    from rotorid import plot
+
+    rig = rotorid.nsf_rig()
+    r = rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances["A"], speed_rpm=[2000.0, 3000.0, 4000.0])
+    try:
+        fig = plot.polar(r, labels=10 ** 12)
+        assert len(fig.axes[0].texts) == 3
+    finally:
+        plt.close("all")

@@ -350,7 +350,7 @@ def test_pint_quantities_with_numpy_or_decimal_magnitudes_are_read():
             quantity(bad, "length", "l1")
 
 
-@pytest.mark.parametrize("value", [10 ** 400, -10 ** 400])
+@pytest.mark.parametrize("value", [10 ** 400, -10 ** 400], ids=["1e400", "-1e400"])
 def test_an_integer_beyond_the_float_range_is_a_rotorid_error(value):
     with pytest.raises(RotoridError, match="must be finite"):
         quantity(value, "length", "l1")
@@ -378,3 +378,11 @@ def test_phases_stay_in_their_documented_ranges():
     np.testing.assert_allclose(np.exp(1j * np.deg2rad(arg)), np.exp(1j * np.angle(z)), atol=1e-12)
     assert OutputUnits(phase="arg").phase_of(complex(-1.0, -0.0)) == 180.0
     assert isinstance(OutputUnits().phase_of(np.complex128(1j)), np.floating)   # a scalar stays a scalar
+
+
+@pytest.mark.parametrize("kw", [dict(amplitude=np.zeros(0)), dict(phase=np.zeros(0)), dict(amplitude=np.array(["0-pk"] * 2)),
+                                dict(phase=np.ones((2, 2)))])
+def test_output_conventions_refuse_arrays_in_one_line(kw):
+    """An array compared elementwise: 'the truth value of an array is ambiguous' (ValueError)."""
+    with pytest.raises(RotoridError, match="must be"):
+        OutputUnits("SI", **kw)

@@ -119,6 +119,7 @@ def main(argv=None) -> int:
     args = _parser().parse_args(argv)   # usage errors: argparse prints them and exits with 2
     from .errors import RotoridError
 
+    stdout, sys.stdout = sys.stdout, _Stdout(sys.stdout)
     try:
         return _run(args)
     except RotoridError as exc:
@@ -130,8 +131,46 @@ def main(argv=None) -> int:
         print("rotorid: interrupted", file=sys.stderr)
         return 130
     except Exception as exc:  # noqa: BLE001 - a bug: still one line, the traceback on request
-        return _fail(args, f"rotorid: internal error: {type(exc).__name__}: {exc} (run with --debug for the "
-                           "traceback, and please report it)")
+        return _fail(args, f"rotorid: internal error: {type(exc).__name__}: {' '.join(str(exc).split())} (run with "
+                           "--debug for the traceback, and please report it)")
+    finally:
+        sys.stdout.flush()
+        sys.stdout = stdout
+
+
+class _Stdout:
+    """``sys.stdout`` while a command runs: when its reader goes away (``rotorid identify ... | head``)
+    the rest of the output is dropped, instead of a BrokenPipeError stopping the work half-way."""
+
+    def __init__(self, stream):
+        self._stream, self._gone = stream, False
+
+    def write(self, text):
+        if not self._gone:
+            try:
+                return self._stream.write(text)
+            except BrokenPipeError:
+                self._drop()
+        return len(text)
+
+    def flush(self):
+        if not self._gone:
+            try:
+                self._stream.flush()
+            except BrokenPipeError:
+                self._drop()
+
+    def _drop(self):
+        self._gone = True
+        try:   # what is still buffered goes nowhere, also when Python flushes stdout at exit
+            fd = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(fd, self._stream.fileno())
+            os.close(fd)
+        except (OSError, ValueError, AttributeError):   # no file descriptor (a captured stream)
+            pass
+
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
 
 
 def _fail(args, line: str) -> int:

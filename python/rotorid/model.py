@@ -105,7 +105,9 @@ class RigidRotor:
         def pair(name, v):
             if v is None:
                 return None
-            if isinstance(v, str) or not hasattr(v, "__len__") or len(v) != 2:
+            # a sequence of two (bytes, sets and mappings are not: b"ab" would be 97 m and 98 m)
+            if (isinstance(v, (str, bytes, bytearray, set, frozenset, dict)) or not hasattr(v, "__len__")
+                    or len(v) != 2):
                 raise RotoridError(f"{name} must be a pair of lengths ({name}1, {name}2), got {v!r}"[:300])
             return tuple(quantity(x, "length", f"{name}[{i}]") for i, x in enumerate(v))
 

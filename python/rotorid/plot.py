@@ -33,6 +33,24 @@ def _path(path):
     return None if path is None or isinstance(path, str) and path == "" else _v.path("path", path)
 
 
+def _text(name, value):
+    """A title or label as matplotlib can draw it: mathtext (``"$\\omega$"``) where it parses, else
+    every ``$`` drawn literally (a run named ``"$x^$"`` would make the figure fail to render)."""
+    import re
+
+    from matplotlib import cbook
+
+    s = _v.text(name, value)
+    if cbook.is_math_text(s):
+        from matplotlib.mathtext import MathTextParser
+
+        try:
+            MathTextParser("path").parse(s)
+        except Exception:  # noqa: BLE001 - pyparsing's errors (ValueError) and any other refusal
+            s = re.sub(r"(?<!\\)\$", r"\\$", s)
+    return s
+
+
 def finish(fig, path=None):
     """Lay out the figure; with ``path``, save it as PNG and close it (keeps memory flat in loops)."""
     path = _path(path)
@@ -59,7 +77,7 @@ def bode(response, *, title="", path=None, x_label="Rotor speed (rpm)", axis=Non
     from .simulate import ImpactResponse, SyncResponse
     from .units import OutputUnits
 
-    title, x_label, path = _v.text("title", title), _v.text("x_label", x_label), _path(path)
+    title, x_label, path = _text("title", title), _text("x_label", x_label), _path(path)
     conv = OutputUnits(units, amplitude=amplitude, phase=phase)
     if isinstance(response, SyncResponse):
         q, x = response.q, response.speed_rpm
@@ -117,7 +135,7 @@ def coefficients(ident, truth=None, *, title="", path=None, show_flagged=True, y
 
     _v.instance("ident", ident, Identification, what="rotorid Identification")
     _v.instance("truth", truth, BearingCoefficients, allow_none=True, what="rotorid.BearingCoefficients")
-    title, path, show_flagged = _v.text("title", title), _path(path), _v.flag("show_flagged", show_flagged)
+    title, path, show_flagged = _text("title", title), _path(path), _v.flag("show_flagged", show_flagged)
     ylim_factor = _v.number("ylim_factor", ylim_factor, nonneg=True)
     plt = _plt()
     x = ident.axis
@@ -217,7 +235,7 @@ def pedestal_compensation(without, with_pedestal, truth, *, title="", path=None)
     for name, v in (("without", without), ("with_pedestal", with_pedestal)):
         _v.instance(name, v, Identification, what="rotorid Identification")
     _v.instance("truth", truth, BearingCoefficients, what="rotorid.BearingCoefficients")
-    title, path = _v.text("title", title), _path(path)
+    title, path = _text("title", title), _path(path)
     plt = _plt()
     fig, axes = plt.subplots(2, 2, figsize=(13, 8), sharex=True, sharey="row")
     direct = [(b, i) for b in range(2) for i in range(2)]
@@ -264,7 +282,7 @@ def comparison(cmp, *, title="", path=None):
     from .support.compare import Comparison
 
     _v.instance("cmp", cmp, Comparison, what="rotorid.support.compare.Comparison")
-    title, path = _v.text("title", title), _path(path)
+    title, path = _text("title", title), _path(path)
     plt = _plt()
     x = cmp.axis
     idx = {n: j for j, n in enumerate(cmp.names)}
@@ -309,7 +327,7 @@ def campbell(modal_result, *, crit=None, path=None, title="Campbell diagram"):
     from .modal import ModalResult
 
     _v.instance("modal_result", modal_result, ModalResult, what="rotorid ModalResult (from modal_analysis)")
-    title, path = _v.text("title", title), _path(path)
+    title, path = _text("title", title), _path(path)
     if crit is not None:
         import pandas as pd
 
@@ -390,14 +408,16 @@ def polar(response, *, title="", path=None, axis=None, labels=5, units="SI", amp
     from .units import OutputUnits
 
     q, x, _ = _response_and_axis(response, axis, "response")
-    title, path = _v.text("title", title), _path(path)
+    title, path = _text("title", title), _path(path)
     labels = int(_v.number("labels", labels, nonneg=True))
     conv = OutputUnits(units, amplitude=amplitude, phase=phase)
     lag_view = conv.phase == "lag"
     plt = _plt()
     fig, axes = plt.subplots(1, 4, figsize=(16, 4.6), subplot_kw={"projection": "polar"})
     order = np.argsort(x)
-    pick = order[np.unique(np.linspace(0, x.size - 1, labels).round().astype(int))] if labels and x.size else []
+    # at most one label per point (labels=10**12 would ask linspace for terabytes)
+    pick = (order[np.unique(np.linspace(0, x.size - 1, min(labels, x.size)).round().astype(int))] if labels and x.size
+            else [])
     sign = -1.0 if lag_view else 1.0
     for j, ax in enumerate(axes):
         amp = conv.amplitude_of(q[order, j])
@@ -450,7 +470,7 @@ def frf(response, coherence=None, *, coherence_min=None, title="", path=None, ax
     from .units import OutputUnits, factor
 
     q, x, _ = _response_and_axis(response, axis, "response")
-    title, path = _v.text("title", title), _path(path)
+    title, path = _text("title", title), _path(path)
     conv = OutputUnits(units, phase=phase)
     per_force = factor(conv.force_unit) / factor(conv.length_unit)   # m/N -> length unit per force unit
     if coherence is not None:

@@ -198,15 +198,31 @@ def _to_si_float(value, dimension: str) -> float:
     d = _dimension(dimension)
     if isinstance(value, bool):
         raise RotoridError(f"must be a number (in {DIMENSIONS[d]}) or a string with a unit, got {value!r}")
-    if hasattr(value, "magnitude") and hasattr(value, "units") and not isinstance(value, str):
-        value = f"{value.magnitude!r} {value.units}"   # a pint Quantity (of any registry)
-    if not isinstance(value, str):
-        import numbers
+    import numbers
 
+    if hasattr(value, "magnitude") and hasattr(value, "units") and not isinstance(value, str):
+        # a pint Quantity (of any registry): its magnitude as a float (a numpy scalar's repr,
+        # np.float64(2.0), is no number to pint), its unit as pint writes it
+        import decimal
+
+        import numpy as np
+
+        mag = value.magnitude
+        if isinstance(mag, (bool, np.bool_)) or not isinstance(mag, (numbers.Real, decimal.Decimal)):
+            raise RotoridError(f"must be a single real value with its unit, got a quantity of {type(mag).__name__} "
+                               f"{mag!r}"[:300])
+        try:
+            value = f"{float(mag)!r} {value.units}"
+        except OverflowError:
+            raise RotoridError(f"must be finite, got {value!r}"[:300]) from None
+    if not isinstance(value, str):
         if not isinstance(value, numbers.Real):
             raise RotoridError(f"must be a number (in {DIMENSIONS[d]}) or a string with a unit (e.g. "
                                f"{_EXAMPLE[d]!r}), got {type(value).__name__} {value!r}"[:300])
-        x = float(value)
+        try:
+            x = float(value)
+        except OverflowError:   # an int beyond the float range (10**400)
+            x = float("inf") if value > 0 else float("-inf")
         if x != x or x in (float("inf"), float("-inf")):
             raise RotoridError(f"must be finite, got {x}")
         return x
@@ -230,6 +246,9 @@ def _parse(text: str, d: str) -> float:
     shown = text if len(text) <= 60 else text[:57] + "..."
     if not text.strip():
         raise RotoridError(f"is an empty string (write a number and a unit, e.g. {_EXAMPLE[d]!r})")
+    if "," in text:   # pint drops it: "1,5 in" would be 15 in, "1, 5 in" 5 in
+        raise RotoridError(f"cannot be read as a quantity: {shown!r} has a comma (write the decimal point as '.', "
+                           f"and no thousands separators, e.g. {_EXAMPLE[d]!r})")
     if len(text) > 200 or _HUGE_POWER.search(text):
         raise RotoridError(f"cannot be read as a quantity: {shown!r} (too long, or a power too large: write a number "
                            f"and a unit, e.g. {_EXAMPLE[d]!r})")
@@ -389,9 +408,9 @@ class OutputUnits:
     def __init__(self, units: str = "SI", amplitude: str = "0-pk", phase: str = "lag"):
         if not isinstance(units, str) or units.upper() not in self.SYSTEMS:
             raise RotoridError(f"units must be 'SI' or 'US' (US customary: mil, lbf, lbf/in, lbf*s/in), got {units!r}")
-        if amplitude not in ("0-pk", "pk-pk"):
+        if not isinstance(amplitude, str) or amplitude not in ("0-pk", "pk-pk"):   # (an array compares elementwise)
             raise RotoridError(f"amplitude must be '0-pk' or 'pk-pk', got {amplitude!r}")
-        if phase not in ("lag", "arg"):
+        if not isinstance(phase, str) or phase not in ("lag", "arg"):
             raise RotoridError(f"phase must be 'lag' (as a DAQ shows it) or 'arg' (of the complex amplitude), "
                                f"got {phase!r}")
         self.units, self.amplitude, self.phase = units.upper(), amplitude, phase
@@ -424,8 +443,9 @@ class OutputUnits:
 
         arg = np.rad2deg(np.angle(z))
         if self.phase == "arg":
-            return arg
-        return np.mod(-arg, 360.0) + 0.0   # + 0.0: no -0
+            return arg + 360.0 * (arg == -180.0)   # (-180, 180]: -180 (a -0.0 imaginary part) is 180
+        lag = np.mod(-arg, 360.0) + 0.0   # + 0.0: no -0
+        return lag - 360.0 * (lag == 360.0)   # [0, 360): the mod of a tiny negative rounds up to 360
 
     def amplitude_column(self, name: str) -> str:
         return f"{name}_amp_{self.length_unit}_{self._amp_tag}"
