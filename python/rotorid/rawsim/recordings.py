@@ -275,7 +275,7 @@ def impact_recording(rotor: RigidRotor, bearings: BearingCoefficients, *, speed_
 def example_rig():
     """The NSF rotor with two different, cross-coupled bearings (bearing 2 stiffer in x, softer in
     y, different damping; stiffness 80 % of Table 4 so that 3000-6000 rpm lies mostly between the
-    critical speeds, 3184/3235 and 4552 rpm) and probes away from the bearings, plus a remnant
+    critical speeds, 3190/3243 and 4569 rpm) and probes away from the bearings, plus a remnant
     imbalance of 1.0 g and 0.6 g: the example data set's truth."""
     from ..model import nsf_rig
 
