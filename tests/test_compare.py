@@ -106,13 +106,10 @@ def _tables(tmp_path, ident, k, c, us=False):
 
 @pytest.fixture(scope="module")
 def identified():
-    rig = rotorid.nsf_rig()
+    from noisy import noisy_nsf_runs
+
     rpm = np.arange(3000.0, 6001.0, 500.0)
-    runs = [rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=rpm) for s in "ABCD"]
-    rng = np.random.default_rng(3)
-    for r in runs:
-        r.q = r.q + 0.05e-6 * (rng.standard_normal(r.q.shape) + 1j * rng.standard_normal(r.q.shape))
-        r.cov = np.broadcast_to(np.eye(8) * (0.05e-6) ** 2, (rpm.size, 8, 8))
+    rig, runs = noisy_nsf_runs(rpm, "ABCD", seed=3)
     ident = rotorid.identify_synchronous(rig.rotor, runs)
     k, c = rig.bearings.at()
     return ident, np.repeat(k, rpm.size, 0) * 1.05, np.repeat(c, rpm.size, 0)

@@ -16,13 +16,9 @@ LBF_IN = 4.4482216152605 / 0.0254
 
 @pytest.fixture(scope="module")
 def ident():
-    rig = rotorid.nsf_rig()
-    rpm = np.array([3000.0, 3500.0, 4000.0, 4500.0])
-    runs = [rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=rpm) for s in "ABC"]
-    rng = np.random.default_rng(2)
-    for r in runs:
-        r.q = r.q + 0.05e-6 * (rng.standard_normal(r.q.shape) + 1j * rng.standard_normal(r.q.shape))
-        r.cov = np.broadcast_to(np.eye(8) * (0.05e-6) ** 2, (rpm.size, 8, 8))
+    from noisy import noisy_nsf_runs
+
+    rig, runs = noisy_nsf_runs([3000.0, 3500.0, 4000.0, 4500.0], "ABC", seed=2)
     return rotorid.identify_synchronous(rig.rotor, runs)
 
 

@@ -852,13 +852,10 @@ def _support_fixtures():
                     cols[p + ij].append(a[i, j, "xy".index(ij[0]), "xy".index(ij[1])])
     bearing_csv = pd.DataFrame(cols).to_csv(index=False)
     # an imbalance identification with intervals (noisy responses with a covariance), and a prediction
-    rig = rotorid.nsf_rig()
+    from noisy import noisy_nsf_runs
+
     rpm = np.array([3000.0, 4000.0, 5000.0])
-    runs = [rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=rpm) for s in "ABCD"]
-    rng = np.random.default_rng(3)
-    for r in runs:
-        r.q = r.q + 0.05e-6 * (rng.standard_normal(r.q.shape) + 1j * rng.standard_normal(r.q.shape))
-        r.cov = np.broadcast_to(np.eye(8) * (0.05e-6) ** 2, (rpm.size, 8, 8))
+    rig, runs = noisy_nsf_runs(rpm, "ABCD", seed=3)
     ident = rotorid.identify_synchronous(rig.rotor, runs)
     pk, pc = rig.bearings.at()
     pk, pc = np.repeat(pk, rpm.size, 0) * 1.05, np.repeat(pc, rpm.size, 0)

@@ -41,13 +41,9 @@ class Page(HTMLParser):
 
 @pytest.fixture(scope="module")
 def ident():
-    rig = rotorid.nsf_rig()
-    rpm = np.arange(1500.0, 6001.0, 500.0)
-    runs = [rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=rpm) for s in "ABC"]
-    rng = np.random.default_rng(4)
-    for r in runs:
-        r.q = r.q + 0.05e-6 * (rng.standard_normal(r.q.shape) + 1j * rng.standard_normal(r.q.shape))
-        r.cov = np.broadcast_to(np.eye(8) * (0.05e-6) ** 2, (rpm.size, 8, 8))
+    from noisy import noisy_nsf_runs
+
+    rig, runs = noisy_nsf_runs(np.arange(1500.0, 6001.0, 500.0), "ABC", seed=4)
     out = rotorid.identify_synchronous(rig.rotor, runs)
     assert out.ok.any() and (~out.ok).any()   # the page must show both kinds of points
     return out
