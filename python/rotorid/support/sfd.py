@@ -480,7 +480,7 @@ class SqueezeFilmDamper:
         ((3, 2, 2), (3, 2, 2), (3, 2, 2), (3,))
         """
         f = _freqs(freq_hz)
-        re = self.density_kg_m3 * 2.0 * np.pi * f * self.clearance_m**2 / self.viscosity_pa_s
+        re = self.squeeze_reynolds(f)
         if f.size:
             k = int(np.argmax(re))
             if self.inertia and re[k] > INERTIA_RE_LIMIT:
