@@ -452,3 +452,20 @@ def test_measured_data_plots_refuse_bad_input():
         plot.frf(t, np.ones((3, 4)))
     with pytest.raises(RotoridError, match="coherence_min"):
         plot.frf(t, np.ones((t.freq_hz.size, 4)), coherence_min=-1)
+
+
+@pytest.mark.parametrize("value,kw,ok", [
+    (1.5, {}, True), (0.0, {}, True), (-0.0, {}, True), (-2.0, {}, True), (0.0, {"nonneg": True}, True),
+    (0.0, {"positive": True}, False), (-0.0, {"positive": True}, False), (-1e-300, {"nonneg": True}, False),
+    (float("nan"), {}, False), (float("inf"), {}, False), (-float("inf"), {"nonneg": True}, False),
+    (np.float64(np.nan), {}, False), (True, {}, False), ("1", {}, False), (1 + 0j, {}, False)])
+def test_scalar_check_fast_path_refuses_what_the_full_check_refuses(value, kw, ok):
+    """``_validate.number`` returns plain finite floats at once; everything else goes through the
+    full checks, which must still refuse NaN, infinities, signs and non-numbers."""
+    from rotorid._validate import number
+
+    if ok:
+        assert number("x", value, **kw) == value
+    else:
+        with pytest.raises(RotoridError, match="x"):
+            number("x", value, **kw)

@@ -232,3 +232,40 @@ def test_report_method_survives_an_svd_that_does_not_converge():
     res = rotorid.identify_impact(rotor, tests, method="report")
     assert np.all(np.isfinite(res.cond)) and res.cond.max() < 5
     np.testing.assert_allclose(res.k, np.broadcast_to(k, res.k.shape), rtol=1e-7, atol=1e-3)
+
+
+@given(st.lists(st.tuples(st.sampled_from("xy"), st.floats(-1.0, 1.0)), min_size=1, max_size=4),
+       st.floats(0.0, 1.0))
+def test_closed_form_rank_agrees_with_numpy(impacts, tiny):
+    """identify_impact counts the independent impacts in closed form (no SVD call) for one or two
+    tests; the count must be np.linalg.matrix_rank's, capped at 2, with the same tolerance, also
+    for nearly parallel rows (a second plane 1e-12 m from the first)."""
+    from rotorid.identify import _rank_up_to_2
+    from rotorid.simulate import impact_vector
+
+    E = np.array([impact_vector(z, d) for d, z in impacts])
+    if len(impacts) == 2 and impacts[0][0] == impacts[1][0]:
+        E[1] = impact_vector(impacts[0][1] + tiny * 1e-12, impacts[0][0])  # nearly the same impact
+    tol = 1e-9 * max(1.0, float(np.abs(E).max()))
+    assert _rank_up_to_2(E, tol) == min(2, np.linalg.matrix_rank(E, tol=tol))
+
+
+def test_closed_form_rank_of_zero_and_scaled_rows():
+    from rotorid.identify import _rank_up_to_2
+
+    assert _rank_up_to_2(np.zeros((1, 4)), 1e-9) == 0
+    assert _rank_up_to_2(np.zeros((2, 4)), 1e-9) == 0
+    a = np.array([1.0, 0.0, 0.3, 0.0])
+    assert _rank_up_to_2(np.stack([a, -2.5 * a]), 1e-9) == 1
+    assert _rank_up_to_2(np.stack([a, a + [0, 0, 0, 1e-8]]), 1e-9) == 2
+    assert _rank_up_to_2(np.stack([a, a + [0, 0, 0, 1e-10]]), 1e-9) == 1
+
+
+def test_identifications_without_standard_errors_hold_read_only_nan():
+    rig = rotorid.nsf_rig()
+    f = np.linspace(2, 200, 20)
+    tests = [rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=1000, freq_hz=f, direction=d) for d in "xy"]
+    ident = rotorid.identify_impact(rig.rotor, tests)
+    assert ident.k_std.shape == ident.k.shape and np.isnan(ident.k_std).all() and np.isnan(ident.c_std).all()
+    with pytest.raises(ValueError, match="read-only"):
+        ident.k_std[0, 0, 0, 0] = 1.0

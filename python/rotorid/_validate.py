@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .errors import RotoridError
@@ -125,6 +127,8 @@ def choice(name, value, options):
 def number(name, value, *, positive=False, nonneg=False, allow_none=False):
     """A real, finite scalar: refuses strings, booleans, complex numbers, arrays and None (unless
     ``allow_none``), naming the argument."""
+    if type(value) is float and math.isfinite(value) and value >= 0.0 and (value > 0.0 or not positive):
+        return value  # the common case, without the checks below (they cost microseconds per argument)
     if value is None and allow_none:
         return None
     ok_type = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
@@ -134,7 +138,7 @@ def number(name, value, *, positive=False, nonneg=False, allow_none=False):
         else:
             raise RotoridError(f"{name} must be a real number, got {value!r}")
     v = float(value)
-    if not np.isfinite(v):
+    if not math.isfinite(v):
         raise RotoridError(f"{name} must be finite, got {value!r}")
     if positive and not v > 0:
         raise RotoridError(f"{name} must be > 0, got {value!r}")
