@@ -20,13 +20,22 @@ def forced_response(
 ) -> tuple[npt.NDArray[np.complex128], int]:
     """Solve H q = F with H = -w^2 M + j w spin G + j w C + K; returns (q (n, nrhs, 4), n_singular)."""
 
+def imbalance_response(
+    rotor: npt.NDArray[np.float64],
+    k: npt.NDArray[np.float64],  # (n or 1, 8)
+    c: npt.NDArray[np.float64],  # (n or 1, 8)
+    spin: npt.NDArray[np.float64],  # (n,) rad/s
+    force: npt.NDArray[np.complex128],  # (n or 1, nrhs, 4) generalized imbalance vectors
+) -> tuple[npt.NDArray[np.complex128], int]:
+    """forced_response with w = spin and each point's solution scaled by spin^2; returns (q (n, nrhs, 4), n_singular)."""
+
 def identify(
     rotor: npt.NDArray[np.float64],
     w: npt.NDArray[np.float64],  # (n,)
     spin: npt.NDArray[np.float64],  # (n,)
     q: npt.NDArray[np.complex128],  # (batch, runs, n, 4)
     e: npt.NDArray[np.complex128],  # (1 or batch, runs, 4)
-    gain: npt.NDArray[np.float64],  # (n,): excitation at point i is e * gain[i]
+    gain: npt.NDArray[np.float64] | None,  # (n,) or (1,): excitation at point i is e * gain[i]; None: spin^2
     identical: bool = False,
     method: str = "forces",  # or "report"
     with_std: bool = True,

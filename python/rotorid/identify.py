@@ -430,7 +430,7 @@ def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", ide
     if _has_pedestal(runs, labels):
         qs, qps, covs, dofs, flags = _pedestal_inputs(rotor, runs, labels, "speed_rpm", rpm)
         cal = _calibration_inputs(rotor, runs, labels, accel_gain_std, accel_phase_std_deg)
-        return _solve(rotor, "speed_rpm", rpm, om, om, qs, e, om ** 2, None, identical=identical, method=method,
+        return _solve(rotor, "speed_rpm", rpm, om, om, qs, e, None, None, identical=identical, method=method,
                       labels=labels, cond_max=cond_max, min_rel_amplitude=min_rel_amplitude, what="responses",
                       covs=covs, dofs=dofs, max_rel_std=max_rel_std, estimator=estimator, extra_flags=flags,
                       q_ped=qps, shared_cov=_shared(rotor, runs, shared_cov, size=16), calibration=cal)
@@ -438,7 +438,9 @@ def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", ide
     at_b = [r.at_bearings(rotor) for r in runs]
     qs = [np.ascontiguousarray(r.q, dtype=complex) for r in at_b]  # the runs as they are: no copy, no stack
     covs = _run_covs(at_b, labels)
-    return _solve(rotor, "speed_rpm", rpm, om, om, qs, e, om ** 2, None, identical=identical, method=method,
+    # gain None: the core forms Omega^2 itself (a second (n,) temporary next to om made glibc return
+    # and fault in megabytes on every call)
+    return _solve(rotor, "speed_rpm", rpm, om, om, qs, e, None, None, identical=identical, method=method,
                   labels=labels, cond_max=cond_max, min_rel_amplitude=min_rel_amplitude, what="responses",
                   covs=covs, dofs=None if covs is None else _run_dofs(at_b), max_rel_std=max_rel_std,
                   estimator=estimator, shared_cov=_shared(rotor, runs, shared_cov))
@@ -653,7 +655,8 @@ def _nan_view(shape):
 def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, method, labels, cond_max,
            min_rel_amplitude, what, covs=None, dofs=None, max_rel_std=MAX_REL_STD, extra_flags=None,
            estimator="ls", shared_cov=None, q_ped=None, calibration=None):
-    """One core call for the whole axis, uncertainty, then flags; shared by both methods."""
+    """One core call for the whole axis, uncertainty, then flags; shared by both methods.
+    ``gain`` None: spin^2 (an imbalance), formed by the core."""
     from .uncertainty import propagate, std_from_cov
 
     cond_max = _check_threshold("cond_max", cond_max, 1.0)
@@ -688,10 +691,14 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
     source, dof, cov = ("residual" if redundant else "none"), None, None
     if redundant:
         # residual dof per bearing system: R complex equations (2R real) for 2 complex unknowns
-        dof = np.full(axis.size, 2.0 * (nruns * (2 if identical else 1) - 2))
+        # one value for every point: a read-only view, not an (n,) array (freed with om, two such
+        # arrays made glibc return and fault in the memory on every call)
+        dof = np.broadcast_to(np.float64(2.0 * (nruns * (2 if identical else 1) - 2)), (axis.size,))
     choice("estimator", estimator, {"ls", "bias-corrected"})
     if estimator == "bias-corrected" and covs is None:
         raise RotoridError("estimator='bias-corrected' needs the measurement covariance of every run or test (cov=)")
+    if gain is None and (covs is not None or calibration is not None):
+        gain = spin ** 2  # the uncertainty propagation needs the array
     if covs is not None:
         from .model import _REPORT_TO_BIJ
 

@@ -201,6 +201,32 @@ fn forced_response<'py>(
     Ok((to_py(py, out, &[n, nrhs, 4])?, nsing))
 }
 
+/// The synchronous response to an imbalance at the speeds `spin` (rad/s): w = spin and
+/// q_i = spin_i^2 H_i^-1 force (see forced::forced_response_imbalance), without the (n,) arrays
+/// of w and spin^2 the caller would otherwise build. Returns (q, n_singular).
+#[pyfunction]
+fn imbalance_response<'py>(
+    py: Python<'py>,
+    rotor: PyReadonlyArrayDyn<'py, f64>,
+    k: PyReadonlyArrayDyn<'py, f64>,
+    c: PyReadonlyArrayDyn<'py, f64>,
+    spin: PyReadonlyArrayDyn<'py, f64>,
+    force: PyReadonlyArrayDyn<'py, C64>,
+) -> PyResult<(Bound<'py, PyArrayDyn<C64>>, usize)> {
+    let rot = rotor_of(&rotor)?;
+    let n = spin.len();
+    let nrhs = forced_shapes("imbalance_response", n, &k, &c, &spin, &force, None, 4)?;
+    let (ks, cs, ss, fsl) = (slice(&k, "k")?, slice(&c, "c")?, slice(&spin, "spin")?, slice(&force, "force")?);
+    let (out, nsing) = py.detach(|| {
+        guarded(|| {
+            let mut out = vec![C64::new(0.0, 0.0); n * nrhs * 4];
+            forced::forced_response_imbalance(&rot, ks, cs, ss, fsl, nrhs, &mut out).map(|ns| (out, ns))
+        })
+    })?
+    .map_err(core_err)?;
+    Ok((to_py(py, out, &[n, nrhs, 4])?, nsing))
+}
+
 type IdentTuple<'py> = (
     Bound<'py, PyArrayDyn<f64>>,
     Bound<'py, PyArrayDyn<f64>>,
@@ -277,7 +303,7 @@ fn pedestal_responses<'py>(q_ped: Option<&Bound<'py, PyAny>>, resp: &Responses<'
 
 /// Batched identification (see identify.rs).
 /// q: (B, R, n, 4) complex, or a list of R arrays (n, 4) for B = 1; e: (1 or B, R, 4) complex;
-/// w, spin, gain: (n,). method: "forces" (default solver) or "report" (16-unknown real
+/// w, spin: (n,); gain: (n,), (1,) or None (spin^2: an imbalance). method: "forces" (default solver) or "report" (16-unknown real
 /// formulation). Returns (k, c, cond, resid, amp, k_std, c_std, rel_std, n_nonfinite) with
 /// k, c: (B, n, 2, 2, 2), cond (B, n, 2), resid, amp (rms response amplitude) and rel_std (largest
 /// standard error relative to the bearing's direct coefficients, see identify::relative_std)
@@ -292,7 +318,7 @@ fn py_identify<'py>(
     spin: PyReadonlyArrayDyn<'py, f64>,
     q: &Bound<'py, PyAny>,
     e: PyReadonlyArrayDyn<'py, C64>,
-    gain: PyReadonlyArrayDyn<'py, f64>,
+    gain: Option<PyReadonlyArrayDyn<'py, f64>>,
     identical: bool,
     method: &str,
     with_std: bool,
@@ -590,7 +616,7 @@ fn ident_problem<'a>(
     w: &'a PyReadonlyArrayDyn<'_, f64>,
     spin: &'a PyReadonlyArrayDyn<'_, f64>,
     e: &'a PyReadonlyArrayDyn<'_, C64>,
-    gain: &'a PyReadonlyArrayDyn<'_, f64>,
+    gain: &'a Option<PyReadonlyArrayDyn<'_, f64>>,
     sigma: &'a Option<PyReadonlyArrayDyn<'_, f64>>,
     q: &'a [&'a [C64]],
     q_ped: &'a [&'a [C64]],
@@ -601,7 +627,8 @@ fn ident_problem<'a>(
         return Err(PyValueError::new_err("at least one run is needed"));
     }
     check_shape("w", w.shape(), &[n])?;
-    for (name, a) in [("spin", spin), ("gain", gain)] {
+    for (name, a) in [("spin", Some(spin)), ("gain", gain.as_ref())] {
+        let Some(a) = a else { continue };
         if a.shape() != [n] && a.shape() != [1] {
             return Err(PyValueError::new_err(format!("{name} has shape {:?}, expected ({n},) or (1,)", a.shape())));
         }
@@ -623,7 +650,10 @@ fn ident_problem<'a>(
         spin: slice(spin, "spin")?,
         q,
         e: slice(e, "e")?,
-        gain: slice(gain, "gain")?,
+        gain: match gain {
+            Some(g) => slice(g, "gain")?,
+            None => &[],
+        },
         sigma,
         q_ped,
         batch,
@@ -646,7 +676,7 @@ fn bearing_forces<'py>(
     spin: PyReadonlyArrayDyn<'py, f64>,
     q: &Bound<'py, PyAny>,
     e: PyReadonlyArrayDyn<'py, C64>,
-    gain: PyReadonlyArrayDyn<'py, f64>,
+    gain: Option<PyReadonlyArrayDyn<'py, f64>>,
     sigma: Option<PyReadonlyArrayDyn<'py, f64>>,
     q_ped: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyArrayDyn<C64>>> {
@@ -1032,6 +1062,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(series_impedance, m)?)?;
     m.add_function(wrap_pyfunction!(relative_std, m)?)?;
     m.add_function(wrap_pyfunction!(flag_codes, m)?)?;
+    m.add_function(wrap_pyfunction!(imbalance_response, m)?)?;
     m.add_function(wrap_pyfunction!(lti_run, m)?)?;
     m.add_function(wrap_pyfunction!(angle_resample, m)?)?;
     m.add_function(wrap_pyfunction!(runout_subtract, m)?)?;

@@ -256,7 +256,8 @@ pub struct IdentProblem<'a> {
     pub q: &'a [&'a [C64]],
     /// excitation base vectors, (batch_e, runs, 4) with batch_e in {1, batch}
     pub e: &'a [C64],
-    /// gain applied to e at each point (Omega^2 for imbalance, 1 for unit-force FRFs), (n,) or (1,)
+    /// gain applied to e at each point (Omega^2 for imbalance, 1 for unit-force FRFs), (n,) or
+    /// (1,); empty: Omega_i^2 from `spin` (an imbalance, without an (n,) array of the caller's)
     pub gain: &'a [f64],
     /// real part of the Laplace variable s = sigma + j w at each point, (n,) or empty for s = j w
     /// (an exponential window exp(-sigma t) on force and response gives FRFs at sigma + j w)
@@ -285,7 +286,9 @@ impl IdentProblem<'_> {
             return Err(CoreError::value("runs", "must be at least 1"));
         }
         expect_len_or_broadcast("spin", self.spin, 1, n)?;
-        expect_len_or_broadcast("gain", self.gain, 1, n)?;
+        if !self.gain.is_empty() {
+            expect_len_or_broadcast("gain", self.gain, 1, n)?;
+        }
         expect_len("q (blocks)", self.q, product("q", &[self.batch, self.runs])?)?;
         let block = product("q", &[n, 4])?;
         if let Some(bad) = self.q.iter().position(|b| b.len() != block) {
@@ -392,6 +395,19 @@ fn rhs_point(k: &Consts, e: &[C64], gain: f64, w: f64, sigma: f64, spin: f64, q:
     ]
 }
 
+/// The gain of point `i`: gain[i], gain[0] broadcast, or Omega_i^2 when `gain` is empty.
+#[inline(always)]
+fn gain_at(p: &IdentProblem, i: usize) -> f64 {
+    match p.gain.len() {
+        0 => {
+            let s = p.spin[if p.spin.len() == 1 { 0 } else { i }];
+            s * s
+        }
+        1 => p.gain[0],
+        _ => p.gain[i],
+    }
+}
+
 #[inline(always)]
 fn sigma_at(p: &IdentProblem, i: usize) -> f64 {
     if p.sigma.is_empty() {
@@ -481,7 +497,7 @@ fn forces_chunk(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize
             bi[l] = (b, i);
             w.0[l] = p.w[i];
             spin.0[l] = p.spin[if p.spin.len() == 1 { 0 } else { i }];
-            gain.0[l] = p.gain[if p.gain.len() == 1 { 0 } else { i }];
+            gain.0[l] = gain_at(p, i);
             sig.0[l] = sigma_at(p, i);
             if l + 1 < nl {
                 i += 1;
@@ -783,10 +799,10 @@ fn report_all(p: &IdentProblem, out: IdentOut) -> usize {
                     bad |= !(v.re.is_finite() && v.im.is_finite());
                     qq += v.norm_sqr();
                 }
-                let (gi, si) = (if p.gain.len() == 1 { 0 } else { i }, if p.spin.len() == 1 { 0 } else { i });
+                let si = if p.spin.len() == 1 { 0 } else { i };
                 let qa = load_abs(p, b, r, i);
                 bad |= !qa.iter().all(|v| v.re.is_finite() && v.im.is_finite());
-                let rv = rhs_point(&kc, excitation(p, b, r), p.gain[gi], p.w[i], sigma_at(p, i), p.spin[si], &qa);
+                let rv = rhs_point(&kc, excitation(p, b, r), gain_at(p, i), p.w[i], sigma_at(p, i), p.spin[si], &qa);
                 // Q of eq. 8 (4 x 16 complex), columns in eq. 9 order
                 let lq = [-l1 * q[0], l2 * q[1], -l1 * q[2], l2 * q[3]];
                 let mut qm = [[C64::new(0.0, 0.0); 16]; 4];
@@ -869,9 +885,9 @@ pub fn bearing_forces(p: &IdentProblem, out: &mut [C64]) -> Result<(), CoreError
     out.par_chunks_mut(4).with_min_len(1024).enumerate().for_each(|(idx, f)| {
         let (br, i) = (idx / n, idx % n);
         let (b, r) = (br / p.runs, br % p.runs);
-        let (gi, si) = (if p.gain.len() == 1 { 0 } else { i }, if p.spin.len() == 1 { 0 } else { i });
+        let si = if p.spin.len() == 1 { 0 } else { i };
         let qa = load_abs(p, b, r, i);
-        let rv = rhs_point(&kc, excitation(p, b, r), p.gain[gi], p.w[i], sigma_at(p, i), p.spin[si], &qa);
+        let rv = rhs_point(&kc, excitation(p, b, r), gain_at(p, i), p.w[i], sigma_at(p, i), p.spin[si], &qa);
         f[0] = (rv[0] * kc.l2 - rv[2]) * kc.il;
         f[1] = (rv[2] + rv[0] * kc.l1) * kc.il;
         f[2] = (rv[1] * kc.l2 + rv[3]) * kc.il;

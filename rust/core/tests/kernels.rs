@@ -179,6 +179,13 @@ proptest! {
             }
         }
         prop_assert!(forced::forced_response_scaled(&r, &k, &cc, &w, &w, &e, 1, &gain[1..], &mut a).is_err());
+        // the imbalance entry (w = spin, gain = spin^2 formed in the kernel) is the same, bit for bit
+        forced::forced_response_scaled(&r, &k, &cc, &w, &w, &e, 1, &gain, &mut a).unwrap();
+        let mut d = vec![c(0.0, 0.0); 4 * n];
+        forced::forced_response_imbalance(&r, &k, &cc, &w, &e, 1, &mut d).unwrap();
+        let bits = |v: &[C64]| v.iter().map(|z| (z.re.to_bits(), z.im.to_bits())).collect::<Vec<_>>();
+        prop_assert_eq!(bits(&a), bits(&d));
+        prop_assert!(forced::forced_response_imbalance(&r, &k, &cc, &w, &e, 1, &mut d[4..]).is_err());
     }
 
     /// Exact responses of 2-4 runs identify the bearings they came from (both solvers), and the
@@ -208,6 +215,27 @@ proptest! {
             for (i, s) in fast.k_std.iter().enumerate() {
                 prop_assert!(!(*s < 0.0), "negative standard error at {i}");
             }
+        }
+    }
+
+    /// An empty gain is Omega^2 from `spin`, bit for bit, with both solvers (the public API's
+    /// imbalance identifications pass no gain array).
+    #[test]
+    fn empty_gain_is_spin_squared(r in rotors(), (k, cc) in bearings(), runs in 2usize..5,
+                                  e in proptest::collection::vec(-1.0f64..1.0, 32)) {
+        let w = speeds_for(&r, &k, 11);
+        let e = cplx_vec(&e[..8 * runs]);
+        let q = imbalance_responses(&r, &k, &cc, &w, &e);
+        let gain: Vec<f64> = w.iter().map(|v| v * v).collect();
+        let qb = blocks(&q, w.len());
+        let given = IdentProblem { rotor: r, w: &w, spin: &w, q: &qb, e: &e, gain: &gain, sigma: &[], q_ped: &[], batch: 1, runs, identical: false };
+        let implied = IdentProblem { gain: &[], ..given };
+        for report in [false, true] {
+            let (a, b) = (run_identify(&given, report).unwrap(), run_identify(&implied, report).unwrap());
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            prop_assert_eq!(bits(&a.k), bits(&b.k));
+            prop_assert_eq!(bits(&a.c), bits(&b.c));
+            prop_assert_eq!(bits(&a.cond), bits(&b.cond));
         }
     }
 
@@ -550,7 +578,7 @@ fn identification_argument_errors_name_the_argument() {
         (IdentProblem { q: &qb[..1], ..base }, "q (blocks)"),
         (IdentProblem { q: &uneven, ..base }, "q"),
         (IdentProblem { e: &e[..5], ..base }, "e"),
-        (IdentProblem { gain: &gain[..0], ..base }, "gain"),
+        (IdentProblem { gain: &[1.0, 2.0, 3.0], ..base }, "gain"),
         (IdentProblem { spin: &[100.0, 200.0, 300.0], ..base }, "spin"),
         (IdentProblem { sigma: &[0.0], ..base }, "sigma"),
         (IdentProblem { sigma: &[0.0, f64::NAN], ..base }, "sigma"),
