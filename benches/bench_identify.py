@@ -8,7 +8,8 @@ Timed in the same process, best of ``repeat`` interleaved rounds of two back-to-
   ... with the API's options       the core call as identify_synchronous makes it (standard errors
                                    when the runs are redundant; the runs as a list of arrays when
                                    the installed core accepts one)
-  rotorid.identify_synchronous     the public API (checks, core call, uncertainty, flags)
+  rotorid.identify_synchronous     the public API (checks, core call, uncertainty, flags), on the runs
+                                   at the bearings and on the same runs at the probe planes
   NumPy (benches/baselines.py):    numpy_fast (the original all-at-once baseline) and the Gram-matrix
                                    formulation unblocked, cache-blocked on 1 thread and on --threads
                                    threads (block size tuned here); the fastest is "best NumPy".
@@ -74,6 +75,12 @@ def main():
     def api():
         return rotorid.identify_synchronous(rotor, runs)
 
+    # the same runs as labs record them, at the probe planes: the API moves them to the bearings
+    runs_at_probes = [r.at_probes(rotor) for r in runs]
+
+    def api_probes():
+        return rotorid.identify_synchronous(rotor, runs_at_probes)
+
     variants, tuning = numpy_variants(
         blocks, "numpy Gram",
         lambda: numpy_ident(p, om, om, gain, qs, e),
@@ -88,6 +95,8 @@ def main():
     ident = check_api("public API", api)
     if ident is not None:
         print(f"  {'public API':40s} k {rel_diff(ident.k, k_core):.1e}   c {rel_diff(ident.c, c_core):.1e}")
+        ip = api_probes()
+        print(f"  {'public API, runs at the probes':40s} k {rel_diff(ip.k, k_core):.1e}   c {rel_diff(ip.c, c_core):.1e}")
     for label, fn in variants.items():
         k, c = fn()
         print(f"  {label:40s} k {rel_diff(k, k_core):.1e}   c {rel_diff(c, c_core):.1e}")
@@ -98,12 +107,15 @@ def main():
     print(tuning)
     print()
 
-    fns = {"core": core, "core_api": core_api_options, **({"api": api} if ident is not None else {}), **variants}
+    fns = {"core": core, "core_api": core_api_options,
+           **({"api": api, "api_probes": api_probes} if ident is not None else {}), **variants}
     t = best_of_each(fns, repeat)
     extra = []
     if not args.quick:
         extra.append(("numpy-report (16 unknowns, eq. 18; reference)",
                       best_of(lambda: numpy_report(rotor, om, qs, e), 1, warmup=0)))
+    if "api_probes" in t:
+        extra.insert(0, ("rotorid.identify_synchronous, runs at the probe planes (eq. 19 in the API)", t["api_probes"]))
     api_label = f"rotorid._core.identify with the API's options (with_std={redundant}, {q_form})"
     report(work=f"identify {n:,} speeds from {args.runs} runs", n=n, unit="speeds",
            core=("rotorid._core.identify (k, c, cond, residual, amplitude)", t["core"]),
@@ -111,6 +123,10 @@ def main():
                 if "api" in t else None),
            extra_rows=extra if "api" in t else [(api_label, t["core_api"]), *extra],
            numpy={k: t[k] for k in variants}, target_ratio=TARGET)
+    if "api_probes" in t:
+        print(f"public API throughput / core throughput, runs at the probe planes: "
+              f"{100.0 * t['core_api'] / t['api_probes']:5.1f} %   target >= 90 %: "
+              f"{'met' if t['core_api'] / t['api_probes'] >= 0.9 else 'NOT met'}")
     blocks.close()
 
 

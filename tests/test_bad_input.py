@@ -469,3 +469,17 @@ def test_scalar_check_fast_path_refuses_what_the_full_check_refuses(value, kw, o
     else:
         with pytest.raises(RotoridError, match="x"):
             number("x", value, **kw)
+
+
+def test_core_plane_transform_refuses_bad_shapes():
+    from rotorid import _core
+
+    q = np.zeros((5, 4), complex)
+    with pytest.raises(ValueError, match="t has shape"):
+        _core.apply_planes(np.eye(3), q)
+    with pytest.raises(ValueError, match=r"q has shape \[5, 3\]"):
+        _core.apply_planes(np.eye(2), np.zeros((5, 3), complex))
+    with pytest.raises(ValueError, match="C-contiguous"):
+        _core.apply_planes(np.eye(2), np.zeros((5, 8), complex)[:, ::2])
+    with pytest.raises(TypeError):
+        _core.apply_planes(np.eye(2), np.zeros((5, 4)))  # real, not complex128

@@ -79,3 +79,37 @@ def test_bad_inputs():
         SyncResponse(speed_rpm=[1000, 2000], q=np.zeros((2, 3)))
     with pytest.raises(RotoridError, match="q contains NaN"):
         SyncResponse(speed_rpm=[1000], q=np.array([[np.nan, 0, 0, 0]]))
+
+
+@given(rotors(), st.integers(0, 70_000), st.sampled_from(["C", "F", "strided"]))
+def test_probe_transform_of_arrays_matches_eq19(rotor, n, layout):
+    """The core's one-pass plane transform on (n, 4) arrays of any length (past its parallel
+    threshold of 16,384 points too) and any memory layout, against eq. 19 written out."""
+    rng = np.random.default_rng(n)
+    q = (rng.standard_normal((n, 4)) + 1j * rng.standard_normal((n, 4))) * 1e-5
+    if layout == "F":
+        q = np.asfortranarray(q)
+    elif layout == "strided":
+        q = np.repeat(q, 2, axis=0)[::2]
+    T = oracle.eq19(rotor.l1, rotor.l2, rotor.s1, rotor.s2)
+    want = np.empty_like(q)
+    want[:, [0, 1]] = q[:, [0, 1]] @ T.T
+    want[:, [2, 3]] = q[:, [2, 3]] @ T.T
+    got = rotorid.probes_to_bearings(rotor, q)
+    assert got.shape == (n, 4)
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12 * 1e-5)
+
+
+def test_a_validated_run_moved_to_the_bearings_is_the_transform_and_stays_checked():
+    rig = rotorid.nsf_rig()
+    rpm = np.linspace(1000, 5000, 9)
+    run = rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances["A"], speed_rpm=rpm, at="probes")
+    moved = run.at_bearings(rig.rotor)
+    np.testing.assert_array_equal(moved.q, rotorid.probes_to_bearings(rig.rotor, run.q))
+    assert moved.at == "bearings" and moved.imbalance is run.imbalance and moved.speed_rpm is run.speed_rpm
+    # NaN put into a run after it was built still stops the identification with a clear error
+    runs = [rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=rpm, at="probes")
+            for s in "AB"]
+    runs[1].q[3, 2] = np.nan
+    with pytest.raises(RotoridError, match="NaN or inf"):
+        rotorid.identify_synchronous(rig.rotor, runs)

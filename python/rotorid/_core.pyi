@@ -20,6 +20,12 @@ def forced_response(
 ) -> tuple[npt.NDArray[np.complex128], int]:
     """Solve H q = F with H = -w^2 M + j w spin G + j w C + K; returns (q (n, nrhs, 4), n_singular)."""
 
+def apply_planes(
+    t: npt.NDArray[np.float64],  # (2, 2) real plane transform (report eq. 19)
+    q: npt.NDArray[np.complex128],  # (..., 4) [x1, x2, y1, y2], C-contiguous
+) -> npt.NDArray[np.complex128]:
+    """[x_a, x_b] = t [x1, x2] and [y_a, y_b] = t [y1, y2] at every point; same shape as q."""
+
 def imbalance_response(
     rotor: npt.NDArray[np.float64],
     k: npt.NDArray[np.float64],  # (n or 1, 8)

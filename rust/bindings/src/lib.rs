@@ -4,7 +4,7 @@
 //! become a `RuntimeError` (a panic never crosses into Python).
 
 use rotorid_core::study::{self, Excitation, ImpactErrors, Method, Study, SyncErrors};
-use rotorid_core::{forced, identify, modal, order, pedestal, series, timesim, CoreError, Rotor, C64};
+use rotorid_core::{forced, identify, modal, model, order, pedestal, series, timesim, CoreError, Rotor, C64};
 use numpy::{PyArray1, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyMemoryError, PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -225,6 +225,29 @@ fn imbalance_response<'py>(
     })?
     .map_err(core_err)?;
     Ok((to_py(py, out, &[n, nrhs, 4])?, nsing))
+}
+
+/// Responses moved between measurement planes (report eq. 19, see model::apply_planes): t (2, 2)
+/// real, q (..., 4) complex [x1, x2, y1, y2]; returns an array of q's shape.
+#[pyfunction]
+fn apply_planes<'py>(py: Python<'py>, t: PyReadonlyArrayDyn<'py, f64>, q: PyReadonlyArrayDyn<'py, C64>) -> PyResult<Bound<'py, PyArrayDyn<C64>>> {
+    check_shape("t", t.shape(), &[2, 2])?;
+    let shape = q.shape().to_vec();
+    if shape.last() != Some(&4) {
+        return Err(PyValueError::new_err(format!("q has shape {shape:?}, expected (..., 4)")));
+    }
+    let ts: [f64; 4] = slice(&t, "t")?.try_into().map_err(|_| PyValueError::new_err("t must hold 4 values"))?;
+    let qs = slice(&q, "q")?;
+    check_alloc("apply_planes", Some(qs.len()), 16)?;
+    let out = py
+        .detach(|| {
+            guarded(|| {
+                let mut out = vec![C64::new(0.0, 0.0); qs.len()];
+                model::apply_planes(&ts, qs, &mut out).map(|_| out)
+            })
+        })?
+        .map_err(core_err)?;
+    to_py(py, out, &shape)
 }
 
 type IdentTuple<'py> = (
@@ -1063,6 +1086,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(relative_std, m)?)?;
     m.add_function(wrap_pyfunction!(flag_codes, m)?)?;
     m.add_function(wrap_pyfunction!(imbalance_response, m)?)?;
+    m.add_function(wrap_pyfunction!(apply_planes, m)?)?;
     m.add_function(wrap_pyfunction!(lti_run, m)?)?;
     m.add_function(wrap_pyfunction!(angle_resample, m)?)?;
     m.add_function(wrap_pyfunction!(runout_subtract, m)?)?;

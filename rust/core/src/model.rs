@@ -72,3 +72,34 @@ pub fn assemble(b: &[f64], l1: f64, l2: f64) -> [[f64; 4]; 4] {
         [yx1 * l1, -yx2 * l2, yy1 * l1, -yy2 * l2],
     ]
 }
+
+/// Points per parallel task of [`apply_planes`] (memory-bound: large tasks).
+const PLANES_CHUNK: usize = 1 << 14;
+
+/// Move responses between two pairs of measurement planes (report eq. 19): for every point,
+/// [x_a, x_b] = T [x_1, x_2] and [y_a, y_b] = T [y_1, y_2] with the real 2x2 `t` = [T11, T12,
+/// T21, T22] (row-major), e.g. from the probe planes to the bearings. `q`, `out`: (n, 4) as
+/// [x1, x2, y1, y2]. Each output is t_i1 q_1 + t_i2 q_2 with real-times-complex products (a
+/// non-finite response stays where it is: inf * 0 does not spread NaN into the other plane's
+/// imaginary part as a complex product would).
+pub fn apply_planes(t: &[f64; 4], q: &[C64], out: &mut [C64]) -> Result<(), crate::CoreError> {
+    use rayon::prelude::*;
+    if q.len() % 4 != 0 {
+        return Err(crate::CoreError::length("q", q.len(), "a multiple of 4 ([x1, x2, y1, y2] per point)".to_string()));
+    }
+    crate::error::expect_len("out", out, q.len())?;
+    let pass = |q: &[C64], out: &mut [C64]| {
+        for (p, o) in q.chunks_exact(4).zip(out.chunks_exact_mut(4)) {
+            o[0] = p[0] * t[0] + p[1] * t[1];
+            o[1] = p[0] * t[2] + p[1] * t[3];
+            o[2] = p[2] * t[0] + p[3] * t[1];
+            o[3] = p[2] * t[2] + p[3] * t[3];
+        }
+    };
+    if q.len() <= 4 * PLANES_CHUNK {
+        pass(q, out);
+    } else {
+        q.par_chunks(4 * PLANES_CHUNK).zip(out.par_chunks_mut(4 * PLANES_CHUNK)).for_each(|(q, o)| pass(q, o));
+    }
+    Ok(())
+}
