@@ -240,3 +240,53 @@ def test_batch_axis_equals_individual_calls_and_threads_are_safe():
     assert np.isnan(out["k"][5, 7]).all() and np.isnan(out["cond"][5, 7]).all()
     assert np.isfinite(out["k"][5, 8]).all() and np.isfinite(out["k"][4, 7]).all()
     np.testing.assert_array_equal(out["k"][6], batch["k"][6])
+
+
+@given(rotors(), bearing_pair(), imbalance_sets(4), st.sampled_from(["forces", "report"]), st.booleans())
+def test_runs_at_the_probes_identify_as_the_same_runs_moved_to_the_bearings(rotor, brg, imbs, method, identical):
+    """Runs recorded at the probe planes go to the core as they are, with eq. 19 applied as each
+    point is loaded; the result must be that of moving them to the bearings first, bit for bit,
+    standard errors and flags included."""
+    rpm = _speeds(rotor, brg, 7)
+    at_b = [rotorid.imbalance_response(rotor, brg, imb, speed_rpm=rpm) for imb in imbs]
+    at_p = [r.at_probes(rotor) for r in at_b]
+    moved = [r.at_bearings(rotor) for r in at_p]
+    try:
+        a = rotorid.identify_synchronous(rotor, moved, method=method, identical=identical)
+    except rotorid.RotoridError as exc:
+        with pytest.raises(type(exc)):
+            rotorid.identify_synchronous(rotor, at_p, method=method, identical=identical)
+        return
+    b = rotorid.identify_synchronous(rotor, at_p, method=method, identical=identical)
+    for field in ("k", "c", "cond", "residual", "k_std", "c_std", "rel_amplitude"):
+        np.testing.assert_array_equal(getattr(a, field), getattr(b, field), err_msg=field)
+    assert list(a.flag) == list(b.flag)
+
+
+def test_runs_at_the_probes_with_covariances_take_the_moved_path():
+    """With measurement covariances (moved to the bearings in Python) the result is still the
+    moved runs' result."""
+    rig = rotorid.nsf_rig()
+    rpm = np.linspace(2000, 6000, 5)
+    at_p = []
+    for name in "ABC":
+        r = rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[name], speed_rpm=rpm, at="probes")
+        at_p.append(SyncResponse(rpm, r.q, r.imbalance, "probes", cov=np.broadcast_to(np.eye(8) * 1e-16, (5, 8, 8))))
+    a = rotorid.identify_synchronous(rig.rotor, at_p)
+    b = rotorid.identify_synchronous(rig.rotor, [r.at_bearings(rig.rotor) for r in at_p])
+    np.testing.assert_array_equal(a.k, b.k)
+    np.testing.assert_array_equal(a.k_std, b.k_std)
+    assert a.std_source == "measurement covariance"
+
+
+def test_core_refuses_a_bad_plane_transform():
+    from rotorid import _core
+
+    rig = rotorid.nsf_rig()
+    w = np.array([300.0, 400.0])
+    q = [np.ones((2, 4), complex) * (1 + 1j) * 1e-5, np.ones((2, 4), complex) * (1 - 2j) * 1e-5]
+    e = np.ones((1, 2, 4), complex)
+    with pytest.raises(ValueError, match="planes has shape"):
+        _core.identify(rig.rotor.core_params(), w, w, q, e, None, planes=np.eye(3))
+    with pytest.raises(ValueError, match="planes"):
+        _core.identify(rig.rotor.core_params(), w, w, q, e, None, planes=np.full((2, 2), np.nan))

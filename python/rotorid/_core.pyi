@@ -47,6 +47,7 @@ def identify(
     with_std: bool = True,
     sigma: npt.NDArray[np.float64] | None = None,  # (n,): solve at s = sigma + j w (exponential windows)
     q_ped: npt.NDArray[np.complex128] | None = None,  # as q: pedestal motion at the bearings (inertia sees q + q_ped)
+    planes: npt.NDArray[np.float64] | None = None,  # (2, 2): q is at the probe planes, eq. 19 moves it to the bearings
 ) -> tuple[
     npt.NDArray[np.float64],  # k (batch, n, 2, 2, 2)
     npt.NDArray[np.float64],  # c (batch, n, 2, 2, 2)
@@ -114,6 +115,7 @@ def bearing_forces(
     gain: npt.NDArray[np.float64],
     sigma: npt.NDArray[np.float64] | None = None,
     q_ped: npt.NDArray[np.complex128] | None = None,
+    planes: npt.NDArray[np.float64] | None = None,  # (2, 2) eq. 19 transform when q is at the probe planes
 ) -> npt.NDArray[np.complex128]:
     """Bearing reactions from the rotor equations, (batch, runs, n, 4) as [f1x, f2x, f1y, f2y]."""
 

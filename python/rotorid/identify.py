@@ -435,7 +435,14 @@ def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", ide
                       covs=covs, dofs=dofs, max_rel_std=max_rel_std, estimator=estimator, extra_flags=flags,
                       q_ped=qps, shared_cov=_shared(rotor, runs, shared_cov, size=16), calibration=cal)
     _no_calibration(accel_gain_std, accel_phase_std_deg)
-    at_b = [r.at_bearings(rotor) for r in runs]
+    planes = None
+    if all(r.at == "probes" and r.cov is None for r in runs) and shared_cov is None:
+        # eq. 19 applied by the core as it loads each point: no moved copy of every run
+        from .simulate import probes_to_bearings_matrix
+
+        at_b, planes = runs, probes_to_bearings_matrix(rotor)
+    else:
+        at_b = [r.at_bearings(rotor) for r in runs]
     qs = [np.ascontiguousarray(r.q, dtype=complex) for r in at_b]  # the runs as they are: no copy, no stack
     covs = _run_covs(at_b, labels)
     # gain None: the core forms Omega^2 itself (a second (n,) temporary next to om made glibc return
@@ -443,7 +450,7 @@ def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", ide
     return _solve(rotor, "speed_rpm", rpm, om, om, qs, e, None, None, identical=identical, method=method,
                   labels=labels, cond_max=cond_max, min_rel_amplitude=min_rel_amplitude, what="responses",
                   covs=covs, dofs=None if covs is None else _run_dofs(at_b), max_rel_std=max_rel_std,
-                  estimator=estimator, shared_cov=_shared(rotor, runs, shared_cov))
+                  estimator=estimator, shared_cov=_shared(rotor, runs, shared_cov), planes=planes)
 
 
 #: pedestal motion above this multiple of the relative motion: a point is flagged (and warned about)
@@ -654,9 +661,11 @@ def _nan_view(shape):
 
 def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, method, labels, cond_max,
            min_rel_amplitude, what, covs=None, dofs=None, max_rel_std=MAX_REL_STD, extra_flags=None,
-           estimator="ls", shared_cov=None, q_ped=None, calibration=None):
+           estimator="ls", shared_cov=None, q_ped=None, calibration=None, planes=None):
     """One core call for the whole axis, uncertainty, then flags; shared by both methods.
-    ``gain`` None: spin^2 (an imbalance), formed by the core."""
+    ``gain`` None: spin^2 (an imbalance), formed by the core. ``planes``: the (2, 2) eq. 19
+    transform when ``qs`` are at the probe planes (no covariances then), else None."""
+    assert planes is None or (covs is None and calibration is None and q_ped is None)
     from .uncertainty import propagate, std_from_cov
 
     cond_max = _check_threshold("cond_max", cond_max, 1.0)
@@ -667,7 +676,7 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
     redundant = nruns * (2 if identical else 1) > 2
     k, c, cond, resid, amp, ks, cs, rel_std, nbad = _core.identify(
         rotor.core_params(), w, spin, list(qs), np.ascontiguousarray(e[None], dtype=complex),
-        gain, identical=identical, method=method, with_std=redundant, sigma=sigma, q_ped=q_ped)
+        gain, identical=identical, method=method, with_std=redundant, sigma=sigma, q_ped=q_ped, planes=planes)
     if nbad:
         qs = np.stack(qs)
         if q_ped is not None and not np.isfinite(np.stack(q_ped)).all():

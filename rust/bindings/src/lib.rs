@@ -326,13 +326,14 @@ fn pedestal_responses<'py>(q_ped: Option<&Bound<'py, PyAny>>, resp: &Responses<'
 
 /// Batched identification (see identify.rs).
 /// q: (B, R, n, 4) complex, or a list of R arrays (n, 4) for B = 1; e: (1 or B, R, 4) complex;
-/// w, spin: (n,); gain: (n,), (1,) or None (spin^2: an imbalance). method: "forces" (default solver) or "report" (16-unknown real
+/// w, spin: (n,); gain: (n,), (1,) or None (spin^2: an imbalance); planes: None, or the (2, 2)
+/// eq. 19 transform from the planes q was measured at to the bearings. method: "forces" (default solver) or "report" (16-unknown real
 /// formulation). Returns (k, c, cond, resid, amp, k_std, c_std, rel_std, n_nonfinite) with
 /// k, c: (B, n, 2, 2, 2), cond (B, n, 2), resid, amp (rms response amplitude) and rel_std (largest
 /// standard error relative to the bearing's direct coefficients, see identify::relative_std)
 /// (B, n).
 #[pyfunction]
-#[pyo3(name = "identify", signature = (rotor, w, spin, q, e, gain, identical=false, method="forces", with_std=true, sigma=None, q_ped=None))]
+#[pyo3(name = "identify", signature = (rotor, w, spin, q, e, gain, identical=false, method="forces", with_std=true, sigma=None, q_ped=None, planes=None))]
 #[allow(clippy::too_many_arguments)]
 fn py_identify<'py>(
     py: Python<'py>,
@@ -347,6 +348,7 @@ fn py_identify<'py>(
     with_std: bool,
     sigma: Option<PyReadonlyArrayDyn<'py, f64>>,
     q_ped: Option<&Bound<'py, PyAny>>,
+    planes: Option<PyReadonlyArrayDyn<'py, f64>>,
 ) -> PyResult<IdentTuple<'py>> {
     let rot = rotor_of(&rotor)?;
     let resp = responses(q)?;
@@ -362,7 +364,7 @@ fn py_identify<'py>(
         Some(pr) => pr.blocks()?,
         None => Vec::new(),
     };
-    let prob = ident_problem(rot, &resp, &w, &spin, &e, &gain, &sigma, &blocks, &ped_blocks, identical)?;
+    let prob = ident_problem(rot, &resp, &w, &spin, &e, &gain, &sigma, &blocks, &ped_blocks, planes.as_ref(), identical)?;
     let npts = batch.checked_mul(n).ok_or_else(|| PyMemoryError::new_err("identify: batch x points overflows"))?;
     let want_std = with_std && !report;
     check_alloc("identify", npts.checked_mul(if want_std { 37 } else { 20 }), 8)?;
@@ -643,6 +645,7 @@ fn ident_problem<'a>(
     sigma: &'a Option<PyReadonlyArrayDyn<'_, f64>>,
     q: &'a [&'a [C64]],
     q_ped: &'a [&'a [C64]],
+    planes: Option<&PyReadonlyArrayDyn<'_, f64>>,
     identical: bool,
 ) -> PyResult<identify::IdentProblem<'a>> {
     let (batch, runs, n) = (resp.batch, resp.runs, resp.n);
@@ -679,6 +682,13 @@ fn ident_problem<'a>(
         },
         sigma,
         q_ped,
+        planes: match planes {
+            Some(t) => {
+                check_shape("planes", t.shape(), &[2, 2])?;
+                Some(slice(t, "planes")?.try_into().map_err(|_| PyValueError::new_err("planes must hold 4 values"))?)
+            }
+            None => None,
+        },
         batch,
         runs,
         identical,
@@ -690,7 +700,7 @@ fn ident_problem<'a>(
 /// Bearing reaction forces from the rotor equations (see identify::bearing_forces): arguments as
 /// `identify`. Returns (B, R, n, 4) [f1x, f2x, f1y, f2y].
 #[pyfunction]
-#[pyo3(signature = (rotor, w, spin, q, e, gain, sigma=None, q_ped=None))]
+#[pyo3(signature = (rotor, w, spin, q, e, gain, sigma=None, q_ped=None, planes=None))]
 #[allow(clippy::too_many_arguments)]
 fn bearing_forces<'py>(
     py: Python<'py>,
@@ -702,6 +712,7 @@ fn bearing_forces<'py>(
     gain: Option<PyReadonlyArrayDyn<'py, f64>>,
     sigma: Option<PyReadonlyArrayDyn<'py, f64>>,
     q_ped: Option<&Bound<'py, PyAny>>,
+    planes: Option<PyReadonlyArrayDyn<'py, f64>>,
 ) -> PyResult<Bound<'py, PyArrayDyn<C64>>> {
     let rot = rotor_of(&rotor)?;
     let resp = responses(q)?;
@@ -712,7 +723,7 @@ fn bearing_forces<'py>(
         Some(pr) => pr.blocks()?,
         None => Vec::new(),
     };
-    let prob = ident_problem(rot, &resp, &w, &spin, &e, &gain, &sigma, &blocks, &ped_blocks, false)?;
+    let prob = ident_problem(rot, &resp, &w, &spin, &e, &gain, &sigma, &blocks, &ped_blocks, planes.as_ref(), false)?;
     let total = batch.checked_mul(runs).and_then(|v| v.checked_mul(n)).and_then(|v| v.checked_mul(4));
     check_alloc("bearing_forces", total, 16)?;
     let total = total.unwrap_or(0);

@@ -105,7 +105,7 @@ fn main() {
         let blocks: Vec<&[C64]> = q.chunks(n * 4).collect();
         let e = [c(1e-4, 0.0), c(0.0, -1e-4), c(1e-5, 0.0), c(0.0, 1e-5), c(0.0, 1e-4), c(1e-4, 0.0), c(2e-5, 0.0), c(0.0, -1e-5), c(1e-4, 1e-4), c(1e-4, -1e-4), c(0.0, 0.0), c(0.0, 0.0), c(1e-4, 0.0), c(1e-4, 0.0), c(-1e-5, 0.0), c(1e-5, 0.0)];
         let gain: Vec<f64> = w.iter().map(|v| v * v).collect();
-        let p = IdentProblem { rotor, w: &w, spin: &w, q: &blocks, e: &e, gain: &gain, sigma: &[], q_ped: &[], batch: 1, runs: 4, identical: false };
+        let p = IdentProblem { rotor, w: &w, spin: &w, q: &blocks, e: &e, gain: &gain, sigma: &[], q_ped: &[], planes: None, batch: 1, runs: 4, identical: false };
         let (mut k, mut cc, mut cond, mut res, mut amp) = (vec![0.0; 8 * n], vec![0.0; 8 * n], vec![0.0; 2 * n], vec![0.0; n], vec![0.0; n]);
         let t_id = best_s(|| {
             for _ in 0..50 {

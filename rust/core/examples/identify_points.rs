@@ -20,7 +20,7 @@ fn main() {
     let blocks: Vec<&[C64]> = q.chunks(n * 4).collect();
     let e: Vec<C64> = (0..16).map(|i| c(1e-4 * ((i % 3) as f64 - 1.0), 1e-5 * (i % 4) as f64)).collect();
     let gain: Vec<f64> = w.iter().map(|v| v * v).collect();
-    let p = IdentProblem { rotor, w: &w, spin: &w, q: &blocks, e: &e, gain: &gain, sigma: &[], q_ped: &[], batch: 1, runs: 4, identical: false };
+    let p = IdentProblem { rotor, w: &w, spin: &w, q: &blocks, e: &e, gain: &gain, sigma: &[], q_ped: &[], planes: None, batch: 1, runs: 4, identical: false };
     let (mut k, mut cc, mut cond, mut res, mut amp) = (vec![0.0; 8 * n], vec![0.0; 8 * n], vec![0.0; 2 * n], vec![0.0; n], vec![0.0; n]);
     let (mut ks, mut cs, mut rel) = (vec![0.0; 8 * n], vec![0.0; 8 * n], vec![0.0; n]);
     let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();

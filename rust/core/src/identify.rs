@@ -267,6 +267,12 @@ pub struct IdentProblem<'a> {
     /// the bearing forces act on `q`, the rotor's inertia on the absolute motion `q + q_ped`
     /// (`Q(q) P = E - s^2 M (q + q_ped) - s Omega G (q + q_ped)`).
     pub q_ped: &'a [&'a [C64]],
+    /// `q` measured at two other planes per direction (the probes): the responses at the bearings
+    /// are [x1, x2] = T [x_a, x_b] and [y1, y2] = T [y_a, y_b] (report eq. 19) with T = [T11, T12,
+    /// T21, T22], formed as each point is loaded (as [`crate::model::apply_planes`] forms them,
+    /// bit for bit, without an array of moved responses). None: `q` is at the bearings. Not with
+    /// `q_ped` (probes on moving pedestals need the pedestal motion too).
+    pub planes: Option<[f64; 4]>,
     pub batch: usize,
     pub runs: usize,
     /// all bearing coefficients equal on both sides (8 unknowns instead of 16)
@@ -293,6 +299,14 @@ impl IdentProblem<'_> {
         let block = product("q", &[n, 4])?;
         if let Some(bad) = self.q.iter().position(|b| b.len() != block) {
             return Err(CoreError::length("q", self.q[bad].len(), format!("{block} in every block (block {bad} differs)")));
+        }
+        if let Some(t) = self.planes {
+            if !self.q_ped.is_empty() {
+                return Err(CoreError::value("planes", "cannot be combined with pedestal motion (q_ped)"));
+            }
+            if t.iter().any(|v| !v.is_finite()) {
+                return Err(CoreError::value("planes", "must be finite"));
+            }
         }
         if !self.q_ped.is_empty() {
             expect_len("q_ped (blocks)", self.q_ped, self.q.len())?;
@@ -417,11 +431,28 @@ fn sigma_at(p: &IdentProblem, i: usize) -> f64 {
     }
 }
 
+/// The response of (batch b, run r, point i) at the bearings.
 #[inline(always)]
 fn load_q(p: &IdentProblem, b: usize, r: usize, i: usize) -> [C64; 4] {
     let blk = p.q[b * p.runs + r];
     let o = i * 4;
-    [blk[o], blk[o + 1], blk[o + 2], blk[o + 3]]
+    let q = [blk[o], blk[o + 1], blk[o + 2], blk[o + 3]];
+    match p.planes {
+        None => q,
+        Some(t) => [q[0] * t[0] + q[1] * t[1], q[0] * t[2] + q[1] * t[3], q[2] * t[0] + q[3] * t[1], q[2] * t[2] + q[3] * t[3]],
+    }
+}
+
+/// [`load_q`]'s plane transform on L points at once.
+#[inline(always)]
+fn planes_lanes(t: &[f64; 4], q: [Z; 4]) -> [Z; 4] {
+    let (t0, t1, t2, t3) = (V::splat(t[0]), V::splat(t[1]), V::splat(t[2]), V::splat(t[3]));
+    [
+        q[0].scale(t0) + q[1].scale(t1),
+        q[0].scale(t2) + q[1].scale(t3),
+        q[2].scale(t0) + q[3].scale(t1),
+        q[2].scale(t2) + q[3].scale(t3),
+    ]
 }
 
 /// Absolute motion q + q_ped of (batch b, run r, point i); q itself without pedestals.
@@ -537,6 +568,9 @@ fn forces_chunk(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize
                         q[dd].im.0[l] = v.im;
                     }
                 }
+            }
+            if let Some(t) = &p.planes {
+                q = planes_lanes(t, q);
             }
             if shared_e {
                 for dd in 0..4 {

@@ -76,7 +76,7 @@ fn fused_relative_std_matches_the_separate_pass_on_the_parallel_path() {
     let e: Vec<C64> = (0..12).map(|i| c(1e-4 * (i % 3) as f64, 1e-5 * (i % 4) as f64)).collect();
     let gain: Vec<f64> = w.iter().map(|v| v * v).collect();
     let bl = blocks(&q, n);
-    let p = IdentProblem { rotor: r, w: &w, spin: &w, q: &bl, e: &e, gain: &gain, sigma: &[], q_ped: &[], batch: 1, runs: 3, identical: false };
+    let p = IdentProblem { rotor: r, w: &w, spin: &w, q: &bl, e: &e, gain: &gain, sigma: &[], q_ped: &[], planes: None, batch: 1, runs: 3, identical: false };
     let id = run_identify(&p, false).unwrap();
     assert_eq!(id.nbad, 1);
     let (mut k, mut cc, mut cond, mut resid, mut amp, mut rel) = (vec![0.0; 8 * n], vec![0.0; 8 * n], vec![0.0; 2 * n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
@@ -198,7 +198,7 @@ proptest! {
         let q = imbalance_responses(&r, &k, &cc, &w, &e);
         let gain: Vec<f64> = w.iter().map(|v| v * v).collect();
         let qb = blocks(&q, w.len());
-        let p = IdentProblem { rotor: r, w: &w, spin: &w, q: &qb, e: &e, gain: &gain, sigma: &[], q_ped: &[], batch: 1, runs, identical: false };
+        let p = IdentProblem { rotor: r, w: &w, spin: &w, q: &qb, e: &e, gain: &gain, sigma: &[], q_ped: &[], planes: None, batch: 1, runs, identical: false };
         let fast = run_identify(&p, false).unwrap();
         let (err, used) = impedance_error(&fast, &k, &cc, &w, 1e5);
         prop_assert!(used > 0);
@@ -228,7 +228,7 @@ proptest! {
         let q = imbalance_responses(&r, &k, &cc, &w, &e);
         let gain: Vec<f64> = w.iter().map(|v| v * v).collect();
         let qb = blocks(&q, w.len());
-        let given = IdentProblem { rotor: r, w: &w, spin: &w, q: &qb, e: &e, gain: &gain, sigma: &[], q_ped: &[], batch: 1, runs, identical: false };
+        let given = IdentProblem { rotor: r, w: &w, spin: &w, q: &qb, e: &e, gain: &gain, sigma: &[], q_ped: &[], planes: None, batch: 1, runs, identical: false };
         let implied = IdentProblem { gain: &[], ..given };
         for report in [false, true] {
             let (a, b) = (run_identify(&given, report).unwrap(), run_identify(&implied, report).unwrap());
@@ -237,6 +237,38 @@ proptest! {
             prop_assert_eq!(bits(&a.c), bits(&b.c));
             prop_assert_eq!(bits(&a.cond), bits(&b.cond));
         }
+    }
+
+    /// Responses at the probe planes with the eq. 19 transform given (`planes`) identify exactly as
+    /// the same responses moved to the bearings first by `model::apply_planes`, bit for bit, with
+    /// both solvers; `planes` with pedestal motion, or not finite, is refused.
+    #[test]
+    fn planes_in_the_kernel_equal_moved_responses(r in rotors(), (k, cc) in bearings(), runs in 2usize..5,
+                                                  e in proptest::collection::vec(-1.0f64..1.0, 32),
+                                                  t in proptest::collection::vec(-2.0f64..2.0, 4)) {
+        use rotorid_core::model::apply_planes;
+        let w = speeds_for(&r, &k, 13);
+        let e = cplx_vec(&e[..8 * runs]);
+        let q = imbalance_responses(&r, &k, &cc, &w, &e);
+        let t: [f64; 4] = [t[0] + 3.0, t[1], t[2], t[3] + 3.0]; // invertible enough
+        let mut moved = vec![c(0.0, 0.0); q.len()];
+        apply_planes(&t, &q, &mut moved).unwrap();
+        let gain: Vec<f64> = w.iter().map(|v| v * v).collect();
+        let (qb, mb) = (blocks(&q, w.len()), blocks(&moved, w.len()));
+        let at_bearings = IdentProblem { rotor: r, w: &w, spin: &w, q: &mb, e: &e, gain: &gain, sigma: &[], q_ped: &[], planes: None, batch: 1, runs, identical: false };
+        let at_probes = IdentProblem { q: &qb, planes: Some(t), ..at_bearings };
+        for report in [false, true] {
+            let (a, b) = (run_identify(&at_bearings, report).unwrap(), run_identify(&at_probes, report).unwrap());
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            prop_assert_eq!(bits(&a.k), bits(&b.k));
+            prop_assert_eq!(bits(&a.c), bits(&b.c));
+            prop_assert_eq!(bits(&a.resid), bits(&b.resid));
+        }
+        let ped = vec![c(0.0, 0.0); q.len()];
+        let pb = blocks(&ped, w.len());
+        prop_assert_eq!(at_probes.check().map_err(|e| e.name()), Ok(()));
+        prop_assert_eq!(IdentProblem { q_ped: &pb, ..at_probes }.check().unwrap_err().name(), "planes");
+        prop_assert_eq!(IdentProblem { planes: Some([f64::NAN, 0.0, 0.0, 1.0]), ..at_probes }.check().unwrap_err().name(), "planes");
     }
 
     /// A batch of problems equals the problems solved one at a time.
@@ -251,11 +283,11 @@ proptest! {
         let gain: Vec<f64> = w.iter().map(|v| v * v).collect();
         let qab: Vec<C64> = qa.iter().chain(qb.iter()).cloned().collect();
         let qabb = blocks(&qab, w.len());
-        let pab = IdentProblem { rotor: r, w: &w, spin: &w, q: &qabb, e: &e, gain: &gain, sigma: &[], q_ped: &[], batch: 2, runs, identical: false };
+        let pab = IdentProblem { rotor: r, w: &w, spin: &w, q: &qabb, e: &e, gain: &gain, sigma: &[], q_ped: &[], planes: None, batch: 2, runs, identical: false };
         let both = run_identify(&pab, false).unwrap();
         for (bi, qq) in [&qa, &qb].into_iter().enumerate() {
             let qqb = blocks(qq, w.len());
-            let p1 = IdentProblem { rotor: r, w: &w, spin: &w, q: &qqb, e: &e, gain: &gain, sigma: &[], q_ped: &[], batch: 1, runs, identical: false };
+            let p1 = IdentProblem { rotor: r, w: &w, spin: &w, q: &qqb, e: &e, gain: &gain, sigma: &[], q_ped: &[], planes: None, batch: 1, runs, identical: false };
             let one = run_identify(&p1, false).unwrap();
             let o = bi * w.len() * 8;
             for t in 0..w.len() * 8 {
@@ -280,7 +312,7 @@ proptest! {
         }
         let qb = blocks(&q, w.len());
         let (full_spin, ones) = (vec![spin; w.len()], vec![1.0; w.len()]);
-        let a = IdentProblem { rotor: r, w: &w, spin: &full_spin, q: &qb, e: &e, gain: &ones, sigma: &[], q_ped: &[], batch: 1, runs: 2, identical: false };
+        let a = IdentProblem { rotor: r, w: &w, spin: &full_spin, q: &qb, e: &e, gain: &ones, sigma: &[], q_ped: &[], planes: None, batch: 1, runs: 2, identical: false };
         let b = IdentProblem { spin: &[spin], gain: &[1.0], ..a };
         for report in [false, true] {
             let (ia, ib) = (run_identify(&a, report).unwrap(), run_identify(&b, report).unwrap());
@@ -303,7 +335,7 @@ proptest! {
         let q = imbalance_responses(&r, &k, &cc, &w, &e);
         let gain: Vec<f64> = w.iter().map(|v| v * v).collect();
         let qb = blocks(&q, w.len());
-        let p = IdentProblem { rotor: r, w: &w, spin: &w, q: &qb, e: &e, gain: &gain, sigma: &[], q_ped: &[], batch: 1, runs: 2, identical: true };
+        let p = IdentProblem { rotor: r, w: &w, spin: &w, q: &qb, e: &e, gain: &gain, sigma: &[], q_ped: &[], planes: None, batch: 1, runs: 2, identical: true };
         let id = run_identify(&p, false).unwrap();
         let (err, used) = impedance_error(&id, &k, &cc, &w, 1e5);
         prop_assert!(used > 0);
@@ -571,7 +603,7 @@ fn identification_argument_errors_name_the_argument() {
     let uneven: [&[C64]; 2] = [&q[..8], &q[..7]];
     let e = vec![c(1e-4, 0.0); 2 * 4];
     let gain = [1e4, 4e4];
-    let base = IdentProblem { rotor: r, w: &w, spin: &w, q: &qb, e: &e, gain: &gain, sigma: &[], q_ped: &[], batch: 1, runs: 2, identical: false };
+    let base = IdentProblem { rotor: r, w: &w, spin: &w, q: &qb, e: &e, gain: &gain, sigma: &[], q_ped: &[], planes: None, batch: 1, runs: 2, identical: false };
     assert!(run_identify(&base, false).is_ok());
     let cases: Vec<(IdentProblem, &str)> = vec![
         (IdentProblem { runs: 0, ..base }, "runs"),

@@ -604,7 +604,7 @@ fn identification_with_pedestal_motion_recovers_the_bearings() {
     let qb: Vec<&[C64]> = rel.chunks(4 * n).collect();
     let pb: Vec<&[C64]> = ped.chunks(4 * n).collect();
     let gain: Vec<f64> = w.iter().map(|x| x * x).collect();
-    let p = IdentProblem { rotor: r, w: &w, spin: &w, q: &qb, e: &E2, gain: &gain, sigma: &[], q_ped: &pb, batch: 1, runs: 2, identical: false };
+    let p = IdentProblem { rotor: r, w: &w, spin: &w, q: &qb, e: &E2, gain: &gain, sigma: &[], q_ped: &pb, planes: None, batch: 1, runs: 2, identical: false };
     for report in [false, true] {
         let (k, cc, nbad) = identify(&p, report);
         assert_eq!(nbad, 0);
@@ -653,7 +653,7 @@ fn identification_from_the_kernel_forward_response() {
     }
     let qb: Vec<&[C64]> = rel.chunks(4 * n).collect();
     let pb: Vec<&[C64]> = pm.chunks(4 * n).collect();
-    let p = IdentProblem { rotor: r, w: &w, spin: &w, q: &qb, e: &E2, gain: &gain, sigma: &[], q_ped: &pb, batch: 1, runs: 2, identical: false };
+    let p = IdentProblem { rotor: r, w: &w, spin: &w, q: &qb, e: &E2, gain: &gain, sigma: &[], q_ped: &pb, planes: None, batch: 1, runs: 2, identical: false };
     let (k, cc, nbad) = identify(&p, false);
     assert_eq!(nbad, 0);
     let err = coef_error(&k, &cc, n);
@@ -670,7 +670,7 @@ fn bearing_forces_are_the_bearing_impedance_times_the_relative_motion() {
     let qb: Vec<&[C64]> = rel.chunks(4 * n).collect();
     let pb: Vec<&[C64]> = ped.chunks(4 * n).collect();
     let gain: Vec<f64> = w.iter().map(|x| x * x).collect();
-    let p = IdentProblem { rotor: r, w: &w, spin: &w, q: &qb, e: &E2, gain: &gain, sigma: &[], q_ped: &pb, batch: 1, runs: 2, identical: false };
+    let p = IdentProblem { rotor: r, w: &w, spin: &w, q: &qb, e: &E2, gain: &gain, sigma: &[], q_ped: &pb, planes: None, batch: 1, runs: 2, identical: false };
     let mut f = vec![zero(); 2 * n * 4];
     bearing_forces(&p, &mut f).unwrap();
     let mut f_rigid = vec![zero(); 2 * n * 4];

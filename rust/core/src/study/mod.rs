@@ -639,7 +639,7 @@ fn run_trials(s: &Study, ex: &Exact, e_nom: &[C64], t0: u64, t1: u64, bp0: usize
             }
             Excitation::Impact { .. } => (&spin_imp, &[1.0]),
         };
-        let prob = IdentProblem { rotor: s.rotor, w: &w_told, spin, q: &blocks, e: e_nom, gain: gain_s, sigma: &[], q_ped: &[], batch: 1, runs, identical: false };
+        let prob = IdentProblem { rotor: s.rotor, w: &w_told, spin, q: &blocks, e: e_nom, gain: gain_s, sigma: &[], q_ped: &[], planes: None, batch: 1, runs, identical: false };
         let o = IdentOut { k: &mut k, c: &mut c, cond: &mut cond, resid: &mut resid, amp: &mut amp, k_std: None, c_std: None, rel_std: None };
         match s.method {
             Method::Forces => identify_forces(&prob, o)?,
