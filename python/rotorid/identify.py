@@ -899,14 +899,20 @@ def identify_impact(rotor: RigidRotor, tests, *, method: str = "forces", identic
                                f"{labels[0]} ({tests[0].sigma:g} 1/s): window all tests alike")
     e = np.stack([t.excitation() for t in tests])  # (R, 4), per unit force
     check_impact_independence(tests, labels, identical=identical, excitation=e)
-    q_ped = cal = None
+    q_ped = cal = planes = None
     if _has_pedestal(tests, labels):
         qs, q_ped, covs, dofs, pflags = _pedestal_inputs(rotor, tests, labels, "freq_hz", f)
         extra_flags = _flag_list(extra_flags) + pflags
         cal = _calibration_inputs(rotor, tests, labels, accel_gain_std, accel_phase_std_deg)
     else:
         _no_calibration(accel_gain_std, accel_phase_std_deg)
-        at_b = [t.at_bearings(rotor) for t in tests]
+        if all(t.at == "probes" and t.cov is None for t in tests):
+            # eq. 19 applied by the core as it loads each point (as identify_synchronous does)
+            from .simulate import probes_to_bearings_matrix
+
+            at_b, planes = tests, probes_to_bearings_matrix(rotor)
+        else:
+            at_b = [t.at_bearings(rotor) for t in tests]
         qs = [np.ascontiguousarray(t.frf(), dtype=complex) for t in at_b]  # (n, 4) per unit force, per test
         covs = _run_covs(at_b, labels)
         dofs = None if covs is None else _run_dofs(at_b)
@@ -916,4 +922,4 @@ def identify_impact(rotor: RigidRotor, tests, *, method: str = "forces", identic
     return _solve(rotor, "freq_hz", f, w, spin, qs, e, np.ones(1), sigma, identical=identical, method=method,
                   labels=labels, cond_max=cond_max, min_rel_amplitude=min_rel_amplitude, what="impact responses",
                   covs=covs, dofs=dofs, max_rel_std=max_rel_std, extra_flags=extra_flags, estimator=estimator,
-                  q_ped=q_ped, calibration=cal)
+                  q_ped=q_ped, calibration=cal, planes=planes)
