@@ -483,3 +483,57 @@ def test_core_plane_transform_refuses_bad_shapes():
         _core.apply_planes(np.eye(2), np.zeros((5, 8), complex)[:, ::2])
     with pytest.raises(TypeError):
         _core.apply_planes(np.eye(2), np.zeros((5, 4)))  # real, not complex128
+
+
+def test_review_findings_of_the_speed_round():
+    """Inputs found by review of the 2026-11-26 speed changes: each gives a clear error or the
+    right answer, never a raw exception or a core panic."""
+    from rotorid import IdentifiabilityError, ImpactResponse, _core
+
+    rig = rotorid.nsf_rig()
+    rpm = np.linspace(2000, 5000, 6)
+    # a probe run whose q was replaced by a list after construction: validated again, identified
+    runs = [rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=rpm, at="probes")
+            for s in "ABC"]
+    ref = rotorid.identify_synchronous(rig.rotor, runs)
+    runs[0].q = runs[0].q.tolist()
+    np.testing.assert_array_equal(rotorid.identify_synchronous(rig.rotor, runs).k, ref.k)
+    # ... or cut short: the error names that run's shape
+    runs[0].q = np.asarray(runs[0].q)[:4]
+    with pytest.raises(RotoridError, match=r"q has shape \(4, 4\)"):
+        rotorid.identify_synchronous(rig.rotor, runs)
+    # an impact plane far beyond any rotor: an error or a result, not an OverflowError
+    f = np.linspace(5, 100, 4)
+    tests = [ImpactResponse(speed_rpm=1000, freq_hz=f, q=np.ones((4, 4)) * 1e-6, plane=z, direction="x")
+             for z in (0.0, 1e160)]
+    try:
+        rotorid.identify_impact(rig.rotor, tests)
+    except RotoridError:
+        pass
+    # one run without identical bearings: refused before the core, and by the core itself
+    e = np.ones((1, 1, 4), complex)
+    q = np.ones((1, 1, 6, 4), complex) * 1e-6
+    for method in ("forces", "report"):
+        with pytest.raises(IdentifiabilityError, match="at least two"):
+            rotorid.identify_synchronous_batch(rig.rotor, rpm, q, e, method=method)
+    w = rpm * np.pi / 30
+    with pytest.raises(ValueError, match="runs"):
+        _core.identify(rig.rotor.core_params(), w, w, q, e, None, method="report")
+    # Fortran-ordered arrays are refused by the core (they would be read in memory order)
+    qf = np.asfortranarray(np.ones((6, 4), complex))
+    with pytest.raises(ValueError, match="C-contiguous"):
+        _core.apply_planes(np.eye(2), qf)
+
+
+def test_exported_datasets_own_their_data():
+    """to_xarray copies: the dataset is writable even where the Identification holds read-only
+    views (constant degrees of freedom, unknown standard errors)."""
+    rig = rotorid.nsf_rig()
+    rpm = np.linspace(2000, 5000, 4)
+    for names in ("AB", "ABC"):
+        runs = [rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=rpm) for s in names]
+        ident = rotorid.identify_synchronous(rig.rotor, runs)
+        ds = ident.to_xarray()
+        for var in ("dof", "K_std", "K", "cond"):
+            ds[var].values[...] = 0.0
+        assert np.all(ident.k != 0.0)

@@ -17,6 +17,7 @@ def forced_response(
     spin: npt.NDArray[np.float64],  # (n,)
     w: npt.NDArray[np.float64],  # (n,)
     force: npt.NDArray[np.complex128],  # (n or 1, nrhs, 4)
+    gain: npt.NDArray[np.float64] | None = None,  # (n,): q_i scaled by gain[i]
 ) -> tuple[npt.NDArray[np.complex128], int]:
     """Solve H q = F with H = -w^2 M + j w spin G + j w C + K; returns (q (n, nrhs, 4), n_singular)."""
 
@@ -112,7 +113,7 @@ def bearing_forces(
     spin: npt.NDArray[np.float64],
     q: npt.NDArray[np.complex128],  # (batch, runs, n, 4)
     e: npt.NDArray[np.complex128],  # (1 or batch, runs, 4)
-    gain: npt.NDArray[np.float64],
+    gain: npt.NDArray[np.float64] | None,  # (n,) or (1,); None: spin^2
     sigma: npt.NDArray[np.float64] | None = None,
     q_ped: npt.NDArray[np.complex128] | None = None,
     planes: npt.NDArray[np.float64] | None = None,  # (2, 2) eq. 19 transform when q is at the probe planes

@@ -100,7 +100,9 @@ def to_xarray(ident, *, units: str = "SI", level: float = 0.95):
     ku, cu = UNIT_SYSTEMS[u]
 
     def conv(a, unit):
-        return np.asarray(from_si(np.asarray(a, float), unit), float) if u == "US" else np.asarray(a, float)
+        # a copy the dataset owns: writable, and not a view into the Identification (its NaN
+        # standard errors and constant degrees of freedom are read-only views)
+        return np.array(from_si(np.asarray(a, float), unit), float) if u == "US" else np.array(a, float)
 
     iv = ident.interval(level)
     dims = (ident.axis_name, "bearing", "i", "j")
@@ -113,12 +115,12 @@ def to_xarray(ident, *, units: str = "SI", level: float = 0.95):
             attrs["confidence_level"] = level
         data[name] = (dims, conv(arr, unit), attrs)
     n = ident.axis.size
-    data["cond"] = ((ident.axis_name, "bearing"), np.asarray(ident.cond, float), {"units": "1"})
-    data["residual"] = ((ident.axis_name,), np.asarray(ident.residual, float), {"units": "1"})
-    data["rel_amplitude"] = ((ident.axis_name,), np.asarray(ident.rel_amplitude, float), {"units": "1"})
-    data["dof"] = ((ident.axis_name,), np.asarray(ident.dof if ident.dof is not None else np.full(n, np.nan), float),
+    data["cond"] = ((ident.axis_name, "bearing"), np.array(ident.cond, float), {"units": "1"})
+    data["residual"] = ((ident.axis_name,), np.array(ident.residual, float), {"units": "1"})
+    data["rel_amplitude"] = ((ident.axis_name,), np.array(ident.rel_amplitude, float), {"units": "1"})
+    data["dof"] = ((ident.axis_name,), np.array(ident.dof if ident.dof is not None else np.full(n, np.nan), float),
                    {"units": "1", "long_name": "degrees of freedom of the standard errors"})
-    data["ok"] = ((ident.axis_name,), np.asarray(ident.ok, bool), {})
+    data["ok"] = ((ident.axis_name,), np.array(ident.ok, bool), {})
     data["flag"] = ((ident.axis_name,), np.asarray(ident.flag, dtype=str), {})
     coords = {ident.axis_name: (ident.axis_name, np.asarray(ident.axis, float),
                                 {"units": "rpm" if ident.axis_name == "speed_rpm" else "Hz"}),
@@ -254,7 +256,9 @@ def to_json(ident, path=None, *, units: str = "SI", overwrite: bool = False, con
     ku, cu = UNIT_SYSTEMS[u]
 
     def conv(a, unit):
-        return np.asarray(from_si(np.asarray(a, float), unit), float) if u == "US" else np.asarray(a, float)
+        # a copy the dataset owns: writable, and not a view into the Identification (its NaN
+        # standard errors and constant degrees of freedom are read-only views)
+        return np.array(from_si(np.asarray(a, float), unit), float) if u == "US" else np.array(a, float)
 
     iv = ident.interval(0.95)
     doc = {"format": "rotorid-identification", "version": 1, "rotorid_version": __version__,

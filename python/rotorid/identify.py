@@ -436,7 +436,7 @@ def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", ide
                       q_ped=qps, shared_cov=_shared(rotor, runs, shared_cov, size=16), calibration=cal)
     _no_calibration(accel_gain_std, accel_phase_std_deg)
     planes = None
-    if all(r.at == "probes" and r.cov is None for r in runs) and shared_cov is None:
+    if shared_cov is None and all(r.at == "probes" and r.cov is None and _plain_q(r) for r in runs):
         # eq. 19 applied by the core as it loads each point: no moved copy of every run
         from .simulate import probes_to_bearings_matrix
 
@@ -799,6 +799,9 @@ def identify_synchronous_batch(rotor: RigidRotor, speed_rpm, q, imbalances, *, m
         e = complex_array("imbalances", imbalances, ndim=3)
     if e.shape[1:] != (q.shape[1], 4) or e.shape[0] not in (1, q.shape[0]):
         raise RotoridError(f"imbalances give excitation shape {e.shape}, expected (1 or {q.shape[0]}, {q.shape[1]}, 4)")
+    if e.shape[1] < (1 if identical else 2):
+        raise IdentifiabilityError(f"{e.shape[1]} run(s) given: identifying all 16 coefficients needs at least two "
+                                   "imbalance runs (one with identical=True)")
     if not identical and e.shape[1] >= 2:
         # the runs' force and moment excitations must be independent in every trial
         sv = np.linalg.svd(e[:, :, [0, 2]], compute_uv=False)          # (trials, 2): F and moment columns
@@ -817,6 +820,16 @@ def identify_synchronous_batch(rotor: RigidRotor, speed_rpm, q, imbalances, *, m
     return out
 
 
+def _plain_q(run):
+    """True when a run's (or test's) responses are still what its constructor checked: a complex
+    (n, 4) array on its own axis (not replaced after construction by a list or another shape,
+    which the moved path validates again)."""
+    q, axis = run.q, run.speed_rpm if isinstance(run, SyncResponse) else run.freq_hz
+    force = getattr(run, "force", None)
+    return isinstance(q, np.ndarray) and q.dtype == complex and isinstance(axis, np.ndarray) and \
+        q.shape == (axis.size, 4) and (force is None or isinstance(force, np.ndarray) and force.shape == (axis.size,))
+
+
 def _rank_up_to_2(E, tol):
     """min(rank, 2) of a real (R, 4) matrix: singular values above ``tol`` counted as
     ``np.linalg.matrix_rank`` counts them, in closed form for R <= 2 (an SVD call costs ~25 µs,
@@ -825,7 +838,12 @@ def _rank_up_to_2(E, tol):
     of |a|^2 |b|^2 - (a.b)^2) and s1^2 = (tr G + sqrt(tr G^2 - 4 det G)) / 2."""
     if E.shape[0] > 2:
         return min(2, int(np.linalg.matrix_rank(E, tol=tol)))
-    rows = [[float(x) for x in r] for r in E]
+    top = float(np.abs(E).max()) if E.size else 0.0
+    if not top > 0.0:
+        return 0
+    # scaled by the largest entry: no overflow of the squares below for any finite input
+    rows = [[float(x) / top for x in r] for r in E]
+    tol = tol / top
     norms2 = [sum(x * x for x in r) for r in rows]
     if len(rows) < 2:
         return int(bool(rows) and math.sqrt(norms2[0]) > tol)
@@ -906,7 +924,7 @@ def identify_impact(rotor: RigidRotor, tests, *, method: str = "forces", identic
         cal = _calibration_inputs(rotor, tests, labels, accel_gain_std, accel_phase_std_deg)
     else:
         _no_calibration(accel_gain_std, accel_phase_std_deg)
-        if all(t.at == "probes" and t.cov is None for t in tests):
+        if all(t.at == "probes" and t.cov is None and _plain_q(t) for t in tests):
             # eq. 19 applied by the core as it loads each point (as identify_synchronous does)
             from .simulate import probes_to_bearings_matrix
 

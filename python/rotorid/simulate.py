@@ -283,7 +283,7 @@ class SyncResponse:
                                 self.pedestal_cov, cross)
         T = probes_to_bearings_matrix(rotor) if where == "bearings" else bearings_to_probes_matrix(rotor)
         if self.cov is None and self.dof is None and isinstance(self.speed_rpm, np.ndarray) and \
-                self.q.shape == (self.speed_rpm.size, 4):
+                isinstance(self.q, np.ndarray) and self.q.dtype == complex and self.q.shape == (self.speed_rpm.size, 4):
             # this response was validated: its move is not checked again (0.4 ms per 100,000 speeds)
             return SyncResponse._unchecked(speed_rpm=self.speed_rpm, q=_apply_planes(T, self.q, checked=True),
                                            imbalance=self.imbalance, at=where, name=self.name)

@@ -18,6 +18,10 @@ use std::sync::{Arc, Mutex, OnceLock};
 static GLOBAL: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 fn slice<'a, T: numpy::Element>(a: &'a PyReadonlyArrayDyn<'_, T>, name: &str) -> PyResult<&'a [T]> {
+    // (as_slice alone also accepts Fortran order, whose memory order the kernels would misread)
+    if !a.is_c_contiguous() {
+        return Err(PyValueError::new_err(format!("{name} must be a C-contiguous array")));
+    }
     a.as_slice().map_err(|_| PyValueError::new_err(format!("{name} must be a C-contiguous array")))
 }
 

@@ -806,6 +806,10 @@ pub const REPORT_TO_BIJ: [usize; 8] = [0, 4, 1, 5, 2, 6, 3, 7];
 /// Standard errors are not computed (`k_std`, `c_std` are left untouched).
 pub fn identify_report(p: &IdentProblem, out: IdentOut) -> Result<usize, CoreError> {
     p.check()?;
+    if !p.identical && p.runs < 2 {
+        // 8 real equations for 16 unknowns: the least-squares solver would fail an assertion
+        return Err(CoreError::value("runs", "the report formulation needs at least two runs (one with identical bearings)"));
+    }
     out.check(product("batch x points", &[p.batch, p.points()])?)?;
     Ok(report_all(p, out))
 }

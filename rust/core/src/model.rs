@@ -79,9 +79,9 @@ const PLANES_CHUNK: usize = 1 << 14;
 /// Move responses between two pairs of measurement planes (report eq. 19): for every point,
 /// [x_a, x_b] = T [x_1, x_2] and [y_a, y_b] = T [y_1, y_2] with the real 2x2 `t` = [T11, T12,
 /// T21, T22] (row-major), e.g. from the probe planes to the bearings. `q`, `out`: (n, 4) as
-/// [x1, x2, y1, y2]. Each output is t_i1 q_1 + t_i2 q_2 with real-times-complex products (a
-/// non-finite response stays where it is: inf * 0 does not spread NaN into the other plane's
-/// imaginary part as a complex product would).
+/// [x1, x2, y1, y2]. Each output is t_i1 q_1 + t_i2 q_2 with real-times-complex products. A
+/// non-finite response gives non-finite outputs (NaN where an inf meets a zero entry of `t`);
+/// the identification counts such points as non-finite.
 pub fn apply_planes(t: &[f64; 4], q: &[C64], out: &mut [C64]) -> Result<(), crate::CoreError> {
     use rayon::prelude::*;
     if q.len() % 4 != 0 {
