@@ -67,6 +67,15 @@ def _atomic(p, write) -> str:
     return str(p)
 
 
+def _in_units(a, unit, system):
+    """A float copy of ``a`` (SI) in ``unit`` when ``system`` is "US", else in SI. A copy the
+    export owns: writable, and not a view into the Identification (its NaN standard errors and
+    constant degrees of freedom are read-only views)."""
+    from .units import from_si
+
+    return np.array(from_si(np.asarray(a, float), unit), float) if system == "US" else np.array(a, float)
+
+
 def to_xarray(ident, *, units: str = "SI", level: float = 0.95):
     """The identification as an :class:`xarray.Dataset`.
 
@@ -90,7 +99,6 @@ def to_xarray(ident, *, units: str = "SI", level: float = 0.95):
     import xarray as xr
 
     from ._validate import number
-    from .units import from_si
 
     _check_ident(ident)
     u = _units(units)
@@ -100,9 +108,7 @@ def to_xarray(ident, *, units: str = "SI", level: float = 0.95):
     ku, cu = UNIT_SYSTEMS[u]
 
     def conv(a, unit):
-        # a copy the dataset owns: writable, and not a view into the Identification (its NaN
-        # standard errors and constant degrees of freedom are read-only views)
-        return np.array(from_si(np.asarray(a, float), unit), float) if u == "US" else np.array(a, float)
+        return _in_units(a, unit, u)
 
     iv = ident.interval(level)
     dims = (ident.axis_name, "bearing", "i", "j")
@@ -249,16 +255,13 @@ def to_json(ident, path=None, *, units: str = "SI", overwrite: bool = False, con
     ('N/m', 3.0)
     """
     from . import __version__
-    from .units import from_si
 
     _check_ident(ident)
     u = _units(units)
     ku, cu = UNIT_SYSTEMS[u]
 
     def conv(a, unit):
-        # a copy the dataset owns: writable, and not a view into the Identification (its NaN
-        # standard errors and constant degrees of freedom are read-only views)
-        return np.array(from_si(np.asarray(a, float), unit), float) if u == "US" else np.array(a, float)
+        return _in_units(a, unit, u)
 
     iv = ident.interval(0.95)
     doc = {"format": "rotorid-identification", "version": 1, "rotorid_version": __version__,

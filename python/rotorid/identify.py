@@ -435,14 +435,7 @@ def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", ide
                       covs=covs, dofs=dofs, max_rel_std=max_rel_std, estimator=estimator, extra_flags=flags,
                       q_ped=qps, shared_cov=_shared(rotor, runs, shared_cov, size=16), calibration=cal)
     _no_calibration(accel_gain_std, accel_phase_std_deg)
-    planes = None
-    if shared_cov is None and all(r.at == "probes" and r.cov is None and _plain_q(r) for r in runs):
-        # eq. 19 applied by the core as it loads each point: no moved copy of every run
-        from .simulate import probes_to_bearings_matrix
-
-        at_b, planes = runs, probes_to_bearings_matrix(rotor)
-    else:
-        at_b = [r.at_bearings(rotor) for r in runs]
+    at_b, planes = _for_the_core(rotor, runs, may_use_planes=shared_cov is None)
     qs = [np.ascontiguousarray(r.q, dtype=complex) for r in at_b]  # the runs as they are: no copy, no stack
     covs = _run_covs(at_b, labels)
     # gain None: the core forms Omega^2 itself (a second (n,) temporary next to om made glibc return
@@ -820,14 +813,16 @@ def identify_synchronous_batch(rotor: RigidRotor, speed_rpm, q, imbalances, *, m
     return out
 
 
-def _plain_q(run):
-    """True when a run's (or test's) responses are still what its constructor checked: a complex
-    (n, 4) array on its own axis (not replaced after construction by a list or another shape,
-    which the moved path validates again)."""
-    q, axis = run.q, run.speed_rpm if isinstance(run, SyncResponse) else run.freq_hz
-    force = getattr(run, "force", None)
-    return isinstance(q, np.ndarray) and q.dtype == complex and isinstance(axis, np.ndarray) and \
-        q.shape == (axis.size, 4) and (force is None or isinstance(force, np.ndarray) and force.shape == (axis.size,))
+def _for_the_core(rotor, runs, may_use_planes=True):
+    """(runs at the bearings, planes) for the core call: runs (or tests) recorded at the probe
+    planes as they are, with the eq. 19 transform for the core to apply as it loads each point
+    (no moved copy of every run), when none carries a covariance (moved with its run in Python);
+    else the runs moved to the bearings and None."""
+    from .simulate import _q_as_checked, probes_to_bearings_matrix
+
+    if may_use_planes and all(r.at == "probes" and r.cov is None and _q_as_checked(r) for r in runs):
+        return runs, probes_to_bearings_matrix(rotor)
+    return [r.at_bearings(rotor) for r in runs], None
 
 
 def _rank_up_to_2(E, tol):
@@ -846,7 +841,7 @@ def _rank_up_to_2(E, tol):
     tol = tol / top
     norms2 = [sum(x * x for x in r) for r in rows]
     if len(rows) < 2:
-        return int(bool(rows) and math.sqrt(norms2[0]) > tol)
+        return int(math.sqrt(norms2[0]) > tol)
     a, b = rows
     det = sum((a[i] * b[j] - a[j] * b[i]) ** 2 for i in range(4) for j in range(i + 1, 4))
     tr = norms2[0] + norms2[1]
@@ -924,13 +919,7 @@ def identify_impact(rotor: RigidRotor, tests, *, method: str = "forces", identic
         cal = _calibration_inputs(rotor, tests, labels, accel_gain_std, accel_phase_std_deg)
     else:
         _no_calibration(accel_gain_std, accel_phase_std_deg)
-        if all(t.at == "probes" and t.cov is None and _plain_q(t) for t in tests):
-            # eq. 19 applied by the core as it loads each point (as identify_synchronous does)
-            from .simulate import probes_to_bearings_matrix
-
-            at_b, planes = tests, probes_to_bearings_matrix(rotor)
-        else:
-            at_b = [t.at_bearings(rotor) for t in tests]
+        at_b, planes = _for_the_core(rotor, tests)
         qs = [np.ascontiguousarray(t.frf(), dtype=complex) for t in at_b]  # (n, 4) per unit force, per test
         covs = _run_covs(at_b, labels)
         dofs = None if covs is None else _run_dofs(at_b)

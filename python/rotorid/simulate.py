@@ -43,6 +43,16 @@ def _apply_planes(T, q, checked=False):
     return _core.apply_planes(np.ascontiguousarray(T, dtype=float), np.ascontiguousarray(q))
 
 
+def _q_as_checked(resp) -> bool:
+    """True when a response's ``q`` (and ``force``, for an impact) are still what its constructor
+    checked: complex arrays of (n, 4) (and (n,)) on its own axis, not replaced after construction
+    by a list or another shape (those take the validating paths)."""
+    q, axis = resp.q, resp.speed_rpm if isinstance(resp, SyncResponse) else resp.freq_hz
+    force = getattr(resp, "force", None)
+    return isinstance(q, np.ndarray) and q.dtype == complex and isinstance(axis, np.ndarray) and \
+        q.shape == (axis.size, 4) and (force is None or isinstance(force, np.ndarray) and force.shape == (axis.size,))
+
+
 def _cov_transform(T, cov):
     """Covariance (..., 8, 8) of [Re q, Im q] after the plane transform T applied to (x1, x2) and
     (y1, y2) of q."""
@@ -282,8 +292,7 @@ class SyncResponse:
             return SyncResponse(self.speed_rpm, q, self.imbalance, where, self.name, cov, self.dof, self.pedestal,
                                 self.pedestal_cov, cross)
         T = probes_to_bearings_matrix(rotor) if where == "bearings" else bearings_to_probes_matrix(rotor)
-        if self.cov is None and self.dof is None and isinstance(self.speed_rpm, np.ndarray) and \
-                isinstance(self.q, np.ndarray) and self.q.dtype == complex and self.q.shape == (self.speed_rpm.size, 4):
+        if self.cov is None and self.dof is None and _q_as_checked(self):
             # this response was validated: its move is not checked again (0.4 ms per 100,000 speeds)
             return SyncResponse._unchecked(speed_rpm=self.speed_rpm, q=_apply_planes(T, self.q, checked=True),
                                            imbalance=self.imbalance, at=where, name=self.name)

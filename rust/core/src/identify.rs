@@ -437,13 +437,13 @@ fn load_q(p: &IdentProblem, b: usize, r: usize, i: usize) -> [C64; 4] {
     let blk = p.q[b * p.runs + r];
     let o = i * 4;
     let q = [blk[o], blk[o + 1], blk[o + 2], blk[o + 3]];
-    match p.planes {
+    match &p.planes {
         None => q,
-        Some(t) => [q[0] * t[0] + q[1] * t[1], q[0] * t[2] + q[1] * t[3], q[2] * t[0] + q[3] * t[1], q[2] * t[2] + q[3] * t[3]],
+        Some(t) => crate::model::planes_point(t, q),
     }
 }
 
-/// [`load_q`]'s plane transform on L points at once.
+/// [`crate::model::planes_point`] on L points at once (the same operations, lane by lane).
 #[inline(always)]
 fn planes_lanes(t: &[f64; 4], q: [Z; 4]) -> [Z; 4] {
     let (t0, t1, t2, t3) = (V::splat(t[0]), V::splat(t[1]), V::splat(t[2]), V::splat(t[3]));

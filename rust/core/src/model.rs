@@ -73,6 +73,13 @@ pub fn assemble(b: &[f64], l1: f64, l2: f64) -> [[f64; 4]; 4] {
     ]
 }
 
+/// [`apply_planes`] for one point: [t11 x1 + t12 x2, t21 x1 + t22 x2, t11 y1 + t12 y2,
+/// t21 y1 + t22 y2] with real-times-complex products.
+#[inline(always)]
+pub fn planes_point(t: &[f64; 4], q: [C64; 4]) -> [C64; 4] {
+    [q[0] * t[0] + q[1] * t[1], q[0] * t[2] + q[1] * t[3], q[2] * t[0] + q[3] * t[1], q[2] * t[2] + q[3] * t[3]]
+}
+
 /// Points per parallel task of [`apply_planes`] (memory-bound: large tasks).
 const PLANES_CHUNK: usize = 1 << 14;
 
@@ -90,10 +97,7 @@ pub fn apply_planes(t: &[f64; 4], q: &[C64], out: &mut [C64]) -> Result<(), crat
     crate::error::expect_len("out", out, q.len())?;
     let pass = |q: &[C64], out: &mut [C64]| {
         for (p, o) in q.chunks_exact(4).zip(out.chunks_exact_mut(4)) {
-            o[0] = p[0] * t[0] + p[1] * t[1];
-            o[1] = p[0] * t[2] + p[1] * t[3];
-            o[2] = p[2] * t[0] + p[3] * t[1];
-            o[3] = p[2] * t[2] + p[3] * t[3];
+            o.copy_from_slice(&planes_point(t, [p[0], p[1], p[2], p[3]]));
         }
     };
     if q.len() <= 4 * PLANES_CHUNK {
