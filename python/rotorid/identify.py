@@ -684,7 +684,8 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
         # unknown: read-only NaN views (no memory, no pass over it)
         ks = cs = _nan_view(k.shape)
         rel_std = _nan_view(k.shape[:2])
-    if not np.fmin.reduce(cond, axis=None) < np.inf:  # no finite condition number (one pass, NaN skipped)
+    # no finite condition number: the first point nearly always has one (then no pass over cond)
+    if not (math.isfinite(cond.flat[0]) or np.fmin.reduce(cond, axis=None) < np.inf):
         raise IdentifiabilityError(_diagnose_singular(np.stack(qs), labels))
     ks, cs = ks[0], cs[0]
     rel_std = None if rel_std is None else rel_std[0]

@@ -697,3 +697,43 @@ fn flag_codes_peak_propagates_nan_like_numpy() {
         }
     }
 }
+
+/// The parallel pass (from 32,768 points, in chunks of 8,192) gives what the definition gives
+/// point by point: the peak is reduced over chunks (a NaN in the last chunk reaches the first),
+/// with and without standard errors, at sizes around the chunk boundaries.
+#[test]
+fn flag_codes_in_parallel_match_the_definition_point_by_point() {
+    use rotorid_core::identify::{flag_codes, FLAG_ILL_CONDITIONED, FLAG_LOW_AMPLITUDE, FLAG_SINGULAR, FLAG_UNCERTAIN};
+    for n in [32_767usize, 32_768, 40_961, 100_000] {
+        for nan_last in [false, true] {
+            let amp: Vec<f64> = (0..n).map(|i| if nan_last && i == n - 1 { f64::NAN } else { ((i * 7919) % 1000) as f64 }).collect();
+            let cond: Vec<f64> = (0..2 * n).map(|j| match j % 13 { 0 => f64::INFINITY, 5 => 2e4, 9 => f64::NAN, _ => 3.0 }).collect();
+            let rel_std: Vec<f64> = (0..n).map(|i| ((i % 17) as f64) / 50.0).collect();
+            let peak = if nan_last { f64::NAN } else { 999.0 };
+            for with_std in [false, true] {
+                let (mut rel, mut code) = (vec![0.0; n], vec![0u8; n]);
+                flag_codes(&cond, &amp, if with_std { &rel_std } else { &[] }, 1e4, 0.05, 0.2, &mut rel, &mut code).unwrap();
+                for i in 0..n {
+                    let (c0, c1) = (cond[2 * i], cond[2 * i + 1]);
+                    let finite = c0.is_finite() && c1.is_finite();
+                    let ra = if peak > 0.0 { amp[i] / peak } else { 0.0 };
+                    let mut want = 0;
+                    if !finite {
+                        want |= FLAG_SINGULAR;
+                    }
+                    if finite && c0.max(c1) > 1e4 {
+                        want |= FLAG_ILL_CONDITIONED;
+                    }
+                    if finite && with_std && rel_std[i] > 0.2 {
+                        want |= FLAG_UNCERTAIN;
+                    }
+                    if ra < 0.05 {
+                        want |= FLAG_LOW_AMPLITUDE;
+                    }
+                    assert_eq!(code[i], want, "n {n}, NaN last {nan_last}, std {with_std}, point {i}");
+                    assert_eq!(rel[i].to_bits(), ra.to_bits(), "n {n}, point {i}");
+                }
+            }
+        }
+    }
+}
