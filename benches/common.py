@@ -161,6 +161,9 @@ def print_header(title, work, numpy_threads):
     print(f"CPU         {ci['model']} ({ci['usable_cpus']} of {ci['logical_cpus']} logical CPUs usable; {caches})")
     absent = f"; absent: {' '.join(ci['simd_absent'])}" if ci["simd_absent"] else ""
     print(f"SIMD        {' '.join(ci['simd']) or 'none reported'}{absent}")
+    cap = os.environ.get("ROTORID_SIMD")
+    print(f"rotorid SIMD {rotorid._core.SIMD} kernels (CPU's widest: {rotorid._core.SIMD_CPU}"
+          f"{'; capped by ROTORID_SIMD=' + cap if cap else ''})")
     print(f"NumPy       {np.__version__} (SIMD dispatch on this CPU: {numpy_simd()})")
     print(f"BLAS        {blas_info()}")
     env = os.environ.get("RAYON_NUM_THREADS")

@@ -1,7 +1,12 @@
 """Run every NumPy-comparison bench in sequence (each in its own process) and print a summary
 table for the README.
 
-    python benches/run_all.py [--quick] [--threads 2] [--only identify,modal] [--quiet]
+    python benches/run_all.py [--quick] [--threads 2] [--only identify,modal] [--quiet] [--simd avx2]
+
+``--simd avx2`` measures the AVX2 versions on an AVX-512 machine: rotorid's kernels capped with
+``ROTORID_SIMD=avx2``, NumPy's AVX-512 dispatch targets disabled (``NPY_DISABLE_CPU_FEATURES``)
+and OpenBLAS run as on Haswell (``OPENBLAS_CORETYPE``), in every bench process. The cores, caches
+and memory stay this machine's, so it compares the code paths, not another CPU.
 
 Each bench ends with a ``SUMMARY {json}`` line (common.report; bench_study.py prints one per row:
 the two studies, memory, scaling and identify_synchronous_batch); this script collects them. The
@@ -37,11 +42,19 @@ def _x(v):
     return f"{v:.1f}x" if v >= 1 else f"{v:.2f}x"
 
 
-def run(name, passthrough, quiet):
+def avx2_env():
+    """The environment that runs rotorid, NumPy and OpenBLAS at AVX2 on an AVX-512 CPU."""
+    from numpy._core._multiarray_umath import __cpu_dispatch__
+
+    above = [t for t in __cpu_dispatch__ if t.startswith(("AVX512", "X86_V4"))]
+    return {"ROTORID_SIMD": "avx2", "NPY_DISABLE_CPU_FEATURES": " ".join(above), "OPENBLAS_CORETYPE": "Haswell"}
+
+
+def run(name, passthrough, quiet, env=None):
     path = os.path.join(os.path.dirname(os.path.abspath(__file__)), f"bench_{name}.py")
     t0 = time.perf_counter()
     proc = subprocess.Popen([sys.executable, path, *passthrough], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                            text=True, bufsize=1)
+                            text=True, bufsize=1, env=env)
     summaries = []
     for line in proc.stdout:
         if line.startswith("SUMMARY "):
@@ -83,19 +96,23 @@ def main():
     ap.add_argument("--threads", type=int, default=None, help="threads of the threaded NumPy variants")
     ap.add_argument("--only", default="", help=f"comma-separated subset of {','.join(BENCHES)}")
     ap.add_argument("--quiet", action="store_true", help="print only the summary table")
+    ap.add_argument("--simd", choices=("native", "avx2"), default="native",
+                    help="avx2: rotorid, NumPy and OpenBLAS at AVX2 on an AVX-512 machine")
     args = ap.parse_args()
     names = [b.strip() for b in args.only.split(",") if b.strip()] or list(BENCHES)
     bad = [b for b in names if b not in BENCHES]
     if bad:
         ap.error(f"unknown bench(es) {bad}; choose from {', '.join(BENCHES)}")
     passthrough = (["--quick"] if args.quick else []) + (["--threads", str(args.threads)] if args.threads else [])
-    rows = [row for name in names for row in run(name, passthrough, args.quiet)]
+    env = {**os.environ, **avx2_env()} if args.simd == "avx2" else None
+    rows = [row for name in names for row in run(name, passthrough, args.quiet, env)]
     ci = cpu_info()
     import numpy as np
 
     print(f"Machine: {ci['model']}, {ci['usable_cpus']} usable CPUs, SIMD {' '.join(ci['simd'])}; NumPy "
           f"{np.__version__}; rotorid core threads {rotorid_threads()}; NumPy baselines on 1 or "
-          f"{args.threads or 2} threads{'; --quick sizes' if args.quick else ''}.\n")
+          f"{args.threads or 2} threads{'; --quick sizes' if args.quick else ''}"
+          f"{'; rotorid, NumPy and OpenBLAS capped at AVX2 (--simd avx2)' if env else ''}.\n")
     print(table(rows))
     for r in rows:
         if r.get("api_failed"):

@@ -10,8 +10,12 @@ from __future__ import annotations
 
 import functools
 
-from . import _core as _raw
 from .errors import RotoridError
+
+try:
+    from . import _core as _raw
+except ValueError as exc:  # the module's only refusal at import: a ROTORID_SIMD it does not know
+    raise RotoridError(f"cannot load rotorid's compiled core: {exc}") from None
 
 
 def _guard(fn):

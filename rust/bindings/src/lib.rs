@@ -1090,6 +1090,10 @@ fn study_bin_edges(py: Python<'_>) -> PyResult<Bound<'_, PyArrayDyn<f64>>> {
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     LOADED_BY.get_or_init(std::process::id);
+    // a misspelt cap is refused here, not silently ignored by the kernels' dispatch
+    rotorid_core::lanes::simd_cap_from_env().map_err(core_err)?;
+    m.add("SIMD", rotorid_core::lanes::simd().name())?;
+    m.add("SIMD_CPU", rotorid_core::lanes::simd_of_cpu().name())?;
     m.add_function(wrap_pyfunction!(forced_response, m)?)?;
     m.add_function(wrap_pyfunction!(py_identify, m)?)?;
     m.add_function(wrap_pyfunction!(py_modal, m)?)?;

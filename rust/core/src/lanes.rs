@@ -17,8 +17,24 @@ pub enum Simd {
 }
 
 /// Detect once which compiled version every SIMD kernel dispatches to. A kernel may call its
-/// `#[target_feature]` version for the level returned here: the CPU has those features.
+/// `#[target_feature]` version for the level returned here: the CPU has those features. The
+/// environment variable `ROTORID_SIMD` (`avx512`, `avx2` or `baseline`) caps the level, e.g. to
+/// measure the AVX2 kernels on an AVX-512 machine; it never raises it above what the CPU has,
+/// and a value that is none of those is ignored here (the Python module refuses it at import,
+/// see [`simd_cap_from_env`]).
 pub fn simd() -> Simd {
+    static LEVEL: std::sync::OnceLock<Simd> = std::sync::OnceLock::new();
+    *LEVEL.get_or_init(|| {
+        let cpu = simd_of_cpu();
+        match simd_cap_from_env() {
+            Ok(Some(cap)) if cap.rank() < cpu.rank() => cap,
+            _ => cpu,
+        }
+    })
+}
+
+/// The widest level this CPU supports, whatever `ROTORID_SIMD` says.
+pub fn simd_of_cpu() -> Simd {
     #[cfg(target_arch = "x86_64")]
     {
         if std::is_x86_feature_detected!("avx512f") && std::is_x86_feature_detected!("avx512dq") {
@@ -29,6 +45,40 @@ pub fn simd() -> Simd {
         }
     }
     Simd::Baseline
+}
+
+/// The cap `ROTORID_SIMD` asks for: None when unset or empty, an error naming the accepted
+/// values when it is something else.
+pub fn simd_cap_from_env() -> Result<Option<Simd>, crate::error::CoreError> {
+    match std::env::var("ROTORID_SIMD") {
+        Err(_) => Ok(None),
+        Ok(v) => match v.trim().to_ascii_lowercase().as_str() {
+            "" => Ok(None),
+            "avx512" => Ok(Some(Simd::Avx512)),
+            "avx2" => Ok(Some(Simd::Avx2)),
+            "baseline" => Ok(Some(Simd::Baseline)),
+            _ => Err(crate::error::CoreError::value("ROTORID_SIMD", format!("must be avx512, avx2 or baseline (or unset), got {v:?}"))),
+        },
+    }
+}
+
+impl Simd {
+    fn rank(self) -> u8 {
+        match self {
+            Simd::Baseline => 0,
+            Simd::Avx2 => 1,
+            Simd::Avx512 => 2,
+        }
+    }
+
+    /// Lower-case name, as `ROTORID_SIMD` spells it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Simd::Avx512 => "avx512",
+            Simd::Avx2 => "avx2",
+            Simd::Baseline => "baseline",
+        }
+    }
 }
 
 /// Define `$name` calling `$kernel` compiled for AVX-512 (F, DQ), for AVX2 + FMA, or for the
