@@ -290,3 +290,17 @@ def test_core_refuses_a_bad_plane_transform():
         _core.identify(rig.rotor.core_params(), w, w, q, e, None, planes=np.eye(3))
     with pytest.raises(ValueError, match="planes"):
         _core.identify(rig.rotor.core_params(), w, w, q, e, None, planes=np.full((2, 2), np.nan))
+
+
+def test_report_method_with_redundant_runs_says_its_standard_errors_are_unknown():
+    """method="report" computes no residual-based standard errors: without a covariance its
+    std_source is "none" (it said "residual" while k_std was NaN), and no point is "uncertain"."""
+    rig = rotorid.nsf_rig()
+    rpm = np.arange(2000, 6001, 500.0)
+    runs = [rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=rpm) for s in "ABC"]
+    rep = rotorid.identify_synchronous(rig.rotor, runs, method="report")
+    assert rep.std_source == "none" and rep.dof is None
+    assert np.isnan(rep.k_std).all() and np.isnan(rep.c_std).all()
+    assert not np.char.find(rep.flag.astype(str), "uncertain").max() >= 0
+    fast = rotorid.identify_synchronous(rig.rotor, runs)
+    assert fast.std_source == "residual" and np.isfinite(fast.k_std).all() and fast.dof.shape == rpm.shape

@@ -680,6 +680,9 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
                                "much (a unit error?)")
         raise RotoridError(f"{what} contain NaN or inf")
     std_known = ks is not None or covs is not None  # residual-based, or propagated below
+    # residual-based errors only where the core computed them (not for method="report", whose
+    # standard errors stay unknown without a covariance)
+    residual_std = redundant and ks is not None
     if ks is None:
         # unknown: read-only NaN views (no memory, no pass over it)
         ks = cs = _nan_view(k.shape)
@@ -691,8 +694,8 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
     rel_std = None if rel_std is None else rel_std[0]
     ks_res, cs_res = ks, cs
     bias_k = bias_c = None
-    source, dof, cov = ("residual" if redundant else "none"), None, None
-    if redundant:
+    source, dof, cov = ("residual" if residual_std else "none"), None, None
+    if residual_std:
         # residual dof per bearing system: R complex equations (2R real) for 2 complex unknowns
         # one value for every point: a read-only view, not an (n,) array (freed with om, two such
         # arrays made glibc return and fault in the memory on every call)
