@@ -9,6 +9,8 @@ import numpy as np
 import numpy.typing as npt
 
 __version__: str
+SIMD: str  # the SIMD level the kernels run at: avx512, avx2 or baseline (ROTORID_SIMD caps it)
+SIMD_CPU: str  # the widest level this CPU supports
 
 def forced_response(
     rotor: npt.NDArray[np.float64],
@@ -24,8 +26,9 @@ def forced_response(
 def apply_planes(
     t: npt.NDArray[np.float64],  # (2, 2) real plane transform (report eq. 19)
     q: npt.NDArray[np.complex128],  # (..., 4) [x1, x2, y1, y2], C-contiguous
-) -> npt.NDArray[np.complex128]:
-    """[x_a, x_b] = t [x1, x2] and [y_a, y_b] = t [y1, y2] at every point; same shape as q."""
+) -> tuple[npt.NDArray[np.complex128], int | None]:
+    """[x_a, x_b] = t [x1, x2] and [y_a, y_b] = t [y1, y2] at every point (same shape as q), and
+    the flat index of q's first NaN or inf (None when all are finite)."""
 
 def imbalance_response(
     rotor: npt.NDArray[np.float64],
@@ -79,8 +82,10 @@ def forced_response_pedestal(
     w: npt.NDArray[np.float64],  # (n,)
     force: npt.NDArray[np.complex128],  # (n or 1, nrhs, 4)
     gain: npt.NDArray[np.float64] | None = None,  # (n,)
+    imbalance: bool = False,  # scale by spin^2 (not with gain)
+    relative: bool = False,  # journal motion relative to the pedestals instead of absolute
 ) -> tuple[npt.NDArray[np.complex128], npt.NDArray[np.complex128], int]:
-    """Journal (absolute) and pedestal motion at the bearings, each (n, nrhs, 4), n_singular."""
+    """Journal (absolute, or relative) and pedestal motion at the bearings, each (n, nrhs, 4), n_singular."""
 
 def effective_coefficients(
     k: npt.NDArray[np.float64],  # (n or 1, 8)

@@ -3,6 +3,7 @@ and a measurement-error model for numerical experiments."""
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -33,14 +34,36 @@ def probes_to_bearings_matrix(rotor: RigidRotor) -> np.ndarray:
 
 
 def _apply_planes(T, q, checked=False):
-    """T applied to (x1, x2) and to (y1, y2) of q (..., 4). ``checked``: q is the array of a
-    validated response (no second pass over it for NaN; the core reports non-finite data later)."""
-    q = q if checked and isinstance(q, np.ndarray) and q.dtype == complex else complex_array("q", q)
+    """T applied to (x1, x2) and to (y1, y2) of q (..., 4). NaN or inf in q is refused, found by
+    the core on its way through (no separate scan); ``checked``: q is the array of a validated
+    response, passed through as it is."""
+    q = q if isinstance(q, np.ndarray) and q.dtype == complex else complex_array("q", q, finite=False)
     if q.ndim < 1 or q.shape[-1] != 4:
         raise RotoridError(f"q must have the four responses [x1, x2, y1, y2] on its last axis, got shape {q.shape}")
     # one pass in the core: NumPy's complex-by-real matmul on the strided halves took 4 ms per
     # 100,000 points, more than the whole identification of a run
-    return _core.apply_planes(np.ascontiguousarray(T, dtype=float), np.ascontiguousarray(q))
+    out, first_bad = _core.apply_planes(np.ascontiguousarray(T, dtype=float), np.ascontiguousarray(q))
+    if first_bad is not None and not checked:
+        at = tuple(int(i) for i in np.unravel_index(first_bad, q.shape))
+        raise RotoridError(f"q contains NaN or inf (first at index {at})")
+    return out
+
+
+def _unchecked(cls, **fields):
+    """A response of class ``cls`` from values rotorid computed itself (axis already validated,
+    q from the core): the checks of ``__post_init__`` are skipped, the other fields take their
+    defaults. Not for user data."""
+    obj = cls.__new__(cls)
+    obj.__dict__.update(_defaults(cls) | fields)
+    return obj
+
+
+def _defaults(cls, _cache={}):  # noqa: B006 - a per-class cache of the dataclass defaults
+    if cls not in _cache:
+        if any(f.default_factory is not dataclasses.MISSING for f in dataclasses.fields(cls)):
+            raise TypeError(f"{cls.__name__}: _unchecked supports plain defaults only")
+        _cache[cls] = {f.name: f.default for f in dataclasses.fields(cls) if f.default is not dataclasses.MISSING}
+    return _cache[cls]
 
 
 def _q_as_checked(resp) -> bool:
@@ -259,12 +282,8 @@ class SyncResponse:
 
     @classmethod
     def _unchecked(cls, **fields) -> "SyncResponse":
-        """A response from values rotorid computed itself (speeds already validated, q from the
-        core): the checks of ``__post_init__`` are skipped. Not for user data."""
-        obj = cls.__new__(cls)
-        obj.__dict__.update(dict(imbalance=None, at="bearings", name=None, cov=None, dof=None, pedestal=None,
-                                 pedestal_cov=None, pedestal_cross=None) | fields)
-        return obj
+        """A response from values rotorid computed itself, unchecked (see :func:`_unchecked`)."""
+        return _unchecked(cls, **fields)
 
     def __post_init__(self):
         self.speed_rpm = speeds_rpm("speed_rpm", self.speed_rpm)
@@ -397,15 +416,11 @@ def imbalance_response(rotor: RigidRotor, bearings: BearingCoefficients, imbalan
     # F_i = e Omega_i^2: the core scales each point's solution, no (n, 4) force array is built
     e = np.ascontiguousarray(imbalance.generalized(rotor), dtype=complex).reshape(1, 1, 4)
     if pedestals is not None:
-        qa, qp, nsing = _core.forced_response_pedestal(rotor.core_params(), k, c, pedestals.core_params(), om, om, e,
-                                                       gain=om ** 2)
-        if nsing:
-            bad = rpm[~np.all(np.isfinite(qa[:, 0, :]), axis=1)]
-            raise RotoridError(f"the rotor-bearing-pedestal system is singular (undamped resonance) at speed_rpm = "
-                               f"{bad[:5]}")
-        resp = SyncResponse._unchecked(speed_rpm=rpm, q=qa[:, 0, :] - qp[:, 0, :], imbalance=imbalance,
-                                       at="bearings", name=imbalance.name, pedestal=qp[:, 0, :])
-        return resp.at_probes(rotor) if at == "probes" else resp
+        q, qp = _with_pedestals(rotor, k, c, pedestals, om, om, e, at, imbalance=True,
+                                singular=lambda bad: "the rotor-bearing-pedestal system is singular (undamped "
+                                                     f"resonance) at speed_rpm = {rpm[bad][:5]}")
+        return SyncResponse._unchecked(speed_rpm=rpm, q=q, imbalance=imbalance, at=at, name=imbalance.name,
+                                       pedestal=qp)
     # w = Omega and the gains Omega^2 are formed in the core: a second (n,) temporary here made
     # glibc hand 1.6 MB back to the system after every call and fault it in again on the next
     # (360 page faults, +1.2 ms per 100,000 speeds)
@@ -538,6 +553,11 @@ class ImpactResponse:
             raise RotoridError("pedestal motion is taken per unit force: give q and pedestal as FRFs (force=None)")
         _check_pedestal(self, n)
 
+    @classmethod
+    def _unchecked(cls, **fields) -> "ImpactResponse":
+        """A test from values rotorid computed itself, unchecked (see :func:`_unchecked`)."""
+        return _unchecked(cls, **fields)
+
     @property
     def absolute(self):
         """The rotor's FRF in space at the planes of ``q``: q + pedestal (q without pedestal motion)."""
@@ -565,6 +585,12 @@ class ImpactResponse:
             return ImpactResponse(self.speed_rpm, self.freq_hz, q, None, self.plane, self.direction, where,
                                   self.name, self.sigma, cov, self.dof, self.pedestal, self.pedestal_cov, cross)
         T = probes_to_bearings_matrix(rotor) if where == "bearings" else bearings_to_probes_matrix(rotor)
+        if self.cov is None and self.dof is None and _q_as_checked(self):
+            # this test was validated: its move is not checked again (as SyncResponse._moved)
+            return ImpactResponse._unchecked(speed_rpm=self.speed_rpm, freq_hz=self.freq_hz,
+                                             q=_apply_planes(T, self.q, checked=True), force=self.force,
+                                             plane=self.plane, direction=self.direction, at=where, name=self.name,
+                                             sigma=self.sigma)
         return ImpactResponse(self.speed_rpm, self.freq_hz, _apply_planes(T, self.q), self.force, self.plane,
                               self.direction, where, self.name, self.sigma, _cov_transform(T, self.cov), self.dof)
 
@@ -631,20 +657,38 @@ def impact_frf(rotor: RigidRotor, bearings: BearingCoefficients, *, speed_rpm: f
     k, c = _impact_coeffs(bearings, speed, f)
     w = 2 * np.pi * f
     spin = np.full_like(w, speed * RPM)
+    fields = dict(speed_rpm=speed, freq_hz=f, plane=float(plane), direction=direction, name=name)
+    force = e.astype(complex)[None, None, :]
     if pedestals is not None:
-        qa, qp, nsing = _core.forced_response_pedestal(rotor.core_params(), k, c, pedestals.core_params(), spin, w,
-                                                       e.astype(complex)[None, None, :])
-        if nsing:
-            raise RotoridError("the rotor-bearing-pedestal system is singular at freq_hz = "
-                               f"{f[~np.isfinite(qa[:, 0, 0])][:5]}")
-        resp = ImpactResponse(speed, f, qa[:, 0, :] - qp[:, 0, :], None, float(plane), direction, "bearings", name,
-                              pedestal=qp[:, 0, :])
-        return resp.at_probes(rotor) if at == "probes" else resp
-    q, nsing = _core.forced_response(rotor.core_params(), k, c, spin, w, e.astype(complex)[None, None, :])
+        q, qp = _with_pedestals(rotor, k, c, pedestals, spin, w, force, at,
+                                singular=lambda bad: f"the rotor-bearing-pedestal system is singular at freq_hz = "
+                                                     f"{f[bad][:5]}")
+        return ImpactResponse._unchecked(q=q, at=at, pedestal=qp, **fields)
+    q, nsing = _core.forced_response(rotor.core_params(), k, c, spin, w, force)
     if nsing:
         raise RotoridError(f"the rotor-bearing system is singular at freq_hz = {f[~np.isfinite(q[:, 0, 0])][:5]}")
-    resp = ImpactResponse(speed, f, q[:, 0, :], None, float(plane), direction, "bearings", name)
+    # the core's own output at validated frequencies: built without re-checking it
+    resp = ImpactResponse._unchecked(q=q[:, 0, :], **fields)
     return resp.at_probes(rotor) if at == "probes" else resp
+
+
+def _with_pedestals(rotor, k, c, pedestals, spin, w, force, at, *, singular, imbalance=False):
+    """(q relative to the pedestals at ``at``, pedestal motion at the bearings), both (n, 4), of
+    one force vector with flexible pedestals. At the bearings the core forms the relative motion
+    q - p itself; at the probe planes (probes riding on the pedestals) the relative reading is
+    T q - p with T from the bearings to the probes (the same as moving q - p there with
+    :func:`_pedestal_transform`, without a second array). ``singular(mask)``: the message when
+    points are singular."""
+    qa, qp, nsing = _core.forced_response_pedestal(rotor.core_params(), k, c, pedestals.core_params(), spin, w,
+                                                   force, imbalance=imbalance, relative=at == "bearings")
+    if nsing:
+        raise RotoridError(singular(~np.all(np.isfinite(qa[:, 0, :]), axis=1)))
+    qa, qp = qa[:, 0, :], qp[:, 0, :]
+    if at == "bearings":
+        return qa, qp
+    q = _apply_planes(bearings_to_probes_matrix(rotor), qa, checked=True)
+    q -= qp
+    return q, qp
 
 
 def _expm(a: np.ndarray) -> np.ndarray:

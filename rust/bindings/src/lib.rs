@@ -89,9 +89,9 @@ fn rotor_of(p: &PyReadonlyArrayDyn<'_, f64>) -> PyResult<Rotor> {
 /// (every kernel writes every output element of every point it owns: identification, relative
 /// standard errors, resampling, run-out filter). Skipping the zero fill
 /// saves a pass over memory that dominated small calls.
-fn out_buf(n: usize) -> Vec<f64> {
+fn out_buf<T: Plain>(n: usize) -> Vec<T> {
     let mut v = Vec::with_capacity(n);
-    // SAFETY: f64 has no invalid bit patterns, the capacity is n, and the identify kernels write
+    // SAFETY: T (f64 or C64) has no invalid bit patterns, the capacity is n, and the kernels write
     // all n elements before the vector is read or handed to NumPy.
     #[allow(clippy::uninit_vec)]
     unsafe {
@@ -99,6 +99,12 @@ fn out_buf(n: usize) -> Vec<f64> {
     };
     v
 }
+
+/// Element types whose every bit pattern is a value (an unwritten one is garbage, not undefined
+/// behaviour), for [`out_buf`].
+trait Plain: Copy {}
+impl Plain for f64 {}
+impl Plain for C64 {}
 
 /// Refuse an output of `elems` elements of `elem_bytes` each before allocating it: a product that
 /// overflows, or more than 80 % of the memory the system reports available, is a Python
@@ -232,9 +238,10 @@ fn imbalance_response<'py>(
 }
 
 /// Responses moved between measurement planes (report eq. 19, see model::apply_planes): t (2, 2)
-/// real, q (..., 4) complex [x1, x2, y1, y2]; returns an array of q's shape.
+/// real, q (..., 4) complex [x1, x2, y1, y2]; returns (an array of q's shape, the flat index of
+/// q's first non-finite value or None).
 #[pyfunction]
-fn apply_planes<'py>(py: Python<'py>, t: PyReadonlyArrayDyn<'py, f64>, q: PyReadonlyArrayDyn<'py, C64>) -> PyResult<Bound<'py, PyArrayDyn<C64>>> {
+fn apply_planes<'py>(py: Python<'py>, t: PyReadonlyArrayDyn<'py, f64>, q: PyReadonlyArrayDyn<'py, C64>) -> PyResult<(Bound<'py, PyArrayDyn<C64>>, Option<usize>)> {
     check_shape("t", t.shape(), &[2, 2])?;
     let shape = q.shape().to_vec();
     if shape.last() != Some(&4) {
@@ -246,12 +253,12 @@ fn apply_planes<'py>(py: Python<'py>, t: PyReadonlyArrayDyn<'py, f64>, q: PyRead
     let out = py
         .detach(|| {
             guarded(|| {
-                let mut out = vec![C64::new(0.0, 0.0); qs.len()];
-                model::apply_planes(&ts, qs, &mut out).map(|_| out)
+                let mut out = out_buf(qs.len());
+                model::apply_planes(&ts, qs, &mut out).map(|bad| (out, bad))
             })
         })?
         .map_err(core_err)?;
-    to_py(py, out, &shape)
+    Ok((to_py(py, out.0, &shape)?, out.1))
 }
 
 type IdentTuple<'py> = (
@@ -508,10 +515,12 @@ fn pedestals_of(p: &PyReadonlyArrayDyn<'_, f64>) -> PyResult<pedestal::Pedestals
     pedestal::Pedestals::from_slice(slice(p, "pedestals")?).map_err(core_err)
 }
 
-/// Forced response with flexible pedestals (see pedestal.rs): arguments as `forced_response`
-/// plus `pedestals` (20,). Returns (q_abs, q_ped, n_singular), each q (n, nrhs, 4).
+/// Forced response with flexible pedestals (see pedestal.rs): (q (n, nrhs, 4), q_ped (n, nrhs,
+/// 4), n_singular). `gain` (n,) scales each point's solution; `imbalance=True` scales it by
+/// spin^2 instead (no gain array; not with `gain`). `relative=True`: q is the rotor's motion
+/// relative to the pedestals (q_abs - q_ped, formed in the core), else its absolute motion.
 #[pyfunction]
-#[pyo3(signature = (rotor, k, c, pedestals, spin, w, force, gain=None))]
+#[pyo3(signature = (rotor, k, c, pedestals, spin, w, force, gain=None, imbalance=false, relative=false))]
 #[allow(clippy::too_many_arguments)]
 fn forced_response_pedestal<'py>(
     py: Python<'py>,
@@ -523,6 +532,8 @@ fn forced_response_pedestal<'py>(
     w: PyReadonlyArrayDyn<'py, f64>,
     force: PyReadonlyArrayDyn<'py, C64>,
     gain: Option<PyReadonlyArrayDyn<'py, f64>>,
+    imbalance: bool,
+    relative: bool,
 ) -> PyResult<(Bound<'py, PyArrayDyn<C64>>, Bound<'py, PyArrayDyn<C64>>, usize)> {
     let rot = rotor_of(&rotor)?;
     let ped = pedestals_of(&pedestals)?;
@@ -530,16 +541,19 @@ fn forced_response_pedestal<'py>(
     // q_abs and q_ped (4 + 4 per point) and the core's k_eff, c_eff, transfer (about 2 more)
     let nrhs = forced_shapes("forced_response_pedestal", n, &k, &c, &spin, &force, gain.as_ref(), 10)?;
     let (ks, cs, ss, ws, fsl) = (slice(&k, "k")?, slice(&c, "c")?, slice(&spin, "spin")?, slice(&w, "w")?, slice(&force, "force")?);
-    let gs: &[f64] = match &gain {
-        Some(g) => slice(g, "gain")?,
-        None => &[],
+    let g = match (&gain, imbalance) {
+        (Some(_), true) => return Err(PyValueError::new_err("gain and imbalance=True exclude each other")),
+        (Some(g), false) => forced::Gain::PerPoint(slice(g, "gain")?),
+        (None, true) => forced::Gain::SpinSquared,
+        (None, false) => forced::Gain::One,
     };
+    let motion = if relative { pedestal::RotorMotion::Relative } else { pedestal::RotorMotion::Absolute };
     let (qa, qp, nsing) = py
         .detach(|| {
             guarded(|| {
-                let mut qa = vec![C64::new(0.0, 0.0); n * nrhs * 4];
-                let mut qp = vec![C64::new(0.0, 0.0); n * nrhs * 4];
-                pedestal::forced_response(&rot, ks, cs, &ped, ss, ws, fsl, nrhs, gs, &mut qa, &mut qp).map(|ns| (qa, qp, ns))
+                let mut qa = out_buf(n * nrhs * 4);
+                let mut qp = out_buf(n * nrhs * 4);
+                pedestal::forced_response(&rot, ks, cs, &ped, ss, ws, fsl, nrhs, g, motion, &mut qa, &mut qp).map(|ns| (qa, qp, ns))
             })
         })?
         .map_err(core_err)?;

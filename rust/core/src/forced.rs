@@ -171,17 +171,19 @@ pub fn forced_response_imbalance(rotor: &Rotor, kb: &[f64], cb: &[f64], spin: &[
     Ok(forced_kernel(rotor, kb, cb, spin, spin, force, nrhs, Gain::SpinSquared, out))
 }
 
-/// The scaling of each point's solution.
-#[derive(Clone, Copy)]
-enum Gain<'a> {
+/// The scaling of each point's solution: q_i = g_i H_i^-1 F_i.
+#[derive(Clone, Copy, Debug)]
+pub enum Gain<'a> {
+    /// g_i = 1 (forces per point as given)
     One,
+    /// g_i = `gain[i]`, (n,)
     PerPoint(&'a [f64]),
-    /// Omega_i^2 from `spin`
+    /// g_i = Omega_i^2 from `spin` (an imbalance; no array of gains is built)
     SpinSquared,
 }
 
 /// The argument checks shared by [`forced_response`] and [`forced_response_scaled`].
-fn check_forced(kb: &[f64], cb: &[f64], spin: &[f64], w: &[f64], force: &[C64], nrhs: usize, out: &[C64]) -> Result<(), CoreError> {
+pub(crate) fn check_forced(kb: &[f64], cb: &[f64], spin: &[f64], w: &[f64], force: &[C64], nrhs: usize, out: &[C64]) -> Result<(), CoreError> {
     let n = w.len();
     if nrhs == 0 {
         return Err(CoreError::value("nrhs", "must be at least 1 (one force vector per point)"));
@@ -722,7 +724,7 @@ fn forced_chunk_dispatch(b: &Batch, start: usize, out: &mut [C64]) -> usize {
 }
 
 #[allow(clippy::too_many_arguments)]
-fn forced_kernel(rotor: &Rotor, kb: &[f64], cb: &[f64], spin: &[f64], w: &[f64], force: &[C64], nrhs: usize, gain: Gain, out: &mut [C64]) -> usize {
+pub(crate) fn forced_kernel(rotor: &Rotor, kb: &[f64], cb: &[f64], spin: &[f64], w: &[f64], force: &[C64], nrhs: usize, gain: Gain, out: &mut [C64]) -> usize {
     let b = Batch::new(rotor, kb, cb, spin, w, force, nrhs);
     if w.len() < SERIAL_BELOW {
         let ns = forced_chunk_dispatch(&b, 0, out);

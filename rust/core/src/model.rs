@@ -87,23 +87,34 @@ const PLANES_CHUNK: usize = 1 << 14;
 /// [x_a, x_b] = T [x_1, x_2] and [y_a, y_b] = T [y_1, y_2] with the real 2x2 `t` = [T11, T12,
 /// T21, T22] (row-major), e.g. from the probe planes to the bearings. `q`, `out`: (n, 4) as
 /// [x1, x2, y1, y2]. Each output is t_i1 q_1 + t_i2 q_2 with real-times-complex products. A
-/// non-finite response gives non-finite outputs (NaN where an inf meets a zero entry of `t`);
-/// the identification counts such points as non-finite.
-pub fn apply_planes(t: &[f64; 4], q: &[C64], out: &mut [C64]) -> Result<(), crate::CoreError> {
+/// non-finite response gives non-finite outputs (NaN where an inf meets a zero entry of `t`).
+/// Returns the flat index of the first non-finite value of `q` (None when all are finite), found
+/// on the way: the caller needs no separate scan to refuse or mark them.
+pub fn apply_planes(t: &[f64; 4], q: &[C64], out: &mut [C64]) -> Result<Option<usize>, crate::CoreError> {
     use rayon::prelude::*;
     if q.len() % 4 != 0 {
         return Err(crate::CoreError::length("q", q.len(), "a multiple of 4 ([x1, x2, y1, y2] per point)".to_string()));
     }
     crate::error::expect_len("out", out, q.len())?;
-    let pass = |q: &[C64], out: &mut [C64]| {
+    // (chunk offset, values) -> first non-finite index in it
+    let pass = |at: usize, q: &[C64], out: &mut [C64]| -> Option<usize> {
+        let mut all_finite = true;
         for (p, o) in q.chunks_exact(4).zip(out.chunks_exact_mut(4)) {
             o.copy_from_slice(&planes_point(t, [p[0], p[1], p[2], p[3]]));
+            // x - x is 0 for a finite x and NaN for inf or NaN: a sum of them is 0 iff all are finite
+            all_finite &= p.iter().fold(0.0, |acc, z| acc + (z.re - z.re) + (z.im - z.im)) == 0.0;
         }
+        if all_finite {
+            return None;
+        }
+        q.iter().position(|z| !(z.re.is_finite() && z.im.is_finite())).map(|i| at + i)
     };
     if q.len() <= 4 * PLANES_CHUNK {
-        pass(q, out);
-    } else {
-        q.par_chunks(4 * PLANES_CHUNK).zip(out.par_chunks_mut(4 * PLANES_CHUNK)).for_each(|(q, o)| pass(q, o));
+        return Ok(pass(0, q, out));
     }
-    Ok(())
+    Ok(q.par_chunks(4 * PLANES_CHUNK)
+        .zip(out.par_chunks_mut(4 * PLANES_CHUNK))
+        .enumerate()
+        .filter_map(|(j, (q, o))| pass(j * 4 * PLANES_CHUNK, q, o))
+        .min())
 }

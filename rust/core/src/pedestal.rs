@@ -151,12 +151,24 @@ pub fn effective_coefficients(
     Ok(nbad)
 }
 
+/// Which rotor motion [`forced_response`] writes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RotorMotion {
+    /// q, the rotor's motion in space
+    Absolute,
+    /// q - p, the rotor's motion relative to its pedestals (what pedestal-mounted probes read at
+    /// the bearings), formed in the same pass as p: no second array for the caller to subtract
+    Relative,
+}
+
 /// Forced response of the rotor on bearings in flexible pedestals: for every point i and force
-/// vector, the absolute rotor motion at the bearings q (solved with the series impedance) and the
-/// pedestal motion p = T q, both [x1, x2, y1, y2].
+/// vector, the rotor motion at the bearings q (solved with the series impedance) and the
+/// pedestal motion p = T q, both [x1, x2, y1, y2]; `motion` says whether `q_rotor` receives q or
+/// q - p.
 ///
-/// Arguments as [`forced::forced_response`] (`gain` empty or (n,)); `q_abs`, `q_ped`:
-/// (n, nrhs, 4). Returns the number of singular points (NaN output).
+/// Arguments as [`forced::forced_response`]; `gain` scales each point's solution
+/// ([`forced::Gain`]); `q_rotor`, `q_ped`: (n, nrhs, 4). Returns the number of singular points
+/// (NaN output).
 #[allow(clippy::too_many_arguments)]
 pub fn forced_response(
     rotor: &Rotor,
@@ -167,35 +179,42 @@ pub fn forced_response(
     w: &[f64],
     force: &[C64],
     nrhs: usize,
-    gain: &[f64],
-    q_abs: &mut [C64],
+    gain: forced::Gain,
+    motion: RotorMotion,
+    q_rotor: &mut [C64],
     q_ped: &mut [C64],
 ) -> Result<usize, CoreError> {
     let n = w.len();
     let total = product("q", &[n, nrhs, 4])?;
     expect_len("q_ped", q_ped, total)?;
+    if let forced::Gain::PerPoint(g) = gain {
+        expect_len("gain", g, n)?;
+    }
+    forced::check_forced(kb, cb, spin, w, force, nrhs, q_rotor)?;
     let mut ke = vec![0.0; product("k_eff", &[n, 8])?];
     let mut ce = vec![0.0; n * 8];
     let mut tr = vec![C64::new(0.0, 0.0); n * 8];
     effective_coefficients(kb, cb, ped, w, &mut ke, &mut ce, &mut tr)?;
-    let nsing = if gain.is_empty() {
-        forced::forced_response(rotor, &ke, &ce, spin, w, force, nrhs, q_abs)?
-    } else {
-        forced::forced_response_scaled(rotor, &ke, &ce, spin, w, force, nrhs, gain, q_abs)?
-    };
+    let nsing = forced::forced_kernel(rotor, &ke, &ce, spin, w, force, nrhs, gain, q_rotor);
+    let relative = motion == RotorMotion::Relative;
     q_ped
         .par_chunks_mut(4 * nrhs)
-        .zip(q_abs.par_chunks(4 * nrhs))
+        .zip(q_rotor.par_chunks_mut(4 * nrhs))
         .enumerate()
         .with_min_len(256)
         .for_each(|(i, (po, qa))| {
             let t = &tr[8 * i..8 * i + 8];
             for r in 0..nrhs {
-                let q = &qa[4 * r..4 * r + 4];
+                let q = &mut qa[4 * r..4 * r + 4];
                 for b in 0..2 {
                     let (x, y) = (q[b], q[2 + b]);
-                    po[4 * r + b] = t[4 * b] * x + t[4 * b + 1] * y;
-                    po[4 * r + 2 + b] = t[4 * b + 2] * x + t[4 * b + 3] * y;
+                    let (px, py) = (t[4 * b] * x + t[4 * b + 1] * y, t[4 * b + 2] * x + t[4 * b + 3] * y);
+                    po[4 * r + b] = px;
+                    po[4 * r + 2 + b] = py;
+                    if relative {
+                        q[b] = x - px;
+                        q[2 + b] = y - py;
+                    }
                 }
             }
         });

@@ -737,3 +737,24 @@ fn flag_codes_in_parallel_match_the_definition_point_by_point() {
         }
     }
 }
+
+/// apply_planes reports the first non-finite value of q (NaN or inf, in the real or the
+/// imaginary part; in the serial and the parallel pass) and None when all are finite.
+#[test]
+fn apply_planes_finds_the_first_non_finite_value() {
+    use rotorid_core::model::apply_planes;
+    let t = [0.7, 0.3, -0.2, 1.1];
+    for n in [3usize, 5000, 70_000] {
+        let q: Vec<C64> = (0..4 * n).map(|i| c(i as f64 * 1e-3, -(i as f64) * 2e-3)).collect();
+        let mut out = vec![c(0.0, 0.0); q.len()];
+        assert_eq!(apply_planes(&t, &q, &mut out).unwrap(), None);
+        for (at, bad) in [(4 * n - 1, c(f64::NAN, 0.0)), (2 * n + 1, c(0.0, f64::INFINITY)), (0, c(f64::NEG_INFINITY, 1.0))] {
+            let mut qb = q.clone();
+            qb[at] = bad;
+            if at > 0 {
+                qb[4 * n - 1] = c(f64::NAN, f64::NAN); // a later one does not hide the first
+            }
+            assert_eq!(apply_planes(&t, &qb, &mut out).unwrap(), Some(at), "n {n}, at {at}");
+        }
+    }
+}

@@ -11,7 +11,8 @@ mod common;
 use common::*;
 use proptest::prelude::*;
 use rotorid_core::identify::{bearing_forces, identify_forces, identify_report, IdentOut, IdentProblem};
-use rotorid_core::pedestal::{self, Pedestals};
+use rotorid_core::forced::Gain;
+use rotorid_core::pedestal::{self, Pedestals, RotorMotion};
 use rotorid_core::{forced, modal, CoreError, Rotor, C64};
 
 type C2 = [[C64; 2]; 2];
@@ -437,7 +438,7 @@ fn k_and_c_broadcast_independently() {
         guarded(|| {
             let (mut qa, mut qp) = (vec![zero(); 4 * n], vec![zero(); 4 * n]);
             let gain: Vec<f64> = w.iter().map(|x| x * x).collect();
-            pedestal::forced_response(&r, k, cc, &ped, &w, &w, &E2[..4], 1, &gain, &mut qa, &mut qp).map(|_| (qa, qp))
+            pedestal::forced_response(&r, k, cc, &ped, &w, &w, &E2[..4], 1, Gain::PerPoint(&gain), RotorMotion::Absolute, &mut qa, &mut qp).map(|_| (qa, qp))
         })
     };
     let mut failures = Vec::new();
@@ -478,7 +479,7 @@ fn forced_response_equals_the_coupled_8dof_solve() {
     let spin: Vec<f64> = SPEEDS.iter().map(|w| 0.6 * w + 40.0).collect();
     let force: Vec<C64> = (0..n * nrhs * 4).map(|t| c((0.37 * t as f64).sin() * 50.0, (1.3 * t as f64).cos() * 20.0)).collect();
     let (mut qa, mut qp) = (vec![zero(); n * nrhs * 4], vec![zero(); n * nrhs * 4]);
-    let bad = pedestal::forced_response(&r, &KB, &CB, &ped, &spin, &SPEEDS, &force, nrhs, &[], &mut qa, &mut qp).unwrap();
+    let bad = pedestal::forced_response(&r, &KB, &CB, &ped, &spin, &SPEEDS, &force, nrhs, Gain::One, RotorMotion::Absolute, &mut qa, &mut qp).unwrap();
     assert_eq!(bad, 0);
     for i in 0..n {
         for k in 0..nrhs {
@@ -494,7 +495,7 @@ fn forced_response_equals_the_coupled_8dof_solve() {
     // (b) imbalance: shared generalized imbalance vectors scaled by gain = w^2, spin = w
     let e = [c(3e-4, 0.0), c(0.0, -3e-4), c(1e-5, 2e-5), c(-2e-5, 1e-5), c(2e-4, 1e-4), c(1e-4, -2e-4), c(0.0, 0.0), c(3e-5, 0.0)];
     let gain: Vec<f64> = SPEEDS.iter().map(|w| w * w).collect();
-    let bad = pedestal::forced_response(&r, &KB, &CB, &ped, &SPEEDS, &SPEEDS, &e, nrhs, &gain, &mut qa, &mut qp).unwrap();
+    let bad = pedestal::forced_response(&r, &KB, &CB, &ped, &SPEEDS, &SPEEDS, &e, nrhs, Gain::PerPoint(&gain), RotorMotion::Absolute, &mut qa, &mut qp).unwrap();
     assert_eq!(bad, 0);
     for (i, &w) in SPEEDS.iter().enumerate() {
         for k in 0..nrhs {
@@ -507,7 +508,7 @@ fn forced_response_equals_the_coupled_8dof_solve() {
     }
 
     // wrong q_ped length is an error naming it
-    let err = pedestal::forced_response(&r, &KB, &CB, &ped, &SPEEDS, &SPEEDS, &e, nrhs, &gain, &mut qa, &mut qp[..4]).unwrap_err();
+    let err = pedestal::forced_response(&r, &KB, &CB, &ped, &SPEEDS, &SPEEDS, &e, nrhs, Gain::PerPoint(&gain), RotorMotion::Absolute, &mut qa, &mut qp[..4]).unwrap_err();
     assert_eq!(err.name(), "q_ped");
 }
 
@@ -520,7 +521,7 @@ fn stiff_pedestals_approach_the_rigid_forced_response() {
     let e = [c(3e-4, 0.0), c(0.0, -3e-4), c(1e-5, 2e-5), c(-2e-5, 1e-5)];
     let gain: Vec<f64> = SPEEDS.iter().map(|w| w * w).collect();
     let (mut qa, mut qp, mut q0) = (vec![zero(); 4 * n], vec![zero(); 4 * n], vec![zero(); 4 * n]);
-    assert_eq!(pedestal::forced_response(&r, &KB, &CB, &ped, &SPEEDS, &SPEEDS, &e, 1, &gain, &mut qa, &mut qp).unwrap(), 0);
+    assert_eq!(pedestal::forced_response(&r, &KB, &CB, &ped, &SPEEDS, &SPEEDS, &e, 1, Gain::PerPoint(&gain), RotorMotion::Absolute, &mut qa, &mut qp).unwrap(), 0);
     assert_eq!(forced::forced_response_scaled(&r, &KB, &CB, &SPEEDS, &SPEEDS, &e, 1, &gain, &mut q0).unwrap(), 0);
     for (i, &w) in SPEEDS.iter().enumerate() {
         let sl = 4 * i..4 * i + 4;
@@ -638,7 +639,7 @@ fn identification_from_the_kernel_forward_response() {
     let n = w.len();
     let gain: Vec<f64> = w.iter().map(|x| x * x).collect();
     let (mut qa, mut qp) = (vec![zero(); n * 2 * 4], vec![zero(); n * 2 * 4]);
-    assert_eq!(pedestal::forced_response(&r, &KB, &CB, &ped, &w, &w, &E2, 2, &gain, &mut qa, &mut qp).unwrap(), 0);
+    assert_eq!(pedestal::forced_response(&r, &KB, &CB, &ped, &w, &w, &E2, 2, Gain::PerPoint(&gain), RotorMotion::Absolute, &mut qa, &mut qp).unwrap(), 0);
     // (n, runs, 4) -> runs blocks of (n, 4)
     let (mut rel, mut pm) = (vec![zero(); 2 * n * 4], vec![zero(); 2 * n * 4]);
     for i in 0..n {
@@ -825,4 +826,33 @@ fn stiff_pedestal_modes_approach_the_rigid_modes() {
             assert!((a.im - 3.16e6).abs() < 0.05e6, "spin {}: pedestal mode {a}", spin[i]);
         }
     }
+}
+
+/// The relative motion the core forms (q - p in the pass that forms p) is the absolute motion
+/// less the pedestal motion, bit for bit, and the imbalance gain formed from spin (no array) is
+/// the per-point gain spin^2; a per-point gain of the wrong length is refused.
+#[test]
+fn relative_motion_and_imbalance_gain_match_their_definitions() {
+    let r = nsf_rotor();
+    let ped = Pedestals::from_slice(&ped_values()).unwrap();
+    let w: Vec<f64> = (0..777).map(|i| 30.0 + 1.7 * i as f64).collect();
+    let n = w.len();
+    let run = |gain: Gain, motion: RotorMotion| {
+        let (mut q, mut p) = (vec![zero(); 8 * n], vec![zero(); 8 * n]);
+        pedestal::forced_response(&r, &KB, &CB, &ped, &w, &w, &E2, 2, gain, motion, &mut q, &mut p).unwrap();
+        (q, p)
+    };
+    let w2: Vec<f64> = w.iter().map(|x| x * x).collect();
+    let (qa, pa) = run(Gain::PerPoint(&w2), RotorMotion::Absolute);
+    let (qs, ps) = run(Gain::SpinSquared, RotorMotion::Absolute);
+    assert_eq!((&qa, &pa), (&qs, &ps));
+    let (qr, pr) = run(Gain::SpinSquared, RotorMotion::Relative);
+    assert_eq!(pr, pa);
+    for i in 0..qa.len() {
+        assert_eq!(qr[i], qa[i] - pa[i], "value {i}");
+    }
+    assert!(pa.iter().all(|z| z.re.is_finite()) && pa.iter().any(|z| z.norm() > 0.0));
+    let (mut q, mut p) = (vec![zero(); 8 * n], vec![zero(); 8 * n]);
+    let err = pedestal::forced_response(&r, &KB, &CB, &ped, &w, &w, &E2, 2, Gain::PerPoint(&w2[1..]), RotorMotion::Relative, &mut q, &mut p);
+    assert_eq!(err.unwrap_err().name(), "gain");
 }
