@@ -162,3 +162,46 @@ def test_sync_responses_unchecked_construction_matches_the_constructor(rig):
     p = r.at_probes(rig.rotor)
     _same_fields(p, _checked_copy(p))
     assert isinstance(p, SyncResponse) and p.name == rig.imbalances["B"].name
+
+
+def test_axes_formed_by_the_core_give_the_same_bits(rig):
+    """w = 2 pi f, one running speed and one window decay, formed by the core from the axis in Hz
+    and (1,) arrays, are the (n,) arrays NumPy would have built, bit for bit; a spin, w or sigma
+    of another length is refused naming it."""
+    from rotorid import _core
+
+    f = np.linspace(2.0, 300.0, 4099)
+    speed = 1730.0
+    p = rig.rotor.core_params()
+    k = np.ascontiguousarray(rig.bearings.k.reshape(1, 8))
+    c = np.ascontiguousarray(rig.bearings.c.reshape(1, 8))
+    force = np.array([[[1.0, 0.0, 0.03, 0.0]]], dtype=complex)
+    spin_n = np.full(f.size, speed * np.pi / 30)
+    want, _ = _core.forced_response(p, k, c, spin_n, 2 * np.pi * f, force)
+    got, _ = _core.forced_response(p, k, c, spin_n[:1], f, force, w_scale=2 * np.pi)
+    np.testing.assert_array_equal(got, want)
+    t = rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=speed, freq_hz=f, plane=0.03)
+    np.testing.assert_array_equal(t.q, want[:, 0, :])
+    ped = rotorid.example_pedestals()
+    want_p = _core.forced_response_pedestal(p, k, c, ped.core_params(), spin_n, 2 * np.pi * f, force, relative=True)
+    got_p = _core.forced_response_pedestal(p, k, c, ped.core_params(), spin_n[:1], f, force, relative=True,
+                                           w_scale=2 * np.pi)
+    for a, b in zip(got_p[:2], want_p[:2]):
+        np.testing.assert_array_equal(a, b)
+    # windowed impacts: identification with w, spin and sigma formed by the core
+    tests = [rotorid.ImpactResponse(speed, f, rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=speed, freq_hz=f,
+                                                                   direction=d).q, sigma=4.0, direction=d)
+             for d in "xy"]
+    ident = rotorid.identify_impact(rig.rotor, tests)
+    e = np.stack([tt.excitation() for tt in tests]).astype(complex)[None]
+    kk, cc, cond, *_ = _core.identify(p, 2 * np.pi * f, spin_n, [tt.q for tt in tests], e, np.ones(f.size),
+                                      with_std=False, sigma=np.full(f.size, 4.0))
+    np.testing.assert_array_equal(ident.k, kk[0])
+    np.testing.assert_array_equal(ident.c, cc[0])
+    np.testing.assert_array_equal(ident.cond, cond[0])
+    with pytest.raises(ValueError, match=r"spin has shape \[2\], expected \(4099,\) or \(1,\)"):
+        _core.forced_response(p, k, c, spin_n[:2], f, force)
+    with pytest.raises(ValueError, match=r"sigma has shape \[3\]"):
+        _core.identify(p, f, spin_n[:1], [tt.q for tt in tests], e, np.ones(1), sigma=np.ones(3), w_scale=2 * np.pi)
+    with pytest.raises(ValueError, match=r"w has shape"):
+        _core.identify(p, f[:-1], spin_n[:1], [tt.q for tt in tests], e, np.ones(1), w_scale=2 * np.pi)

@@ -16,10 +16,11 @@ def forced_response(
     rotor: npt.NDArray[np.float64],
     k: npt.NDArray[np.float64],  # (n or 1, 8)
     c: npt.NDArray[np.float64],  # (n or 1, 8)
-    spin: npt.NDArray[np.float64],  # (n,)
+    spin: npt.NDArray[np.float64],  # (n,) or (1,)
     w: npt.NDArray[np.float64],  # (n,)
     force: npt.NDArray[np.complex128],  # (n or 1, nrhs, 4)
     gain: npt.NDArray[np.float64] | None = None,  # (n,): q_i scaled by gain[i]
+    w_scale: float | None = None,  # w is given in another unit: w_scale * w rad/s (e.g. Hz and 2 pi)
 ) -> tuple[npt.NDArray[np.complex128], int]:
     """Solve H q = F with H = -w^2 M + j w spin G + j w C + K; returns (q (n, nrhs, 4), n_singular)."""
 
@@ -49,9 +50,10 @@ def identify(
     identical: bool = False,
     method: str = "forces",  # or "report"
     with_std: bool = True,
-    sigma: npt.NDArray[np.float64] | None = None,  # (n,): solve at s = sigma + j w (exponential windows)
+    sigma: npt.NDArray[np.float64] | None = None,  # (n,) or (1,): solve at s = sigma + j w (exponential windows)
     q_ped: npt.NDArray[np.complex128] | None = None,  # as q: pedestal motion at the bearings (inertia sees q + q_ped)
     planes: npt.NDArray[np.float64] | None = None,  # (2, 2): q is at the probe planes, eq. 19 moves it to the bearings
+    w_scale: float | None = None,  # w is given in another unit: w_scale * w rad/s (e.g. Hz and 2 pi)
 ) -> tuple[
     npt.NDArray[np.float64],  # k (batch, n, 2, 2, 2)
     npt.NDArray[np.float64],  # c (batch, n, 2, 2, 2)
@@ -84,6 +86,7 @@ def forced_response_pedestal(
     gain: npt.NDArray[np.float64] | None = None,  # (n,)
     imbalance: bool = False,  # scale by spin^2 (not with gain)
     relative: bool = False,  # journal motion relative to the pedestals instead of absolute
+    w_scale: float | None = None,  # as in forced_response (spin may be (1,) too)
 ) -> tuple[npt.NDArray[np.complex128], npt.NDArray[np.complex128], int]:
     """Journal (absolute, or relative) and pedestal motion at the bearings, each (n, nrhs, 4), n_singular."""
 

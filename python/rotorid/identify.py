@@ -654,10 +654,12 @@ def _nan_view(shape):
 
 def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, method, labels, cond_max,
            min_rel_amplitude, what, covs=None, dofs=None, max_rel_std=MAX_REL_STD, extra_flags=None,
-           estimator="ls", shared_cov=None, q_ped=None, calibration=None, planes=None):
+           estimator="ls", shared_cov=None, q_ped=None, calibration=None, planes=None, w_scale=None):
     """One core call for the whole axis, uncertainty, then flags; shared by both methods.
     ``gain`` None: spin^2 (an imbalance), formed by the core. ``planes``: the (2, 2) eq. 19
-    transform when ``qs`` are at the probe planes (no covariances then), else None."""
+    transform when ``qs`` are at the probe planes (no covariances then), else None.
+    ``w_scale``: ``w`` is given in the axis' unit and is w_scale times that in rad/s (formed by
+    the core: no (n,) temporary unless the uncertainty propagation needs it)."""
     assert planes is None or (covs is None and calibration is None and q_ped is None)
     from .uncertainty import propagate, std_from_cov
 
@@ -669,7 +671,10 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
     redundant = nruns * (2 if identical else 1) > 2
     k, c, cond, resid, amp, ks, cs, rel_std, nbad = _core.identify(
         rotor.core_params(), w, spin, list(qs), np.ascontiguousarray(e[None], dtype=complex),
-        gain, identical=identical, method=method, with_std=redundant, sigma=sigma, q_ped=q_ped, planes=planes)
+        gain, identical=identical, method=method, with_std=redundant, sigma=sigma, q_ped=q_ped, planes=planes,
+        w_scale=w_scale)
+    if w_scale is not None and (covs is not None or calibration is not None):
+        w = w_scale * w  # rad/s for the propagation below
     if nbad:
         qs = np.stack(qs)
         if q_ped is not None and not np.isfinite(np.stack(q_ped)).all():
@@ -927,10 +932,12 @@ def identify_impact(rotor: RigidRotor, tests, *, method: str = "forces", identic
         qs = [np.ascontiguousarray(t.frf(), dtype=complex) for t in at_b]  # (n, 4) per unit force, per test
         covs = _run_covs(at_b, labels)
         dofs = None if covs is None else _run_dofs(at_b)
-    w = 2 * np.pi * f
-    spin = np.array([speed * RPM])  # one running speed and a unit gain, broadcast by the core
-    sigma = np.full_like(w, tests[0].sigma) if tests[0].sigma else None
-    return _solve(rotor, "freq_hz", f, w, spin, qs, e, np.ones(1), sigma, identical=identical, method=method,
+    # one running speed, a unit gain and one window decay, broadcast by the core; w = 2 pi f
+    # formed by the core too
+    spin = np.array([speed * RPM])
+    sigma = np.array([tests[0].sigma]) if tests[0].sigma else None
+    return _solve(rotor, "freq_hz", f, f, spin, qs, e, np.ones(1), sigma, w_scale=2 * np.pi, identical=identical,
+                  method=method,
                   labels=labels, cond_max=cond_max, min_rel_amplitude=min_rel_amplitude, what="impact responses",
                   covs=covs, dofs=dofs, max_rel_std=max_rel_std, extra_flags=extra_flags, estimator=estimator,
                   q_ped=q_ped, calibration=cal, planes=planes)

@@ -655,16 +655,16 @@ def impact_frf(rotor: RigidRotor, bearings: BearingCoefficients, *, speed_rpm: f
         raise RotoridError("freq_hz must be a non-empty 1-D array of frequencies > 0")
     e = impact_vector(real_array("plane", plane, ndim=0), direction)
     k, c = _impact_coeffs(bearings, speed, f)
-    w = 2 * np.pi * f
-    spin = np.full_like(w, speed * RPM)
+    # one running speed, and w = 2 pi f formed by the core: no (n,) temporaries
+    spin = np.array([speed * RPM])
     fields = dict(speed_rpm=speed, freq_hz=f, plane=float(plane), direction=direction, name=name)
     force = e.astype(complex)[None, None, :]
     if pedestals is not None:
-        q, qp = _with_pedestals(rotor, k, c, pedestals, spin, w, force, at,
+        q, qp = _with_pedestals(rotor, k, c, pedestals, spin, f, force, at, w_scale=2 * np.pi,
                                 singular=lambda bad: f"the rotor-bearing-pedestal system is singular at freq_hz = "
                                                      f"{f[bad][:5]}")
         return ImpactResponse._unchecked(q=q, at=at, pedestal=qp, **fields)
-    q, nsing = _core.forced_response(rotor.core_params(), k, c, spin, w, force)
+    q, nsing = _core.forced_response(rotor.core_params(), k, c, spin, f, force, w_scale=2 * np.pi)
     if nsing:
         raise RotoridError(f"the rotor-bearing system is singular at freq_hz = {f[~np.isfinite(q[:, 0, 0])][:5]}")
     # the core's own output at validated frequencies: built without re-checking it
@@ -672,7 +672,7 @@ def impact_frf(rotor: RigidRotor, bearings: BearingCoefficients, *, speed_rpm: f
     return resp.at_probes(rotor) if at == "probes" else resp
 
 
-def _with_pedestals(rotor, k, c, pedestals, spin, w, force, at, *, singular, imbalance=False):
+def _with_pedestals(rotor, k, c, pedestals, spin, w, force, at, *, singular, imbalance=False, w_scale=None):
     """(q relative to the pedestals at ``at``, pedestal motion at the bearings), both (n, 4), of
     one force vector with flexible pedestals. At the bearings the core forms the relative motion
     q - p itself; at the probe planes (probes riding on the pedestals) the relative reading is
@@ -680,7 +680,7 @@ def _with_pedestals(rotor, k, c, pedestals, spin, w, force, at, *, singular, imb
     :func:`_pedestal_transform`, without a second array). ``singular(mask)``: the message when
     points are singular."""
     qa, qp, nsing = _core.forced_response_pedestal(rotor.core_params(), k, c, pedestals.core_params(), spin, w,
-                                                   force, imbalance=imbalance, relative=at == "bearings")
+                                                   force, imbalance=imbalance, relative=at == "bearings", w_scale=w_scale)
     if nsing:
         raise RotoridError(singular(~np.all(np.isfinite(qa[:, 0, :]), axis=1)))
     qa, qp = qa[:, 0, :], qp[:, 0, :]

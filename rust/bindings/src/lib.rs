@@ -106,6 +106,24 @@ trait Plain: Copy {}
 impl Plain for f64 {}
 impl Plain for C64 {}
 
+/// The values of a (n,) axis argument, or of a (1,) one repeated n times, and times `scale` when
+/// given: Rust-owned when anything is to be done (a broadcast or a scale), so that the caller
+/// passes an axis in its own unit (Hz with scale 2 pi) or one running speed instead of building
+/// an (n,) NumPy temporary (each one freed by glibc back to the system, faulted in on the next
+/// call); None when the argument can be used as it is.
+fn axis_values(name: &str, a: &PyReadonlyArrayDyn<'_, f64>, n: usize, scale: Option<f64>) -> PyResult<Option<Vec<f64>>> {
+    let sh = a.shape();
+    if sh != [n] && sh != [1] {
+        return Err(PyValueError::new_err(format!("{name} has shape {sh:?}, expected ({n},) or (1,)")));
+    }
+    let v = slice(a, name)?;
+    Ok(match (v.len() == n, scale) {
+        (true, None) => None,
+        (true, Some(s)) => Some(v.iter().map(|x| x * s).collect()),
+        (false, s) => Some(vec![v[0] * s.unwrap_or(1.0); n]),
+    })
+}
+
 /// Refuse an output of `elems` elements of `elem_bytes` each before allocating it: a product that
 /// overflows, or more than 80 % of the memory the system reports available, is a Python
 /// MemoryError naming the function (an allocation failure would abort the interpreter, and with
@@ -147,7 +165,7 @@ fn forced_shapes(
     n: usize,
     k: &PyReadonlyArrayDyn<'_, f64>,
     c: &PyReadonlyArrayDyn<'_, f64>,
-    spin: &PyReadonlyArrayDyn<'_, f64>,
+    spin: Option<&PyReadonlyArrayDyn<'_, f64>>,
     force: &PyReadonlyArrayDyn<'_, C64>,
     gain: Option<&PyReadonlyArrayDyn<'_, f64>>,
     per_point: usize,
@@ -158,7 +176,9 @@ fn forced_shapes(
             return Err(PyValueError::new_err(format!("{name} has shape {sh:?}, expected ({n} or 1, 8)")));
         }
     }
-    check_shape("spin", spin.shape(), &[n])?;
+    if let Some(spin) = spin {
+        check_shape("spin", spin.shape(), &[n])?;
+    }
     let fs = force.shape().to_vec();
     if fs.len() != 3 || fs[2] != 4 || !(fs[0] == n || fs[0] == 1) {
         return Err(PyValueError::new_err(format!("force has shape {fs:?}, expected (n or 1, nrhs, 4)")));
@@ -176,8 +196,10 @@ fn forced_shapes(
 
 /// Batched forced response H q = F (see forced.rs); with `gain` (n,), q_i = gain_i H_i^-1 F
 /// (an imbalance: F broadcast, gain = Omega^2). Returns (q, n_singular).
+/// `spin` may be (1,) (one running speed); `w_scale`: w is `w_scale` times the given axis (e.g.
+/// frequencies in Hz with 2 pi), formed here.
 #[pyfunction]
-#[pyo3(signature = (rotor, k, c, spin, w, force, gain=None))]
+#[pyo3(signature = (rotor, k, c, spin, w, force, gain=None, w_scale=None))]
 #[allow(clippy::too_many_arguments)]
 fn forced_response<'py>(
     py: Python<'py>,
@@ -188,18 +210,28 @@ fn forced_response<'py>(
     w: PyReadonlyArrayDyn<'py, f64>,
     force: PyReadonlyArrayDyn<'py, C64>,
     gain: Option<PyReadonlyArrayDyn<'py, f64>>,
+    w_scale: Option<f64>,
 ) -> PyResult<(Bound<'py, PyArrayDyn<C64>>, usize)> {
     let rot = rotor_of(&rotor)?;
     let n = w.len();
-    let nrhs = forced_shapes("forced_response", n, &k, &c, &spin, &force, gain.as_ref(), 4)?;
-    let (ks, cs, ss, ws, fsl) = (slice(&k, "k")?, slice(&c, "c")?, slice(&spin, "spin")?, slice(&w, "w")?, slice(&force, "force")?);
+    let (spin_own, w_own) = (axis_values("spin", &spin, n, None)?, axis_values("w", &w, n, w_scale)?);
+    let nrhs = forced_shapes("forced_response", n, &k, &c, None, &force, gain.as_ref(), 4)?;
+    let (ks, cs, fsl) = (slice(&k, "k")?, slice(&c, "c")?, slice(&force, "force")?);
+    let ss = match &spin_own {
+        Some(v) => &v[..],
+        None => slice(&spin, "spin")?,
+    };
+    let ws = match &w_own {
+        Some(v) => &v[..],
+        None => slice(&w, "w")?,
+    };
     let gs: Option<&[f64]> = match &gain {
         Some(g) => Some(slice(g, "gain")?),
         None => None,
     };
     let (out, nsing) = py.detach(|| {
         guarded(|| {
-            let mut out = vec![C64::new(0.0, 0.0); n * nrhs * 4];
+            let mut out = out_buf(n * nrhs * 4);
             match gs {
                 Some(g) => forced::forced_response_scaled(&rot, ks, cs, ss, ws, fsl, nrhs, g, &mut out),
                 None => forced::forced_response(&rot, ks, cs, ss, ws, fsl, nrhs, &mut out),
@@ -225,11 +257,11 @@ fn imbalance_response<'py>(
 ) -> PyResult<(Bound<'py, PyArrayDyn<C64>>, usize)> {
     let rot = rotor_of(&rotor)?;
     let n = spin.len();
-    let nrhs = forced_shapes("imbalance_response", n, &k, &c, &spin, &force, None, 4)?;
+    let nrhs = forced_shapes("imbalance_response", n, &k, &c, Some(&spin), &force, None, 4)?;
     let (ks, cs, ss, fsl) = (slice(&k, "k")?, slice(&c, "c")?, slice(&spin, "spin")?, slice(&force, "force")?);
     let (out, nsing) = py.detach(|| {
         guarded(|| {
-            let mut out = vec![C64::new(0.0, 0.0); n * nrhs * 4];
+            let mut out = out_buf(n * nrhs * 4);
             forced::forced_response_imbalance(&rot, ks, cs, ss, fsl, nrhs, &mut out).map(|ns| (out, ns))
         })
     })?
@@ -344,7 +376,7 @@ fn pedestal_responses<'py>(q_ped: Option<&Bound<'py, PyAny>>, resp: &Responses<'
 /// standard error relative to the bearing's direct coefficients, see identify::relative_std)
 /// (B, n).
 #[pyfunction]
-#[pyo3(name = "identify", signature = (rotor, w, spin, q, e, gain, identical=false, method="forces", with_std=true, sigma=None, q_ped=None, planes=None))]
+#[pyo3(name = "identify", signature = (rotor, w, spin, q, e, gain, identical=false, method="forces", with_std=true, sigma=None, q_ped=None, planes=None, w_scale=None))]
 #[allow(clippy::too_many_arguments)]
 fn py_identify<'py>(
     py: Python<'py>,
@@ -360,10 +392,12 @@ fn py_identify<'py>(
     sigma: Option<PyReadonlyArrayDyn<'py, f64>>,
     q_ped: Option<&Bound<'py, PyAny>>,
     planes: Option<PyReadonlyArrayDyn<'py, f64>>,
+    w_scale: Option<f64>,
 ) -> PyResult<IdentTuple<'py>> {
     let rot = rotor_of(&rotor)?;
     let resp = responses(q)?;
     let (batch, n) = (resp.batch, resp.n);
+    let axes = AxisValues::new(&w, &sigma, n, w_scale)?;
     let report = match method {
         "forces" => false,
         "report" => true,
@@ -375,7 +409,7 @@ fn py_identify<'py>(
         Some(pr) => pr.blocks()?,
         None => Vec::new(),
     };
-    let prob = ident_problem(rot, &resp, &w, &spin, &e, &gain, &sigma, &blocks, &ped_blocks, planes.as_ref(), identical)?;
+    let prob = ident_problem(rot, &resp, &axes, &w, &spin, &e, &gain, &sigma, &blocks, &ped_blocks, planes.as_ref(), identical)?;
     let npts = batch.checked_mul(n).ok_or_else(|| PyMemoryError::new_err("identify: batch x points overflows"))?;
     let want_std = with_std && !report;
     check_alloc("identify", npts.checked_mul(if want_std { 37 } else { 20 }), 8)?;
@@ -519,8 +553,9 @@ fn pedestals_of(p: &PyReadonlyArrayDyn<'_, f64>) -> PyResult<pedestal::Pedestals
 /// 4), n_singular). `gain` (n,) scales each point's solution; `imbalance=True` scales it by
 /// spin^2 instead (no gain array; not with `gain`). `relative=True`: q is the rotor's motion
 /// relative to the pedestals (q_abs - q_ped, formed in the core), else its absolute motion.
+/// `spin` and `w_scale` as in `forced_response`.
 #[pyfunction]
-#[pyo3(signature = (rotor, k, c, pedestals, spin, w, force, gain=None, imbalance=false, relative=false))]
+#[pyo3(signature = (rotor, k, c, pedestals, spin, w, force, gain=None, imbalance=false, relative=false, w_scale=None))]
 #[allow(clippy::too_many_arguments)]
 fn forced_response_pedestal<'py>(
     py: Python<'py>,
@@ -534,13 +569,23 @@ fn forced_response_pedestal<'py>(
     gain: Option<PyReadonlyArrayDyn<'py, f64>>,
     imbalance: bool,
     relative: bool,
+    w_scale: Option<f64>,
 ) -> PyResult<(Bound<'py, PyArrayDyn<C64>>, Bound<'py, PyArrayDyn<C64>>, usize)> {
     let rot = rotor_of(&rotor)?;
     let ped = pedestals_of(&pedestals)?;
     let n = w.len();
+    let (spin_own, w_own) = (axis_values("spin", &spin, n, None)?, axis_values("w", &w, n, w_scale)?);
     // q_abs and q_ped (4 + 4 per point) and the core's k_eff, c_eff, transfer (about 2 more)
-    let nrhs = forced_shapes("forced_response_pedestal", n, &k, &c, &spin, &force, gain.as_ref(), 10)?;
-    let (ks, cs, ss, ws, fsl) = (slice(&k, "k")?, slice(&c, "c")?, slice(&spin, "spin")?, slice(&w, "w")?, slice(&force, "force")?);
+    let nrhs = forced_shapes("forced_response_pedestal", n, &k, &c, None, &force, gain.as_ref(), 10)?;
+    let (ks, cs, fsl) = (slice(&k, "k")?, slice(&c, "c")?, slice(&force, "force")?);
+    let ss = match &spin_own {
+        Some(v) => &v[..],
+        None => slice(&spin, "spin")?,
+    };
+    let ws = match &w_own {
+        Some(v) => &v[..],
+        None => slice(&w, "w")?,
+    };
     let g = match (&gain, imbalance) {
         (Some(_), true) => return Err(PyValueError::new_err("gain and imbalance=True exclude each other")),
         (Some(g), false) => forced::Gain::PerPoint(slice(g, "gain")?),
@@ -653,9 +698,31 @@ fn series_impedance<'py>(
 /// The arguments `identify` and `bearing_forces` share, their shapes checked (each named), as the
 /// core's problem; it borrows the caller's blocks of q and q_ped.
 #[allow(clippy::too_many_arguments)]
+/// The w and sigma an identification reads: `w` times `w_scale` and a (1,) `sigma` repeated,
+/// Rust-owned (see [`axis_values`]), or None where the caller's array is used as it is.
+struct AxisValues {
+    w: Option<Vec<f64>>,
+    sigma: Option<Vec<f64>>,
+}
+
+impl AxisValues {
+    fn new(w: &PyReadonlyArrayDyn<'_, f64>, sigma: &Option<PyReadonlyArrayDyn<'_, f64>>, n: usize, w_scale: Option<f64>) -> PyResult<Self> {
+        check_shape("w", w.shape(), &[n])?;
+        Ok(AxisValues {
+            w: axis_values("w", w, n, w_scale)?,
+            sigma: match sigma {
+                Some(sg) => axis_values("sigma", sg, n, None)?,
+                None => None,
+            },
+        })
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
 fn ident_problem<'a>(
     rotor: Rotor,
     resp: &Responses<'_>,
+    axes: &'a AxisValues,
     w: &'a PyReadonlyArrayDyn<'_, f64>,
     spin: &'a PyReadonlyArrayDyn<'_, f64>,
     e: &'a PyReadonlyArrayDyn<'_, C64>,
@@ -681,16 +748,17 @@ fn ident_problem<'a>(
     if es.len() != 3 || es[1] != runs || es[2] != 4 || !(es[0] == 1 || es[0] == batch) {
         return Err(PyValueError::new_err(format!("e has shape {es:?}, expected (1 or {batch}, {runs}, 4)")));
     }
-    let sigma: &[f64] = match sigma {
-        Some(sg) => {
-            check_shape("sigma", sg.shape(), &[n])?;
-            slice(sg, "sigma")?
-        }
-        None => &[],
+    let sigma: &[f64] = match (&axes.sigma, sigma) {
+        (Some(v), _) => v,
+        (None, Some(sg)) => slice(sg, "sigma")?,
+        (None, None) => &[],
     };
     let prob = identify::IdentProblem {
         rotor,
-        w: slice(w, "w")?,
+        w: match &axes.w {
+            Some(v) => v,
+            None => slice(w, "w")?,
+        },
         spin: slice(spin, "spin")?,
         q,
         e: slice(e, "e")?,
@@ -735,13 +803,14 @@ fn bearing_forces<'py>(
     let rot = rotor_of(&rotor)?;
     let resp = responses(q)?;
     let (batch, runs, n) = (resp.batch, resp.runs, resp.n);
+    let axes = AxisValues::new(&w, &sigma, n, None)?;
     let blocks = resp.blocks()?;
     let ped = pedestal_responses(q_ped, &resp)?;
     let ped_blocks = match &ped {
         Some(pr) => pr.blocks()?,
         None => Vec::new(),
     };
-    let prob = ident_problem(rot, &resp, &w, &spin, &e, &gain, &sigma, &blocks, &ped_blocks, planes.as_ref(), false)?;
+    let prob = ident_problem(rot, &resp, &axes, &w, &spin, &e, &gain, &sigma, &blocks, &ped_blocks, planes.as_ref(), false)?;
     let total = batch.checked_mul(runs).and_then(|v| v.checked_mul(n)).and_then(|v| v.checked_mul(4));
     check_alloc("bearing_forces", total, 16)?;
     let total = total.unwrap_or(0);
