@@ -205,3 +205,92 @@ def test_axes_formed_by_the_core_give_the_same_bits(rig):
         _core.identify(p, f, spin_n[:1], [tt.q for tt in tests], e, np.ones(1), sigma=np.ones(3), w_scale=2 * np.pi)
     with pytest.raises(ValueError, match=r"w has shape"):
         _core.identify(p, f[:-1], spin_n[:1], [tt.q for tt in tests], e, np.ones(1), w_scale=2 * np.pi)
+
+
+def _time_response_from_states(rig, u, fs, speed, at, pedestals):
+    """impact_time_response as it was computed before the core formed its outputs: the (N, n)
+    states read back, then q, p and the pedestals' acceleration in NumPy (the reference)."""
+    from rotorid import _core
+    from rotorid.pedestal import dof_matrix
+    from rotorid.simulate import RPM, _expm, bearings_to_probes, impact_vector
+
+    k, c = rig.bearings.at()
+    M, G, K, C = rig.rotor.matrices(k[0], c[0])
+    f = impact_vector(0.0, "x")
+    if pedestals is None:
+        Mt, Ct, Kt, ft = M, C + speed * RPM * G, K, f
+    else:
+        Mp, Kp, Cp = pedestals.matrices()
+        Kb, Cb = dof_matrix(k[0]), dof_matrix(c[0])
+        Z = np.zeros((4, 4))
+        Mt = np.block([[M, Z], [Z, Mp]])
+        Ct = np.block([[C + speed * RPM * G, -C], [-Cb, Cb + Cp]])
+        Kt = np.block([[K, -K], [-Kb, Kb + Kp]])
+        ft = np.concatenate([f, np.zeros(4)])
+    nd = Mt.shape[0]
+    Mi = np.linalg.inv(Mt)
+    A = np.block([[np.zeros((nd, nd)), np.eye(nd)], [-Mi @ Kt, -Mi @ Ct]])
+    B = np.concatenate([np.zeros(nd), Mi @ ft])[:, None]
+    ns, dt = 2 * nd, 1.0 / fs
+    aug = np.zeros((ns + 2, ns + 2))
+    aug[:ns, :ns], aug[:ns, ns:ns + 1], aug[ns, ns + 1] = A, B, 1.0
+    E = _expm(aug * dt)
+    (x,), bad = _core.lti_run(np.ascontiguousarray(E[:ns, :ns]), np.ascontiguousarray(E[:ns, ns:ns + 1]),
+                              np.ascontiguousarray(E[:ns, ns + 1:ns + 2] / dt), np.ascontiguousarray(u[:, None]),
+                              np.zeros(ns))
+    assert bad is None
+    if pedestals is None:
+        q = x[:, :4]
+        return (bearings_to_probes(rig.rotor, q).real if at == "probes" else q), None, None
+    qa, p = x[:, :4], x[:, 4:8]
+    acc = (x @ A[nd + 4:nd + 8].T) + u[:, None] * B[nd + 4:nd + 8, 0][None, :]
+    return (bearings_to_probes(rig.rotor, qa).real if at == "probes" else qa) - p, p, acc
+
+
+@pytest.mark.parametrize("at", ["bearings", "probes"])
+@pytest.mark.parametrize("with_pedestals", [False, True])
+def test_time_response_outputs_formed_by_the_core_match_the_states(rig, at, with_pedestals):
+    fs, speed = 20_000.0, 2500.0
+    u = rotorid.half_sine_pulse(300.0, 8e-4, fs, 6000, t0_s=1e-3)
+    ped = rotorid.example_pedestals() if with_pedestals else None
+    r = rotorid.impact_time_response(rig.rotor, rig.bearings, speed_rpm=speed, force_N=u, fs_hz=fs, at=at, pedestals=ped)
+    q, p, acc = _time_response_from_states(rig, u, fs, speed, at, ped)
+    scale = np.abs(q).max()
+    assert scale > 0 and r.q.shape == (u.size, 4) and r.q.flags.c_contiguous
+    np.testing.assert_allclose(r.q, q, rtol=0, atol=1e-12 * scale)
+    np.testing.assert_array_equal(r.t, np.arange(u.size) * (1.0 / fs))
+    if ped is None:
+        assert r.pedestal is None and r.pedestal_accel is None
+    else:
+        np.testing.assert_allclose(r.pedestal, p, rtol=0, atol=1e-12 * np.abs(p).max())
+        np.testing.assert_allclose(r.pedestal_accel, acc, rtol=0, atol=1e-12 * np.abs(acc).max())
+        assert r.pedestal.flags.c_contiguous and r.pedestal_accel.flags.c_contiguous
+
+
+def test_time_response_overflow_names_the_sample(rig):
+    """An unstable model (negative damping) grows until it overflows: refused, naming the first
+    sample whose state is not finite (the states are never read back to scan them)."""
+    unstable = rotorid.BearingCoefficients(k=rig.bearings.k, c=-20 * rig.bearings.c)
+    u = np.zeros(20_000)
+    u[5] = 100.0
+    with pytest.raises(RotoridError, match=r"overflowed \(at sample (\d+)\)") as err:
+        rotorid.impact_time_response(rig.rotor, unstable, speed_rpm=1000.0, force_N=u, fs_hz=10_000.0)
+    at = int(err.value.args[0].split("at sample ")[1].split(")")[0])
+    # the samples before are finite and growing: the last of them is huge
+    r = rotorid.impact_time_response(rig.rotor, unstable, speed_rpm=1000.0, force_N=u[:at], fs_hz=10_000.0)
+    assert np.isfinite(r.q).all() and np.abs(r.q).max() > 1e250
+
+
+def test_lti_run_outputs_are_checked_by_the_core():
+    from rotorid import _core
+
+    phi, g = np.eye(2) * 0.5, np.ones((2, 1))
+    u, x0 = np.ones((5, 1)), np.zeros(2)
+    with pytest.raises(ValueError, match=r"an output's c has shape \[3, 3\], expected \(p, 2\)"):
+        _core.lti_run(phi, g, g, u, x0, [(np.ones((3, 3)), np.ones((3, 1)))])
+    with pytest.raises(ValueError, match=r"an output's d has shape"):
+        _core.lti_run(phi, g, g, u, x0, [(np.ones((3, 2)), np.ones((2, 1)))])
+    (y,), bad = _core.lti_run(phi, g, g, u, x0, [(np.array([[1.0, -1.0]]), np.array([[2.0]]))])
+    (x,), _ = _core.lti_run(phi, g, g, u, x0)
+    np.testing.assert_array_equal(y[:, 0], x[:, 0] - x[:, 1] + 2.0 * u[:, 0])
+    assert bad is None

@@ -14,7 +14,8 @@ import pytest
 import rotorid
 from rotorid import _core
 
-# every dispatched kernel through the public API: forward response (SIMD-lane LU), synchronous
+# every dispatched kernel through the public API: time stepping (8 and 16 states with output
+# equations), forward response (SIMD-lane LU), synchronous
 # identification at the probes with redundant runs (forces kernel, eq. 19 on load, standard
 # errors, flags), impact identification with an exponential window, modal analysis, the run-out
 # filter, and a Monte Carlo study (counter-based normals, rotations, histograms)
@@ -46,7 +47,11 @@ kp = np.arange(0.001, 2.0, 0.0173)
 filt = signals.runout_filter(x, 10000.0, kp, rng.standard_normal((3, 64)), 100, 19900)
 study = studies.synchronous_study(rig.rotor, rig.bearings, [rig.imbalances[s] for s in "ABC"], rpm[::20],
                                   studies.SyncErrors(amplitude_rel=0.01, phase_deg=0.5), trials=64, seed=3)
-out = dict(resp=runs[0].q, k=ident.k, c=ident.c, k_std=ident.k_std, cond=ident.cond, code=ident.flag_code,
+pulse = rotorid.half_sine_pulse(200.0, 1e-3, 10000.0, 3000, t0_s=1e-3)
+tr = rotorid.impact_time_response(rig.rotor, rig.bearings, speed_rpm=2000.0, force_N=pulse, fs_hz=10000.0, at="probes")
+trp = rotorid.impact_time_response(rig.rotor, rig.bearings, speed_rpm=2000.0, force_N=pulse, fs_hz=10000.0,
+                                   pedestals=rotorid.example_pedestals())
+out = dict(tq=tr.q, tpq=trp.q, tpp=trp.pedestal, tpa=trp.pedestal_accel, resp=runs[0].q, k=ident.k, c=ident.c, k_std=ident.k_std, cond=ident.cond, code=ident.flag_code,
            kk=kw.k, kc=kw.c, kstd=kw.k_std, eig=modal.eigenvalues, filt=filt,
            study=study.pct, study_rms=study.rms)
 np.savez(sys.argv[1], level=_core.SIMD, **out)

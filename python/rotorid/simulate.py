@@ -800,23 +800,31 @@ the bearing forces C_b, K_b over [x1, x2, y1, y2])
     aug[ns, ns + 1] = 1.0
     E = _expm(aug * dt)
     phi, g0, g1 = E[:ns, :ns], E[:ns, ns:ns + 1], E[:ns, ns + 1:ns + 2] / dt
-    x = _core.lti_run(np.ascontiguousarray(phi), np.ascontiguousarray(g0), np.ascontiguousarray(g1),
-                      np.ascontiguousarray(u[:, None]), np.zeros(ns))
-    if not np.all(np.isfinite(x)):
-        raise RotoridError(f"impact_time_response overflowed: the model's fastest mode is too fast or unstable for "
-                           f"fs_hz = {fs:g} Hz (stiff, light pedestals?); raise fs_hz or check the coefficients")
-    p = acc = None
+    # what is read out at every step, formed by the core from the state x = [q_a, (p), q_a', (p')]:
+    # q at the bearings or the probes (relative to the pedestals), and with pedestals p and the
+    # pedestals' acceleration from the equations of motion (rows 4..7 of x'' = A x + B u: exact,
+    # no differencing); no array of states is read back
+    to_plane = bearings_to_probes_matrix(rotor) if at == "probes" else np.eye(2)
+    Z4 = np.zeros((4, 4))
+    plane4 = np.block([[to_plane, np.zeros((2, 2))], [np.zeros((2, 2)), to_plane]])  # [x1, x2, y1, y2]
     if pedestals is None:
-        q = x[:, :4]
-        if at == "probes":
-            q = bearings_to_probes(rotor, q).real
+        outputs = [(np.hstack([plane4, Z4]), np.zeros((4, 1)))]
     else:
-        qa, p = x[:, :4], x[:, 4:8]
-        # the pedestals' acceleration from the equations of motion at each sample (exact, no
-        # differencing): rows 4..7 of x'' = A x + B u
-        acc = (x @ A[nd + 4:nd + 8].T) + u[:, None] * B[nd + 4:nd + 8, 0][None, :]
-        q = (bearings_to_probes(rotor, qa).real if at == "probes" else qa) - p
-    return TimeResponse(np.arange(u.size) * dt, q, u, fs, speed, float(plane), direction, at, p, acc)
+        I4 = np.eye(4)
+        outputs = [(np.hstack([plane4, -I4, Z4, Z4]), np.zeros((4, 1))),   # q = T q_a - p
+                   (np.hstack([Z4, I4, Z4, Z4]), np.zeros((4, 1))),        # p
+                   (A[nd + 4:nd + 8], B[nd + 4:nd + 8])]                   # p''
+    ys, first_bad = _core.lti_run(np.ascontiguousarray(phi), np.ascontiguousarray(g0), np.ascontiguousarray(g1),
+                                  np.ascontiguousarray(u[:, None]), np.zeros(ns),
+                                  [(np.ascontiguousarray(c), np.ascontiguousarray(d)) for c, d in outputs])
+    if first_bad is not None:
+        raise RotoridError(f"impact_time_response overflowed (at sample {first_bad}): the model's fastest mode is too "
+                           f"fast or unstable for fs_hz = {fs:g} Hz (stiff, light pedestals?); raise fs_hz or check "
+                           "the coefficients")
+    q, p, acc = (ys[0], None, None) if pedestals is None else ys
+    t = np.arange(u.size, dtype=float)
+    t *= dt  # (one array: the same values as np.arange(n) * dt)
+    return TimeResponse(t, q, u, fs, speed, float(plane), direction, at, p, acc)
 
 
 def half_sine_pulse(peak_N: float, duration_s: float, fs_hz: float, n_samples: int, t0_s: float = 0.0) -> np.ndarray:

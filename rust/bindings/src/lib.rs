@@ -825,9 +825,13 @@ fn bearing_forces<'py>(
     to_py(py, out, &[batch, runs, n, 4])
 }
 
-/// Exact time stepping of a discretized LTI system with piecewise-linear input (see timesim.rs).
-/// phi (n, n), g0 and g1 (n, m), u (N, m), x0 (n,) -> x (N, n).
+/// Time stepping of a discretized LTI system (see timesim.rs): phi (n, n), g0, g1 (n, m), u (N,
+/// m), x0 (n,). Without `outputs`: ([states (N, n)], first non-finite step or None). With
+/// `outputs`, a list of (c (p, n), d (p, m)): ([y_i (N, p_i) = c_i x + d_i u for each], first
+/// non-finite step or None), no array of states.
 #[pyfunction]
+#[pyo3(signature = (phi, g0, g1, u, x0, outputs=None))]
+#[allow(clippy::type_complexity)]
 fn lti_run<'py>(
     py: Python<'py>,
     phi: PyReadonlyArrayDyn<'py, f64>,
@@ -835,7 +839,8 @@ fn lti_run<'py>(
     g1: PyReadonlyArrayDyn<'py, f64>,
     u: PyReadonlyArrayDyn<'py, f64>,
     x0: PyReadonlyArrayDyn<'py, f64>,
-) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+    outputs: Option<Vec<(PyReadonlyArrayDyn<'py, f64>, PyReadonlyArrayDyn<'py, f64>)>>,
+) -> PyResult<(Vec<Bound<'py, PyArrayDyn<f64>>>, Option<usize>)> {
     let ps = phi.shape().to_vec();
     if ps.len() != 2 || ps[0] != ps[1] {
         return Err(PyValueError::new_err(format!("phi has shape {ps:?}, expected (n, n)")));
@@ -850,15 +855,44 @@ fn lti_run<'py>(
     check_shape("g1", g1.shape(), &[n, m])?;
     check_shape("x0", x0.shape(), &[n])?;
     let (p, a, b, uu, x) = (slice(&phi, "phi")?, slice(&g0, "g0")?, slice(&g1, "g1")?, slice(&u, "u")?, slice(&x0, "x0")?);
-    check_alloc("lti_run", steps.checked_mul(n), 8)?;
-    let out = py.detach(|| {
-        guarded(|| {
-            let mut out = vec![0.0; steps * n];
-            timesim::lti_run(n, m, p, a, b, uu, x, &mut out).map(|_| out)
-        })
-    })?
-    .map_err(core_err)?;
-    to_py(py, out, &[steps, n])
+    let Some(outputs) = outputs else {
+        check_alloc("lti_run", steps.checked_mul(n), 8)?;
+        let (out, bad) = py
+            .detach(|| {
+                guarded(|| {
+                    let mut out = out_buf(steps * n);
+                    timesim::lti_run(n, m, p, a, b, uu, x, &mut out).map(|bad| (out, bad))
+                })
+            })?
+            .map_err(core_err)?;
+        return Ok((vec![to_py(py, out, &[steps, n])?], bad));
+    };
+    let mut eqs = Vec::with_capacity(outputs.len());
+    let mut total = Some(0usize);
+    for (c, d) in &outputs {
+        let cs = c.shape().to_vec();
+        if cs.len() != 2 || cs[1] != n {
+            return Err(PyValueError::new_err(format!("an output's c has shape {cs:?}, expected (p, {n})")));
+        }
+        check_shape("an output's d", d.shape(), &[cs[0], m])?;
+        total = total.and_then(|t| steps.checked_mul(cs[0]).and_then(|v| v.checked_add(t)));
+        eqs.push((cs[0], slice(c, "c")?, slice(d, "d")?));
+    }
+    check_alloc("lti_run", total, 8)?;
+    let (ys, bad) = py
+        .detach(|| {
+            guarded(|| {
+                let mut ys: Vec<Vec<f64>> = eqs.iter().map(|&(pp, _, _)| out_buf(steps * pp)).collect();
+                let mut outs: Vec<timesim::Output> =
+                    eqs.iter().zip(ys.iter_mut()).map(|(&(pp, c, d), y)| timesim::Output { p: pp, c, d, out: y }).collect();
+                let bad = timesim::lti_outputs(n, m, p, a, b, uu, x, &mut outs)?;
+                drop(outs);
+                Ok::<_, CoreError>((ys, bad))
+            })
+        })?
+        .map_err(core_err)?;
+    let arrays = ys.into_iter().zip(&eqs).map(|(y, &(pp, _, _))| to_py(py, y, &[steps, pp])).collect::<PyResult<Vec<_>>>()?;
+    Ok((arrays, bad))
 }
 
 fn check_kp(kp: &[f64]) -> PyResult<()> {

@@ -574,6 +574,99 @@ proptest! {
         }
     }
 
+    /// The output equations y_i = C_i x + D_i u written at every step are those of the states
+    /// lti_run returns (same recursion, same bits for the states themselves with C = I, D = 0),
+    /// and both report the first step whose state is not finite.
+    #[test]
+    fn lti_outputs_match_the_states(n in 1usize..6, m in 1usize..3, steps in 1usize..30, p in 1usize..4,
+                                    blow_up in proptest::option::of(0usize..30),
+                                    vals in proptest::collection::vec(-1.0f64..1.0, 200)) {
+        let mut it = vals.iter().cycle().cloned();
+        let phi: Vec<f64> = (0..n * n).map(|_| 0.5 * it.next().unwrap()).collect();
+        let g0: Vec<f64> = (0..n * m).map(|_| it.next().unwrap()).collect();
+        let g1: Vec<f64> = (0..n * m).map(|_| it.next().unwrap()).collect();
+        let mut u: Vec<f64> = (0..steps * m).map(|_| it.next().unwrap()).collect();
+        if let Some(b) = blow_up.filter(|&b| b < steps) {
+            u[b * m] = f64::INFINITY; // reaches the state one step later (through G0, G1)
+        }
+        let x0: Vec<f64> = (0..n).map(|_| it.next().unwrap()).collect();
+        let c: Vec<f64> = (0..p * n).map(|_| it.next().unwrap()).collect();
+        let d: Vec<f64> = (0..p * m).map(|_| it.next().unwrap()).collect();
+        let mut states = vec![0.0; steps * n];
+        let bad_states = timesim::lti_run(n, m, &phi, &g0, &g1, &u, &x0, &mut states).unwrap();
+        let eye: Vec<f64> = (0..n * n).map(|k| if k / n == k % n { 1.0 } else { 0.0 }).collect();
+        let (mut y, mut xs) = (vec![0.0; steps * p], vec![0.0; steps * n]);
+        let bad = {
+            let mut outs = [timesim::Output { p, c: &c, d: &d, out: &mut y }, timesim::Output { p: n, c: &eye, d: &vec![0.0; n * m], out: &mut xs }];
+            timesim::lti_outputs(n, m, &phi, &g0, &g1, &u, &x0, &mut outs).unwrap()
+        };
+        prop_assert_eq!(bad, bad_states);
+        let want_bad = states.chunks(n).position(|x| !x.iter().all(|v| v.is_finite()));
+        prop_assert_eq!(bad, want_bad);
+        // from the step the input is infinite on, D u holds 0 * inf (NaN) and the states are not
+        // finite from the next step on: compare the steps before
+        let cut = blow_up.unwrap_or(steps).min(want_bad.unwrap_or(steps));
+        for k in 0..cut {
+            for i in 0..n {
+                prop_assert!(xs[k * n + i] == states[k * n + i], "state {} {}", k, i); // (-0 is +0 after + 0 x)
+            }
+            for i in 0..p {
+                let want: f64 = (0..n).map(|j| c[i * n + j] * states[k * n + j]).sum::<f64>()
+                    + (0..m).map(|j| d[i * m + j] * u[k * m + j]).sum::<f64>();
+                prop_assert!((y[k * p + i] - want).abs() <= 1e-12 * (1.0 + want.abs()), "output {} {}", k, i);
+            }
+        }
+    }
+
+    /// The fixed-size path (8 or 16 states, one input: the rotor alone or on pedestals, SIMD over
+    /// rows) gives the bits of the recursion summed row by row in the order of the generic loop,
+    /// for the states and for stacked outputs.
+    #[test]
+    fn lti_fixed_sizes_give_the_bits_of_the_row_sums(big in proptest::bool::ANY, steps in 1usize..40, p1 in 1usize..9,
+                                                    vals in proptest::collection::vec(-1.0f64..1.0, 300)) {
+        let n = if big { 16 } else { 8 };
+        let mut it = vals.iter().cycle().cloned();
+        let phi: Vec<f64> = (0..n * n).map(|_| 0.25 * it.next().unwrap()).collect();
+        let g0: Vec<f64> = (0..n).map(|_| it.next().unwrap()).collect();
+        let g1: Vec<f64> = (0..n).map(|_| it.next().unwrap()).collect();
+        let u: Vec<f64> = (0..steps).map(|_| it.next().unwrap()).collect();
+        let x0: Vec<f64> = (0..n).map(|_| it.next().unwrap()).collect();
+        let p2 = n - p1; // all n rows of the fixed path, in two outputs
+        let c1: Vec<f64> = (0..p1 * n).map(|_| it.next().unwrap()).collect();
+        let c2: Vec<f64> = (0..p2 * n).map(|_| it.next().unwrap()).collect();
+        let (d1, d2): (Vec<f64>, Vec<f64>) = ((0..p1).map(|_| it.next().unwrap()).collect(), (0..p2).map(|_| it.next().unwrap()).collect());
+        let mut states = vec![0.0; steps * n];
+        timesim::lti_run(n, 1, &phi, &g0, &g1, &u, &x0, &mut states).unwrap();
+        let (mut y1, mut y2) = (vec![0.0; steps * p1], vec![0.0; steps * p2]);
+        {
+            let mut outs = [timesim::Output { p: p1, c: &c1, d: &d1, out: &mut y1 }, timesim::Output { p: p2, c: &c2, d: &d2, out: &mut y2 }];
+            timesim::lti_outputs(n, 1, &phi, &g0, &g1, &u, &x0, &mut outs).unwrap();
+        }
+        let row_sum = |row: &[f64], x: &[f64], tail: f64| -> f64 {
+            let mut s = 0.0;
+            for j in 0..x.len() {
+                s += row[j] * x[j];
+            }
+            s + tail
+        };
+        let mut x = x0.clone();
+        for k in 0..steps {
+            for i in 0..n {
+                prop_assert_eq!(states[k * n + i].to_bits(), x[i].to_bits(), "state {} {}", k, i);
+            }
+            for (c, d, y, p) in [(&c1, &d1, &y1, p1), (&c2, &d2, &y2, p2)] {
+                for i in 0..p {
+                    let want = row_sum(&c[i * n..(i + 1) * n], &x, d[i] * u[k]);
+                    prop_assert_eq!(y[k * p + i].to_bits(), want.to_bits(), "output {} {}", k, i);
+                }
+            }
+            if k + 1 < steps {
+                let nx: Vec<f64> = (0..n).map(|i| row_sum(&phi[i * n..(i + 1) * n], &x, g0[i] * u[k] + g1[i] * (u[k + 1] - u[k]))).collect();
+                x = nx;
+            }
+        }
+    }
+
     /// Any lengths: an entry point answers Ok or a CoreError naming an argument, never panics.
     #[test]
     fn wrong_lengths_are_errors_not_panics(nk in 0usize..20, nc in 0usize..20, ns in 0usize..4, nw in 0usize..4,
@@ -654,7 +747,7 @@ fn order_argument_errors_name_the_argument() {
     assert_eq!(err(order::runout_subtract(&x, 1, 1000.0, 0.0, &kp, &tpl, 8, 60, 10, &mut o2)), "i0, i1");
     assert_eq!(err(order::runout_subtract(&x, 1, 1000.0, 0.0, &kp, &tpl[..5], 8, 10, 60, &mut o2)), "template");
     assert_eq!(err(order::runout_subtract(&x, 0, 1000.0, 0.0, &kp, &tpl, 8, 10, 60, &mut o2)), "x");
-    let err = |r: Result<(), CoreError>| r.unwrap_err().name();
+    let err = |r: Result<Option<usize>, CoreError>| r.unwrap_err().name();
     assert_eq!(err(timesim::lti_run(2, 0, &[0.0; 4], &[], &[], &[], &[0.0; 2], &mut [])), "m");
     assert_eq!(err(timesim::lti_run(2, 1, &[0.0; 3], &[0.0; 2], &[0.0; 2], &[0.0; 2], &[0.0; 2], &mut [0.0; 4])), "phi");
 }
