@@ -1,0 +1,129 @@
+"""Public API throughput as a share of its core calls, for the batch entry points the other benches
+do not time (forward models, plane transforms, time stepping, series supports, pedestals).
+
+    python benches/bench_entry_points.py [--rounds 15] [--only NAME ...] [--quick]
+
+For each entry point the core calls it makes are recorded while it runs once (every function of
+``rotorid._core`` is seen through ``rotorid._corecall.core``), then the public call and a replay of
+exactly those core calls with the same argument objects are timed in interleaved rounds of two back-to-back
+calls each (best of ``--rounds``, ``common.best_of_each``). API / core = core time / API time, target >= 90 % (issue 10). Large inputs:
+100,000 speeds or frequencies, 2 M samples for time stepping.
+"""
+
+import argparse
+import os
+import sys
+import time
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(__file__))
+from common import best_of_each, print_header  # noqa: E402
+
+import rotorid  # noqa: E402
+from rotorid import _corecall  # noqa: E402
+from rotorid.simulate import SyncResponse  # noqa: E402
+
+TARGET = 90.0
+
+
+def record(api):
+    """The core calls (function, args, kwargs) ``api`` makes, recorded as it runs once."""
+    core = _corecall.core
+    calls = []
+    names = [n for n in dir(_corecall._raw) if callable(getattr(_corecall._raw, n)) and not n.startswith("_")]
+    saved = {n: core.__dict__.get(n) for n in names}
+    try:
+        for n in names:
+            fn = getattr(core, n)
+            setattr(core, n, lambda *a, _fn=fn, **k: (calls.append((_fn, a, k)), _fn(*a, **k))[1])
+        api()
+    finally:
+        for n, fn in saved.items():
+            if fn is None:
+                core.__dict__.pop(n, None)
+            else:
+                setattr(core, n, fn)
+    return calls
+
+
+def entries(n, n_time):
+    rig = rotorid.nsf_rig()
+    rpm = np.linspace(500.0, 10_000.0, n)
+    f = np.linspace(2.0, 400.0, n)
+    ped = rotorid.example_pedestals()
+    imb = rig.imbalances["A"]
+    run = rotorid.imbalance_response(rig.rotor, rig.bearings, imb, speed_rpm=rpm, at="probes")
+    test = rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=2000.0, freq_hz=f, at="probes")
+    pulse = np.zeros(n_time)
+    for s0 in range(0, n_time, 40_000):
+        pulse[s0:s0 + 16] = 120.0 * np.sin(np.pi * np.arange(16) / 16)
+    zb = rig.bearings.k[0][None] + 1j * (2 * np.pi * f)[:, None, None] * rig.bearings.c[0][None]
+    zd = ped.k[0][None] + 1j * (2 * np.pi * f)[:, None, None] * ped.c[0][None]
+    runs_ped = [rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=rpm, pedestals=ped)
+                for s in "AB"]
+    ident = rotorid.identify_synchronous(rig.rotor, [rotorid.imbalance_response(rig.rotor, rig.bearings,
+                                                                                rig.imbalances[s], speed_rpm=rpm)
+                                                     for s in "ABC"])
+    from rotorid import uncertainty
+
+    return {
+        "imbalance_response, pedestals": lambda: rotorid.imbalance_response(rig.rotor, rig.bearings, imb,
+                                                                            speed_rpm=rpm, pedestals=ped),
+        "imbalance_response, pedestals, at probes": lambda: rotorid.imbalance_response(
+            rig.rotor, rig.bearings, imb, speed_rpm=rpm, pedestals=ped, at="probes"),
+        "impact_frf": lambda: rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=2000.0, freq_hz=f),
+        "impact_frf, at probes": lambda: rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=2000.0, freq_hz=f,
+                                                            at="probes"),
+        "impact_frf, pedestals": lambda: rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=2000.0, freq_hz=f,
+                                                            pedestals=ped),
+        "impact_time_response": lambda: rotorid.impact_time_response(rig.rotor, rig.bearings, speed_rpm=3000.0,
+                                                                     force_N=pulse, fs_hz=20_000.0),
+        "impact_time_response, pedestals": lambda: rotorid.impact_time_response(
+            rig.rotor, rig.bearings, speed_rpm=3000.0, force_N=pulse, fs_hz=20_000.0, pedestals=ped),
+        "probes_to_bearings": lambda: rotorid.probes_to_bearings(rig.rotor, run.q),
+        "SyncResponse.at_bearings": lambda: run.at_bearings(rig.rotor),
+        "ImpactResponse.at_bearings": lambda: test.at_bearings(rig.rotor),
+        "series_impedance": lambda: rotorid.series_impedance(zb, zd, 12.0, f),
+        "identify_pedestals (2 runs)": lambda: rotorid.identify_pedestals(rig.rotor, runs_ped),
+        "uncertainty.relative_std": lambda: uncertainty.relative_std(ident.k, ident.c, ident.k_std, ident.c_std),
+        "SyncResponse (constructor, user data)": lambda: SyncResponse(rpm, run.q, imb, "probes"),
+    }
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--rounds", type=int, default=15)
+    ap.add_argument("--only", nargs="*")
+    ap.add_argument("--quick", action="store_true", help="10,000 points, 200,000 samples, 5 rounds")
+    args = ap.parse_args()
+    n, n_time = (10_000, 200_000) if args.quick else (100_000, 2_000_000)
+    rounds = 5 if args.quick else args.rounds
+    print_header("public entry points against their core calls", f"{n:,} points or {n_time:,} samples each", 1)
+    ents = entries(n, n_time)
+    names = args.only or list(ents)
+    print(f"{'entry point':42s} {'API ms':>9s} {'core ms':>9s} {'API / core':>10s}  core calls")
+    below = []
+    for name in names:
+        api = ents[name]
+        calls = record(api)
+        if not calls:
+            print(f"{name:42s} {'':>9s} {'':>9s} {'':>10s}  none (pure Python/NumPy)")
+            continue
+
+        def replay(calls=calls):
+            for fn, a, k in calls:
+                fn(*a, **k)
+
+        t = best_of_each({"api": api, "core": replay}, rounds)
+        pct = 100.0 * t["core"] / t["api"]
+        kinds = sorted({fn.__name__ for fn, _, _ in calls})
+        print(f"{name:42s} {1e3 * t['api']:9.3f} {1e3 * t['core']:9.3f} {pct:9.1f} %  {', '.join(kinds)} "
+              f"({len(calls)} call{'s' if len(calls) > 1 else ''})", flush=True)
+        if pct < TARGET:
+            below.append(f"{name} ({pct:.0f} %)")
+    print(f"\nbelow {TARGET:.0f} %: {', '.join(below) or 'none'}")
+
+
+if __name__ == "__main__":
+    main()
