@@ -302,26 +302,84 @@ class PedestalIdentification:
 GLS_MIN_DOF = 10
 
 
+def _gram(A, weight=None):
+    """A.T @ A, or A.T @ diag(weight) @ A, (u, u) and exactly symmetric, of a tall matrix with a
+    few columns (contiguous, Fortran order, is best): one ``einsum`` sum per pair of columns. For
+    this shape that is faster than the matrix product, as accurate, and starts no BLAS threads
+    (whose wake-up costs milliseconds on a busy machine)."""
+    u = A.shape[1]
+    G = np.empty((u, u))
+    for j in range(u):
+        aj = A[:, j] if weight is None else weight * A[:, j]
+        for k in range(j, u):
+            G[j, k] = G[k, j] = np.einsum("i,i->", aj, A[:, k])
+    return G
+
+
+def _matvec(A, x):
+    """A @ x of a tall matrix, one pass over A without BLAS (see :func:`_gram`)."""
+    return np.einsum("ij,j->i", A, x)
+
+
+def _leverage(X, XtXi):
+    """The hat matrix's diagonal h_i = x_i^T (X^T X)^-1 x_i, (m,), as |L^T x_i|² with XtXi = L L^T:
+    a few passes over X's columns (Fortran order is best), faster than the three-operand
+    ``einsum``, which remains for an XtXi that rounding left not positive definite."""
+    try:
+        L = np.linalg.cholesky(XtXi)
+    except np.linalg.LinAlgError:
+        return np.einsum("ij,jk,ik->i", X, XtXi, X)
+    u = X.shape[1]
+    h = np.zeros(X.shape[0])
+    z = np.empty(X.shape[0])
+    for k in range(u):
+        np.multiply(X[:, k], L[k, k], out=z)
+        for j in range(k + 1, u):
+            z += X[:, j] * L[j, k]
+        z *= z
+        h += z
+    return h
+
+
 def _hc3(X, r):
     """Heteroscedasticity-consistent (HC3) covariance of least squares X theta = y with
-    residuals r."""
-    XtXi = np.linalg.inv(X.T @ X)
-    h = np.einsum("ij,jk,ik->i", X, XtXi, X)
-    meat = (X * (r / np.clip(1 - h, 1e-12, None))[:, None] ** 2).T @ X
-    return XtXi @ meat @ XtXi
+    residuals r. ``X`` (m, u) is best with its columns contiguous (Fortran order)."""
+    XtXi = np.linalg.inv(_gram(X))
+    wr = r / np.clip(1 - _leverage(X, XtXi), 1e-12, None)
+    wr *= wr
+    return XtXi @ _gram(X, wr) @ XtXi
 
 
-def _design(s, p, b, i, cross):
-    """Real design matrix of pedestal b, direction i: unknowns [k_ii, m_i, c_ii (, k_ij, c_ij)];
-    rows [Re, Im] of each (run, point). ``s`` (R, n) = sigma + j w, ``p`` (R, n, 4) pedestal
-    motion: f = (k + s² m + s c) p_own (+ (k_ij + s c_ij) p_other)."""
-    own = p[..., 2 * i + b]                      # (R, n)
-    cols = [own, s ** 2 * own, s * own]
+def _split(z):
+    """[Re; Im] of a complex array, raveled (C order): the right-hand side of a real least-squares
+    problem, rows as :func:`_design`'s."""
+    half = z.size
+    out = np.empty(2 * half)
+    out[:half] = z.real.reshape(half)
+    out[half:] = z.imag.reshape(half)
+    return out
+
+
+def _design(s, s2, p, b, i, cross):
+    """Real design matrix of pedestal b, direction i, (2 R n, u) in Fortran order (its columns
+    contiguous, as least squares and the column sums of :func:`_hc3` want them): unknowns [k_ii,
+    m_i, c_ii (, k_ij, c_ij)]; rows [Re of each (run, point) (run-major), then Im]. ``s`` (R n,) =
+    sigma + j w of each row, ``s2`` = s ** 2, ``p`` (R, n, 4) pedestal motion: f = (k + s² m + s c)
+    p_own (+ (k_ij + s c_ij) p_other)."""
+    half = s.size
+    own = p[..., 2 * i + b].reshape(half)
+    cols = [(own, None), (own, s2), (own, s)]
     if cross:
-        other = p[..., 2 * (1 - i) + b]
-        cols += [other, s * other]
-    X = np.stack([c.ravel() for c in cols], -1)  # (R n, u) complex
-    return np.concatenate([X.real, X.imag], 0)
+        other = p[..., 2 * (1 - i) + b].reshape(half)
+        cols += [(other, None), (other, s)]
+    X = np.empty((2 * half, len(cols)), order="F")
+    t = np.empty(half, complex)
+    for j, (v, factor) in enumerate(cols):
+        if factor is not None:
+            v = np.multiply(factor, v, out=t)
+        X[:half, j] = v.real
+        X[half:, j] = v.imag
+    return X
 
 
 def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_hz=None, accel_gain_std: float = 0.0,
@@ -480,17 +538,24 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
     cs = np.zeros((2, 2, 2))
     dof = np.zeros((2, 2))
     resid = np.zeros((2, 2))
+    every = bool(sel.all())
+    Fs, ps = (F, p) if every else (F[:, sel], p[:, sel])
+    s_rows = np.tile(s_lap if every else s_lap[sel], R)           # s of each (run, point), run-major
+    s2_rows = s_rows ** 2
     for b in range(2):
         for i in range(2):
             col = 2 * i + b                                       # index of (b, i) in [x1, x2, y1, y2]
-            X = _design(s_lap[None].repeat(R, 0)[:, sel], p[:, sel], b, i, cross)
-            y = np.concatenate([F[:, sel, col].ravel().real, F[:, sel, col].ravel().imag])
-            if not np.all(np.isfinite(X)) or not np.all(np.isfinite(y)):
+            Xs = _design(s_rows, s2_rows, ps, b, i, cross)        # built once per fit, then scaled in place
+            y = _split(Fs[..., col])
+            # |X| column maxima without a temporary; NaN and inf show in them (and in y's extremes)
+            amax = np.maximum(Xs.max(axis=0), -Xs.min(axis=0))
+            if not (np.all(np.isfinite(amax)) and np.isfinite(y.max()) and np.isfinite(y.min())):
                 raise RotoridError("runs contain NaN or inf")
-            scale = np.maximum(np.abs(X).max(axis=0), 1e-300)
-            Xs = X / scale
-            theta, *_ = np.linalg.lstsq(Xs, y, rcond=None)
-            if np.linalg.matrix_rank(Xs) < nu:
+            scale = np.maximum(amax, 1e-300)
+            Xs /= scale
+            theta, _, rank, _ = np.linalg.lstsq(Xs, y, rcond=None)
+            # lstsq's rank is matrix_rank's: singular values above eps max(rows, u) times the largest
+            if rank < nu:
                 raise IdentifiabilityError(f"pedestal {b + 1} {'xy'[i]}: the equations are rank deficient (too few "
                                            "distinct frequencies, or no pedestal motion in that direction)")
             m_rows = y.size
@@ -543,18 +608,20 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
                     # weigh with (the inverse of a poorly estimated covariance overweights the rows
                     # whose variance happens to come out small): unweighted least squares with the
                     # sandwich of the propagated covariances
-                    XtXi = np.linalg.inv(Xs.T @ Xs)
+                    XtXi = np.linalg.inv(_gram(Xs))
                     meat = np.einsum("kau,kab,kbv->uv", Xp, point_cov(theta), Xp)
                     covt = XtXi @ meat @ XtXi
                     # the residual (HC3) covariance as well: it also sees errors the measurement
                     # covariance misses (run-out filter leftovers, low-coherence bins); the larger
                     # variance of the two counts
-                    c3 = _hc3(Xs, y - Xs @ theta)
+                    r = y - _matvec(Xs, theta)
+                    c3 = _hc3(Xs, r)
                     big = np.diag(c3) > np.diag(covt)
                     covt = np.where(big[:, None] & big[None, :], c3, covt)
                     src = "residual or measurement covariance, the larger (unweighted fit)"
             else:
-                covt = _hc3(Xs, y - Xs @ theta)
+                r = y - _matvec(Xs, theta)
+                covt = _hc3(Xs, r)
                 src = "residual"
             sd = np.sqrt(np.clip(np.diag(covt), 0, None)) / scale
             th = theta / scale
@@ -564,8 +631,9 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
                 kk[b, i, 1 - i], cc[b, i, 1 - i] = th[3], th[4]
                 ks[b, i, 1 - i], cs[b, i, 1 - i] = sd[3], sd[4]
             dof[b, i] = m_rows - nu
-            fit = X @ th
-            resid[b, i] = np.sqrt(np.sum((y - fit) ** 2) / max(np.sum(y ** 2), 1e-300))
+            if have_cov and weighted:
+                r = y - _matvec(Xs, theta)                        # at the weighted estimate
+            resid[b, i] = np.sqrt(np.sum(r ** 2) / max(np.sum(y ** 2), 1e-300))
     out = PedestalIdentification(mass, kk, cc, ms, ks, cs, dof, resid, src, cross, R * int(sel.sum()), labels)
     if cal_g or cal_ph:
         _add_calibration(out, rotor, runs, cal_g, cal_ph, cross_coupled=cross, freq_range_hz=freq_range_hz,

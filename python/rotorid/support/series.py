@@ -10,8 +10,10 @@ from ..errors import RotoridError
 
 
 def _stack(name, z, n):
-    """(n or 1, 2, 2) complex, C-contiguous: one matrix for every point, or one per point."""
-    a = complex_array(name, z)
+    """(n or 1, 2, 2) complex, C-contiguous: one matrix for every point, or one per point. NaN and
+    inf pass here: the core finds them itself (such a point comes out singular), and
+    :func:`series_impedance` then names the argument, without a scan of every call's input."""
+    a = complex_array(name, z, finite=False)
     if a.shape == (2, 2):
         a = a[None]
     if a.ndim != 3 or a.shape[1:] != (2, 2) or a.shape[0] not in (1, n):
@@ -59,8 +61,11 @@ def series_impedance(z_bearing, z_damper, journal_mass_kg, freq_hz) -> np.ndarra
     >>> float(z[0, 0, 0].real)                            # springs in series: 3e6 * 1e6 / 4e6
     750000.0
     """
-    f = np.atleast_1d(real_array("freq_hz", freq_hz, nonneg=True))
-    if np.any(f > 1e6):
+    f = np.atleast_1d(real_array("freq_hz", freq_hz, finite=False))
+    # the bounds in two reductions (NaN fails both comparisons, -inf and inf one each); only
+    # when they fail the full checks, for the error naming what is wrong
+    if f.size and not (f.min() >= 0.0 and f.max() <= 1e6):
+        real_array("freq_hz", freq_hz, nonneg=True)               # NaN, inf or a negative frequency
         raise RotoridError(f"freq_hz up to {f.max():.3g} Hz: beyond 1e6 Hz (a unit error?)")
     if f.ndim != 1 or f.size == 0:
         raise RotoridError(f"freq_hz must be a non-empty 1-D array of frequencies, got shape {f.shape}")
@@ -71,6 +76,10 @@ def series_impedance(z_bearing, z_damper, journal_mass_kg, freq_hz) -> np.ndarra
         raise RotoridError(f"journal_mass_kg must be one mass or one per point ({n}), got shape {m.shape}")
     z, nbad = _core.series_impedance(zb, zd, np.ascontiguousarray(m), np.ascontiguousarray(2 * np.pi * f))
     if nbad:
+        # a NaN or inf in an impedance makes its points singular in the core: named first, in the
+        # words of the finite check (which before the call would scan both inputs every time)
+        complex_array("z_bearing", z_bearing)
+        complex_array("z_damper", z_damper)
         bad = ~np.isfinite(z).all(axis=(1, 2))
         raise RotoridError(f"Z_b + Z_d - w² m_j I is singular at freq_hz = {f[bad][:5].tolist()}: an undamped "
                            "resonance of the damper journal between film and damper (give the damper some damping)")
