@@ -9,6 +9,7 @@ use numpy::{PyArray1, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedA
 use pyo3::exceptions::{PyMemoryError, PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyList;
+use std::borrow::Cow;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::{Arc, Mutex, OnceLock};
 
@@ -110,17 +111,17 @@ impl Plain for C64 {}
 /// given: Rust-owned when anything is to be done (a broadcast or a scale), so that the caller
 /// passes an axis in its own unit (Hz with scale 2 pi) or one running speed instead of building
 /// an (n,) NumPy temporary (each one freed by glibc back to the system, faulted in on the next
-/// call); None when the argument can be used as it is.
-fn axis_values(name: &str, a: &PyReadonlyArrayDyn<'_, f64>, n: usize, scale: Option<f64>) -> PyResult<Option<Vec<f64>>> {
+/// call); the caller's array as it is otherwise.
+fn axis_values<'a>(name: &str, a: &'a PyReadonlyArrayDyn<'_, f64>, n: usize, scale: Option<f64>) -> PyResult<Cow<'a, [f64]>> {
     let sh = a.shape();
     if sh != [n] && sh != [1] {
         return Err(PyValueError::new_err(format!("{name} has shape {sh:?}, expected ({n},) or (1,)")));
     }
     let v = slice(a, name)?;
     Ok(match (v.len() == n, scale) {
-        (true, None) => None,
-        (true, Some(s)) => Some(v.iter().map(|x| x * s).collect()),
-        (false, s) => Some(vec![v[0] * s.unwrap_or(1.0); n]),
+        (true, None) => Cow::Borrowed(v),
+        (true, Some(s)) => Cow::Owned(v.iter().map(|x| x * s).collect()),
+        (false, s) => Cow::Owned(vec![v[0] * s.unwrap_or(1.0); n]),
     })
 }
 
@@ -214,17 +215,10 @@ fn forced_response<'py>(
 ) -> PyResult<(Bound<'py, PyArrayDyn<C64>>, usize)> {
     let rot = rotor_of(&rotor)?;
     let n = w.len();
-    let (spin_own, w_own) = (axis_values("spin", &spin, n, None)?, axis_values("w", &w, n, w_scale)?);
+    let (ss, ws) = (axis_values("spin", &spin, n, None)?, axis_values("w", &w, n, w_scale)?);
     let nrhs = forced_shapes("forced_response", n, &k, &c, None, &force, gain.as_ref(), 4)?;
     let (ks, cs, fsl) = (slice(&k, "k")?, slice(&c, "c")?, slice(&force, "force")?);
-    let ss = match &spin_own {
-        Some(v) => &v[..],
-        None => slice(&spin, "spin")?,
-    };
-    let ws = match &w_own {
-        Some(v) => &v[..],
-        None => slice(&w, "w")?,
-    };
+    let (ss, ws) = (&ss[..], &ws[..]);
     let gs: Option<&[f64]> = match &gain {
         Some(g) => Some(slice(g, "gain")?),
         None => None,
@@ -409,7 +403,7 @@ fn py_identify<'py>(
         Some(pr) => pr.blocks()?,
         None => Vec::new(),
     };
-    let prob = ident_problem(rot, &resp, &axes, &w, &spin, &e, &gain, &sigma, &blocks, &ped_blocks, planes.as_ref(), identical)?;
+    let prob = ident_problem(rot, &resp, &axes, &spin, &e, &gain, &blocks, &ped_blocks, planes.as_ref(), identical)?;
     let npts = batch.checked_mul(n).ok_or_else(|| PyMemoryError::new_err("identify: batch x points overflows"))?;
     let want_std = with_std && !report;
     check_alloc("identify", npts.checked_mul(if want_std { 37 } else { 20 }), 8)?;
@@ -574,18 +568,11 @@ fn forced_response_pedestal<'py>(
     let rot = rotor_of(&rotor)?;
     let ped = pedestals_of(&pedestals)?;
     let n = w.len();
-    let (spin_own, w_own) = (axis_values("spin", &spin, n, None)?, axis_values("w", &w, n, w_scale)?);
+    let (ss, ws) = (axis_values("spin", &spin, n, None)?, axis_values("w", &w, n, w_scale)?);
     // q_abs and q_ped (4 + 4 per point) and the core's k_eff, c_eff, transfer (about 2 more)
     let nrhs = forced_shapes("forced_response_pedestal", n, &k, &c, None, &force, gain.as_ref(), 10)?;
     let (ks, cs, fsl) = (slice(&k, "k")?, slice(&c, "c")?, slice(&force, "force")?);
-    let ss = match &spin_own {
-        Some(v) => &v[..],
-        None => slice(&spin, "spin")?,
-    };
-    let ws = match &w_own {
-        Some(v) => &v[..],
-        None => slice(&w, "w")?,
-    };
+    let (ss, ws) = (&ss[..], &ws[..]);
     let g = match (&gain, imbalance) {
         (Some(_), true) => return Err(PyValueError::new_err("gain and imbalance=True exclude each other")),
         (Some(g), false) => forced::Gain::PerPoint(slice(g, "gain")?),
@@ -698,21 +685,21 @@ fn series_impedance<'py>(
 /// The arguments `identify` and `bearing_forces` share, their shapes checked (each named), as the
 /// core's problem; it borrows the caller's blocks of q and q_ped.
 #[allow(clippy::too_many_arguments)]
-/// The w and sigma an identification reads: `w` times `w_scale` and a (1,) `sigma` repeated,
-/// Rust-owned (see [`axis_values`]), or None where the caller's array is used as it is.
-struct AxisValues {
-    w: Option<Vec<f64>>,
-    sigma: Option<Vec<f64>>,
+/// The w and sigma an identification reads: `w` times `w_scale` and a (1,) `sigma` repeated (see
+/// [`axis_values`]).
+struct AxisValues<'a> {
+    w: Cow<'a, [f64]>,
+    sigma: Cow<'a, [f64]>,
 }
 
-impl AxisValues {
-    fn new(w: &PyReadonlyArrayDyn<'_, f64>, sigma: &Option<PyReadonlyArrayDyn<'_, f64>>, n: usize, w_scale: Option<f64>) -> PyResult<Self> {
+impl<'a> AxisValues<'a> {
+    fn new(w: &'a PyReadonlyArrayDyn<'_, f64>, sigma: &'a Option<PyReadonlyArrayDyn<'_, f64>>, n: usize, w_scale: Option<f64>) -> PyResult<Self> {
         check_shape("w", w.shape(), &[n])?;
         Ok(AxisValues {
             w: axis_values("w", w, n, w_scale)?,
             sigma: match sigma {
                 Some(sg) => axis_values("sigma", sg, n, None)?,
-                None => None,
+                None => Cow::Borrowed(&[]),
             },
         })
     }
@@ -722,12 +709,10 @@ impl AxisValues {
 fn ident_problem<'a>(
     rotor: Rotor,
     resp: &Responses<'_>,
-    axes: &'a AxisValues,
-    w: &'a PyReadonlyArrayDyn<'_, f64>,
+    axes: &'a AxisValues<'a>,
     spin: &'a PyReadonlyArrayDyn<'_, f64>,
     e: &'a PyReadonlyArrayDyn<'_, C64>,
     gain: &'a Option<PyReadonlyArrayDyn<'_, f64>>,
-    sigma: &'a Option<PyReadonlyArrayDyn<'_, f64>>,
     q: &'a [&'a [C64]],
     q_ped: &'a [&'a [C64]],
     planes: Option<&PyReadonlyArrayDyn<'_, f64>>,
@@ -737,7 +722,6 @@ fn ident_problem<'a>(
     if runs == 0 {
         return Err(PyValueError::new_err("at least one run is needed"));
     }
-    check_shape("w", w.shape(), &[n])?;
     for (name, a) in [("spin", Some(spin)), ("gain", gain.as_ref())] {
         let Some(a) = a else { continue };
         if a.shape() != [n] && a.shape() != [1] {
@@ -748,17 +732,9 @@ fn ident_problem<'a>(
     if es.len() != 3 || es[1] != runs || es[2] != 4 || !(es[0] == 1 || es[0] == batch) {
         return Err(PyValueError::new_err(format!("e has shape {es:?}, expected (1 or {batch}, {runs}, 4)")));
     }
-    let sigma: &[f64] = match (&axes.sigma, sigma) {
-        (Some(v), _) => v,
-        (None, Some(sg)) => slice(sg, "sigma")?,
-        (None, None) => &[],
-    };
     let prob = identify::IdentProblem {
         rotor,
-        w: match &axes.w {
-            Some(v) => v,
-            None => slice(w, "w")?,
-        },
+        w: &axes.w,
         spin: slice(spin, "spin")?,
         q,
         e: slice(e, "e")?,
@@ -766,7 +742,7 @@ fn ident_problem<'a>(
             Some(g) => slice(g, "gain")?,
             None => &[],
         },
-        sigma,
+        sigma: &axes.sigma,
         q_ped,
         planes: match planes {
             Some(t) => {
@@ -810,7 +786,7 @@ fn bearing_forces<'py>(
         Some(pr) => pr.blocks()?,
         None => Vec::new(),
     };
-    let prob = ident_problem(rot, &resp, &axes, &w, &spin, &e, &gain, &sigma, &blocks, &ped_blocks, planes.as_ref(), false)?;
+    let prob = ident_problem(rot, &resp, &axes, &spin, &e, &gain, &blocks, &ped_blocks, planes.as_ref(), false)?;
     let total = batch.checked_mul(runs).and_then(|v| v.checked_mul(n)).and_then(|v| v.checked_mul(4));
     check_alloc("bearing_forces", total, 16)?;
     let total = total.unwrap_or(0);
