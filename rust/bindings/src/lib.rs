@@ -875,13 +875,14 @@ fn check_kp(kp: &[f64]) -> PyResult<()> {
     order::check_keyphasor(kp).map_err(core_err)
 }
 
-/// Resample channels x (C, N) at p uniform angles per revolution for revolutions k0..k1.
+/// Resample channels x (C, N), or a list of C channels (N,) used where they are, at p uniform
+/// angles per revolution for revolutions k0..k1.
 /// Returns (C, k1 - k0, p).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
 fn angle_resample<'py>(
     py: Python<'py>,
-    x: PyReadonlyArrayDyn<'py, f64>,
+    x: &Bound<'py, PyAny>,
     fs: f64,
     t0: f64,
     kp: PyReadonlyArrayDyn<'py, f64>,
@@ -889,22 +890,40 @@ fn angle_resample<'py>(
     k1: usize,
     p: usize,
 ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
-    let xs = x.shape().to_vec();
-    if xs.len() != 2 {
-        return Err(PyValueError::new_err(format!("x has shape {xs:?}, expected (channels, samples)")));
+    // x: one (C, N) array, or a list of C arrays (N,) used where they are (no (C, N) copy)
+    let arrays: Vec<PyReadonlyArrayDyn<'py, f64>> = if x.is_instance_of::<PyList>() {
+        x.extract()?
+    } else {
+        let a: PyReadonlyArrayDyn<'py, f64> = x.extract()?;
+        if a.shape().len() != 2 {
+            return Err(PyValueError::new_err(format!("x has shape {:?}, expected (channels, samples)", a.shape())));
+        }
+        vec![a]
+    };
+    let mut channels: Vec<&[f64]> = Vec::new();
+    for a in &arrays {
+        let sl = slice(a, "x")?;
+        if x.is_instance_of::<PyList>() {
+            if a.shape().len() != 1 {
+                return Err(PyValueError::new_err(format!("a channel of x has shape {:?}, expected (samples,)", a.shape())));
+            }
+            channels.push(sl);
+        } else {
+            let (nch, n) = (a.shape()[0], a.shape()[1]);
+            channels.extend((0..nch).map(|c| &sl[c * n..(c + 1) * n]));
+        }
     }
     let kps = slice(&kp, "kp")?;
     check_kp(kps)?;
     if !(k0 < k1 && k1 < kps.len()) || p < 4 || !(fs > 0.0) {
         return Err(PyValueError::new_err(format!("need k0 < k1 < len(kp) = {}, p >= 4 and fs > 0 (got k0={k0}, k1={k1}, p={p}, fs={fs})", kps.len())));
     }
-    let xsl = slice(&x, "x")?;
-    let nch = xs[0];
+    let nch = channels.len();
     check_alloc("angle_resample", nch.checked_mul(k1 - k0).and_then(|v| v.checked_mul(p)), 8)?;
     let out = py.detach(|| {
         guarded(|| {
             let mut out = out_buf(nch * (k1 - k0) * p);
-            order::angle_resample(xsl, nch, fs, t0, kps, k0, k1, p, &mut out).map(|_| out)
+            order::angle_resample_channels(&channels, fs, t0, kps, k0, k1, p, &mut out).map(|_| out)
         })
     })?
     .map_err(core_err)?;

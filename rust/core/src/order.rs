@@ -59,10 +59,26 @@ pub fn cubic_at(x: &[f64], u: f64) -> f64 {
 /// kp[k] and kp[k+1]). `x`: (C, N) row-major, sample i at time t0 + i / fs. `out`: (C, k1-k0, P).
 #[allow(clippy::too_many_arguments)]
 pub fn angle_resample(x: &[f64], nch: usize, fs: f64, t0: f64, kp: &[f64], k0: usize, k1: usize, p: usize, out: &mut [f64]) -> Result<(), CoreError> {
-    check_keyphasor(kp)?;
-    check_sampling(fs, t0)?;
     if nch == 0 || x.len() % nch != 0 {
         return Err(CoreError::length("x", x.len(), format!("a multiple of the channel count {nch} (at least one channel)")));
+    }
+    let n = x.len() / nch;
+    let channels: Vec<&[f64]> = (0..nch).map(|c| &x[c * n..(c + 1) * n]).collect();
+    angle_resample_channels(&channels, fs, t0, kp, k0, k1, p, out)
+}
+
+/// [`angle_resample`] of channels stored apart (as a recording's loaders give them: no (C, N)
+/// array is built to resample them), each of the same length.
+#[allow(clippy::too_many_arguments)]
+pub fn angle_resample_channels(x: &[&[f64]], fs: f64, t0: f64, kp: &[f64], k0: usize, k1: usize, p: usize, out: &mut [f64]) -> Result<(), CoreError> {
+    check_keyphasor(kp)?;
+    check_sampling(fs, t0)?;
+    let nch = x.len();
+    if nch == 0 {
+        return Err(CoreError::value("x", "needs at least one channel"));
+    }
+    if let Some(c) = x.iter().position(|ch| ch.len() != x[0].len()) {
+        return Err(CoreError::length("x", x[c].len(), format!("{} samples in every channel (channel {c} differs)", x[0].len())));
     }
     if !(k0 < k1 && k1 < kp.len()) {
         return Err(CoreError::value("k0, k1", format!("need k0 < k1 < len(kp) = {}, got k0 = {k0}, k1 = {k1}", kp.len())));
@@ -71,16 +87,15 @@ pub fn angle_resample(x: &[f64], nch: usize, fs: f64, t0: f64, kp: &[f64], k0: u
         return Err(CoreError::value("p", format!("(points per revolution) must be at least 4, got {p}")));
     }
     expect_len("out", out, product("out", &[nch, k1 - k0, p])?)?;
-    resample_kernel(x, nch, fs, t0, kp, k0, k1, p, out);
+    resample_kernel(x, fs, t0, kp, k0, k1, p, out);
     Ok(())
 }
 
 #[allow(clippy::too_many_arguments)]
-fn resample_kernel(x: &[f64], nch: usize, fs: f64, t0: f64, kp: &[f64], k0: usize, k1: usize, p: usize, out: &mut [f64]) {
-    let n = x.len() / nch;
+fn resample_kernel(x: &[&[f64]], fs: f64, t0: f64, kp: &[f64], k0: usize, k1: usize, p: usize, out: &mut [f64]) {
     let revs = k1 - k0;
     out.par_chunks_mut(revs * p).enumerate().for_each(|(c, o)| {
-        let xc = &x[c * n..(c + 1) * n];
+        let xc = x[c];
         for r in 0..revs {
             let (ta, tb) = (kp[k0 + r], kp[k0 + r + 1]);
             for j in 0..p {
