@@ -294,3 +294,18 @@ def test_lti_run_outputs_are_checked_by_the_core():
     (x,), _ = _core.lti_run(phi, g, g, u, x0)
     np.testing.assert_array_equal(y[:, 0], x[:, 0] - x[:, 1] + 2.0 * u[:, 0])
     assert bad is None
+
+
+def test_imbalance_response_speeds_converted_by_the_core_give_the_same_bits(rig):
+    from rotorid import _core
+
+    rpm = np.linspace(300.0, 12_000.0, 5003)
+    p = rig.rotor.core_params()
+    k = np.ascontiguousarray(rig.bearings.k.reshape(1, 8))
+    c = np.ascontiguousarray(rig.bearings.c.reshape(1, 8))
+    e = np.ascontiguousarray(rig.imbalances["C"].generalized(rig.rotor), dtype=complex).reshape(1, 1, 4)
+    want, _ = _core.imbalance_response(p, k, c, rpm * (np.pi / 30.0), e)
+    got, _ = _core.imbalance_response(p, k, c, rpm, e, spin_scale=np.pi / 30.0)
+    np.testing.assert_array_equal(got, want)
+    np.testing.assert_array_equal(rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances["C"],
+                                                             speed_rpm=rpm).q, want[:, 0, :])

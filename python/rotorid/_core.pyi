@@ -35,8 +35,9 @@ def imbalance_response(
     rotor: npt.NDArray[np.float64],
     k: npt.NDArray[np.float64],  # (n or 1, 8)
     c: npt.NDArray[np.float64],  # (n or 1, 8)
-    spin: npt.NDArray[np.float64],  # (n,) rad/s
+    spin: npt.NDArray[np.float64],  # (n,) rad/s (or in another unit with spin_scale)
     force: npt.NDArray[np.complex128],  # (n or 1, nrhs, 4) generalized imbalance vectors
+    spin_scale: float | None = None,  # spin_scale * spin rad/s (e.g. rpm with pi / 30)
 ) -> tuple[npt.NDArray[np.complex128], int]:
     """forced_response with w = spin and each point's solution scaled by spin^2; returns (q (n, nrhs, 4), n_singular)."""
 

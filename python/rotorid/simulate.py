@@ -4,6 +4,7 @@ and a measurement-error model for numerical experiments."""
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -58,12 +59,12 @@ def _unchecked(cls, **fields):
     return obj
 
 
-def _defaults(cls, _cache={}):  # noqa: B006 - a per-class cache of the dataclass defaults
-    if cls not in _cache:
-        if any(f.default_factory is not dataclasses.MISSING for f in dataclasses.fields(cls)):
-            raise TypeError(f"{cls.__name__}: _unchecked supports plain defaults only")
-        _cache[cls] = {f.name: f.default for f in dataclasses.fields(cls) if f.default is not dataclasses.MISSING}
-    return _cache[cls]
+@functools.cache
+def _defaults(cls) -> dict:
+    """The plain defaults of a dataclass's fields (read once per class)."""
+    if any(f.default_factory is not dataclasses.MISSING for f in dataclasses.fields(cls)):
+        raise TypeError(f"{cls.__name__}: _unchecked supports plain defaults only")
+    return {f.name: f.default for f in dataclasses.fields(cls) if f.default is not dataclasses.MISSING}
 
 
 def _q_as_checked(resp) -> bool:
@@ -411,20 +412,20 @@ def imbalance_response(rotor: RigidRotor, bearings: BearingCoefficients, imbalan
     pedestals = _check_pedestals(pedestals)
     rpm = speeds_rpm("speed_rpm", speed_rpm)
     n = rpm.size
-    om = rpm * RPM
     k, c = _core_coeffs(bearings, n, speed_rpm=rpm, broadcast=True)
     # F_i = e Omega_i^2: the core scales each point's solution, no (n, 4) force array is built
     e = np.ascontiguousarray(imbalance.generalized(rotor), dtype=complex).reshape(1, 1, 4)
     if pedestals is not None:
+        om = rpm * RPM
         q, qp = _with_pedestals(rotor, k, c, pedestals, om, om, e, at, imbalance=True,
                                 singular=lambda bad: "the rotor-bearing-pedestal system is singular (undamped "
                                                      f"resonance) at speed_rpm = {rpm[bad][:5]}")
         return SyncResponse._unchecked(speed_rpm=rpm, q=q, imbalance=imbalance, at=at, name=imbalance.name,
                                        pedestal=qp)
-    # w = Omega and the gains Omega^2 are formed in the core: a second (n,) temporary here made
-    # glibc hand 1.6 MB back to the system after every call and fault it in again on the next
-    # (360 page faults, +1.2 ms per 100,000 speeds)
-    q, nsing = _core.imbalance_response(rotor.core_params(), k, c, om, e)
+    # Omega from rpm, w = Omega and the gains Omega^2 are formed in the core: (n,) temporaries
+    # here made glibc hand memory back to the system after every call and fault it in again on
+    # the next (360 page faults, +1.2 ms per 100,000 speeds)
+    q, nsing = _core.imbalance_response(rotor.core_params(), k, c, rpm, e, spin_scale=RPM)
     if nsing:
         bad = rpm[~np.all(np.isfinite(q[:, 0, :]), axis=1)]
         raise RotoridError(f"the rotor-bearing system is singular (undamped resonance) at speed_rpm = {bad[:5]}")

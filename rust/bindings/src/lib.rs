@@ -239,8 +239,10 @@ fn forced_response<'py>(
 
 /// The synchronous response to an imbalance at the speeds `spin` (rad/s): w = spin and
 /// q_i = spin_i^2 H_i^-1 force (see forced::forced_response_imbalance), without the (n,) arrays
-/// of w and spin^2 the caller would otherwise build. Returns (q, n_singular).
+/// of w and spin^2 the caller would otherwise build; `spin_scale`: spin is given in another unit
+/// (rpm with pi / 30), converted here. Returns (q, n_singular).
 #[pyfunction]
+#[pyo3(signature = (rotor, k, c, spin, force, spin_scale=None))]
 fn imbalance_response<'py>(
     py: Python<'py>,
     rotor: PyReadonlyArrayDyn<'py, f64>,
@@ -248,11 +250,13 @@ fn imbalance_response<'py>(
     c: PyReadonlyArrayDyn<'py, f64>,
     spin: PyReadonlyArrayDyn<'py, f64>,
     force: PyReadonlyArrayDyn<'py, C64>,
+    spin_scale: Option<f64>,
 ) -> PyResult<(Bound<'py, PyArrayDyn<C64>>, usize)> {
     let rot = rotor_of(&rotor)?;
     let n = spin.len();
     let nrhs = forced_shapes("imbalance_response", n, &k, &c, Some(&spin), &force, None, 4)?;
-    let (ks, cs, ss, fsl) = (slice(&k, "k")?, slice(&c, "c")?, slice(&spin, "spin")?, slice(&force, "force")?);
+    let ss = axis_values("spin", &spin, n, spin_scale)?;
+    let (ks, cs, ss, fsl) = (slice(&k, "k")?, slice(&c, "c")?, &ss[..], slice(&force, "force")?);
     let (out, nsing) = py.detach(|| {
         guarded(|| {
             let mut out = out_buf(n * nrhs * 4);
