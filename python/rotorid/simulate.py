@@ -224,10 +224,16 @@ def _joint_moved(rotor, joint, where):
     return out
 
 
-def _plane_matrix8(T):
+def _plane_matrix4(T):
+    """The 2x2 plane transform T as a 4x4 matrix over [x1, x2, y1, y2] (T on x, T on y)."""
     A4 = np.zeros((4, 4))
     A4[0:2, 0:2] = T
     A4[2:4, 2:4] = T
+    return A4
+
+
+def _plane_matrix8(T):
+    A4 = _plane_matrix4(T)
     A8 = np.zeros((8, 8))
     A8[:4, :4] = A4
     A8[4:, 4:] = A4
@@ -805,9 +811,8 @@ the bearing forces C_b, K_b over [x1, x2, y1, y2])
     # q at the bearings or the probes (relative to the pedestals), and with pedestals p and the
     # pedestals' acceleration from the equations of motion (rows 4..7 of x'' = A x + B u: exact,
     # no differencing); no array of states is read back
-    to_plane = bearings_to_probes_matrix(rotor) if at == "probes" else np.eye(2)
+    plane4 = _plane_matrix4(bearings_to_probes_matrix(rotor) if at == "probes" else np.eye(2))
     Z4 = np.zeros((4, 4))
-    plane4 = np.block([[to_plane, np.zeros((2, 2))], [np.zeros((2, 2)), to_plane]])  # [x1, x2, y1, y2]
     if pedestals is None:
         outputs = [(np.hstack([plane4, Z4]), np.zeros((4, 1)))]
     else:
