@@ -100,6 +100,8 @@ def entries(n, n_time):
         "ImpactResponse.at_bearings": lambda: test.at_bearings(rig.rotor),
         "series_impedance": lambda: rotorid.series_impedance(zb, zd, 12.0, f),
         "identify_pedestals (2 runs)": lambda: rotorid.identify_pedestals(rig.rotor, runs_ped),
+        "identify_pedestals (2 runs, cross-coupled)": lambda: rotorid.identify_pedestals(rig.rotor, runs_ped,
+                                                                                         cross_coupled=True),
         "uncertainty.relative_std": lambda: uncertainty.relative_std(ident.k, ident.c, ident.k_std, ident.c_std),
         "SyncResponse (constructor, user data)": lambda: SyncResponse(rpm, run.q, imb, "probes"),
         f"signals.track ({ns // 1_000_000} M samples x 4 channels)": lambda: signals.track(rec, kp=kp,

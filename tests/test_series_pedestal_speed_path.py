@@ -5,10 +5,12 @@ computations give.
 makes its point singular there) and names the argument after the call: here every argument's NaN
 and inf are still named, in the words of the finite check, and the results match a NumPy solve.
 
-``identify_pedestals`` builds its design matrices in Fortran order, takes the rank from
-``lstsq``, and forms X^T X, the hat diagonal and the HC3 meat column by column. The reference
-below is the earlier implementation's arithmetic, kept here: C-order designs stacked from complex
-columns, ``matrix_rank``, ``einsum`` and BLAS products. Estimates agree to 1e-12; standard errors
+``identify_pedestals`` fits in the core (``_core.pedestal_fit``): the equations are formed point
+by point and folded into a Householder QR factor, the rank from the factor's singular values, the
+HC3 meat from a second pass (with covariances, the weighted or sandwich fit continues in NumPy from
+the core's estimate). The reference below is the first implementation's arithmetic, kept here:
+C-order designs stacked from complex columns, ``lstsq``, ``matrix_rank``, ``einsum`` and BLAS
+products. Estimates agree to 1e-12; standard errors
 to 1e-12 or the rounding of (X^T X)^-1 (cond(X)² eps: both differ from the exact HC3 value by that
 much); on noise-free runs the standard errors and residuals are rounding noise and are compared
 with a bound relative to the estimates.
@@ -487,7 +489,7 @@ def test_a_design_that_overflows_is_refused_alike():
 
 @pytest.mark.parametrize("field, pattern", [
     ("pedestal", r"run 1 \('B'\): pedestal .*contains NaN or inf \(first at index \(2, 1\)\)"),
-    ("q", r"runs contain NaN or inf"),
+    ("q", r"run 1 \('B'\): q contains NaN or inf \(first at index \(2, 1\)\)"),
 ])
 def test_nan_set_in_a_run_after_construction_is_named(field, pattern):
     runs = _sync(rpm=np.linspace(2000.0, 6000.0, 8))
@@ -508,3 +510,51 @@ def test_nan_set_in_a_run_after_construction_is_named(field, pattern):
 def test_nan_arguments_are_named(kw, pattern):
     with pytest.raises(RotoridError, match=pattern):
         rotorid.identify_pedestals(ROTOR, _sync(rpm=np.linspace(2000.0, 6000.0, 8)), **kw)
+
+
+# ---------------------------------------------------------------------------------------------
+# the core's pedestal fit: its own argument checks
+
+
+def _core_args(runs):
+    w = runs[0].speed_rpm * RPM
+    e = np.stack([r.imbalance.generalized(ROTOR) for r in runs])[None].astype(complex)
+    return ROTOR.core_params(), w, w, [r.q for r in runs], e, None, [r.pedestal for r in runs]
+
+
+def test_core_pedestal_fit_refuses_bad_arguments():
+    runs = _sync(rpm=np.linspace(2000.0, 6000.0, 12))
+    params, w, spin, qs, e, gain, ps = _core_args(runs)
+    n = w.size
+    with pytest.raises(ValueError, match=r"select has shape \[5\], expected \[12\]"):
+        core.pedestal_fit(params, w, spin, qs, e, gain, ps, select=np.ones(5, bool))
+    with pytest.raises(ValueError, match=r"select must be a bool array of shape \(12,\)"):
+        core.pedestal_fit(params, w, spin, qs, e, gain, ps, select=np.ones(n))  # not bool
+    with pytest.raises(ValueError, match="q_ped is needed"):
+        core.pedestal_fit(params, w, spin, qs, e, gain, None)
+    with pytest.raises(ValueError, match="q_ped"):
+        core.pedestal_fit(params, w, spin, qs, e, gain, ps[:1])
+    with pytest.raises(ValueError, match="C-contiguous"):
+        core.pedestal_fit(params, w, spin, qs, e, gain, [np.asfortranarray(p) for p in ps])
+    one = np.zeros(n, bool)
+    one[3] = True
+    with pytest.raises(ValueError, match="4 equations for 5 unknowns"):
+        core.pedestal_fit(params, w, spin, qs, e, gain, ps, select=one, cross=True)
+    two = np.concatenate([qs[0][None, None], qs[0][None, None]])           # batch of 2
+    with pytest.raises(ValueError, match="batch must be 1"):
+        core.pedestal_fit(params, w, spin, two, np.concatenate([e[:, :1]] * 2), gain,
+                          np.concatenate([ps[0][None, None]] * 2))
+
+
+def test_core_pedestal_fit_of_a_selection_equals_the_fit_of_the_selected_points():
+    """``select`` leaves points out exactly as slicing the runs would (bit-identical for one task
+    of points: the same equations in the same order)."""
+    rng = np.random.default_rng(5)
+    runs = _noisy(_sync(rpm=np.linspace(1000.0, 8000.0, 40)), 1e-3, rng)
+    params, w, spin, qs, e, gain, ps = _core_args(runs)
+    sel = (np.arange(w.size) % 3) != 0
+    got = core.pedestal_fit(params, w, spin, qs, e, gain, ps, select=sel, cross=True)
+    cut = core.pedestal_fit(params, w[sel], spin[sel], [np.ascontiguousarray(q[sel]) for q in qs], e, gain,
+                            [np.ascontiguousarray(p[sel]) for p in ps], cross=True)
+    for a, b in zip(got, cut):
+        np.testing.assert_array_equal(a, b)

@@ -129,6 +129,22 @@ def bearing_forces(
 ) -> npt.NDArray[np.complex128]:
     """Bearing reactions from the rotor equations, (batch, runs, n, 4) as [f1x, f2x, f1y, f2y]."""
 
+def pedestal_fit(
+    rotor: npt.NDArray[np.float64],
+    w: npt.NDArray[np.float64],
+    spin: npt.NDArray[np.float64],
+    q: list[npt.NDArray[np.complex128]] | npt.NDArray[np.complex128],  # runs of (n, 4) or (1, runs, n, 4)
+    e: npt.NDArray[np.complex128],  # (1, runs, 4)
+    gain: npt.NDArray[np.float64] | None,  # (n,) or (1,); None: spin^2
+    q_ped: list[npt.NDArray[np.complex128]] | npt.NDArray[np.complex128],  # laid out as q
+    sigma: npt.NDArray[np.float64] | None = None,
+    select: npt.NDArray[np.bool_] | None = None,  # (n,) points used; None: all
+    cross: bool = False,
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.int64], npt.NDArray[np.float64], int]:
+    """Unweighted pedestal fits with HC3 covariances: (theta (4, u), cov (4, u, u), rank (4,),
+    relative residual (4,), equations per fit), fits (pedestal, direction) = (1, x), (1, y),
+    (2, x), (2, y); u = 3 [k, m, c] or 5 with the cross-coupled [k_ij, c_ij]."""
+
 STUDY_BINS: int  # bins of each study histogram
 STUDY_E0: float  # errors below E0 are binned linearly
 STUDY_SUB: int  # bins per octave above E0

@@ -805,6 +805,62 @@ fn bearing_forces<'py>(
     to_py(py, out, &[batch, runs, n, 4])
 }
 
+/// Pedestal identification (see pedestal_fit::fit): the bearing forces' arguments as
+/// `bearing_forces` (one batch member; `q` and `q_ped` lists of runs or (1, R, n, 4) arrays),
+/// `select` (n,) bool or None for every point, `cross` for the cross-coupled terms. Returns
+/// (theta (4, u), cov (4, u, u), rank (4,) int, resid (4,), rows) with fits in the order
+/// (pedestal, direction) = (1, x), (1, y), (2, x), (2, y); theta and cov NaN where rank < u.
+#[pyfunction]
+#[pyo3(signature = (rotor, w, spin, q, e, gain, q_ped, sigma=None, select=None, cross=false))]
+#[allow(clippy::too_many_arguments, clippy::type_complexity)]
+fn pedestal_fit<'py>(
+    py: Python<'py>,
+    rotor: PyReadonlyArrayDyn<'py, f64>,
+    w: PyReadonlyArrayDyn<'py, f64>,
+    spin: PyReadonlyArrayDyn<'py, f64>,
+    q: &Bound<'py, PyAny>,
+    e: PyReadonlyArrayDyn<'py, C64>,
+    gain: Option<PyReadonlyArrayDyn<'py, f64>>,
+    q_ped: &Bound<'py, PyAny>,
+    sigma: Option<PyReadonlyArrayDyn<'py, f64>>,
+    select: Option<&Bound<'py, PyAny>>,
+    cross: bool,
+) -> PyResult<(
+    Bound<'py, PyArrayDyn<f64>>,
+    Bound<'py, PyArrayDyn<f64>>,
+    Bound<'py, PyArrayDyn<i64>>,
+    Bound<'py, PyArrayDyn<f64>>,
+    usize,
+)> {
+    let rot = rotor_of(&rotor)?;
+    let resp = responses(q)?;
+    let n = resp.n;
+    let axes = AxisValues::new(&w, &sigma, n, None)?;
+    let blocks = resp.blocks()?;
+    let ped = pedestal_responses(Some(q_ped), &resp)?.ok_or_else(|| PyValueError::new_err("q_ped is needed"))?;
+    let ped_blocks = ped.blocks()?;
+    let forces = ident_problem(rot, &resp, &axes, &spin, &e, &gain, &blocks, &ped_blocks, None, false)?;
+    let select: Option<PyReadonlyArrayDyn<'py, bool>> = match select {
+        Some(s) if !s.is_none() => Some(s.extract().map_err(|_| PyTypeError::new_err(format!("select must be a bool array of shape ({n},)")))?),
+        _ => None,
+    };
+    let select: &[bool] = match &select {
+        Some(s) => {
+            check_shape("select", s.shape(), &[n])?;
+            slice(s, "select")?
+        }
+        None => &[],
+    };
+    let problem = rotorid_core::pedestal_fit::PedestalFitProblem { forces, select, cross };
+    let fits = py.detach(|| guarded(|| rotorid_core::pedestal_fit::fit(&problem)))?.map_err(core_err)?;
+    let u = if cross { 5 } else { 3 };
+    let theta: Vec<f64> = fits.iter().flat_map(|f| f.theta.iter().copied()).collect();
+    let cov: Vec<f64> = fits.iter().flat_map(|f| f.cov.iter().copied()).collect();
+    let rank: Vec<i64> = fits.iter().map(|f| f.rank as i64).collect();
+    let resid: Vec<f64> = fits.iter().map(|f| f.resid).collect();
+    Ok((to_py(py, theta, &[4, u])?, to_py(py, cov, &[4, u, u])?, to_py(py, rank, &[4])?, to_py(py, resid, &[4])?, fits[0].rows))
+}
+
 /// Time stepping of a discretized LTI system (see timesim.rs): phi (n, n), g0, g1 (n, m), u (N,
 /// m), x0 (n,). Without `outputs`: ([states (N, n)], first non-finite step or None). With
 /// `outputs`, a list of (c (p, n), d (p, m)): ([y_i (N, p_i) = c_i x + d_i u for each], first
@@ -1217,6 +1273,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(effective_coefficients, m)?)?;
     m.add_function(wrap_pyfunction!(modal_pedestal, m)?)?;
     m.add_function(wrap_pyfunction!(bearing_forces, m)?)?;
+    m.add_function(wrap_pyfunction!(pedestal_fit, m)?)?;
     m.add_function(wrap_pyfunction!(series_impedance, m)?)?;
     m.add_function(wrap_pyfunction!(relative_std, m)?)?;
     m.add_function(wrap_pyfunction!(flag_codes, m)?)?;

@@ -370,7 +370,7 @@ impl IdentOut<'_> {
 
 /// Per-call constants of the rotor equations.
 #[derive(Clone, Copy)]
-struct Consts {
+pub(crate) struct Consts {
     ml2: f64,
     ml1: f64,
     it: f64,
@@ -381,7 +381,7 @@ struct Consts {
 }
 
 impl Consts {
-    fn new(r: &Rotor) -> Self {
+    pub(crate) fn new(r: &Rotor) -> Self {
         let il = 1.0 / r.span();
         Consts { ml2: r.m * r.l2 * il, ml1: r.m * r.l1 * il, it: r.it * il, ip: r.ip * il, il, l1: r.l1, l2: r.l2 }
     }
@@ -923,15 +923,23 @@ pub fn bearing_forces(p: &IdentProblem, out: &mut [C64]) -> Result<(), CoreError
     out.par_chunks_mut(4).with_min_len(1024).enumerate().for_each(|(idx, f)| {
         let (br, i) = (idx / n, idx % n);
         let (b, r) = (br / p.runs, br % p.runs);
-        let si = if p.spin.len() == 1 { 0 } else { i };
-        let qa = load_abs(p, b, r, i);
-        let rv = rhs_point(&kc, excitation(p, b, r), gain_at(p, i), p.w[i], sigma_at(p, i), p.spin[si], &qa);
-        f[0] = (rv[0] * kc.l2 - rv[2]) * kc.il;
-        f[1] = (rv[2] + rv[0] * kc.l1) * kc.il;
-        f[2] = (rv[1] * kc.l2 + rv[3]) * kc.il;
-        f[3] = (rv[1] * kc.l1 - rv[3]) * kc.il;
+        f.copy_from_slice(&force_point(p, &kc, b, r, i));
     });
     Ok(())
+}
+
+/// [f1x, f2x, f1y, f2y] of (batch b, run r, point i), as [`bearing_forces`] (a checked problem).
+#[inline(always)]
+pub(crate) fn force_point(p: &IdentProblem, kc: &Consts, b: usize, r: usize, i: usize) -> [C64; 4] {
+    let si = if p.spin.len() == 1 { 0 } else { i };
+    let qa = load_abs(p, b, r, i);
+    let rv = rhs_point(kc, excitation(p, b, r), gain_at(p, i), p.w[i], sigma_at(p, i), p.spin[si], &qa);
+    [
+        (rv[0] * kc.l2 - rv[2]) * kc.il,
+        (rv[2] + rv[0] * kc.l1) * kc.il,
+        (rv[1] * kc.l2 + rv[3]) * kc.il,
+        (rv[1] * kc.l1 - rv[3]) * kc.il,
+    ]
 }
 
 /// NaN-propagating maximum (as NumPy's `maximum`): a NaN anywhere makes the result NaN.

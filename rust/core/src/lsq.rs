@@ -1,0 +1,439 @@
+//! Least squares for tall, skinny real problems (hundreds of thousands of rows, a handful of
+//! unknowns) without forming the design matrix: rows are pushed as they are computed and folded
+//! into the triangular factor of a Householder QR, chunk by chunk.
+//!
+//! For the augmented matrix `A = [X y]` (m × (u+1)) the fold keeps `R` ((u+1) × (u+1), upper
+//! triangular) with `A = Q R` for some orthogonal `Q`. Stacking two factors and factoring again
+//! gives the factor of the stacked rows, so chunks computed apart (on other threads) merge exactly
+//! as their rows would have. From `R = [[R_x, z], [0, ρ]]`:
+//!
+//! * the solution: `R_x θ = z` (backward substitution);
+//! * the residual norm: `|y - X θ| = |ρ|`;
+//! * the singular values of `X` are those of `R_x` (rank as `numpy.linalg.lstsq` counts it);
+//! * the leverage of row `x_i`: `h_i = x_iᵀ (XᵀX)⁻¹ x_i = |R_x⁻ᵀ x_i|²`;
+//! * the HC3 covariance (MacKinnon & White 1985):
+//!   `(XᵀX)⁻¹ (Σ_i x_i x_iᵀ r_i² / (1 - h_i)²) (XᵀX)⁻¹` with `(XᵀX)⁻¹ = R_x⁻¹ R_x⁻ᵀ`.
+//!
+//! QR keeps the accuracy of the data (the normal equations would square the condition number).
+
+use crate::error::CoreError;
+
+/// Most columns of `[X y]` (5 unknowns and the right-hand side).
+pub const MAX_COLS: usize = 6;
+/// Rows gathered before they are folded into `R`.
+const CHUNK_ROWS: usize = 256;
+
+type Square = [[f64; MAX_COLS]; MAX_COLS];
+
+/// Triangular factor of the rows pushed so far (see the module documentation).
+#[derive(Clone, Debug)]
+pub struct TallQr {
+    cols: usize,
+    /// upper triangle of R, row-major; entries below the diagonal stay zero
+    r: Square,
+    /// pending rows, column-major: column j is `buf[j * CHUNK_ROWS..][..fill]`
+    buf: Vec<f64>,
+    fill: usize,
+    rows: usize,
+}
+
+impl TallQr {
+    /// An empty factor of `cols` columns (`1 ≤ cols ≤ MAX_COLS`; unknowns and right-hand side).
+    pub fn new(cols: usize) -> Result<TallQr, CoreError> {
+        if cols == 0 || cols > MAX_COLS {
+            return Err(CoreError::value("cols", format!("must be 1 to {MAX_COLS}, got {cols}")));
+        }
+        Ok(TallQr { cols, r: [[0.0; MAX_COLS]; MAX_COLS], buf: vec![0.0; cols * CHUNK_ROWS], fill: 0, rows: 0 })
+    }
+
+    /// Number of columns.
+    pub fn cols(&self) -> usize {
+        self.cols
+    }
+
+    /// Number of rows pushed or folded (merged factors count their rows).
+    pub fn rows(&self) -> usize {
+        self.rows + self.fill
+    }
+
+    /// Append one row (`cols` values). Values are not checked; a NaN spreads to `R`.
+    #[inline]
+    pub fn push(&mut self, row: &[f64]) {
+        debug_assert_eq!(row.len(), self.cols);
+        for (j, &v) in row.iter().enumerate().take(self.cols) {
+            self.buf[j * CHUNK_ROWS + self.fill] = v;
+        }
+        self.fill += 1;
+        if self.fill == CHUNK_ROWS {
+            self.fold();
+        }
+    }
+
+    /// Append every row of another factor's `R` (the factor of both sets of rows follows).
+    pub fn merge(&mut self, mut other: TallQr) -> Result<(), CoreError> {
+        if other.cols != self.cols {
+            return Err(CoreError::value("other", format!("has {} columns, expected {}", other.cols, self.cols)));
+        }
+        other.fold();
+        let rows = self.rows() + other.rows;
+        for i in 0..other.cols {
+            let row = other.r[i];
+            self.push(&row[..self.cols]);
+        }
+        self.fold();
+        self.rows = rows;
+        Ok(())
+    }
+
+    /// The factor `R` of every row pushed, (cols × cols) row-major upper triangular.
+    pub fn factor(&mut self) -> Square {
+        self.fold();
+        self.r
+    }
+
+    /// Fold the pending rows into R.
+    fn fold(&mut self) {
+        let m = self.fill;
+        if m == 0 {
+            return;
+        }
+        let mut buf = std::mem::take(&mut self.buf);
+        // the buffer holds cols columns of CHUNK_ROWS rows: always a valid block
+        let _ = self.fold_block(&mut buf, CHUNK_ROWS, m);
+        self.buf = buf;
+        self.fill = 0;
+    }
+
+    /// Fold a block of `m` rows B into R, given column-major with leading dimension `ld`
+    /// (column j is `block[j * ld..][..m]`); the block is overwritten. QR of [R; B], one
+    /// Householder reflection per column: column j of [R; B] below the diagonal is B[:, j] alone
+    /// (R is already triangular), so the reflection v = [1; B[:, j] / (α - β)],
+    /// β = -sign(α) sqrt(α² + |B[:, j]|²), α = R[j][j], τ = (β - α) / β touches row j of R and
+    /// the rows of B only. The rows count towards [`TallQr::rows`].
+    pub fn fold_block(&mut self, block: &mut [f64], ld: usize, m: usize) -> Result<(), CoreError> {
+        let n = self.cols;
+        check_block(block, ld, m, n)?;
+        self.rows += m;
+        if m == 0 {
+            return Ok(());
+        }
+        let r = &mut self.r;
+        for j in 0..n {
+            let (head, tail) = block.split_at_mut((j + 1) * ld);
+            let bj = &mut head[j * ld..j * ld + m];
+            let s2 = dot(bj, bj);
+            if s2 == 0.0 {
+                continue;
+            }
+            let alpha = r[j][j];
+            let norm = alpha.hypot(s2.sqrt());
+            let beta = if alpha >= 0.0 { -norm } else { norm };
+            let tau = (beta - alpha) / beta;
+            let inv = 1.0 / (alpha - beta);
+            for v in bj.iter_mut() {
+                *v *= inv;
+            }
+            r[j][j] = beta;
+            for k in j + 1..n {
+                let bk = &mut tail[(k - j - 1) * ld..(k - j - 1) * ld + m];
+                let d = (r[j][k] + dot(bj, bk)) * tau;
+                r[j][k] -= d;
+                for (x, &v) in bk.iter_mut().zip(bj.iter()) {
+                    *x -= d * v;
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A column-major block of `cols` columns, `m` rows, leading dimension `ld` fits in `block`.
+fn check_block(block: &[f64], ld: usize, m: usize, cols: usize) -> Result<(), CoreError> {
+    if m > ld {
+        return Err(CoreError::value("m", format!("({m} rows) exceeds the leading dimension {ld}")));
+    }
+    if cols > 0 && block.len() < (cols - 1) * ld + m {
+        return Err(CoreError::length("block", block.len(), format!("at least {} ({cols} columns of leading dimension {ld})", (cols - 1) * ld + m)));
+    }
+    Ok(())
+}
+
+/// Dot product with eight running sums (vectorizes; the order is fixed, so results repeat).
+#[inline]
+pub fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let mut s = [0.0f64; 8];
+    let (ca, cb) = (a.chunks_exact(8), b.chunks_exact(8));
+    let (ra, rb) = (ca.remainder(), cb.remainder());
+    for (x, y) in ca.zip(cb) {
+        for l in 0..8 {
+            s[l] += x[l] * y[l];
+        }
+    }
+    let mut t = ((s[0] + s[4]) + (s[1] + s[5])) + ((s[2] + s[6]) + (s[3] + s[7]));
+    for (x, y) in ra.iter().zip(rb) {
+        t += x * y;
+    }
+    t
+}
+
+/// What a factor of `[X y]` says about the least-squares problem `X θ ≈ y`.
+#[derive(Clone, Debug)]
+pub struct Solution {
+    /// number of unknowns u
+    pub unknowns: usize,
+    /// singular values of X, largest first
+    pub singular: Vec<f64>,
+    /// numerical rank (singular values above `eps · max(m, u) · σ_max`, as `numpy.linalg.lstsq`)
+    pub rank: usize,
+    /// θ (u,); NaN when the rank is below u
+    pub theta: Vec<f64>,
+    /// |y - X θ|
+    pub residual_norm: f64,
+    /// R_x⁻¹ (u × u, row-major, upper triangular); NaN when the rank is below u
+    pub r_inv: Vec<f64>,
+}
+
+impl Solution {
+    /// Solve from a factor of `[X y]` with `rows` rows.
+    pub fn from_factor(r: &Square, cols: usize, rows: usize) -> Result<Solution, CoreError> {
+        if !(2..=MAX_COLS).contains(&cols) {
+            return Err(CoreError::value("cols", format!("must be 2 to {MAX_COLS} (unknowns and y), got {cols}")));
+        }
+        let u = cols - 1;
+        let rx = nalgebra::DMatrix::from_fn(u, u, |i, j| if j >= i { r[i][j] } else { 0.0 });
+        let mut singular: Vec<f64> = if rx.iter().all(|v| v.is_finite()) {
+            rx.clone().singular_values().iter().copied().collect()
+        } else {
+            vec![f64::NAN; u]
+        };
+        singular.sort_by(|a, b| b.partial_cmp(a).unwrap_or(std::cmp::Ordering::Equal));
+        let smax = singular[0];
+        let tol = f64::EPSILON * (rows.max(u) as f64) * smax;
+        let rank = singular.iter().filter(|&&s| s > tol).count();
+        let mut theta = vec![f64::NAN; u];
+        let mut r_inv = vec![f64::NAN; u * u];
+        if rank == u {
+            for i in (0..u).rev() {
+                let mut s = r[i][u];
+                for j in i + 1..u {
+                    s -= r[i][j] * theta[j];
+                }
+                theta[i] = s / r[i][i];
+            }
+            // columns of R_x⁻¹ by backward substitution on unit vectors
+            r_inv.iter_mut().for_each(|v| *v = 0.0);
+            for c in 0..u {
+                for i in (0..=c).rev() {
+                    let mut s = if i == c { 1.0 } else { 0.0 };
+                    for j in i + 1..=c {
+                        s -= r[i][j] * r_inv[j * u + c];
+                    }
+                    r_inv[i * u + c] = s / r[i][i];
+                }
+            }
+        }
+        Ok(Solution { unknowns: u, singular, rank, theta, residual_norm: r[u][u].abs(), r_inv })
+    }
+
+    /// (XᵀX)⁻¹ = R_x⁻¹ R_x⁻ᵀ (u × u, row-major).
+    pub fn xtx_inv(&self) -> Vec<f64> {
+        let u = self.unknowns;
+        let mut out = vec![0.0; u * u];
+        for i in 0..u {
+            for j in 0..u {
+                out[i * u + j] = (i.max(j)..u).map(|k| self.r_inv[i * u + k] * self.r_inv[j * u + k]).sum();
+            }
+        }
+        out
+    }
+
+    /// The sandwich (XᵀX)⁻¹ meat (XᵀX)⁻¹ of a symmetric `meat` (u × u, row-major).
+    pub fn sandwich(&self, meat: &[f64]) -> Vec<f64> {
+        let u = self.unknowns;
+        let a = self.xtx_inv();
+        let mut am = vec![0.0; u * u];
+        for i in 0..u {
+            for j in 0..u {
+                am[i * u + j] = (0..u).map(|k| a[i * u + k] * meat[k * u + j]).sum();
+            }
+        }
+        let mut out = vec![0.0; u * u];
+        for i in 0..u {
+            for j in 0..u {
+                out[i * u + j] = (0..u).map(|k| am[i * u + k] * a[k * u + j]).sum();
+            }
+        }
+        out
+    }
+}
+
+/// Accumulator of the HC3 meat Σ x xᵀ (r / (1 - h))² and of Σ r², Σ y² over rows, with the
+/// leverage clipped as in HC3 practice: 1 - h ≥ 1e-12.
+#[derive(Clone, Debug)]
+pub struct Hc3Meat {
+    u: usize,
+    pub meat: Vec<f64>,
+    pub rr: f64,
+    pub yy: f64,
+}
+
+impl Hc3Meat {
+    pub fn new(u: usize) -> Hc3Meat {
+        Hc3Meat { u, meat: vec![0.0; u * u], rr: 0.0, yy: 0.0 }
+    }
+
+    /// Add the rows of a column-major block `[X y]` (u + 1 columns, `m` rows, leading dimension
+    /// `ld`), as [`Hc3Meat::add`] row by row but a column at a time (vectorized). `scratch` is
+    /// resized as needed.
+    pub fn add_block(&mut self, sol: &Solution, block: &[f64], ld: usize, m: usize, scratch: &mut Vec<f64>) -> Result<(), CoreError> {
+        let u = self.u;
+        check_block(block, ld, m, u + 1)?;
+        if sol.unknowns != u {
+            return Err(CoreError::value("sol", format!("has {} unknowns, expected {u}", sol.unknowns)));
+        }
+        scratch.resize(3 * m, 0.0);
+        let (r, rest) = scratch.split_at_mut(m);
+        let (h, z) = rest.split_at_mut(m);
+        let col = |j: usize| &block[j * ld..j * ld + m];
+        let y = col(u);
+        r.copy_from_slice(y);
+        for j in 0..u {
+            let t = sol.theta[j];
+            for (ri, &x) in r.iter_mut().zip(col(j)) {
+                *ri -= t * x;
+            }
+        }
+        h.iter_mut().for_each(|v| *v = 0.0);
+        for k in 0..u {
+            let a0 = sol.r_inv[k];
+            for (zi, &x) in z.iter_mut().zip(col(0)) {
+                *zi = a0 * x;
+            }
+            for j in 1..=k {
+                let a = sol.r_inv[j * u + k];
+                for (zi, &x) in z.iter_mut().zip(col(j)) {
+                    *zi += a * x;
+                }
+            }
+            for (hi, &zi) in h.iter_mut().zip(z.iter()) {
+                *hi += zi * zi;
+            }
+        }
+        // h becomes the weight (r / (1 - h))²
+        for (hi, &ri) in h.iter_mut().zip(r.iter()) {
+            let w = ri / (1.0 - *hi).max(1e-12);
+            *hi = w * w;
+        }
+        for i in 0..u {
+            for (zi, (&wi, &x)) in z.iter_mut().zip(h.iter().zip(col(i))) {
+                *zi = wi * x;
+            }
+            for j in i..u {
+                self.meat[i * u + j] += dot(z, col(j));
+            }
+        }
+        self.rr += dot(r, r);
+        self.yy += dot(y, y);
+        Ok(())
+    }
+
+    /// Add another accumulator's sums.
+    pub fn merge(&mut self, other: &Hc3Meat) {
+        for (a, b) in self.meat.iter_mut().zip(&other.meat) {
+            *a += b;
+        }
+        self.rr += other.rr;
+        self.yy += other.yy;
+    }
+
+    /// The symmetric meat (u × u, row-major, both triangles).
+    pub fn symmetric(&self) -> Vec<f64> {
+        let u = self.u;
+        let mut m = self.meat.clone();
+        for i in 0..u {
+            for j in 0..i {
+                m[i * u + j] = m[j * u + i];
+            }
+        }
+        m
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Normal-equations reference on a well-conditioned problem.
+    fn normal_solve(x: &[Vec<f64>], y: &[f64]) -> Vec<f64> {
+        let u = x[0].len();
+        let mut g = nalgebra::DMatrix::<f64>::zeros(u, u);
+        let mut b = nalgebra::DVector::<f64>::zeros(u);
+        for (row, &yi) in x.iter().zip(y) {
+            for i in 0..u {
+                b[i] += row[i] * yi;
+                for j in 0..u {
+                    g[(i, j)] += row[i] * row[j];
+                }
+            }
+        }
+        g.lu().solve(&b).unwrap().iter().copied().collect()
+    }
+
+    #[test]
+    fn solves_a_known_problem_and_merges_in_any_split() {
+        let m = 1000;
+        let theta = [1.5, -2.0, 0.25];
+        let mut rows = Vec::new();
+        let mut ys = Vec::new();
+        for i in 0..m {
+            let t = i as f64 / m as f64;
+            let row = vec![1.0, t, (7.0 * t).sin()];
+            let noise = 1e-3 * ((i * 7919 % 101) as f64 / 101.0 - 0.5);
+            ys.push(row.iter().zip(&theta).map(|(a, b)| a * b).sum::<f64>() + noise);
+            rows.push(row);
+        }
+        let reference = normal_solve(&rows, &ys);
+        for split in [1, 255, 256, 257, 999] {
+            let mut a = TallQr::new(4).unwrap();
+            let mut b = TallQr::new(4).unwrap();
+            for (i, (row, &y)) in rows.iter().zip(&ys).enumerate() {
+                let full = [row[0], row[1], row[2], y];
+                if i < split { a.push(&full) } else { b.push(&full) }
+            }
+            a.merge(b).unwrap();
+            assert_eq!(a.rows(), m);
+            let sol = Solution::from_factor(&a.factor(), 4, m).unwrap();
+            assert_eq!(sol.rank, 3);
+            for (t, r) in sol.theta.iter().zip(&reference) {
+                assert!((t - r).abs() < 1e-10, "{t} vs {r}");
+            }
+            let rr: f64 = rows.iter().zip(&ys).map(|(row, y)| {
+                let f: f64 = row.iter().zip(&sol.theta).map(|(a, b)| a * b).sum();
+                (y - f).powi(2)
+            }).sum();
+            assert!((sol.residual_norm - rr.sqrt()).abs() < 1e-12 * (1.0 + rr.sqrt()));
+        }
+    }
+
+    #[test]
+    fn counts_the_rank_of_repeated_columns() {
+        let mut a = TallQr::new(4).unwrap();
+        for i in 0..300 {
+            let t = i as f64;
+            a.push(&[t, 2.0 * t, 1.0, t + 1.0]);
+        }
+        let sol = Solution::from_factor(&a.factor(), 4, 300).unwrap();
+        assert_eq!(sol.rank, 2);
+        assert!(sol.theta.iter().all(|v| v.is_nan()));
+    }
+
+    #[test]
+    fn rejects_bad_column_counts() {
+        assert!(TallQr::new(0).is_err());
+        assert!(TallQr::new(MAX_COLS + 1).is_err());
+        let r = [[0.0; MAX_COLS]; MAX_COLS];
+        assert!(Solution::from_factor(&r, 1, 10).is_err());
+        let mut a = TallQr::new(3).unwrap();
+        assert!(a.merge(TallQr::new(4).unwrap()).is_err());
+    }
+}
