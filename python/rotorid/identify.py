@@ -460,9 +460,10 @@ def _has_pedestal(runs, labels):
     return all(have)
 
 
-def _pedestal_frame(rotor, run, label=""):
+def _pedestal_frame(rotor, run, label="", *, finite=True):
     """(q_rel, p, joint_cov) of a run at the bearings: relative motion, pedestal motion, and the
-    (n, 16, 16) covariance of [Re q_rel, Im q_rel, Re p, Im p] (None without covariances)."""
+    (n, 16, 16) covariance of [Re q_rel, Im q_rel, Re p, Im p] (None without covariances).
+    ``finite=False`` leaves NaN and inf in the pedestal motion to the caller."""
     from .simulate import joint_cov
 
     from .simulate import _check_pedestal
@@ -471,7 +472,7 @@ def _pedestal_frame(rotor, run, label=""):
         raise RotoridError(f"{label or 'the run'} carries no pedestal motion")
     try:
         # checked again: fields set after construction skip __post_init__
-        _check_pedestal(run, run.q.shape[0])
+        _check_pedestal(run, run.q.shape[0], finite=finite)
     except RotoridError as exc:
         raise RotoridError(f"{label or 'the run'}: {exc}") from None
     rb = run.at_bearings(rotor)

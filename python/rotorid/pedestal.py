@@ -370,7 +370,8 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
     otherwise the fit is unweighted with heteroscedasticity-consistent (HC3) standard errors. The
     unweighted fits run in the compiled core: the equations are formed point by point and folded
     into a Householder QR factor (as accurate as ``numpy.linalg.lstsq``, no design matrix in
-    memory), the HC3 sums come from a second pass. ``freq_range_hz`` = (lo, hi) restricts the points used. With covariances from a few repeats
+    memory), the HC3 sums come from a second pass. ``freq_range_hz`` = (lo, hi) restricts the
+    points used. With covariances from a few repeats
     (degrees of freedom below ``GLS_MIN_DOF``, e.g. H1 FRFs of five impacts) the fit is
     unweighted and takes the larger of the propagated (sandwich) and residual (HC3) variances.
     ``accel_gain_std`` (relative) and ``accel_phase_std_deg``: the accelerometers' calibration
@@ -415,9 +416,11 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
         raise RotoridError(f"{', '.join(missing)} carry no pedestal motion (accelerometer channels px1, py1, px2, "
                            "py2): the pedestals cannot be identified without it")
     impact = isinstance(runs[0], ImpactResponse)
+    # the core forms w = w_scale * axis (and spin = w for imbalance runs, gain = spin²): no (n,)
+    # temporaries here for the fit without covariances
     if impact:
-        f = runs[0].freq_hz
-        w = 2 * np.pi * f
+        axis = runs[0].freq_hz
+        w_scale = 2 * np.pi
         spin = np.array([runs[0].speed_rpm * RPM])
         gain = np.ones(1)
         e = np.stack([r.excitation() for r in runs]).astype(complex)
@@ -436,22 +439,21 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
         for i, r in enumerate(runs):
             if r.imbalance is None:
                 raise RotoridError(f"{labels[i]} has no imbalance: the bearing forces need it")
-        rpm = runs[0].speed_rpm
-        f = rpm / 60.0
-        w = spin = rpm * RPM
-        gain = w ** 2
+        axis = runs[0].speed_rpm
+        w_scale = RPM
+        spin = gain = None
         sigma = 0.0
         e = np.stack([r.imbalance.generalized(rotor) for r in runs])
-    ref = runs[0].freq_hz if impact else runs[0].speed_rpm
     for lab, r in zip(labels[1:], runs[1:]):
         ax = r.freq_hz if impact else r.speed_rpm
         # equal axes (the usual case: runs simulated or resampled alike) pass without a tolerance check
-        if ax is not ref and not (ax.shape == ref.shape and (np.array_equal(ax, ref)
-                                                             or np.allclose(ax, ref, rtol=1e-9))):
+        if ax is not axis and not (ax.shape == axis.shape and (np.array_equal(ax, axis)
+                                                               or np.allclose(ax, axis, rtol=1e-9))):
             raise RotoridError(f"{lab} is not on the same {'frequencies' if impact else 'speeds'} as {labels[0]}")
     from .identify import _shared
 
-    frames = [_pedestal_frame(rotor, r, lab) for r, lab in zip(runs, labels)]
+    # NaN and inf are found by the core's fit and named then (_name_nonfinite): no scan here
+    frames = [_pedestal_frame(rotor, r, lab, finite=False) for r, lab in zip(runs, labels)]
     shared = _shared(rotor, runs, shared_cov, size=16)
     qs = [fr[0] for fr in frames]
     ps = [fr[1] for fr in frames]
@@ -460,24 +462,28 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
     # weighted least squares only with covariances known well enough to weigh with
     min_dof = np.inf
     if have_cov:
-        dofs = [np.asarray(r.dof, float) if r.dof is not None else np.full(w.size, np.inf) for r in runs]
+        dofs = [np.asarray(r.dof, float) if r.dof is not None else np.full(axis.size, np.inf) for r in runs]
         min_dof = float(np.nanmin(np.concatenate(dofs)))
     weighted = have_cov and min_dof >= GLS_MIN_DOF
     sel = None                                                     # every point
     if freq_range_hz is not None:
         lo, hi = real_array("freq_range_hz", freq_range_hz, shape=(2,), nonneg=True)
+        f = axis if impact else axis / 60.0
         sel = (f >= lo) & (f <= hi)
         if sel.sum() < 3:
             raise RotoridError(f"freq_range_hz = ({lo:g}, {hi:g}) keeps {int(sel.sum())} points; at least 3 needed")
 
-    s_lap = sigma + 1j * w                                         # the windowed spectra are at s
-    sig_arr = np.full(w.size, sigma) if sigma else None
+    sig_arr = np.array([sigma]) if sigma else None                 # the windowed spectra are at s = sigma + jw
     e = np.ascontiguousarray(e[None], dtype=complex)
     params = rotor.core_params()
-    R, n = len(runs), w.size
+    R, n = len(runs), axis.size
     nu = 5 if cross else 3
     if have_cov:
         q, p = np.stack(qs), np.stack(ps)
+        w = w_scale * axis
+        s_lap = sigma + 1j * w
+        if spin is None:
+            spin = w
 
         def forces(qq, pp):
             return _core.bearing_forces(params, w, spin, np.ascontiguousarray(qq[None]), e, gain, sigma=sig_arr,
@@ -514,8 +520,8 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
     # the unweighted fits of all four (pedestal, direction) pairs with HC3 covariances, in the
     # core: equations formed point by point and folded into a QR factor, no design matrix
     try:
-        th_all, c3_all, ranks, resid_all, m_rows = _core.pedestal_fit(params, w, spin, qs, e, gain, ps, sigma=sig_arr,
-                                                                      select=sel, cross=cross)
+        th_all, c3_all, ranks, resid_all, m_rows = _core.pedestal_fit(params, axis, spin, qs, e, gain, ps, sigma=sig_arr,
+                                                                      select=sel, cross=cross, w_scale=w_scale)
     except RotoridError as exc:
         if "NaN or inf" not in str(exc):
             raise

@@ -178,14 +178,16 @@ def pedestal_ratio(p, q) -> np.ndarray:
         return np.sqrt(np.sum(np.abs(p) ** 2, 1) / np.sum(np.abs(q) ** 2, 1))
 
 
-def _check_pedestal(obj, n):
-    """Validate the pedestal motion fields of a response (q shape (n, 4))."""
+def _check_pedestal(obj, n, *, finite=True):
+    """Validate the pedestal motion fields of a response (q shape (n, 4)); ``finite=False`` leaves
+    NaN and inf in the pedestal motion to the caller."""
     if obj.pedestal is None:
         for name in ("pedestal_cov", "pedestal_cross"):
             if getattr(obj, name) is not None:
                 raise RotoridError(f"{name} given without pedestal (the pedestal motion it is the covariance of)")
         return
-    obj.pedestal = complex_array("pedestal (pedestal motion [xp1, xp2, yp1, yp2])", obj.pedestal, shape=(n, 4))
+    obj.pedestal = complex_array("pedestal (pedestal motion [xp1, xp2, yp1, yp2])", obj.pedestal, shape=(n, 4),
+                                 finite=finite)
     obj.pedestal_cov = check_cov("pedestal_cov", obj.pedestal_cov, n)
     if obj.pedestal_cross is not None:
         if obj.cov is None or obj.pedestal_cov is None:

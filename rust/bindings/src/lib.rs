@@ -807,17 +807,18 @@ fn bearing_forces<'py>(
 
 /// Pedestal identification (see pedestal_fit::fit): the bearing forces' arguments as
 /// `bearing_forces` (one batch member; `q` and `q_ped` lists of runs or (1, R, n, 4) arrays),
-/// `select` (n,) bool or None for every point, `cross` for the cross-coupled terms. Returns
+/// `select` (n,) bool or None for every point, `cross` for the cross-coupled terms; `w_scale`: w is
+/// `w_scale` times the given axis; `spin` None: spin = w (synchronous runs). Returns
 /// (theta (4, u), cov (4, u, u), rank (4,) int, resid (4,), rows) with fits in the order
 /// (pedestal, direction) = (1, x), (1, y), (2, x), (2, y); theta and cov NaN where rank < u.
 #[pyfunction]
-#[pyo3(signature = (rotor, w, spin, q, e, gain, q_ped, sigma=None, select=None, cross=false))]
+#[pyo3(signature = (rotor, w, spin, q, e, gain, q_ped, sigma=None, select=None, cross=false, w_scale=None))]
 #[allow(clippy::too_many_arguments, clippy::type_complexity)]
 fn pedestal_fit<'py>(
     py: Python<'py>,
     rotor: PyReadonlyArrayDyn<'py, f64>,
     w: PyReadonlyArrayDyn<'py, f64>,
-    spin: PyReadonlyArrayDyn<'py, f64>,
+    spin: Option<PyReadonlyArrayDyn<'py, f64>>,
     q: &Bound<'py, PyAny>,
     e: PyReadonlyArrayDyn<'py, C64>,
     gain: Option<PyReadonlyArrayDyn<'py, f64>>,
@@ -825,6 +826,7 @@ fn pedestal_fit<'py>(
     sigma: Option<PyReadonlyArrayDyn<'py, f64>>,
     select: Option<&Bound<'py, PyAny>>,
     cross: bool,
+    w_scale: Option<f64>,
 ) -> PyResult<(
     Bound<'py, PyArrayDyn<f64>>,
     Bound<'py, PyArrayDyn<f64>>,
@@ -835,11 +837,14 @@ fn pedestal_fit<'py>(
     let rot = rotor_of(&rotor)?;
     let resp = responses(q)?;
     let n = resp.n;
-    let axes = AxisValues::new(&w, &sigma, n, None)?;
+    let axes = AxisValues::new(&w, &sigma, n, w_scale)?;
     let blocks = resp.blocks()?;
     let ped = pedestal_responses(Some(q_ped), &resp)?.ok_or_else(|| PyValueError::new_err("q_ped is needed"))?;
     let ped_blocks = ped.blocks()?;
-    let forces = ident_problem(rot, &resp, &axes, &spin, &e, &gain, &blocks, &ped_blocks, None, false)?;
+    let mut forces = ident_problem(rot, &resp, &axes, spin.as_ref().unwrap_or(&w), &e, &gain, &blocks, &ped_blocks, None, false)?;
+    if spin.is_none() {
+        forces.spin = &axes.w; // synchronous: the spin speed is the vibration frequency
+    }
     let select: Option<PyReadonlyArrayDyn<'py, bool>> = match select {
         Some(s) if !s.is_none() => Some(s.extract().map_err(|_| PyTypeError::new_err(format!("select must be a bool array of shape ({n},)")))?),
         _ => None,
