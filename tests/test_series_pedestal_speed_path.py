@@ -315,8 +315,14 @@ def _compare(fit, ref, conds, *, exact):
     for nm in ("mass_kg", "k", "c"):
         got, want = getattr(fit, nm), ref[nm]
         np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12 * np.abs(want).max(), err_msg=nm)
-    # (X^T X)^-1 rounds to about cond² eps relative; per fit (b, i), broadcast over [b, i, j]
-    rtol = np.maximum(1e-12, 20 * EPS * conds ** 2)
+    # (X^T X)^-1 rounds to about cond² eps relative; the HC3 meat weighs each row by its residual
+    # r_i = y_i - x_i theta, which an estimate rounded by cond eps moves by cond eps |y| (first
+    # order: unlike sum r², the row weights are not stationary at the least-squares solution),
+    # relative to |r|: cond eps / (|r| / |y|). Measured on the noisy case rel=1e-4 (|r|/|y| ~
+    # 1e-4, cond 19-69) against long-double HC3 from the same equations: the reference 1.4e-13 to
+    # 2.8e-12 off, the core 3e-14 to 9e-13 (test_hc3_standard_errors_match_long_double below).
+    # Per fit (b, i), broadcast over [b, i, j].
+    rtol = np.maximum(1e-12, 20 * EPS * conds ** 2 + EPS * conds / np.maximum(ref["residual"], 1e-300))
     for nm, est in (("mass_std", "mass_kg"), ("k_std", "k"), ("c_std", "c")):
         got, want = getattr(fit, nm), ref[nm]
         tol = rtol if got.ndim == 2 else rtol[..., None]
@@ -558,3 +564,85 @@ def test_core_pedestal_fit_of_a_selection_equals_the_fit_of_the_selected_points(
                             [np.ascontiguousarray(p[sel]) for p in ps], cross=True)
     for a, b in zip(got, cut):
         np.testing.assert_array_equal(a, b)
+
+
+def _long_double_hc3(runs, cross, sel):
+    """HC3 standard errors of the four fits in long double (64-bit mantissa on x86-64) from the
+    same equations (forces from the core in double): Gaussian elimination with partial pivoting on
+    the scaled normal equations, whose rounding (cond² 2^-64, about 5e-16 for cond ~ 70) is far
+    below the double-precision errors compared against. Returns (2, 2, u) standard errors."""
+    rpm = runs[0].speed_rpm
+    w = rpm * RPM
+    e = np.stack([r.imbalance.generalized(ROTOR) for r in runs])[None].astype(complex)
+    F = core.bearing_forces(ROTOR.core_params(), w, w, [r.q for r in runs], e, None,
+                            q_ped=[r.pedestal for r in runs])[0]
+    L = np.longdouble
+
+    def solve(A, B):
+        A, B = A.copy(), B.copy()
+        n = A.shape[0]
+        for k in range(n):
+            piv = int(np.argmax(np.abs(A[k:, k]))) + k
+            A[[k, piv]], B[[k, piv]] = A[[piv, k]], B[[piv, k]]
+            for i in range(k + 1, n):
+                f = A[i, k] / A[k, k]
+                A[i] -= f * A[k]
+                B[i] -= f * B[k]
+        x = np.zeros_like(B)
+        for k in range(n - 1, -1, -1):
+            x[k] = (B[k] - A[k, k + 1:] @ x[k + 1:]) / A[k, k]
+        return x
+
+    u = 5 if cross else 3
+    out = np.zeros((2, 2, u))
+    s = 1j * w[sel]
+    for b in range(2):
+        for i in range(2):
+            col, oc = 2 * i + b, 2 * (1 - i) + b
+            rows, ys = [], []
+            for r in range(len(runs)):
+                p = runs[r].pedestal[sel]
+                cols = [p[:, col], s ** 2 * p[:, col], s * p[:, col]] + ([p[:, oc], s * p[:, oc]] if cross else [])
+                for part in (np.real, np.imag):
+                    rows.append(np.stack([part(c) for c in cols], 1))
+                    ys.append(part(F[r, sel, col]))
+            X, y = np.concatenate(rows).astype(L), np.concatenate(ys).astype(L)
+            scale = np.abs(X).max(0)
+            Xs = X / scale
+            G = Xs.T @ Xs
+            Gi = solve(G, np.eye(u, dtype=L))
+            r_ = y - Xs @ solve(G, Xs.T @ y)
+            h = np.einsum("ij,jk,ik->i", Xs, Gi, Xs)
+            meat = (Xs * ((r_ / (1 - h)) ** 2)[:, None]).T @ Xs
+            out[b, i] = (np.sqrt(np.diag(Gi @ meat @ Gi)) / scale).astype(float)
+    return out
+
+
+@pytest.mark.parametrize("rel, cross", [(1e-4, True), (1e-4, False), (1e-2, True)])
+def test_hc3_standard_errors_match_long_double(rel, cross):
+    """The core's HC3 standard errors against long-double arithmetic on the same equations, within
+    the first-order rounding of the residuals (cond eps |y| / |r|, see _compare) plus that of
+    (X^T X)^-1 (cond² eps)."""
+    rng = np.random.default_rng(int(rel * 1e4) + 10 * cross)
+    runs = _noisy(_sync(), rel, rng)
+    sel = np.ones(RPM_GRID.size, bool)
+    fit = rotorid.identify_pedestals(ROTOR, runs, cross_coupled=cross)
+    truth = _long_double_hc3(runs, cross, sel)
+    for b in range(2):
+        for i in range(2):
+            got = [fit.k_std[b, i, i], fit.mass_std[b, i], fit.c_std[b, i, i]]
+            if cross:
+                got += [fit.k_std[b, i, 1 - i], fit.c_std[b, i, 1 - i]]
+            # cond of the scaled design
+            rows = []
+            for r in runs:
+                p = r.pedestal
+                s = 1j * r.speed_rpm * RPM
+                c = [p[:, 2 * i + b], s ** 2 * p[:, 2 * i + b], s * p[:, 2 * i + b]]
+                if cross:
+                    c += [p[:, 2 * (1 - i) + b], s * p[:, 2 * (1 - i) + b]]
+                rows += [np.stack([z.real for z in c], 1), np.stack([z.imag for z in c], 1)]
+            X = np.concatenate(rows)
+            cond = np.linalg.cond(X / np.abs(X).max(0))
+            rtol = 20 * EPS * cond ** 2 + EPS * cond / fit.residual[b, i]
+            np.testing.assert_allclose(got, truth[b, i], rtol=rtol, atol=0, err_msg=f"pedestal {b + 1} {'xy'[i]}")

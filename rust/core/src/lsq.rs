@@ -110,6 +110,7 @@ impl TallQr {
     /// (R is already triangular), so the reflection v = [1; B[:, j] / (α - β)],
     /// β = -sign(α) sqrt(α² + |B[:, j]|²), α = R[j][j], τ = (β - α) / β touches row j of R and
     /// the rows of B only. The rows count towards [`TallQr::rows`].
+    #[inline(always)]
     pub fn fold_block(&mut self, block: &mut [f64], ld: usize, m: usize) -> Result<(), CoreError> {
         let n = self.cols;
         check_block(block, ld, m, n)?;
@@ -119,7 +120,7 @@ impl TallQr {
         }
         let r = &mut self.r;
         for j in 0..n {
-            let (head, tail) = block.split_at_mut((j + 1) * ld);
+            let (head, tail) = block.split_at_mut(((j + 1) * ld).min(block.len()));
             let bj = &mut head[j * ld..j * ld + m];
             let s2 = dot(bj, bj);
             if s2 == 0.0 {
@@ -158,22 +159,27 @@ fn check_block(block: &[f64], ld: usize, m: usize, cols: usize) -> Result<(), Co
     Ok(())
 }
 
-/// Dot product with eight running sums (vectorizes; the order is fixed, so results repeat).
-#[inline]
+/// Dot product with 32 running sums (four vector registers of eight, so that the additions do
+/// not wait on one another); the order is fixed, so results repeat on every SIMD level.
+#[inline(always)]
 pub fn dot(a: &[f64], b: &[f64]) -> f64 {
-    let mut s = [0.0f64; 8];
-    let (ca, cb) = (a.chunks_exact(8), b.chunks_exact(8));
+    const N: usize = 32;
+    let mut s = [0.0f64; N];
+    let (ca, cb) = (a.chunks_exact(N), b.chunks_exact(N));
     let (ra, rb) = (ca.remainder(), cb.remainder());
     for (x, y) in ca.zip(cb) {
-        for l in 0..8 {
+        for l in 0..N {
             s[l] += x[l] * y[l];
         }
     }
-    let mut t = ((s[0] + s[4]) + (s[1] + s[5])) + ((s[2] + s[6]) + (s[3] + s[7]));
-    for (x, y) in ra.iter().zip(rb) {
-        t += x * y;
+    for (l, (x, y)) in ra.iter().zip(rb).enumerate() {
+        s[l] += x * y;
     }
-    t
+    let mut t = [0.0f64; 8];
+    for l in 0..8 {
+        t[l] = (s[l] + s[l + 8]) + (s[l + 16] + s[l + 24]);
+    }
+    ((t[0] + t[4]) + (t[1] + t[5])) + ((t[2] + t[6]) + (t[3] + t[7]))
 }
 
 /// What a factor of `[X y]` says about the least-squares problem `X θ ≈ y`.
@@ -283,58 +289,103 @@ impl Hc3Meat {
     }
 
     /// Add the rows of a column-major block `[X y]` (u + 1 columns, `m` rows, leading dimension
-    /// `ld`), as [`Hc3Meat::add`] row by row but a column at a time (vectorized). `scratch` is
-    /// resized as needed.
-    pub fn add_block(&mut self, sol: &Solution, block: &[f64], ld: usize, m: usize, scratch: &mut Vec<f64>) -> Result<(), CoreError> {
+    /// `ld`): per row r = y - x θ, h = |R_x⁻ᵀ x|², and x xᵀ (r / max(1 - h, 1e-12))² into the
+    /// meat. One pass over the block, eight rows at a time in registers (lanes summed at the
+    /// end, in a fixed order).
+    #[inline(always)]
+    pub fn add_block(&mut self, sol: &Solution, block: &[f64], ld: usize, m: usize) -> Result<(), CoreError> {
         let u = self.u;
         check_block(block, ld, m, u + 1)?;
         if sol.unknowns != u {
             return Err(CoreError::value("sol", format!("has {} unknowns, expected {u}", sol.unknowns)));
         }
-        scratch.resize(3 * m, 0.0);
-        let (r, rest) = scratch.split_at_mut(m);
-        let (h, z) = rest.split_at_mut(m);
-        let col = |j: usize| &block[j * ld..j * ld + m];
-        let y = col(u);
-        r.copy_from_slice(y);
-        for j in 0..u {
-            let t = sol.theta[j];
-            for (ri, &x) in r.iter_mut().zip(col(j)) {
-                *ri -= t * x;
+        match u {
+            1 => self.add_strips::<1>(sol, block, ld, m),
+            2 => self.add_strips::<2>(sol, block, ld, m),
+            3 => self.add_strips::<3>(sol, block, ld, m),
+            4 => self.add_strips::<4>(sol, block, ld, m),
+            _ => self.add_strips::<5>(sol, block, ld, m),
+        }
+        Ok(())
+    }
+
+    #[inline(always)]
+    fn add_strips<const U: usize>(&mut self, sol: &Solution, block: &[f64], ld: usize, m: usize) {
+        const W: usize = 8;
+        let mut theta = [0.0; U];
+        let mut ri = [[0.0; U]; U]; // R_x⁻¹, row-major
+        for j in 0..U {
+            theta[j] = sol.theta[j];
+            for k in 0..U {
+                ri[j][k] = sol.r_inv[j * U + k];
             }
         }
-        h.iter_mut().for_each(|v| *v = 0.0);
-        for k in 0..u {
-            let a0 = sol.r_inv[k];
-            for (zi, &x) in z.iter_mut().zip(col(0)) {
-                *zi = a0 * x;
-            }
-            for j in 1..=k {
-                let a = sol.r_inv[j * u + k];
-                for (zi, &x) in z.iter_mut().zip(col(j)) {
-                    *zi += a * x;
+        let mut meat = [[[0.0f64; W]; U]; U];
+        let (mut rr, mut yy) = ([0.0f64; W], [0.0f64; W]);
+        let mut row = 0;
+        while row < m {
+            let n = W.min(m - row);
+            let mut x = [[0.0f64; W]; U];
+            let mut y = [0.0f64; W];
+            if n == W {
+                // fixed-length copies: loads into registers, not calls to memcpy
+                for j in 0..U {
+                    x[j] = block[j * ld + row..j * ld + row + W].try_into().unwrap_or([0.0; W]);
+                }
+                y = block[U * ld + row..U * ld + row + W].try_into().unwrap_or([0.0; W]);
+            } else {
+                for l in 0..n {
+                    for j in 0..U {
+                        x[j][l] = block[j * ld + row + l];
+                    }
+                    y[l] = block[U * ld + row + l];
                 }
             }
-            for (hi, &zi) in h.iter_mut().zip(z.iter()) {
-                *hi += zi * zi;
+            let mut r = y;
+            for j in 0..U {
+                for l in 0..W {
+                    r[l] -= theta[j] * x[j][l];
+                }
+            }
+            let mut h = [0.0f64; W];
+            for k in 0..U {
+                let mut z = [0.0f64; W];
+                for j in 0..=k {
+                    for l in 0..W {
+                        z[l] += ri[j][k] * x[j][l];
+                    }
+                }
+                for l in 0..W {
+                    h[l] += z[l] * z[l];
+                }
+            }
+            let mut w2 = [0.0f64; W];
+            for l in 0..W {
+                let one_h = 1.0 - h[l];
+                let w = r[l] / if one_h > 1e-12 { one_h } else { 1e-12 };
+                w2[l] = w * w;
+            }
+            for i in 0..U {
+                for j in i..U {
+                    for l in 0..W {
+                        meat[i][j][l] += w2[l] * x[i][l] * x[j][l];
+                    }
+                }
+            }
+            for l in 0..W {
+                rr[l] += r[l] * r[l];
+                yy[l] += y[l] * y[l];
+            }
+            row += n;
+        }
+        let sum = |v: &[f64; W]| ((v[0] + v[4]) + (v[1] + v[5])) + ((v[2] + v[6]) + (v[3] + v[7]));
+        for i in 0..U {
+            for j in i..U {
+                self.meat[i * U + j] += sum(&meat[i][j]);
             }
         }
-        // h becomes the weight (r / (1 - h))²
-        for (hi, &ri) in h.iter_mut().zip(r.iter()) {
-            let w = ri / (1.0 - *hi).max(1e-12);
-            *hi = w * w;
-        }
-        for i in 0..u {
-            for (zi, (&wi, &x)) in z.iter_mut().zip(h.iter().zip(col(i))) {
-                *zi = wi * x;
-            }
-            for j in i..u {
-                self.meat[i * u + j] += dot(z, col(j));
-            }
-        }
-        self.rr += dot(r, r);
-        self.yy += dot(y, y);
-        Ok(())
+        self.rr += sum(&rr);
+        self.yy += sum(&yy);
     }
 
     /// Add another accumulator's sums.

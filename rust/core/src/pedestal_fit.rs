@@ -22,8 +22,9 @@ use crate::identify::{force_point, Consts, IdentProblem};
 use crate::lsq::{Hc3Meat, Solution, TallQr};
 use crate::model::C64;
 
-/// One task's QR factors of the four fits and its columns' largest magnitudes.
-type TaskFactors = (Vec<TallQr>, [[f64; 5]; 4]);
+/// One task's QR factors of the four fits, its columns' largest magnitudes and its bearing
+/// forces (kept for the second pass).
+type TaskFactors = (Vec<TallQr>, [[f64; 5]; 4], Vec<[C64; 4]>);
 
 /// Points per parallel task.
 const POINTS_PER_TASK: usize = 1024;
@@ -53,18 +54,6 @@ pub struct DirectionFit {
     pub resid: f64,
     /// the column scales (largest magnitude of each column of X)
     pub scale: Vec<f64>,
-}
-
-/// Columns of the design, complex (Re and Im give the two rows), for pedestal b, direction i at
-/// one (run, point): `own` = p_bi, `other` = p_bj, `s` the Laplace variable.
-#[inline(always)]
-fn columns(own: C64, other: C64, s: C64, cross: bool) -> ([C64; 5], usize) {
-    let s2 = s * s;
-    if cross {
-        ([own, s2 * own, s * own, other, s * other], 5)
-    } else {
-        ([own, s2 * own, s * own, C64::new(0.0, 0.0), C64::new(0.0, 0.0)], 3)
-    }
 }
 
 #[inline(always)]
@@ -108,27 +97,17 @@ pub fn fit(p: &PedestalFitProblem) -> Result<Vec<DirectionFit>, CoreError> {
 
     // pass 1: per task, the QR factors of [X y] of the four fits and the columns' largest
     // magnitudes; merged in task order
+    let task = Task { f, kc: &kc, p, u, ld };
     let parts: Vec<Result<TaskFactors, CoreError>> = tasks
         .par_iter()
-        .map(|&(a, z)| {
-            let mut qr = (0..4).map(|_| TallQr::new(u + 1)).collect::<Result<Vec<_>, _>>()?;
-            let mut mx = [[0.0f64; 5]; 4];
-            let mut eq = Equations::new(ld, u);
-            eq.load(f, &kc, p, a, z);
-            for fi in 0..4 {
-                let m = eq.block(fi, p.cross);
-                for (j, c) in mx[fi].iter_mut().enumerate().take(u) {
-                    *c = eq.buf[j * ld..j * ld + m].iter().fold(0.0, |acc, v| acc.max(v.abs()));
-                }
-                qr[fi].fold_block(&mut eq.buf, ld, m)?;
-            }
-            Ok((qr, mx))
-        })
+        .map_init(|| Equations::new(ld, u), |eq, &(a, z)| factor_task_dispatch(&task, eq, a, z))
         .collect();
     let mut total: Vec<TallQr> = (0..4).map(|_| TallQr::new(u + 1)).collect::<Result<_, _>>()?;
     let mut scale = [[0.0f64; 5]; 4];
+    let mut forces = Vec::with_capacity(tasks.len());
     for part in parts {
-        let (qr, mx) = part?;
+        let (qr, mx, force) = part?;
+        forces.push(force);
         for (t, q) in total.iter_mut().zip(qr) {
             t.merge(q)?;
         }
@@ -162,22 +141,15 @@ pub fn fit(p: &PedestalFitProblem) -> Result<Vec<DirectionFit>, CoreError> {
     // pass 2: residuals, leverages and the HC3 sums (only for fits of full rank), on the scaled
     // design as the solution is
     let full: Vec<bool> = sols.iter().map(|s| s.rank == u).collect();
+    let inv_d: Vec<Vec<f64>> = d.iter().map(|d| d.iter().map(|v| 1.0 / v).collect()).collect();
     let meats: Vec<Result<Vec<Hc3Meat>, CoreError>> = if full.iter().any(|&v| v) {
+        let fits = Fits { sols: &sols, full: &full, inv_d: &inv_d };
         tasks
             .par_iter()
-            .map(|&(a, z)| {
-                let mut acc: Vec<Hc3Meat> = (0..4).map(|_| Hc3Meat::new(u)).collect();
-                let mut eq = Equations::new(ld, u);
-                let mut scratch = Vec::new();
-                eq.load(f, &kc, p, a, z);
-                for fi in (0..4).filter(|&fi| full[fi]) {
-                    let m = eq.block(fi, p.cross);
-                    for (j, dj) in d[fi].iter().enumerate() {
-                        eq.buf[j * ld..j * ld + m].iter_mut().for_each(|v| *v /= dj);
-                    }
-                    acc[fi].add_block(&sols[fi], &eq.buf, ld, m, &mut scratch)?;
-                }
-                Ok(acc)
+            .zip(forces.par_iter_mut())
+            .map_init(|| Equations::new(ld, u), |eq, (&(a, z), force)| {
+                eq.force = std::mem::take(force);
+                hc3_task_dispatch(&task, &fits, eq, a, z)
             })
             .collect()
     } else {
@@ -208,6 +180,84 @@ pub fn fit(p: &PedestalFitProblem) -> Result<Vec<DirectionFit>, CoreError> {
         .collect())
 }
 
+/// What every task of a fit reads.
+struct Task<'a> {
+    f: &'a IdentProblem<'a>,
+    kc: &'a Consts,
+    p: &'a PedestalFitProblem<'a>,
+    u: usize,
+    ld: usize,
+}
+
+/// The solutions pass 2 evaluates the residuals and leverages of.
+struct Fits<'a> {
+    sols: &'a [Solution],
+    full: &'a [bool],
+    /// 1 / column scale per fit
+    inv_d: &'a [Vec<f64>],
+}
+
+/// Pass 1 of the points `a..z`: the QR factors of the four fits' `[X y]` and the columns' largest
+/// magnitudes.
+#[inline(always)]
+fn factor_task(t: &Task, eq: &mut Equations, a: usize, z: usize) -> Result<TaskFactors, CoreError> {
+    let (u, ld) = (t.u, t.ld);
+    let mut qr = (0..4).map(|_| TallQr::new(u + 1)).collect::<Result<Vec<_>, _>>()?;
+    let mut mx = [[0.0f64; 5]; 4];
+    eq.load(t.f, t.kc, t.p, a, z);
+    for fi in 0..4 {
+        let m = eq.block(fi, None);
+        for (j, c) in mx[fi].iter_mut().enumerate().take(u) {
+            *c = abs_max(&eq.buf[j * ld..j * ld + m]);
+        }
+        qr[fi].fold_block(&mut eq.buf, ld, m)?;
+    }
+    Ok((qr, mx, std::mem::take(&mut eq.force)))
+}
+
+/// Pass 2 of the points `a..z`: the HC3 sums of the fits of full rank, on the scaled design.
+#[inline(always)]
+fn hc3_task(t: &Task, fits: &Fits, eq: &mut Equations, a: usize, z: usize) -> Result<Vec<Hc3Meat>, CoreError> {
+    let mut acc: Vec<Hc3Meat> = (0..4).map(|_| Hc3Meat::new(t.u)).collect();
+    eq.load_motion(t.f, t.p, a, z);
+    for fi in (0..4).filter(|&fi| fits.full[fi]) {
+        let m = eq.block(fi, Some(&fits.inv_d[fi]));
+        acc[fi].add_block(&fits.sols[fi], &eq.buf, t.ld, m)?;
+    }
+    Ok(acc)
+}
+
+crate::lanes::simd_dispatch! {
+    /// [`factor_task`] at the widest SIMD level of this CPU.
+    fn factor_task_dispatch(t: &Task, eq: &mut Equations, a: usize, z: usize) -> Result<TaskFactors, CoreError> => factor_task
+}
+
+crate::lanes::simd_dispatch! {
+    /// [`hc3_task`] at the widest SIMD level of this CPU.
+    fn hc3_task_dispatch(t: &Task, fits: &Fits, eq: &mut Equations, a: usize, z: usize) -> Result<Vec<Hc3Meat>, CoreError> => hc3_task
+}
+
+/// Largest |v| (eight running maxima, so that it vectorizes); NaN is not propagated (the QR
+/// factor shows it).
+#[inline(always)]
+fn abs_max(v: &[f64]) -> f64 {
+    let mut m = [0.0f64; 8];
+    let chunks = v.chunks_exact(8);
+    let rest = chunks.remainder();
+    for c in chunks {
+        for l in 0..8 {
+            let x = c[l].abs();
+            m[l] = if x > m[l] { x } else { m[l] };
+        }
+    }
+    let mut out = m.iter().fold(0.0f64, |a, &b| if b > a { b } else { a });
+    for &x in rest {
+        let x = x.abs();
+        out = if x > out { x } else { out };
+    }
+    out
+}
+
 /// The equations of one task's points: forces and pedestal motion loaded once, then the design
 /// block `[X y]` of each fit written column-major (leading dimension `ld`), rows (Re, Im) per
 /// (point, run).
@@ -223,38 +273,77 @@ struct Equations {
 
 impl Equations {
     fn new(ld: usize, u: usize) -> Equations {
-        Equations { ld, u, s: Vec::new(), force: Vec::new(), ped: Vec::new(), buf: vec![0.0; (u + 1) * ld] }
+        let pairs = ld / 2;
+        Equations {
+            ld,
+            u,
+            s: Vec::with_capacity(pairs),
+            force: Vec::with_capacity(pairs),
+            ped: Vec::with_capacity(pairs),
+            buf: vec![0.0; (u + 1) * ld],
+        }
     }
 
-    fn load(&mut self, f: &IdentProblem, kc: &Consts, p: &PedestalFitProblem, a: usize, z: usize) {
+    /// s and the pedestal motion of the selected points `a..z` (the forces are the caller's).
+    #[inline(always)]
+    fn load_motion(&mut self, f: &IdentProblem, p: &PedestalFitProblem, a: usize, z: usize) {
         self.s.clear();
-        self.force.clear();
         self.ped.clear();
         for k in (a..z).filter(|&k| p.select.is_empty() || p.select[k]) {
             let s = s_at(f, k);
             for r in 0..f.runs {
                 self.s.push(s);
-                self.force.push(force_point(f, kc, 0, r, k));
                 let q = &f.q_ped[r][4 * k..4 * k + 4];
                 self.ped.push([q[0], q[1], q[2], q[3]]);
             }
         }
     }
 
-    /// Write the block of fit `fi` = 2 b + i; returns its number of rows.
-    fn block(&mut self, fi: usize, cross: bool) -> usize {
+    /// s, the bearing forces and the pedestal motion of the selected points `a..z`.
+    #[inline(always)]
+    fn load(&mut self, f: &IdentProblem, kc: &Consts, p: &PedestalFitProblem, a: usize, z: usize) {
+        self.load_motion(f, p, a, z);
+        self.force.clear();
+        for k in (a..z).filter(|&k| p.select.is_empty() || p.select[k]) {
+            for r in 0..f.runs {
+                self.force.push(force_point(f, kc, 0, r, k));
+            }
+        }
+    }
+
+    /// Write the block of fit `fi` = 2 b + i, its columns times `mul` (per column) if given;
+    /// returns its number of rows. Columns [p_own, s² p_own, s p_own (, p_other, s p_other)] as u
+    /// (3 or 5) asks, Re and Im of each (run, point) on two rows.
+    #[inline(always)]
+    fn block(&mut self, fi: usize, mul: Option<&[f64]>) -> usize {
         let (b, i) = (fi / 2, fi % 2);
         let (own, oth) = (coord(b, i), coord(b, 1 - i));
         let (ld, u) = (self.ld, self.u);
-        for (e, ((s, force), ped)) in self.s.iter().zip(&self.force).zip(&self.ped).enumerate() {
-            let (cols, _) = columns(ped[own], ped[oth], *s, cross);
-            for (j, c) in cols.iter().enumerate().take(u) {
-                self.buf[j * ld + 2 * e] = c.re;
-                self.buf[j * ld + 2 * e + 1] = c.im;
-            }
-            self.buf[u * ld + 2 * e] = force[own].re;
-            self.buf[u * ld + 2 * e + 1] = force[own].im;
+        let m = 2 * self.s.len();
+        let (xs, y) = self.buf.split_at_mut(u * ld);
+        for (yv, force) in y[..m].chunks_exact_mut(2).zip(&self.force) {
+            yv[0] = force[own].re;
+            yv[1] = force[own].im;
         }
-        2 * self.s.len()
+        for (j, col) in xs.chunks_exact_mut(ld).enumerate() {
+            let k = mul.map_or(1.0, |v| v[j]);
+            for (xv, (s, ped)) in col[..m].chunks_exact_mut(2).zip(self.s.iter().zip(&self.ped)) {
+                let c = match j {
+                    0 => ped[own],
+                    1 => *s * *s * ped[own],
+                    2 => *s * ped[own],
+                    3 => ped[oth],
+                    _ => *s * ped[oth],
+                };
+                if mul.is_some() {
+                    xv[0] = c.re * k;
+                    xv[1] = c.im * k;
+                } else {
+                    xv[0] = c.re;
+                    xv[1] = c.im;
+                }
+            }
+        }
+        m
     }
 }

@@ -229,4 +229,13 @@ fn tall_qr_rejects_blocks_that_do_not_fit() {
     assert_eq!(qr.rows(), 3);
     let sol = Solution::from_factor(&qr.factor(), 3, 3).unwrap();
     assert_eq!(sol.rank, 2);
+    // a block that ends right after its last column's rows (no room for a full last column)
+    let mut a = TallQr::new(2).unwrap();
+    let mut b = TallQr::new(2).unwrap();
+    let full = [1.0, 2.0, 3.0, 0.0, 5.0, 7.0, 11.0, 0.0];
+    let mut whole = full;
+    a.fold_block(&mut whole, 4, 3).unwrap();
+    let mut short = full[..7].to_vec();
+    b.fold_block(&mut short, 4, 3).unwrap();
+    assert_eq!(a.factor(), b.factor());
 }
