@@ -18,7 +18,8 @@ from rotorid import _core
 # equations), forward response (SIMD-lane LU), synchronous
 # identification at the probes with redundant runs (forces kernel, eq. 19 on load, standard
 # errors, flags), impact identification with an exponential window, modal analysis, the run-out
-# filter, and a Monte Carlo study (counter-based normals, rotations, histograms)
+# filter, a Monte Carlo study (counter-based normals, rotations, histograms), and the pedestal fit
+# (streamed QR and HC3 passes over 2500 speeds: three tasks of points)
 _WORK = r"""
 import sys
 import numpy as np
@@ -51,7 +52,13 @@ pulse = rotorid.half_sine_pulse(200.0, 1e-3, 10000.0, 3000, t0_s=1e-3)
 tr = rotorid.impact_time_response(rig.rotor, rig.bearings, speed_rpm=2000.0, force_N=pulse, fs_hz=10000.0, at="probes")
 trp = rotorid.impact_time_response(rig.rotor, rig.bearings, speed_rpm=2000.0, force_N=pulse, fs_hz=10000.0,
                                    pedestals=rotorid.example_pedestals())
-out = dict(tq=tr.q, tpq=trp.q, tpp=trp.pedestal, tpa=trp.pedestal_accel, resp=runs[0].q, k=ident.k, c=ident.c, k_std=ident.k_std, cond=ident.cond, code=ident.flag_code,
+ped = rotorid.example_pedestals()
+pruns = [rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=np.linspace(800.0, 9000.0, 2500),
+                                    pedestals=ped) for s in "AB"]
+pruns = [rotorid.SyncResponse(r.speed_rpm, r.q * (1 + 0.01 * rng.standard_normal(r.q.shape)), r.imbalance,
+                              pedestal=r.pedestal * (1 + 0.01 * rng.standard_normal(r.q.shape))) for r in pruns]
+pfit = rotorid.identify_pedestals(rig.rotor, pruns, cross_coupled=True)
+out = dict(pk=pfit.k, pm=pfit.mass_kg, pks=pfit.k_std, pcs=pfit.c_std, tq=tr.q, tpq=trp.q, tpp=trp.pedestal, tpa=trp.pedestal_accel, resp=runs[0].q, k=ident.k, c=ident.c, k_std=ident.k_std, cond=ident.cond, code=ident.flag_code,
            kk=kw.k, kc=kw.c, kstd=kw.k_std, eig=modal.eigenvalues, filt=filt,
            study=study.pct, study_rms=study.rms)
 np.savez(sys.argv[1], level=_core.SIMD, **out)
