@@ -537,3 +537,32 @@ def test_exported_datasets_own_their_data():
         for var in ("dof", "K_std", "K", "cond"):
             ds[var].values[...] = 0.0
         assert np.all(ident.k != 0.0)
+
+
+def test_shared_covariance_without_the_runs_own_is_refused():
+    """A shared covariance is the common part of the runs' errors: given without each run's own
+    covariance it used to be ignored in silence (the standard errors came from the residual, the
+    same with or without it). Now it is refused, naming what is missing, in all three fits."""
+    rig = rotorid.nsf_rig()
+    rpm = np.linspace(3000.0, 6000.0, 5)
+    shared = np.eye(8)[None].repeat(5, 0) * 1e-14
+    runs = [rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=rpm) for s in "ABC"]
+    with pytest.raises(RotoridError, match="shared_cov is given but not every run carries its own"):
+        rotorid.identify_synchronous(rig.rotor, runs, shared_cov=shared)
+    # with every run's covariance it is used
+    cov = np.eye(8)[None].repeat(5, 0) * 1e-14
+    with_cov = [rotorid.SyncResponse(r.speed_rpm, r.q, r.imbalance, cov=cov) for r in runs]
+    rotorid.identify_synchronous(rig.rotor, with_cov, shared_cov=shared)
+    # only some runs with a covariance: refused as well
+    some = with_cov[:2] + runs[2:]
+    with pytest.warns(UserWarning, match="carry a measurement covariance"):
+        with pytest.raises(RotoridError, match="shared_cov is given but not every run"):
+            rotorid.identify_synchronous(rig.rotor, some, shared_cov=shared)
+    ped = rotorid.example_pedestals()
+    pruns = [rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=rpm, pedestals=ped)
+             for s in "AB"]
+    shared16 = np.eye(16)[None].repeat(5, 0) * 1e-14
+    with pytest.raises(RotoridError, match="shared_cov is given but not every run carries its own"):
+        rotorid.identify_pedestals(rig.rotor, pruns, shared_cov=shared16)
+    with pytest.raises(RotoridError, match="shared_cov is given but not every run carries its own"):
+        rotorid.identify_synchronous(rig.rotor, pruns, shared_cov=shared16)

@@ -395,7 +395,8 @@ def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", ide
     ``shared_cov`` (n, 8, 8), optional: a covariance shared by every pair of runs, where the runs
     (at the same place as ``q``) had the same baseline run subtracted: its error is common to all
     of them, which propagation must not treat as independent. With pedestal motion it is
-    (n, 16, 16), over [Re q, Im q, Re p, Im p].
+    (n, 16, 16), over [Re q, Im q, Re p, Im p]. It adds to each run's own covariance (``cov``),
+    which every run must then carry (a RotoridError says so otherwise).
 
     ``accel_gain_std`` (relative, e.g. 0.02) and ``accel_phase_std_deg``: the calibration
     uncertainty of each housing accelerometer's sensitivity and phase, independent between the
@@ -604,6 +605,13 @@ def _check_same_axis(name, axes, labels, what, unit, advice):
                                f"the same {unit} ({advice})")
 
 
+#: a shared covariance is the part of the runs' errors they have in common: without each run's own
+#: covariance it would be ignored (the standard errors come from the residual then)
+_SHARED_WITHOUT_COV = ("shared_cov is given but not every run carries its own measurement covariance (cov=, and "
+                       "pedestal_cov= with pedestal motion): the shared part alone does not give the runs' errors. "
+                       "Give each run its cov (zeros where its own errors are nil) or drop shared_cov")
+
+
 def _shared(rotor, runs, shared_cov, size: int = 8):
     """The shared covariance at the bearings (checked), or None. With pedestal motion (``size``
     16) it is the joint covariance of [Re q, Im q, Re p, Im p] common to the runs."""
@@ -709,6 +717,8 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
     choice("estimator", estimator, {"ls", "bias-corrected"})
     if estimator == "bias-corrected" and covs is None:
         raise RotoridError("estimator='bias-corrected' needs the measurement covariance of every run or test (cov=)")
+    if shared_cov is not None and covs is None:
+        raise RotoridError(_SHARED_WITHOUT_COV)
     if gain is None and (covs is not None or calibration is not None):
         gain = spin ** 2  # the uncertainty propagation needs the array
     if covs is not None:

@@ -459,6 +459,10 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
     ps = [fr[1] for fr in frames]
     covs = [fr[2] for fr in frames]
     have_cov = all(c is not None for c in covs)
+    if shared is not None and not have_cov:
+        from .identify import _SHARED_WITHOUT_COV
+
+        raise RotoridError(_SHARED_WITHOUT_COV)
     # weighted least squares only with covariances known well enough to weigh with
     min_dof = np.inf
     if have_cov:

@@ -300,7 +300,10 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
             joint[:, :8, :8], joint[:, 8:, 8:] = shared, pc
             joint[:, :8, 8:], joint[:, 8:, :8] = cr, np.swapaxes(cr, 1, 2)
             shared = joint
-        if np.all(np.isfinite(shared)):
+        # (a shared part is used with every run's own covariance only: identify_synchronous refuses
+        # it otherwise)
+        own = all(r.cov is not None and (not ped or r.pedestal_cov is not None) for r in responses)
+        if np.all(np.isfinite(shared)) and own:
             ident_kw = dict(ident_kw, shared_cov=shared)
     ident = identify_synchronous(rotor, responses, method=method, **ident_kw)
     return ImbalanceChainResult(responses, tracks, ident, notes, ident_kw.get("shared_cov"),
