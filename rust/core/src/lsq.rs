@@ -56,11 +56,20 @@ impl TallQr {
         self.rows + self.fill
     }
 
-    /// Append one row (`cols` values). Values are not checked; a NaN spreads to `R`.
+    /// Append one row (`cols` values; `Err` for another length). Values are not checked; a NaN
+    /// spreads to `R`.
     #[inline]
-    pub fn push(&mut self, row: &[f64]) {
-        debug_assert_eq!(row.len(), self.cols);
-        for (j, &v) in row.iter().enumerate().take(self.cols) {
+    pub fn push(&mut self, row: &[f64]) -> Result<(), CoreError> {
+        if row.len() != self.cols {
+            return Err(CoreError::length("row", row.len(), self.cols.to_string()));
+        }
+        self.push_row(row);
+        Ok(())
+    }
+
+    #[inline]
+    fn push_row(&mut self, row: &[f64]) {
+        for (j, &v) in row.iter().enumerate() {
             self.buf[j * CHUNK_ROWS + self.fill] = v;
         }
         self.fill += 1;
@@ -78,7 +87,7 @@ impl TallQr {
         let rows = self.rows() + other.rows;
         for i in 0..other.cols {
             let row = other.r[i];
-            self.push(&row[..self.cols]);
+            self.push_row(&row[..self.cols]);
         }
         self.fold();
         self.rows = rows;
@@ -295,6 +304,9 @@ impl Hc3Meat {
     #[inline(always)]
     pub fn add_block(&mut self, sol: &Solution, block: &[f64], ld: usize, m: usize) -> Result<(), CoreError> {
         let u = self.u;
+        if u == 0 || u >= MAX_COLS {
+            return Err(CoreError::value("u", format!("must be 1 to {} unknowns, got {u}", MAX_COLS - 1)));
+        }
         check_block(block, ld, m, u + 1)?;
         if sol.unknowns != u {
             return Err(CoreError::value("sol", format!("has {} unknowns, expected {u}", sol.unknowns)));
@@ -449,7 +461,7 @@ mod tests {
             let mut b = TallQr::new(4).unwrap();
             for (i, (row, &y)) in rows.iter().zip(&ys).enumerate() {
                 let full = [row[0], row[1], row[2], y];
-                if i < split { a.push(&full) } else { b.push(&full) }
+                if i < split { a.push(&full).unwrap() } else { b.push(&full).unwrap() }
             }
             a.merge(b).unwrap();
             assert_eq!(a.rows(), m);
@@ -471,11 +483,27 @@ mod tests {
         let mut a = TallQr::new(4).unwrap();
         for i in 0..300 {
             let t = i as f64;
-            a.push(&[t, 2.0 * t, 1.0, t + 1.0]);
+            a.push(&[t, 2.0 * t, 1.0, t + 1.0]).unwrap();
         }
         let sol = Solution::from_factor(&a.factor(), 4, 300).unwrap();
         assert_eq!(sol.rank, 2);
         assert!(sol.theta.iter().all(|v| v.is_nan()));
+    }
+
+    #[test]
+    fn rejects_rows_and_unknowns_of_the_wrong_size() {
+        let mut a = TallQr::new(3).unwrap();
+        assert!(a.push(&[1.0, 2.0]).is_err());
+        assert!(a.push(&[1.0, 2.0, 3.0, 4.0]).is_err());
+        assert_eq!(a.rows(), 0);
+        a.push(&[1.0, 2.0, 3.0]).unwrap();
+        a.push(&[0.5, 1.0, 4.0]).unwrap();
+        let sol = Solution::from_factor(&a.factor(), 3, 2).unwrap();
+        let block = vec![0.0; 6 * 4];
+        assert!(Hc3Meat::new(6).add_block(&sol, &block, 4, 4).is_err());
+        assert!(Hc3Meat::new(0).add_block(&sol, &block, 4, 4).is_err());
+        assert!(Hc3Meat::new(3).add_block(&sol, &block, 4, 4).is_err()); // the solution has 2 unknowns
+        assert!(Hc3Meat::new(2).add_block(&sol, &block, 4, 4).is_ok());
     }
 
     #[test]
