@@ -322,6 +322,7 @@ impl Hc3Meat {
     }
 
     #[inline(always)]
+    #[allow(clippy::needless_range_loop)] // lane loops over fixed-size arrays, as in lanes.rs
     fn add_strips<const U: usize>(&mut self, sol: &Solution, block: &[f64], ld: usize, m: usize) {
         const W: usize = 8;
         let mut theta = [0.0; U];
