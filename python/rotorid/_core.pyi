@@ -131,8 +131,8 @@ def bearing_forces(
 
 def pedestal_fit(
     rotor: npt.NDArray[np.float64],
-    w: npt.NDArray[np.float64],
-    spin: npt.NDArray[np.float64],
+    w: npt.NDArray[np.float64],  # times w_scale: rad/s
+    spin: npt.NDArray[np.float64] | None,  # (n,) or (1,); None: spin = w (synchronous runs)
     q: list[npt.NDArray[np.complex128]] | npt.NDArray[np.complex128],  # runs of (n, 4) or (1, runs, n, 4)
     e: npt.NDArray[np.complex128],  # (1, runs, 4)
     gain: npt.NDArray[np.float64] | None,  # (n,) or (1,); None: spin^2
@@ -140,6 +140,7 @@ def pedestal_fit(
     sigma: npt.NDArray[np.float64] | None = None,
     select: npt.NDArray[np.bool_] | None = None,  # (n,) points used; None: all
     cross: bool = False,
+    w_scale: float | None = None,
 ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.int64], npt.NDArray[np.float64], int]:
     """Unweighted pedestal fits with HC3 covariances: (theta (4, u), cov (4, u, u), rank (4,),
     relative residual (4,), equations per fit), fits (pedestal, direction) = (1, x), (1, y),

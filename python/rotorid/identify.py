@@ -464,7 +464,8 @@ def _has_pedestal(runs, labels):
 def _pedestal_frame(rotor, run, label="", *, finite=True):
     """(q_rel, p, joint_cov) of a run at the bearings: relative motion, pedestal motion, and the
     (n, 16, 16) covariance of [Re q_rel, Im q_rel, Re p, Im p] (None without covariances).
-    ``finite=False`` leaves NaN and inf in the pedestal motion to the caller."""
+    ``finite=False`` leaves NaN and inf in the pedestal motion of a run at the bearings to the
+    caller (a run at the probes is moved with its pedestal motion, which is checked first)."""
     from .simulate import joint_cov
 
     from .simulate import _check_pedestal
@@ -473,10 +474,13 @@ def _pedestal_frame(rotor, run, label="", *, finite=True):
         raise RotoridError(f"{label or 'the run'} carries no pedestal motion")
     try:
         # checked again: fields set after construction skip __post_init__
-        _check_pedestal(run, run.q.shape[0], finite=finite)
+        _check_pedestal(run, run.q.shape[0], finite=finite or run.at != "bearings")
     except RotoridError as exc:
         raise RotoridError(f"{label or 'the run'}: {exc}") from None
-    rb = run.at_bearings(rotor)
+    try:
+        rb = run.at_bearings(rotor)  # the eq. 19 move of runs at the probes checks q (and NaN in it)
+    except RotoridError as exc:
+        raise RotoridError(f"{label or 'the run'}: {exc}") from None
     q = rb.frf() if hasattr(rb, "frf") else rb.q
     jc = joint_cov(rb)
     if (run.cov is None) != (run.pedestal_cov is None):
@@ -679,7 +683,7 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
     nruns = len(qs)
     redundant = nruns * (2 if identical else 1) > 2
     k, c, cond, resid, amp, ks, cs, rel_std, nbad = _core.identify(
-        rotor.core_params(), w, spin, list(qs), np.ascontiguousarray(e[None], dtype=complex),
+        rotor.core_params(), np.ascontiguousarray(w), spin, list(qs), np.ascontiguousarray(e[None], dtype=complex),
         gain, identical=identical, method=method, with_std=redundant, sigma=sigma, q_ped=q_ped, planes=planes,
         w_scale=w_scale)
     if w_scale is not None and (covs is not None or calibration is not None):

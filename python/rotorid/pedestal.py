@@ -508,6 +508,11 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
         unknown = np.isnan(S).any(axis=(0, 2, 3))                 # a point whose covariance a run lacks
         used = np.ones(n, bool) if sel is None else sel
         if unknown[used].all():
+            import warnings
+
+            warnings.warn("no point has a known measurement covariance (cov, pedestal_cov) in every run: the pedestal "
+                          "fit is unweighted with residual (HC3) errors" + ("; shared_cov is not used" if shared is not None
+                                                                           else ""))
             have_cov = False
         else:
             if unknown[used].any():
@@ -524,8 +529,9 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
     # the unweighted fits of all four (pedestal, direction) pairs with HC3 covariances, in the
     # core: equations formed point by point and folded into a QR factor, no design matrix
     try:
-        th_all, c3_all, ranks, resid_all, m_rows = _core.pedestal_fit(params, axis, spin, qs, e, gain, ps, sigma=sig_arr,
-                                                                      select=sel, cross=cross, w_scale=w_scale)
+        th_all, c3_all, ranks, resid_all, m_rows = _core.pedestal_fit(params, np.ascontiguousarray(axis), spin, qs, e,
+                                                                      gain, ps, sigma=sig_arr, select=sel, cross=cross,
+                                                                      w_scale=w_scale)
     except RotoridError as exc:
         if "NaN or inf" not in str(exc):
             raise

@@ -111,11 +111,20 @@ impl Plain for C64 {}
 /// given: Rust-owned when anything is to be done (a broadcast or a scale), so that the caller
 /// passes an axis in its own unit (Hz with scale 2 pi) or one running speed instead of building
 /// an (n,) NumPy temporary (each one freed by glibc back to the system, faulted in on the next
-/// call); the caller's array as it is otherwise.
+/// call); the caller's array as it is otherwise. A strided axis (a reversed run-down, a column of
+/// a table) is read into a Rust-owned copy, with the same arithmetic.
 fn axis_values<'a>(name: &str, a: &'a PyReadonlyArrayDyn<'_, f64>, n: usize, scale: Option<f64>) -> PyResult<Cow<'a, [f64]>> {
     let sh = a.shape();
     if sh != [n] && sh != [1] {
         return Err(PyValueError::new_err(format!("{name} has shape {sh:?}, expected ({n},) or (1,)")));
+    }
+    if !a.is_c_contiguous() {
+        let v: Vec<f64> = a.as_array().iter().copied().collect();
+        return Ok(Cow::Owned(match (v.len() == n, scale) {
+            (true, None) => v,
+            (true, Some(s)) => v.iter().map(|x| x * s).collect(),
+            (false, s) => vec![v[0] * s.unwrap_or(1.0); n],
+        }));
     }
     let v = slice(a, name)?;
     Ok(match (v.len() == n, scale) {

@@ -15,6 +15,9 @@
 //!   `(XᵀX)⁻¹ (Σ_i x_i x_iᵀ r_i² / (1 - h_i)²) (XᵀX)⁻¹` with `(XᵀX)⁻¹ = R_x⁻¹ R_x⁻ᵀ`.
 //!
 //! QR keeps the accuracy of the data (the normal equations would square the condition number).
+//! Values enter as given (no scaling before the fold): sums of squares of magnitudes beyond about
+//! 1e±150 overflow or underflow. A caller with such data scales its columns first (SI data of
+//! rotating machinery lies many orders of magnitude inside).
 
 use crate::error::CoreError;
 

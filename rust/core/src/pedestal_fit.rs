@@ -89,7 +89,8 @@ pub fn fit(p: &PedestalFitProblem) -> Result<Vec<DirectionFit>, CoreError> {
     let u = if p.cross { 5 } else { 3 };
     let rows = 2 * f.runs * nsel;
     if rows <= u {
-        return Err(CoreError::value("select", format!("leaves {rows} equations for {u} unknowns")));
+        let what = if p.select.is_empty() { "the points" } else { "the selected points" };
+        return Err(CoreError::value("select", format!("({what}) leave {rows} equations for {u} unknowns")));
     }
     let tasks: Vec<(usize, usize)> = (0..n).step_by(POINTS_PER_TASK).map(|a| (a, (a + POINTS_PER_TASK).min(n))).collect();
     let kc = Consts::new(&f.rotor);
