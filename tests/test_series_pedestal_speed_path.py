@@ -677,18 +677,14 @@ def test_axes_that_are_views_are_taken():
 def test_nan_in_the_pedestal_motion_of_a_probe_run_is_named():
     """Runs at the probes are moved to the bearings with their pedestal motion: a NaN set in it
     after construction is named with the run and the field (review: it was blamed on q)."""
-    runs = _sync(rpm=np.linspace(2000.0, 6000.0, 8), at="probes")
-    p = runs[1].pedestal.copy()
-    p[2, 1] = np.nan
-    runs[1].pedestal = p
-    with pytest.raises(RotoridError, match=r"run 1 \('B'\): pedestal .*contains NaN or inf \(first at index \(2, 1\)\)"):
-        rotorid.identify_pedestals(ROTOR, runs)
-    runs = _sync(rpm=np.linspace(2000.0, 6000.0, 8), at="probes")
-    q = runs[0].q.copy()
-    q[3, 0] = np.inf
-    runs[0].q = q
-    with pytest.raises(RotoridError, match=r"run 0 \('A'\): q .*contains NaN or inf \(first at index \(3, 0\)\)"):
-        rotorid.identify_pedestals(ROTOR, runs)
+    for run, field, index, bad, name in [(1, "pedestal", (2, 1), np.nan, "B"), (0, "q", (3, 0), np.inf, "A")]:
+        runs = _sync(rpm=np.linspace(2000.0, 6000.0, 8), at="probes")
+        arr = getattr(runs[run], field).copy()
+        arr[index] = bad
+        setattr(runs[run], field, arr)
+        with pytest.raises(RotoridError, match=rf"run {run} \('{name}'\): {field} .*contains NaN or inf "
+                                               rf"\(first at index \({index[0]}, {index[1]}\)\)"):
+            rotorid.identify_pedestals(ROTOR, runs)
 
 
 def test_covariances_unknown_everywhere_warn_that_the_fit_is_unweighted():
