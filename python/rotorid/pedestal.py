@@ -563,7 +563,6 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
             if cross:
                 kk[b, i, 1 - i], cc[b, i, 1 - i] = th[3], th[4]
                 ks[b, i, 1 - i], cs[b, i, 1 - i] = sd[3], sd[4]
-    ns = n if sel is None else int(sel.sum())
     out = PedestalIdentification(mass, kk, cc, ms, ks, cs, dof, resid, src, cross, R * ns, labels)
     if cal_g or cal_ph:
         _add_calibration(out, rotor, runs, cal_g, cal_ph, cross_coupled=cross, freq_range_hz=freq_range_hz,
