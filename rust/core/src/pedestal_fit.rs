@@ -8,11 +8,11 @@
 //! `f_bi = (k_ii + s² m_i + s c_ii) p_bi (+ (k_ij + s c_ij) p_bj)`,  s = σ + jω,
 //!
 //! with p the pedestal motion. Every run and selected point gives two real equations (Re, Im) in
-//! the unknowns θ = [k_ii, m_i, c_ii (, k_ij, c_ij)]. The columns are scaled by their largest
-//! magnitude before the fit (the rank is judged on the scaled design, as `numpy.linalg.lstsq`
-//! would judge it), the rows are folded into a QR factor as they are computed
-//! ([`crate::lsq::TallQr`]) and the HC3 sums come from a second pass: no design matrix is ever
-//! stored. Chunks of points are fixed (not by thread count) and merged in order, so results repeat
+//! the unknowns θ = [k_ii, m_i, c_ii (, k_ij, c_ij)]. The rows are folded into a QR factor as
+//! they are computed ([`crate::lsq::TallQr`]), the columns are then scaled by their largest
+//! magnitude in the factor (X D⁻¹ = Q (R D⁻¹): Householder QR commutes with column scaling up to
+//! rounding), so the rank is judged on the scaled design as `numpy.linalg.lstsq` would judge it,
+//! and the HC3 sums come from a second pass on the scaled rows: no design matrix is ever stored. Chunks of points are fixed (not by thread count) and merged in order, so results repeat
 //! bit for bit on any number of threads.
 
 use rayon::prelude::*;
