@@ -477,9 +477,6 @@ def _pedestal_frame(rotor, run, label="", *, finite=True):
     try:
         # checked again: fields set after construction skip __post_init__
         _check_pedestal(run, run.q.shape[0], finite=finite or run.at != "bearings")
-    except RotoridError as exc:
-        raise RotoridError(f"{label or 'the run'}: {exc}") from None
-    try:
         rb = run.at_bearings(rotor)  # the eq. 19 move of runs at the probes checks q (and NaN in it)
     except RotoridError as exc:
         raise RotoridError(f"{label or 'the run'}: {exc}") from None

@@ -118,17 +118,13 @@ fn axis_values<'a>(name: &str, a: &'a PyReadonlyArrayDyn<'_, f64>, n: usize, sca
     if sh != [n] && sh != [1] {
         return Err(PyValueError::new_err(format!("{name} has shape {sh:?}, expected ({n},) or (1,)")));
     }
-    if !a.is_c_contiguous() {
-        let v: Vec<f64> = a.as_array().iter().copied().collect();
-        return Ok(Cow::Owned(match (v.len() == n, scale) {
-            (true, None) => v,
-            (true, Some(s)) => v.iter().map(|x| x * s).collect(),
-            (false, s) => vec![v[0] * s.unwrap_or(1.0); n],
-        }));
-    }
-    let v = slice(a, name)?;
+    let v: Cow<'a, [f64]> = if a.is_c_contiguous() {
+        Cow::Borrowed(slice(a, name)?)
+    } else {
+        Cow::Owned(a.as_array().iter().copied().collect())
+    };
     Ok(match (v.len() == n, scale) {
-        (true, None) => Cow::Borrowed(v),
+        (true, None) => v,
         (true, Some(s)) => Cow::Owned(v.iter().map(|x| x * s).collect()),
         (false, s) => Cow::Owned(vec![v[0] * s.unwrap_or(1.0); n]),
     })
