@@ -111,36 +111,38 @@ macro_rules! simd_dispatch {
 }
 pub(crate) use simd_dispatch;
 
+/// `N` values in lock-step, one per lane (`L` unless a kernel works on wider groups).
 #[derive(Clone, Copy, Debug)]
-pub struct V(pub [f64; L]);
+pub struct V<const N: usize = L>(pub [f64; N]);
 
+/// `N` complex values in lock-step, real and imaginary parts in separate lane vectors.
 #[derive(Clone, Copy, Debug)]
-pub struct Z {
-    pub re: V,
-    pub im: V,
+pub struct Z<const N: usize = L> {
+    pub re: V<N>,
+    pub im: V<N>,
 }
 
 macro_rules! lanewise {
     ($a:expr, $b:expr, $op:tt) => {{
-        let mut o = [0.0; L];
-        for l in 0..L {
+        let mut o = [0.0; N];
+        for l in 0..N {
             o[l] = $a.0[l] $op $b.0[l];
         }
         V(o)
     }};
 }
 
-impl V {
+impl<const N: usize> V<N> {
     #[inline(always)]
-    pub fn splat(x: f64) -> V {
-        V([x; L])
+    pub fn splat(x: f64) -> Self {
+        V([x; N])
     }
     #[inline(always)]
-    pub fn zero() -> V {
-        V([0.0; L])
+    pub fn zero() -> Self {
+        V([0.0; N])
     }
     #[inline(always)]
-    pub fn sqrt(self) -> V {
+    pub fn sqrt(self) -> Self {
         let mut o = self.0;
         for v in o.iter_mut() {
             *v = v.sqrt();
@@ -148,7 +150,7 @@ impl V {
         V(o)
     }
     #[inline(always)]
-    pub fn recip(self) -> V {
+    pub fn recip(self) -> Self {
         let mut o = self.0;
         for v in o.iter_mut() {
             *v = 1.0 / *v;
@@ -157,31 +159,31 @@ impl V {
     }
 }
 
-impl Add for V {
-    type Output = V;
+impl<const N: usize> Add for V<N> {
+    type Output = Self;
     #[inline(always)]
-    fn add(self, b: V) -> V {
+    fn add(self, b: Self) -> Self {
         lanewise!(self, b, +)
     }
 }
-impl Sub for V {
-    type Output = V;
+impl<const N: usize> Sub for V<N> {
+    type Output = Self;
     #[inline(always)]
-    fn sub(self, b: V) -> V {
+    fn sub(self, b: Self) -> Self {
         lanewise!(self, b, -)
     }
 }
-impl Mul for V {
-    type Output = V;
+impl<const N: usize> Mul for V<N> {
+    type Output = Self;
     #[inline(always)]
-    fn mul(self, b: V) -> V {
+    fn mul(self, b: Self) -> Self {
         lanewise!(self, b, *)
     }
 }
-impl Neg for V {
-    type Output = V;
+impl<const N: usize> Neg for V<N> {
+    type Output = Self;
     #[inline(always)]
-    fn neg(self) -> V {
+    fn neg(self) -> Self {
         let mut o = self.0;
         for v in o.iter_mut() {
             *v = -*v;
@@ -189,68 +191,68 @@ impl Neg for V {
         V(o)
     }
 }
-impl AddAssign for V {
+impl<const N: usize> AddAssign for V<N> {
     #[inline(always)]
-    fn add_assign(&mut self, b: V) {
-        for l in 0..L {
+    fn add_assign(&mut self, b: Self) {
+        for l in 0..N {
             self.0[l] += b.0[l];
         }
     }
 }
 
-impl Z {
+impl<const N: usize> Z<N> {
     #[inline(always)]
-    pub fn zero() -> Z {
+    pub fn zero() -> Self {
         Z { re: V::zero(), im: V::zero() }
     }
     #[inline(always)]
-    pub fn norm_sqr(self) -> V {
+    pub fn norm_sqr(self) -> V<N> {
         self.re * self.re + self.im * self.im
     }
     #[inline(always)]
-    pub fn scale(self, s: V) -> Z {
+    pub fn scale(self, s: V<N>) -> Self {
         Z { re: self.re * s, im: self.im * s }
     }
     /// conj(self) * b
     #[inline(always)]
-    pub fn cmul(self, b: Z) -> Z {
+    pub fn cmul(self, b: Self) -> Self {
         Z { re: self.re * b.re + self.im * b.im, im: self.re * b.im - self.im * b.re }
     }
     /// j * s * self
     #[inline(always)]
-    pub fn jscale(self, s: V) -> Z {
+    pub fn jscale(self, s: V<N>) -> Self {
         Z { re: -(self.im * s), im: self.re * s }
     }
     #[inline(always)]
-    pub fn conj(self) -> Z {
+    pub fn conj(self) -> Self {
         Z { re: self.re, im: -self.im }
     }
 }
 
-impl Add for Z {
-    type Output = Z;
+impl<const N: usize> Add for Z<N> {
+    type Output = Self;
     #[inline(always)]
-    fn add(self, b: Z) -> Z {
+    fn add(self, b: Self) -> Self {
         Z { re: self.re + b.re, im: self.im + b.im }
     }
 }
-impl Sub for Z {
-    type Output = Z;
+impl<const N: usize> Sub for Z<N> {
+    type Output = Self;
     #[inline(always)]
-    fn sub(self, b: Z) -> Z {
+    fn sub(self, b: Self) -> Self {
         Z { re: self.re - b.re, im: self.im - b.im }
     }
 }
-impl Mul for Z {
-    type Output = Z;
+impl<const N: usize> Mul for Z<N> {
+    type Output = Self;
     #[inline(always)]
-    fn mul(self, b: Z) -> Z {
+    fn mul(self, b: Self) -> Self {
         Z { re: self.re * b.re - self.im * b.im, im: self.re * b.im + self.im * b.re }
     }
 }
-impl AddAssign for Z {
+impl<const N: usize> AddAssign for Z<N> {
     #[inline(always)]
-    fn add_assign(&mut self, b: Z) {
+    fn add_assign(&mut self, b: Self) {
         self.re += b.re;
         self.im += b.im;
     }
