@@ -309,3 +309,61 @@ def test_imbalance_response_speeds_converted_by_the_core_give_the_same_bits(rig)
     np.testing.assert_array_equal(got, want)
     np.testing.assert_array_equal(rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances["C"],
                                                              speed_rpm=rpm).q, want[:, 0, :])
+
+
+@pytest.mark.parametrize("kind", ["imbalance", "impact"])
+@pytest.mark.parametrize("n", [1, 15, 17, 2048, 5003])
+def test_responses_at_the_probes_are_moved_in_the_core_call_as_defined(rig, kind, n, monkeypatch):
+    """at="probes" without pedestals: the core moves each solution in the pass that computes it.
+    The result is the response at the bearings moved by apply_planes, bit for bit (same
+    real-times-complex products, after the gain), for group tails and parallel chunks alike, and
+    it costs one core call."""
+    from rotorid import _corecall
+
+    if kind == "imbalance":
+        axis = np.linspace(300.0, 12_000.0, n)
+        make = lambda at: rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances["B"],  # noqa: E731
+                                                     speed_rpm=axis, at=at)
+    else:
+        axis = np.linspace(1.0, 450.0, n)
+        make = lambda at: rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=2500.0, freq_hz=axis,  # noqa: E731
+                                             plane=0.03, direction="y", at=at)
+    at_b = make("bearings")
+    calls = []
+    for name in ("forced_response", "imbalance_response", "apply_planes"):
+        real = getattr(_corecall.core, name)
+        monkeypatch.setattr(_corecall.core, name, lambda *a, _f=real, _n=name, **k: calls.append(_n) or _f(*a, **k))
+    at_p = make("probes")
+    assert calls == ["imbalance_response" if kind == "imbalance" else "forced_response"]
+    assert at_p.at == "probes"
+    want, _ = rotorid._core.apply_planes(bearings_to_probes_matrix(rig.rotor), at_b.q)
+    np.testing.assert_array_equal(at_p.q, want)
+    _same_fields(at_p, _checked_copy(at_p))
+    _same_fields(at_p.at_bearings(rig.rotor), at_b._moved(rig.rotor, "probes").at_bearings(rig.rotor))
+
+
+def test_the_core_moves_singular_points_as_nan_and_refuses_a_bad_transform(rig):
+    from rotorid import _core
+
+    # undamped, isotropic, symmetric, not spinning: H is singular at the bounce frequency sqrt(2 k / m)
+    rotor = rotorid.RigidRotor(20.0, 0.5, 0.1, 0.2, 0.2, s=(0.1, 0.12))
+    p = rotor.core_params()
+    k = np.array([[1e6, 0.0, 0.0, 1e6, 1e6, 0.0, 0.0, 1e6]])
+    c = np.zeros((1, 8))
+    wn = np.sqrt(2 * 1e6 / 20.0)
+    w = np.array([0.5 * wn, wn, 2.0 * wn] * 7)
+    e = np.ones((1, 1, 4), complex)
+    T = bearings_to_probes_matrix(rotor)
+    spin = np.zeros(1)
+    q_b, ns_b = _core.forced_response(p, k, c, spin, w, e)
+    q_p, ns_p = _core.forced_response(p, k, c, spin, w, e, planes=T)
+    assert ns_p == ns_b == 7 and np.isnan(q_p[1::3]).all()
+    want, _ = _core.apply_planes(T, q_b[:, 0, :])
+    np.testing.assert_array_equal(q_p[:, 0, :], want)
+    for bad, msg in [(np.eye(3), r"planes has shape \[3, 3\]"), (np.ones(4), r"planes has shape \[4\]")]:
+        for call in (lambda t: _core.forced_response(p, k, c, spin, w, e, planes=t),
+                     lambda t: _core.imbalance_response(p, k, c, w, e, planes=t)):
+            with pytest.raises(ValueError, match=msg):
+                call(bad)
+    with pytest.raises(TypeError):
+        _core.imbalance_response(p, k, c, w, e, planes=np.eye(2, dtype=complex))

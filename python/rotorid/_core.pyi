@@ -21,6 +21,7 @@ def forced_response(
     force: npt.NDArray[np.complex128],  # (n or 1, nrhs, 4)
     gain: npt.NDArray[np.float64] | None = None,  # (n,): q_i scaled by gain[i]
     w_scale: float | None = None,  # w is given in another unit: w_scale * w rad/s (e.g. Hz and 2 pi)
+    planes: npt.NDArray[np.float64] | None = None,  # (2, 2): every solution moved by it (as apply_planes)
 ) -> tuple[npt.NDArray[np.complex128], int]:
     """Solve H q = F with H = -w^2 M + j w spin G + j w C + K; returns (q (n, nrhs, 4), n_singular)."""
 
@@ -38,6 +39,7 @@ def imbalance_response(
     spin: npt.NDArray[np.float64],  # (n,) rad/s (or in another unit with spin_scale)
     force: npt.NDArray[np.complex128],  # (n or 1, nrhs, 4) generalized imbalance vectors
     spin_scale: float | None = None,  # spin_scale * spin rad/s (e.g. rpm with pi / 30)
+    planes: npt.NDArray[np.float64] | None = None,  # (2, 2): every solution moved by it (as apply_planes)
 ) -> tuple[npt.NDArray[np.complex128], int]:
     """forced_response with w = spin and each point's solution scaled by spin^2; returns (q (n, nrhs, 4), n_singular)."""
 

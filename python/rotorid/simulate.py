@@ -34,6 +34,12 @@ def probes_to_bearings_matrix(rotor: RigidRotor) -> np.ndarray:
     return np.array([[l1 + s2, s1 - l1], [s2 - l2, l2 + s1]]) / (s1 + s2)
 
 
+def _planes_to(rotor, at):
+    """The transform a forward model's core call applies to its responses at the bearings to
+    report them at ``at``: None at the bearings, the (2, 2) bearings-to-probes matrix at the probes."""
+    return bearings_to_probes_matrix(rotor) if at == "probes" else None
+
+
 def _apply_planes(T, q, checked=False):
     """T applied to (x1, x2) and to (y1, y2) of q (..., 4). NaN or inf in q is refused, found by
     the core on its way through (no separate scan); ``checked``: q is the array of a validated
@@ -433,14 +439,13 @@ def imbalance_response(rotor: RigidRotor, bearings: BearingCoefficients, imbalan
     # Omega from rpm, w = Omega and the gains Omega^2 are formed in the core: (n,) temporaries
     # here made glibc hand memory back to the system after every call and fault it in again on
     # the next (360 page faults, +1.2 ms per 100,000 speeds)
-    q, nsing = _core.imbalance_response(rotor.core_params(), k, c, rpm, e, spin_scale=RPM)
+    # at the probe planes: moved by the core in the same pass (no second array, no second call)
+    q, nsing = _core.imbalance_response(rotor.core_params(), k, c, rpm, e, spin_scale=RPM, planes=_planes_to(rotor, at))
     if nsing:
         bad = rpm[~np.all(np.isfinite(q[:, 0, :]), axis=1)]
         raise RotoridError(f"the rotor-bearing system is singular (undamped resonance) at speed_rpm = {bad[:5]}")
     # the core's own output at validated speeds: built without re-checking 100,000s of values
-    resp = SyncResponse._unchecked(speed_rpm=rpm, q=q[:, 0, :], imbalance=imbalance, at="bearings",
-                                   name=imbalance.name)
-    return resp.at_probes(rotor) if at == "probes" else resp
+    return SyncResponse._unchecked(speed_rpm=rpm, q=q[:, 0, :], imbalance=imbalance, at=at, name=imbalance.name)
 
 
 @dataclass(frozen=True)
@@ -673,12 +678,12 @@ def impact_frf(rotor: RigidRotor, bearings: BearingCoefficients, *, speed_rpm: f
                                 singular=lambda bad: f"the rotor-bearing-pedestal system is singular at freq_hz = "
                                                      f"{f[bad][:5]}")
         return ImpactResponse._unchecked(q=q, at=at, pedestal=qp, **fields)
-    q, nsing = _core.forced_response(rotor.core_params(), k, c, spin, f, force, w_scale=2 * np.pi)
+    q, nsing = _core.forced_response(rotor.core_params(), k, c, spin, f, force, w_scale=2 * np.pi,
+                                     planes=_planes_to(rotor, at))
     if nsing:
         raise RotoridError(f"the rotor-bearing system is singular at freq_hz = {f[~np.isfinite(q[:, 0, 0])][:5]}")
     # the core's own output at validated frequencies: built without re-checking it
-    resp = ImpactResponse._unchecked(q=q[:, 0, :], **fields)
-    return resp.at_probes(rotor) if at == "probes" else resp
+    return ImpactResponse._unchecked(q=q[:, 0, :], at=at, **fields)
 
 
 def _with_pedestals(rotor, k, c, pedestals, spin, w, force, at, *, singular, imbalance=False, w_scale=None):

@@ -33,6 +33,13 @@ fn check_shape(name: &str, got: &[usize], want: &[usize]) -> PyResult<()> {
     Ok(())
 }
 
+/// A real (2, 2) transform between two pairs of measurement planes (report eq. 19) as
+/// [T11, T12, T21, T22].
+fn plane_transform(name: &str, t: &PyReadonlyArrayDyn<'_, f64>) -> PyResult<[f64; 4]> {
+    check_shape(name, t.shape(), &[2, 2])?;
+    slice(t, name)?.try_into().map_err(|_| PyValueError::new_err(format!("{name} must hold 4 values")))
+}
+
 fn guarded<T: Send, F: FnOnce() -> T + Send>(f: F) -> PyResult<T> {
     catch_unwind(AssertUnwindSafe(|| in_process_pool(f))).map_err(|e| {
         let msg = e
@@ -203,9 +210,10 @@ fn forced_shapes(
 /// Batched forced response H q = F (see forced.rs); with `gain` (n,), q_i = gain_i H_i^-1 F
 /// (an imbalance: F broadcast, gain = Omega^2). Returns (q, n_singular).
 /// `spin` may be (1,) (one running speed); `w_scale`: w is `w_scale` times the given axis (e.g.
-/// frequencies in Hz with 2 pi), formed here.
+/// frequencies in Hz with 2 pi), formed here; `planes`: None, or the (2, 2) eq. 19 transform
+/// applied to every solution (e.g. from the bearings to the probe planes) in the same pass.
 #[pyfunction]
-#[pyo3(signature = (rotor, k, c, spin, w, force, gain=None, w_scale=None))]
+#[pyo3(signature = (rotor, k, c, spin, w, force, gain=None, w_scale=None, planes=None))]
 #[allow(clippy::too_many_arguments)]
 fn forced_response<'py>(
     py: Python<'py>,
@@ -217,6 +225,7 @@ fn forced_response<'py>(
     force: PyReadonlyArrayDyn<'py, C64>,
     gain: Option<PyReadonlyArrayDyn<'py, f64>>,
     w_scale: Option<f64>,
+    planes: Option<PyReadonlyArrayDyn<'py, f64>>,
 ) -> PyResult<(Bound<'py, PyArrayDyn<C64>>, usize)> {
     let rot = rotor_of(&rotor)?;
     let n = w.len();
@@ -224,18 +233,15 @@ fn forced_response<'py>(
     let nrhs = forced_shapes("forced_response", n, &k, &c, None, &force, gain.as_ref(), 4)?;
     let (ks, cs, fsl) = (slice(&k, "k")?, slice(&c, "c")?, slice(&force, "force")?);
     let (ss, ws) = (&ss[..], &ws[..]);
-    let gs: Option<&[f64]> = match &gain {
-        Some(g) => Some(slice(g, "gain")?),
-        None => None,
+    let g = match &gain {
+        Some(g) => forced::Gain::PerPoint(slice(g, "gain")?),
+        None => forced::Gain::One,
     };
+    let t = planes.as_ref().map(|t| plane_transform("planes", t)).transpose()?;
     let (out, nsing) = py.detach(|| {
         guarded(|| {
             let mut out = out_buf(n * nrhs * 4);
-            match gs {
-                Some(g) => forced::forced_response_scaled(&rot, ks, cs, ss, ws, fsl, nrhs, g, &mut out),
-                None => forced::forced_response(&rot, ks, cs, ss, ws, fsl, nrhs, &mut out),
-            }
-            .map(|ns| (out, ns))
+            forced::forced_response_with(&rot, ks, cs, ss, ws, fsl, nrhs, g, t.as_ref(), &mut out).map(|ns| (out, ns))
         })
     })?
     .map_err(core_err)?;
@@ -245,9 +251,10 @@ fn forced_response<'py>(
 /// The synchronous response to an imbalance at the speeds `spin` (rad/s): w = spin and
 /// q_i = spin_i^2 H_i^-1 force (see forced::forced_response_imbalance), without the (n,) arrays
 /// of w and spin^2 the caller would otherwise build; `spin_scale`: spin is given in another unit
-/// (rpm with pi / 30), converted here. Returns (q, n_singular).
+/// (rpm with pi / 30), converted here; `planes`: as for forced_response. Returns (q, n_singular).
 #[pyfunction]
-#[pyo3(signature = (rotor, k, c, spin, force, spin_scale=None))]
+#[pyo3(signature = (rotor, k, c, spin, force, spin_scale=None, planes=None))]
+#[allow(clippy::too_many_arguments)]
 fn imbalance_response<'py>(
     py: Python<'py>,
     rotor: PyReadonlyArrayDyn<'py, f64>,
@@ -256,16 +263,19 @@ fn imbalance_response<'py>(
     spin: PyReadonlyArrayDyn<'py, f64>,
     force: PyReadonlyArrayDyn<'py, C64>,
     spin_scale: Option<f64>,
+    planes: Option<PyReadonlyArrayDyn<'py, f64>>,
 ) -> PyResult<(Bound<'py, PyArrayDyn<C64>>, usize)> {
     let rot = rotor_of(&rotor)?;
     let n = spin.len();
     let nrhs = forced_shapes("imbalance_response", n, &k, &c, Some(&spin), &force, None, 4)?;
     let ss = axis_values("spin", &spin, n, spin_scale)?;
     let (ks, cs, ss, fsl) = (slice(&k, "k")?, slice(&c, "c")?, &ss[..], slice(&force, "force")?);
+    let t = planes.as_ref().map(|t| plane_transform("planes", t)).transpose()?;
     let (out, nsing) = py.detach(|| {
         guarded(|| {
             let mut out = out_buf(n * nrhs * 4);
-            forced::forced_response_imbalance(&rot, ks, cs, ss, fsl, nrhs, &mut out).map(|ns| (out, ns))
+            forced::forced_response_with(&rot, ks, cs, ss, ss, fsl, nrhs, forced::Gain::SpinSquared, t.as_ref(), &mut out)
+                .map(|ns| (out, ns))
         })
     })?
     .map_err(core_err)?;
@@ -277,12 +287,11 @@ fn imbalance_response<'py>(
 /// q's first non-finite value or None).
 #[pyfunction]
 fn apply_planes<'py>(py: Python<'py>, t: PyReadonlyArrayDyn<'py, f64>, q: PyReadonlyArrayDyn<'py, C64>) -> PyResult<(Bound<'py, PyArrayDyn<C64>>, Option<usize>)> {
-    check_shape("t", t.shape(), &[2, 2])?;
+    let ts = plane_transform("t", &t)?;
     let shape = q.shape().to_vec();
     if shape.last() != Some(&4) {
         return Err(PyValueError::new_err(format!("q has shape {shape:?}, expected (..., 4)")));
     }
-    let ts: [f64; 4] = slice(&t, "t")?.try_into().map_err(|_| PyValueError::new_err("t must hold 4 values"))?;
     let qs = slice(&q, "q")?;
     check_alloc("apply_planes", Some(qs.len()), 16)?;
     let out = py
@@ -753,13 +762,7 @@ fn ident_problem<'a>(
         },
         sigma: &axes.sigma,
         q_ped,
-        planes: match planes {
-            Some(t) => {
-                check_shape("planes", t.shape(), &[2, 2])?;
-                Some(slice(t, "planes")?.try_into().map_err(|_| PyValueError::new_err("planes must hold 4 values"))?)
-            }
-            None => None,
-        },
+        planes: planes.map(|t| plane_transform("planes", t)).transpose()?,
         batch,
         runs,
         identical,

@@ -12,7 +12,7 @@ use crate::lanes::L;
 const G: usize = 2 * L;
 type V = crate::lanes::V<G>;
 type Z = crate::lanes::Z<G>;
-use crate::model::{assemble, Rotor, C64};
+use crate::model::{assemble, planes_point, Rotor, C64};
 use rayon::prelude::*;
 
 /// Solve a 4x4 complex system in place by LU with partial pivoting, for `nrhs` right-hand sides
@@ -148,7 +148,7 @@ pub fn forced_response(
     out: &mut [C64],
 ) -> Result<usize, CoreError> {
     check_forced(kb, cb, spin, w, force, nrhs, out)?;
-    Ok(forced_kernel(rotor, kb, cb, spin, w, force, nrhs, Gain::One, out))
+    Ok(forced_kernel(rotor, kb, cb, spin, w, force, nrhs, Gain::One, None, out))
 }
 
 /// [`forced_response`] with the force of point i scaled by `gain[i]`: q_i = gain_i H_i^-1 F,
@@ -168,7 +168,7 @@ pub fn forced_response_scaled(
 ) -> Result<usize, CoreError> {
     expect_len("gain", gain, w.len())?;
     check_forced(kb, cb, spin, w, force, nrhs, out)?;
-    Ok(forced_kernel(rotor, kb, cb, spin, w, force, nrhs, Gain::PerPoint(gain), out))
+    Ok(forced_kernel(rotor, kb, cb, spin, w, force, nrhs, Gain::PerPoint(gain), None, out))
 }
 
 /// The synchronous response to an imbalance at every speed Omega_i of `spin`: w_i = Omega_i and
@@ -177,7 +177,32 @@ pub fn forced_response_scaled(
 /// (the caller builds no array of w or of Omega^2).
 pub fn forced_response_imbalance(rotor: &Rotor, kb: &[f64], cb: &[f64], spin: &[f64], force: &[C64], nrhs: usize, out: &mut [C64]) -> Result<usize, CoreError> {
     check_forced(kb, cb, spin, spin, force, nrhs, out)?;
-    Ok(forced_kernel(rotor, kb, cb, spin, spin, force, nrhs, Gain::SpinSquared, out))
+    Ok(forced_kernel(rotor, kb, cb, spin, spin, force, nrhs, Gain::SpinSquared, None, out))
+}
+
+/// The general form of the forced responses above: q_i = T (g_i H_i^-1 F_i) with the gains
+/// `gain` and, with `planes` = Some(t), every solution moved to another pair of measurement planes
+/// by the real 2x2 t = [T11, T12, T21, T22] (report eq. 19, [`crate::model::planes_point`]; e.g.
+/// from the bearings to the probe planes), chunk by chunk while it is in cache: the values of
+/// [`crate::model::apply_planes`] on the response at the bearings, without a second pass over it.
+#[allow(clippy::too_many_arguments)]
+pub fn forced_response_with(
+    rotor: &Rotor,
+    kb: &[f64],
+    cb: &[f64],
+    spin: &[f64],
+    w: &[f64],
+    force: &[C64],
+    nrhs: usize,
+    gain: Gain,
+    planes: Option<&[f64; 4]>,
+    out: &mut [C64],
+) -> Result<usize, CoreError> {
+    if let Gain::PerPoint(g) = gain {
+        expect_len("gain", g, w.len())?;
+    }
+    check_forced(kb, cb, spin, w, force, nrhs, out)?;
+    Ok(forced_kernel(rotor, kb, cb, spin, w, force, nrhs, gain, planes, out))
 }
 
 /// The scaling of each point's solution: q_i = g_i H_i^-1 F_i.
@@ -768,21 +793,23 @@ fn forced_chunk_dispatch(b: &Batch, start: usize, out: &mut [C64]) -> usize {
 }
 
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn forced_kernel(rotor: &Rotor, kb: &[f64], cb: &[f64], spin: &[f64], w: &[f64], force: &[C64], nrhs: usize, gain: Gain, out: &mut [C64]) -> usize {
+pub(crate) fn forced_kernel(rotor: &Rotor, kb: &[f64], cb: &[f64], spin: &[f64], w: &[f64], force: &[C64], nrhs: usize, gain: Gain, planes: Option<&[f64; 4]>, out: &mut [C64]) -> usize {
     let b = Batch::new(rotor, kb, cb, spin, w, force, nrhs);
+    let chunk = |start: usize, o: &mut [C64]| {
+        let ns = forced_chunk_dispatch(&b, start, o);
+        apply_gain(gain, spin, start, nrhs, o);
+        if let Some(t) = planes {
+            for p in o.chunks_exact_mut(4) {
+                let moved = planes_point(t, [p[0], p[1], p[2], p[3]]);
+                p.copy_from_slice(&moved);
+            }
+        }
+        ns
+    };
     if w.len() < SERIAL_BELOW {
-        let ns = forced_chunk_dispatch(&b, 0, out);
-        apply_gain(gain, spin, 0, nrhs, out);
-        return ns;
+        return chunk(0, out);
     }
-    out.par_chunks_mut(CHUNK * 4 * nrhs)
-        .enumerate()
-        .map(|(j, o)| {
-            let ns = forced_chunk_dispatch(&b, j * CHUNK, o);
-            apply_gain(gain, spin, j * CHUNK, nrhs, o);
-            ns
-        })
-        .sum()
+    out.par_chunks_mut(CHUNK * 4 * nrhs).enumerate().map(|(j, o)| chunk(j * CHUNK, o)).sum()
 }
 
 #[cfg(test)]

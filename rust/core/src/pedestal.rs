@@ -195,7 +195,7 @@ pub fn forced_response(
     let mut ce = vec![0.0; n * 8];
     let mut tr = vec![C64::new(0.0, 0.0); n * 8];
     effective_coefficients(kb, cb, ped, w, &mut ke, &mut ce, &mut tr)?;
-    let nsing = forced::forced_kernel(rotor, &ke, &ce, spin, w, force, nrhs, gain, q_rotor);
+    let nsing = forced::forced_kernel(rotor, &ke, &ce, spin, w, force, nrhs, gain, None, q_rotor);
     let relative = motion == RotorMotion::Relative;
     q_ped
         .par_chunks_mut(4 * nrhs)

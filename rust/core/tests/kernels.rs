@@ -188,6 +188,32 @@ proptest! {
         prop_assert!(forced::forced_response_imbalance(&r, &k, &cc, &w, &e, 1, &mut d[4..]).is_err());
     }
 
+    /// `forced_response_with`: the gains, then the plane transform, applied in the kernel's pass
+    /// give the bits of the separate steps (`forced_response_imbalance`, then `apply_planes`),
+    /// with 1-3 right-hand sides, for tails of a group and parallel chunks; a gain of the wrong
+    /// length is an error.
+    #[test]
+    fn forced_response_with_planes_equals_the_separate_move(r in rotors(), (k, cc) in bearings(), n in 1usize..5000,
+                                                            nrhs in 1usize..4, t in proptest::collection::vec(-2.0f64..2.0, 4)) {
+        let w = speeds_for(&r, &k, n.max(2));
+        let n = w.len();
+        let t: [f64; 4] = t.try_into().unwrap();
+        let e: Vec<C64> = (0..4 * nrhs).map(|i| c(0.1 * i as f64 - 0.3, 0.05 * (i % 3) as f64)).collect();
+        let mut at_b = vec![c(0.0, 0.0); 4 * nrhs * n];
+        forced::forced_response_imbalance(&r, &k, &cc, &w, &e, nrhs, &mut at_b).unwrap();
+        let mut want = vec![c(0.0, 0.0); at_b.len()];
+        rotorid_core::model::apply_planes(&t, &at_b, &mut want).unwrap();
+        let mut got = vec![c(0.0, 0.0); at_b.len()];
+        forced::forced_response_with(&r, &k, &cc, &w, &w, &e, nrhs, forced::Gain::SpinSquared, Some(&t), &mut got).unwrap();
+        let bits = |v: &[C64]| v.iter().map(|z| (z.re.to_bits(), z.im.to_bits())).collect::<Vec<_>>();
+        prop_assert_eq!(bits(&got), bits(&want));
+        // without a transform it is the response at the bearings itself
+        forced::forced_response_with(&r, &k, &cc, &w, &w, &e, nrhs, forced::Gain::SpinSquared, None, &mut got).unwrap();
+        prop_assert_eq!(bits(&got), bits(&at_b));
+        let short = vec![1.0; n - 1];
+        prop_assert!(forced::forced_response_with(&r, &k, &cc, &w, &w, &e, nrhs, forced::Gain::PerPoint(&short), Some(&t), &mut got).is_err());
+    }
+
     /// Exact responses of 2-4 runs identify the bearings they came from (both solvers), and the
     /// two solvers agree.
     #[test]
