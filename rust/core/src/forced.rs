@@ -13,7 +13,6 @@ const G: usize = 2 * L;
 type V = crate::lanes::V<G>;
 type Z = crate::lanes::Z<G>;
 use crate::model::{assemble, planes_point, Rotor, C64};
-use rayon::prelude::*;
 
 /// Solve a 4x4 complex system in place by LU with partial pivoting, for `nrhs` right-hand sides
 /// stored consecutively in `rhs` (each of length 4). Returns false if the matrix is singular
@@ -809,7 +808,10 @@ pub(crate) fn forced_kernel(rotor: &Rotor, kb: &[f64], cb: &[f64], spin: &[f64],
     if w.len() < SERIAL_BELOW {
         return chunk(0, out);
     }
-    out.par_chunks_mut(CHUNK * 4 * nrhs).enumerate().map(|(j, o)| chunk(j * CHUNK, o)).sum()
+    // tasks of CHUNK points, the calling thread working from the start (crate::par)
+    let out = crate::par::Disjoint::new(out);
+    // SAFETY: sum_tasks hands each chunk index j to one task
+    crate::par::sum_tasks(w.len().div_ceil(CHUNK), |j| chunk(j * CHUNK, unsafe { out.chunk(j, CHUNK * 4 * nrhs) }))
 }
 
 #[cfg(test)]

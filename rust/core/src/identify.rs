@@ -14,6 +14,7 @@
 
 use crate::error::{expect_len, expect_len_or_broadcast, product, CoreError};
 use crate::lanes::{Z, L, V};
+use crate::par::Disjoint;
 use crate::model::{Rotor, C64};
 use faer::linalg::solvers::SolveLstsq;
 use faer::Mat;
@@ -740,39 +741,29 @@ pub fn identify_forces(p: &IdentProblem, out: IdentOut) -> Result<usize, CoreErr
 fn forces_all(p: &IdentProblem, out: IdentOut) -> usize {
     let kc = Consts::new(&p.rotor);
     let IdentOut { k, c, cond, resid, amp, k_std, c_std, rel_std } = out;
-    if resid.len() < SERIAL_BELOW {
+    let npts = resid.len();
+    if npts < SERIAL_BELOW {
         return forces_chunk_dispatch(p, &kc, 0, Outs { k, c, cond, resid, amp, ks: k_std, cs: c_std, rel: rel_std });
     }
-    let base = (
-        k.par_chunks_mut(8 * CHUNK),
-        c.par_chunks_mut(8 * CHUNK),
-        cond.par_chunks_mut(2 * CHUNK),
-        resid.par_chunks_mut(CHUNK),
-        amp.par_chunks_mut(CHUNK),
-    );
-    match (k_std, c_std, rel_std) {
-        (Some(ks), Some(cs), Some(rs)) => (base.0, base.1, base.2, base.3, base.4, ks.par_chunks_mut(8 * CHUNK), cs.par_chunks_mut(8 * CHUNK), rs.par_chunks_mut(CHUNK))
-            .into_par_iter()
-            .enumerate()
-            .map(|(j, (k, c, cond, resid, amp, ks, cs, rs))| {
-                forces_chunk_dispatch(p, &kc, j * CHUNK, Outs { k, c, cond, resid, amp, ks: Some(ks), cs: Some(cs), rel: Some(rs) })
-            })
-            .sum(),
-        (Some(ks), Some(cs), None) => (base.0, base.1, base.2, base.3, base.4, ks.par_chunks_mut(8 * CHUNK), cs.par_chunks_mut(8 * CHUNK))
-            .into_par_iter()
-            .enumerate()
-            .map(|(j, (k, c, cond, resid, amp, ks, cs))| {
-                forces_chunk_dispatch(p, &kc, j * CHUNK, Outs { k, c, cond, resid, amp, ks: Some(ks), cs: Some(cs), rel: None })
-            })
-            .sum(),
-        _ => base
-            .into_par_iter()
-            .enumerate()
-            .map(|(j, (k, c, cond, resid, amp))| {
-                forces_chunk_dispatch(p, &kc, j * CHUNK, Outs { k, c, cond, resid, amp, ks: None, cs: None, rel: None })
-            })
-            .sum(),
-    }
+    // tasks of CHUNK points, the calling thread working from the start (crate::par)
+    let (k, c, cond, resid, amp) = (Disjoint::new(k), Disjoint::new(c), Disjoint::new(cond), Disjoint::new(resid), Disjoint::new(amp));
+    let (ks, cs, rs) = (k_std.map(Disjoint::new), c_std.map(Disjoint::new), rel_std.map(Disjoint::new));
+    crate::par::sum_tasks(npts.div_ceil(CHUNK), |j| {
+        // SAFETY: sum_tasks hands each chunk index j to one task
+        let outs = unsafe {
+            Outs {
+                k: k.chunk(j, 8 * CHUNK),
+                c: c.chunk(j, 8 * CHUNK),
+                cond: cond.chunk(j, 2 * CHUNK),
+                resid: resid.chunk(j, CHUNK),
+                amp: amp.chunk(j, CHUNK),
+                ks: ks.as_ref().map(|d| d.chunk(j, 8 * CHUNK)),
+                cs: cs.as_ref().map(|d| d.chunk(j, 8 * CHUNK)),
+                rel: rs.as_ref().map(|d| d.chunk(j, CHUNK)),
+            }
+        };
+        forces_chunk_dispatch(p, &kc, j * CHUNK, outs)
+    })
 }
 
 /// 2-norm condition number of a real matrix from its singular values. faer's SVD has been seen to
@@ -920,12 +911,23 @@ pub fn bearing_forces(p: &IdentProblem, out: &mut [C64]) -> Result<(), CoreError
     let n = p.points();
     expect_len("out", out, product("out", &[p.batch, p.runs, n, 4])?)?;
     let kc = Consts::new(&p.rotor);
-    out.par_chunks_mut(4).with_min_len(1024).enumerate().for_each(|(idx, f)| {
-        let (br, i) = (idx / n, idx % n);
-        let (b, r) = (br / p.runs, br % p.runs);
-        f.copy_from_slice(&force_point(p, &kc, b, r, i));
-    });
+    let fill = |first: usize, o: &mut [C64]| {
+        for (t, f) in o.chunks_exact_mut(4).enumerate() {
+            let idx = first + t;
+            let (br, i) = (idx / n, idx % n);
+            let (b, r) = (br / p.runs, br % p.runs);
+            f.copy_from_slice(&force_point(p, &kc, b, r, i));
+        }
+    };
+    let out = Disjoint::new(out);
+    // SAFETY: for_each_task hands each chunk index j to one task
+    crate::par::for_each_task(out_len_points(p).div_ceil(CHUNK), |j| fill(j * CHUNK, unsafe { out.chunk(j, 4 * CHUNK) }));
     Ok(())
+}
+
+/// Points of (batch, runs, n) in [`bearing_forces`]'s output.
+fn out_len_points(p: &IdentProblem) -> usize {
+    p.batch * p.runs * p.points()
 }
 
 /// [f1x, f2x, f1y, f2y] of (batch b, run r, point i), as [`bearing_forces`] (a checked problem).
@@ -962,9 +964,14 @@ pub fn relative_std(k: &[f64], c: &[f64], k_std: &[f64], c_std: &[f64], out: &mu
     for (name, a) in [("k", k), ("c", c), ("k_std", k_std), ("c_std", c_std)] {
         expect_len(name, a, product(name, &[n, 8])?)?;
     }
-    out.par_iter_mut().with_min_len(4096).enumerate().for_each(|(i, o)| {
-        let at = |a: &[f64]| -> [f64; 8] { a[8 * i..8 * i + 8].try_into().unwrap() };
-        *o = relative_std_point(&at(k), &at(c), &at(k_std), &at(c_std));
+    let out = Disjoint::new(out);
+    crate::par::for_each_task(n.div_ceil(CHUNK), |j| {
+        // SAFETY: for_each_task hands each chunk index j to one task
+        for (t, o) in unsafe { out.chunk(j, CHUNK) }.iter_mut().enumerate() {
+            let i = j * CHUNK + t;
+            let at = |a: &[f64]| -> [f64; 8] { a[8 * i..8 * i + 8].try_into().unwrap() };
+            *o = relative_std_point(&at(k), &at(c), &at(k_std), &at(c_std));
+        }
     });
     Ok(())
 }
@@ -1098,9 +1105,17 @@ pub fn flag_codes(
         return Ok(());
     }
     // the peak in parallel too: a serial pass over amp was a third of the time at 100,000 points
-    let peak = amp.par_chunks(PAR_CHUNK).map(max_propagating_nan).reduce(|| f64::NEG_INFINITY, max_nan);
+    let nchunks = n.div_ceil(PAR_CHUNK);
+    let mut peaks = vec![f64::NEG_INFINITY; nchunks];
+    let chunk_peaks = Disjoint::new(&mut peaks);
+    // SAFETY: for_each_task hands each chunk index j to one task
+    crate::par::for_each_task(nchunks, |j| unsafe { chunk_peaks.chunk(j, 1) }[0] = max_propagating_nan(&amp[j * PAR_CHUNK..n.min((j + 1) * PAR_CHUNK)]));
+    let peak = peaks.iter().fold(f64::NEG_INFINITY, |a, &b| max_nan(a, b));
     let lim = FlagLimits { peak, cond_max, min_rel_amplitude, max_rel_std };
-    code.par_chunks_mut(PAR_CHUNK).zip(rel_amp.par_chunks_mut(PAR_CHUNK)).enumerate().for_each(|(j, (oc, rc))| {
+    let (code, rel_amp) = (Disjoint::new(code), Disjoint::new(rel_amp));
+    crate::par::for_each_task(nchunks, |j| {
+        // SAFETY: as above
+        let (oc, rc) = unsafe { (code.chunk(j, PAR_CHUNK), rel_amp.chunk(j, PAR_CHUNK)) };
         let (lo, hi) = (j * PAR_CHUNK, j * PAR_CHUNK + oc.len());
         flag_pass_dispatch(&lim, &cond[2 * lo..2 * hi], &amp[lo..hi], rel_std.map(|r| &r[lo..hi]), rc, oc);
     });

@@ -34,6 +34,7 @@ pub mod modal;
 pub mod model;
 pub mod order;
 pub mod pedestal;
+pub mod par;
 pub mod pedestal_fit;
 pub mod series;
 pub mod study;

@@ -91,7 +91,6 @@ const PLANES_CHUNK: usize = 1 << 14;
 /// Returns the flat index of the first non-finite value of `q` (None when all are finite), found
 /// on the way: the caller needs no separate scan to refuse or mark them.
 pub fn apply_planes(t: &[f64; 4], q: &[C64], out: &mut [C64]) -> Result<Option<usize>, crate::CoreError> {
-    use rayon::prelude::*;
     if q.len() % 4 != 0 {
         return Err(crate::CoreError::length("q", q.len(), "a multiple of 4 ([x1, x2, y1, y2] per point)".to_string()));
     }
@@ -112,9 +111,16 @@ pub fn apply_planes(t: &[f64; 4], q: &[C64], out: &mut [C64]) -> Result<Option<u
     if q.len() <= 4 * PLANES_CHUNK {
         return Ok(pass(0, q, out));
     }
-    Ok(q.par_chunks(4 * PLANES_CHUNK)
-        .zip(out.par_chunks_mut(4 * PLANES_CHUNK))
-        .enumerate()
-        .filter_map(|(j, (q, o))| pass(j * 4 * PLANES_CHUNK, q, o))
-        .min())
+    // tasks shared with the calling thread (crate::par); the smallest index found in any chunk
+    let first_bad = std::sync::atomic::AtomicUsize::new(usize::MAX);
+    let out = crate::par::Disjoint::new(out);
+    crate::par::for_each_task(q.len().div_ceil(4 * PLANES_CHUNK), |j| {
+        let lo = j * 4 * PLANES_CHUNK;
+        // SAFETY: for_each_task hands each chunk index j to one task
+        let o = unsafe { out.chunk(j, 4 * PLANES_CHUNK) };
+        if let Some(i) = pass(lo, &q[lo..lo + o.len()], o) {
+            first_bad.fetch_min(i, std::sync::atomic::Ordering::Relaxed);
+        }
+    });
+    Ok(Some(first_bad.into_inner()).filter(|&i| i != usize::MAX))
 }

@@ -6,7 +6,6 @@
 //! each revolution separately follows small speed drift, so a signature does not smear.
 
 use crate::error::{expect_len, product, CoreError};
-use rayon::prelude::*;
 
 /// Keyphasor times must bound at least one revolution and increase strictly.
 pub fn check_keyphasor(kp: &[f64]) -> Result<(), CoreError> {
@@ -94,7 +93,11 @@ pub fn angle_resample_channels(x: &[&[f64]], fs: f64, t0: f64, kp: &[f64], k0: u
 #[allow(clippy::too_many_arguments)]
 fn resample_kernel(x: &[&[f64]], fs: f64, t0: f64, kp: &[f64], k0: usize, k1: usize, p: usize, out: &mut [f64]) {
     let revs = k1 - k0;
-    out.par_chunks_mut(revs * p).enumerate().for_each(|(c, o)| {
+    let out = crate::par::Disjoint::new(out);
+    // one task per channel, shared with the calling thread (crate::par)
+    crate::par::for_each_task(x.len(), |c| {
+        // SAFETY: for_each_task hands each channel c to one task
+        let o = unsafe { out.chunk(c, revs * p) };
         let xc = x[c];
         for r in 0..revs {
             let (ta, tb) = (kp[k0 + r], kp[k0 + r + 1]);
@@ -169,7 +172,9 @@ fn runout_kernel(x: &[f64], nch: usize, fs: f64, t0: f64, kp: &[f64], template: 
         }
     }
     let ctx = Runout { x, n, nch, fs, t0, kp, inv_period: &inv_period, ext: &ext, p };
-    per_block.into_par_iter().enumerate().map(|(b, mut outs)| runout_block_dispatch(&ctx, i0 + b * BLOCK, &mut outs)).sum()
+    let blocks = crate::par::Disjoint::new(&mut per_block);
+    // SAFETY: sum_tasks hands each block b to one task
+    crate::par::sum_tasks(nblocks, |b| runout_block_dispatch(&ctx, i0 + b * BLOCK, &mut unsafe { blocks.chunk(b, 1) }[0]))
 }
 
 /// What every block of the run-out filter reads.

@@ -17,7 +17,6 @@
 
 use crate::error::{expect_len, expect_len_or_broadcast, product, CoreError};
 use crate::model::C64;
-use rayon::prelude::*;
 
 /// A 2 x 2 complex matrix [i][j] over (x, y).
 pub type C2 = [[C64; 2]; 2];
@@ -83,28 +82,32 @@ pub fn series_impedance(
         return Err(CoreError::value("journal_mass", "must be finite and >= 0"));
     }
     let (bb, bd, bm) = (z_bearing.len() == 4, z_damper.len() == 4, journal_mass.len() == 1);
-    let nbad = z_eq
-        .par_chunks_mut(4)
-        .with_min_len(512)
-        .enumerate()
-        .map(|(i, out)| {
-            let zb = c2_at(z_bearing, if bb { 0 } else { 4 * i });
-            let mut d = c2_at(z_damper, if bd { 0 } else { 4 * i });
-            let m = journal_mass[if bm { 0 } else { i }];
-            d[0][0] -= w[i] * w[i] * m;
-            d[1][1] -= w[i] * w[i] * m;
-            match series(&zb, &d) {
-                Some((_, ze)) => {
-                    out.copy_from_slice(&[ze[0][0], ze[0][1], ze[1][0], ze[1][1]]);
-                    0usize
-                }
-                None => {
-                    out.fill(C64::new(f64::NAN, f64::NAN));
-                    1
-                }
+    /// points per task
+    const TASK: usize = 1024;
+    let point = |i: usize, out: &mut [C64]| -> usize {
+        let zb = c2_at(z_bearing, if bb { 0 } else { 4 * i });
+        let mut d = c2_at(z_damper, if bd { 0 } else { 4 * i });
+        let m = journal_mass[if bm { 0 } else { i }];
+        d[0][0] -= w[i] * w[i] * m;
+        d[1][1] -= w[i] * w[i] * m;
+        match series(&zb, &d) {
+            Some((_, ze)) => {
+                out.copy_from_slice(&[ze[0][0], ze[0][1], ze[1][0], ze[1][1]]);
+                0
             }
-        })
-        .sum();
+            None => {
+                out.fill(C64::new(f64::NAN, f64::NAN));
+                1
+            }
+        }
+    };
+    let z_eq = crate::par::Disjoint::new(z_eq);
+    // tasks shared with the calling thread (crate::par)
+    let nbad = crate::par::sum_tasks(n.div_ceil(TASK), |j| {
+        // SAFETY: sum_tasks hands each task index j to one task
+        let o = unsafe { z_eq.chunk(j, 4 * TASK) };
+        o.chunks_exact_mut(4).enumerate().map(|(t, out)| point(j * TASK + t, out)).sum()
+    });
     Ok(nbad)
 }
 
