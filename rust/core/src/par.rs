@@ -12,15 +12,17 @@
 //! write disjoint parts of the outputs ([`Disjoint`]) give the results of a serial loop.
 
 use std::marker::PhantomData;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::Arc;
+use std::any::Any;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
 
 /// The counters a call shares with the jobs it spawns; the jobs own them (a job that starts after
 /// the call has returned finds no task left and touches nothing else).
 struct Counters {
     next: AtomicUsize,
     done: AtomicUsize,
-    panicked: AtomicBool,
+    /// the first panic of a task, raised again in the caller
+    panic: Mutex<Option<Box<dyn Any + Send>>>,
 }
 
 /// A pointer to the call's task closure, lifetime erased. Dereferenced only by a thread that has
@@ -35,8 +37,8 @@ unsafe impl Send for TaskRef {}
 /// Run `task(i)` for every i in 0..n, each exactly once, on the calling thread and on up to
 /// (pool size - 1) threads of the current rayon pool (so at most the pool's size works at once;
 /// RAYON_NUM_THREADS=1 runs everything on the caller). Called from a thread of a pool, it is
-/// rayon's own parallel loop. A panic in a task is raised again in the caller after every
-/// claimed task has finished.
+/// rayon's own parallel loop. A panic in a task is raised again in the caller (with its message)
+/// after every claimed task has finished.
 pub fn for_each_task<F: Fn(usize) + Sync>(n: usize, task: F) {
     if n == 0 {
         return;
@@ -48,10 +50,10 @@ pub fn for_each_task<F: Fn(usize) + Sync>(n: usize, task: F) {
     }
     if rayon::current_thread_index().is_some() {
         use rayon::prelude::*;
-        (0..n).into_par_iter().for_each(|i| task(i));
+        (0..n).into_par_iter().for_each(&task);
         return;
     }
-    let counters = Arc::new(Counters { next: AtomicUsize::new(0), done: AtomicUsize::new(0), panicked: AtomicBool::new(false) });
+    let counters = Arc::new(Counters { next: AtomicUsize::new(0), done: AtomicUsize::new(0), panic: Mutex::new(None) });
     let dyn_task: &(dyn Fn(usize) + Sync) = &task;
     // SAFETY (lifetime erasure): see TaskRef; the wait below outlives every dereference.
     let task_ref = TaskRef(unsafe { std::mem::transmute::<&(dyn Fn(usize) + Sync), &'static (dyn Fn(usize) + Sync)>(dyn_task) });
@@ -62,8 +64,8 @@ pub fn for_each_task<F: Fn(usize) + Sync>(n: usize, task: F) {
         }
         // SAFETY: i < n was claimed, so the call is still waiting for this task (see TaskRef).
         let f = unsafe { &*t.0 };
-        if std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| f(i))).is_err() {
-            c.panicked.store(true, Ordering::Relaxed);
+        if let Err(payload) = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| f(i))) {
+            c.panic.lock().unwrap_or_else(|p| p.into_inner()).get_or_insert(payload);
         }
         c.done.fetch_add(1, Ordering::Release);
     };
@@ -83,8 +85,9 @@ pub fn for_each_task<F: Fn(usize) + Sync>(n: usize, task: F) {
             std::thread::yield_now();
         }
     }
-    if counters.panicked.load(Ordering::Relaxed) {
-        panic!("a parallel task panicked");
+    let first_panic = counters.panic.lock().unwrap_or_else(|p| p.into_inner()).take();
+    if let Some(payload) = first_panic {
+        std::panic::resume_unwind(payload);
     }
 }
 
@@ -174,7 +177,8 @@ mod tests {
                 done.fetch_add(1, Ordering::Relaxed);
             })
         }));
-        assert!(r.is_err());
+        let payload = r.unwrap_err();
+        assert_eq!(payload.downcast_ref::<&str>(), Some(&"task 7"));
         assert_eq!(done.load(Ordering::Relaxed), 49);
     }
 }
