@@ -146,8 +146,7 @@ pub fn forced_response(
     nrhs: usize,
     out: &mut [C64],
 ) -> Result<usize, CoreError> {
-    check_forced(kb, cb, spin, w, force, nrhs, out)?;
-    Ok(forced_kernel(rotor, kb, cb, spin, w, force, nrhs, Gain::One, None, out))
+    forced_response_with(rotor, kb, cb, spin, w, force, nrhs, Gain::One, None, out)
 }
 
 /// [`forced_response`] with the force of point i scaled by `gain[i]`: q_i = gain_i H_i^-1 F,
@@ -165,9 +164,7 @@ pub fn forced_response_scaled(
     gain: &[f64],
     out: &mut [C64],
 ) -> Result<usize, CoreError> {
-    expect_len("gain", gain, w.len())?;
-    check_forced(kb, cb, spin, w, force, nrhs, out)?;
-    Ok(forced_kernel(rotor, kb, cb, spin, w, force, nrhs, Gain::PerPoint(gain), None, out))
+    forced_response_with(rotor, kb, cb, spin, w, force, nrhs, Gain::PerPoint(gain), None, out)
 }
 
 /// The synchronous response to an imbalance at every speed Omega_i of `spin`: w_i = Omega_i and
@@ -175,8 +172,7 @@ pub fn forced_response_scaled(
 /// [`forced_response_scaled`] with `w = spin` and `gain = spin^2`, the gains formed chunk by chunk
 /// (the caller builds no array of w or of Omega^2).
 pub fn forced_response_imbalance(rotor: &Rotor, kb: &[f64], cb: &[f64], spin: &[f64], force: &[C64], nrhs: usize, out: &mut [C64]) -> Result<usize, CoreError> {
-    check_forced(kb, cb, spin, spin, force, nrhs, out)?;
-    Ok(forced_kernel(rotor, kb, cb, spin, spin, force, nrhs, Gain::SpinSquared, None, out))
+    forced_response_with(rotor, kb, cb, spin, spin, force, nrhs, Gain::SpinSquared, None, out)
 }
 
 /// The general form of the forced responses above: q_i = T (g_i H_i^-1 F_i) with the gains
@@ -215,7 +211,7 @@ pub enum Gain<'a> {
     SpinSquared,
 }
 
-/// The argument checks shared by [`forced_response`] and [`forced_response_scaled`].
+/// The argument checks of [`forced_response_with`] (and of the pedestal forced response).
 pub(crate) fn check_forced(kb: &[f64], cb: &[f64], spin: &[f64], w: &[f64], force: &[C64], nrhs: usize, out: &[C64]) -> Result<(), CoreError> {
     let n = w.len();
     if nrhs == 0 {
