@@ -921,13 +921,8 @@ pub fn bearing_forces(p: &IdentProblem, out: &mut [C64]) -> Result<(), CoreError
     };
     let out = Disjoint::new(out);
     // SAFETY: for_each_task hands each chunk index j to one task
-    crate::par::for_each_task(out_len_points(p).div_ceil(CHUNK), |j| fill(j * CHUNK, unsafe { out.chunk(j, 4 * CHUNK) }));
+    crate::par::for_each_task((p.batch * p.runs * n).div_ceil(CHUNK), |j| fill(j * CHUNK, unsafe { out.chunk(j, 4 * CHUNK) }));
     Ok(())
-}
-
-/// Points of (batch, runs, n) in [`bearing_forces`]'s output.
-fn out_len_points(p: &IdentProblem) -> usize {
-    p.batch * p.runs * p.points()
 }
 
 /// [f1x, f2x, f1y, f2y] of (batch b, run r, point i), as [`bearing_forces`] (a checked problem).
