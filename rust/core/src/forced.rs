@@ -3,6 +3,7 @@
 
 use crate::error::{expect_len, expect_len_or_broadcast, product, CoreError};
 use crate::lanes::L;
+use crate::model::{assemble, planes_point, Rotor, C64};
 
 /// Points per group: two sets of [`L`] lanes. Lane loop 1 works on lanes l and l + L together,
 /// step by step in alternation, so that the dependency chain of one matrix (pivot search,
@@ -12,7 +13,6 @@ use crate::lanes::L;
 const G: usize = 2 * L;
 type V = crate::lanes::V<G>;
 type Z = crate::lanes::Z<G>;
-use crate::model::{assemble, planes_point, Rotor, C64};
 
 /// Solve a 4x4 complex system in place by LU with partial pivoting, for `nrhs` right-hand sides
 /// stored consecutively in `rhs` (each of length 4). Returns false if the matrix is singular

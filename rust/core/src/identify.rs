@@ -14,8 +14,8 @@
 
 use crate::error::{expect_len, expect_len_or_broadcast, product, CoreError};
 use crate::lanes::{Z, L, V};
-use crate::par::Disjoint;
 use crate::model::{Rotor, C64};
+use crate::par::Disjoint;
 use faer::linalg::solvers::SolveLstsq;
 use faer::Mat;
 use rayon::prelude::*;
