@@ -289,6 +289,13 @@ def test_identifications_without_standard_errors_hold_read_only_nan():
          rotorid.BearingCoefficients(k=[[[9e6, -2.25e6], [1.125e6, 27e6]], [[5e5, -1.25e5], [-1.25e5, 7.5e5]]],
                              c=[[[2651.650429449553, 0.0], [0.0, 2651.650429449553]], [[2500.0, 625.0], [312.5, 2500.0]]]),
          "forces", False, True)
+# and this one locally: the residual at a point of cond 71 is rounding noise of 1e-13 and 2.5e-13
+@example(rotorid.RigidRotor(mass_kg=389.0, it_kgm2=54.703125, ip_kgm2=82.0546875, l1=0.4375, l2=0.5, d=(0.21875, 0.25),
+                            r=(0.25, 0.25), s=(0.21875, 0.5)),
+         rotorid.BearingCoefficients(k=[[[25e6, -9.375e6], [-3.125e6, 31.25e6]], [[1e6, -2.5e5], [-2.5e5, 2e6]]],
+                                     c=[[[8838.834764831845, 0.0], [0.0, 8838.834764831845]],
+                                        [[3535.5339059327375, 0.0], [0.0, 3535.5339059327375]]]),
+         "forces", False, True)
 def test_impacts_at_the_probes_identify_as_the_same_tests_moved_to_the_bearings(rotor, brg, method, windowed,
                                                                                 spectra):
     """Impact tests recorded at the probe planes go to the core with eq. 19 applied as each point
@@ -312,7 +319,14 @@ def test_impacts_at_the_probes_identify_as_the_same_tests_moved_to_the_bearings(
             # exact data: the residual and the standard errors are rounding noise (~1e-16 relative),
             # compared as such; the coefficients to rounding amplified by the condition number
             rtol = 1e-13 * max(1.0, float(np.nanmax(a.cond)))
-            atol = {"residual": 1e-13, "k_std": 1e-9 * np.abs(a.k).max()}.get(field, rtol * np.nanmax(np.abs(x)))
+            if field == "residual":
+                # relative residual of exact data: rounding of the force formation amplified by the
+                # condition number at each point (a hypothesis example: 1.0e-13 against 2.5e-13 at
+                # cond 71, where a fixed 1e-13 allowed less than the noise)
+                bound = 1e-13 * np.maximum(1.0, np.nanmax(a.cond, axis=-1))
+                assert np.all(np.abs(y - x) <= bound), (np.abs(y - x), bound)
+                continue
+            atol = {"k_std": 1e-9 * np.abs(a.k).max()}.get(field, rtol * np.nanmax(np.abs(x)))
             if field == "c":
                 # C = Im(Z) / w: rounded on the scale of |Z| = |K + j w C|, which exceeds w |C| by
                 # |K| / (w C) (325 at 5 Hz for K = 2.7e7 N/m, C = 2650 N s/m: a hypothesis example
