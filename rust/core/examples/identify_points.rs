@@ -1,8 +1,8 @@
-//! Identify `n` points from 4 runs `reps` times on one thread: a fixed workload for instruction
+//! Identify `n` points from `runs` runs (default 4) `reps` times on one thread: a fixed workload for instruction
 //! counts (`valgrind --tool=callgrind`, repeatable whatever else the machine is doing) and timing.
 //!
 //!     cargo build --release -p rotorid-core --example identify_points
-//!     valgrind --tool=callgrind target/release/examples/identify_points 4096 5 [std]
+//!     valgrind --tool=callgrind target/release/examples/identify_points 4096 5 [std|nostd] [runs]
 use num_complex::Complex64 as C64;
 use rotorid_core::identify::{identify_forces, IdentOut, IdentProblem};
 use rotorid_core::Rotor;
@@ -13,14 +13,15 @@ fn main() {
     let n: usize = args.get(1).and_then(|a| a.parse().ok()).unwrap_or(4096);
     let reps: usize = args.get(2).and_then(|a| a.parse().ok()).unwrap_or(5);
     let want_std = args.get(3).map_or(false, |a| a == "std");
+    let runs: usize = args.get(4).and_then(|a| a.parse().ok()).unwrap_or(4);
     let rotor = Rotor::from_slice(&[30.7, 0.62, 0.062, 0.146, 0.137]).unwrap();
     let c = C64::new;
     let w: Vec<f64> = (0..n).map(|i| 50.0 + 1000.0 * i as f64 / n as f64).collect();
-    let q: Vec<C64> = (0..4 * n * 4).map(|i| c(1e-6 * (1.0 + (i % 7) as f64), 1e-6 * ((i % 5) as f64 - 2.0))).collect();
+    let q: Vec<C64> = (0..runs * n * 4).map(|i| c(1e-6 * (1.0 + (i % 7) as f64), 1e-6 * ((i % 5) as f64 - 2.0))).collect();
     let blocks: Vec<&[C64]> = q.chunks(n * 4).collect();
-    let e: Vec<C64> = (0..16).map(|i| c(1e-4 * ((i % 3) as f64 - 1.0), 1e-5 * (i % 4) as f64)).collect();
+    let e: Vec<C64> = (0..4 * runs).map(|i| c(1e-4 * ((i % 3) as f64 - 1.0), 1e-5 * (i % 4) as f64)).collect();
     let gain: Vec<f64> = w.iter().map(|v| v * v).collect();
-    let p = IdentProblem { rotor, w: &w, spin: &w, q: &blocks, e: &e, gain: &gain, sigma: &[], q_ped: &[], planes: None, batch: 1, runs: 4, identical: false };
+    let p = IdentProblem { rotor, w: &w, spin: &w, q: &blocks, e: &e, gain: &gain, sigma: &[], q_ped: &[], planes: None, batch: 1, runs, identical: false };
     let (mut k, mut cc, mut cond, mut res, mut amp) = (vec![0.0; 8 * n], vec![0.0; 8 * n], vec![0.0; 2 * n], vec![0.0; n], vec![0.0; n]);
     let (mut ks, mut cs, mut rel) = (vec![0.0; 8 * n], vec![0.0; 8 * n], vec![0.0; n]);
     let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
@@ -39,5 +40,6 @@ fn main() {
         pool.install(|| identify_forces(&p, o).unwrap());
     }
     let per = t.elapsed().as_secs_f64() / (reps * n) as f64;
-    println!("{n} points x {reps}, std {want_std}: {:.1} ns per point (one thread); k[0] {:.3e}", per * 1e9, k[0]);
+    let worst = cond.iter().cloned().fold(0.0, f64::max);
+    println!("{n} points x {reps}, {runs} runs, std {want_std}: {:.1} ns per point (one thread); k[0] {:.3e}, largest cond {worst:.2e}", per * 1e9, k[0]);
 }
