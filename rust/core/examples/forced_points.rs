@@ -3,8 +3,11 @@
 //! machine is doing) and whole-process timing.
 //!
 //!     cargo build --release -p rotorid-core --example forced_points
-//!     valgrind --tool=callgrind target/release/examples/forced_points 4096 5
-use rotorid_core::forced::forced_response;
+//!     valgrind --tool=callgrind target/release/examples/forced_points 4096 5 [unit|imbalance|probes]
+//!
+//! `unit` (default): unit forces; `imbalance`: the forces scaled by Omega^2; `probes`: an
+//! imbalance response moved to two other planes (eq. 19) as the API's `at="probes"` asks.
+use rotorid_core::forced::{forced_response_with, Gain};
 use rotorid_core::{Rotor, C64};
 use std::time::Instant;
 
@@ -12,6 +15,13 @@ fn main() {
     let args: Vec<String> = std::env::args().collect();
     let n: usize = args.get(1).and_then(|a| a.parse().ok()).unwrap_or(4096);
     let reps: usize = args.get(2).and_then(|a| a.parse().ok()).unwrap_or(5);
+    let mode = args.get(3).map_or("unit", |a| a.as_str());
+    let (gain, planes) = match mode {
+        "unit" => (Gain::One, None),
+        "imbalance" => (Gain::SpinSquared, None),
+        "probes" => (Gain::SpinSquared, Some([1.2, -0.2, -0.3, 1.3])),
+        _ => panic!("mode must be unit, imbalance or probes, got {mode:?}"),
+    };
     let rotor = Rotor::from_slice(&[30.7, 0.62, 0.062, 0.146, 0.137]).unwrap();
     let kb = [3.2e6, 4e5, -3e5, 2.9e6, 3.5e6, 2e5, -2e5, 3.1e6];
     let cb = [2.1e3, 1e2, 1e2, 2.3e3, 2.2e3, 0.0, 0.0, 2.0e3];
@@ -21,8 +31,8 @@ fn main() {
     let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
     let t = Instant::now();
     for _ in 0..reps {
-        pool.install(|| forced_response(&rotor, &kb, &cb, &w, &w, &f, 1, &mut q).unwrap());
+        pool.install(|| forced_response_with(&rotor, &kb, &cb, &w, &w, &f, 1, gain, planes.as_ref(), &mut q).unwrap());
     }
     let per = t.elapsed().as_secs_f64() / (n * reps) as f64;
-    println!("{n} points x {reps}: {:.1} ns per point (one thread); q[0] {:.6e}", per * 1e9, q[0].re);
+    println!("{n} points x {reps}, {mode}: {:.1} ns per point (one thread); q[0] {:.6e}", per * 1e9, q[0].re);
 }

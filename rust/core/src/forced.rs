@@ -225,23 +225,6 @@ pub(crate) fn check_forced(kb: &[f64], cb: &[f64], spin: &[f64], w: &[f64], forc
     Ok(())
 }
 
-/// Scale the outputs of the points starting at `start` by their gains.
-fn apply_gain(gain: Gain, spin: &[f64], start: usize, nrhs: usize, out: &mut [C64]) {
-    let scale = |g: &[f64], square: bool, out: &mut [C64]| {
-        for (o, &g) in out.chunks_mut(4 * nrhs).zip(&g[start..]) {
-            let g = if square { g * g } else { g };
-            for v in o.iter_mut() {
-                *v *= g;
-            }
-        }
-    };
-    match gain {
-        Gain::One => {}
-        Gain::PerPoint(g) => scale(g, false, out),
-        Gain::SpinSquared => scale(spin, true, out),
-    }
-}
-
 // ---------------------------------------------------------------------------------------------
 // Lane-parallel kernel: G = 2 L points in lock-step.
 //
@@ -273,6 +256,10 @@ struct Batch<'a> {
     w: &'a [f64],
     force: &'a [C64],
     nrhs: usize,
+    /// the scaling of each solution, applied to the lanes before they are stored
+    gain: Gain<'a>,
+    /// eq. 19 transform of each solution (after the gain), or None
+    planes: Option<[f64; 4]>,
     /// bearing stiffness, damping, forces shared by all points
     kbc: bool,
     cbc: bool,
@@ -281,7 +268,7 @@ struct Batch<'a> {
 
 impl<'a> Batch<'a> {
     #[allow(clippy::too_many_arguments)]
-    fn new(rotor: &Rotor, kb: &'a [f64], cb: &'a [f64], spin: &'a [f64], w: &'a [f64], force: &'a [C64], nrhs: usize) -> Self {
+    fn new(rotor: &Rotor, kb: &'a [f64], cb: &'a [f64], spin: &'a [f64], w: &'a [f64], force: &'a [C64], nrhs: usize, gain: Gain<'a>, planes: Option<&[f64; 4]>) -> Self {
         let n = w.len();
         Batch {
             rotor: *rotor,
@@ -293,21 +280,49 @@ impl<'a> Batch<'a> {
             w,
             force,
             nrhs,
+            gain,
+            planes: planes.copied(),
             kbc: kb.len() == 8,
             cbc: cb.len() == 8,
             fbc: force.len() == nrhs * 4 && n != 1,
         }
     }
 
-    /// Point `i` alone through [`dynamic_stiffness`] and [`solve4`]: the reference the lanes
-    /// reproduce, and the path of groups holding a non-finite number. Returns true if singular.
+    /// Point `i` alone through [`dynamic_stiffness`] and [`solve4`], then its gain and plane
+    /// transform: the reference the lanes reproduce, and the path of groups holding a non-finite
+    /// number. Returns true if singular.
     fn point(&self, i: usize, o: &mut [C64]) -> bool {
         let s = 4 * self.nrhs;
         o.copy_from_slice(if self.fbc { self.force } else { &self.force[i * s..(i + 1) * s] });
         let ki = if self.kbc { 0 } else { 8 * i };
         let ci = if self.cbc { 0 } else { 8 * i };
         let mut h = dynamic_stiffness(&self.rotor, &self.m, &self.g, &self.kb[ki..ki + 8], &self.cb[ci..ci + 8], self.spin[i], self.w[i]);
-        !solve4(&mut h, o)
+        let singular = !solve4(&mut h, o);
+        let g = match self.gain {
+            Gain::One => None,
+            Gain::PerPoint(g) => Some(g[i]),
+            Gain::SpinSquared => Some(self.spin[i] * self.spin[i]),
+        };
+        for p in o.chunks_exact_mut(4) {
+            if let Some(g) = g {
+                p.iter_mut().for_each(|v| *v *= g);
+            }
+            if let Some(t) = &self.planes {
+                let moved = planes_point(t, [p[0], p[1], p[2], p[3]]);
+                p.copy_from_slice(&moved);
+            }
+        }
+        singular
+    }
+
+    /// The gains of the points `idx` as lanes (None for unit gains).
+    #[inline(always)]
+    fn gain_lanes(&self, idx: &[usize; G], spin: V) -> Option<V> {
+        match self.gain {
+            Gain::One => None,
+            Gain::PerPoint(g) => Some(crate::lanes::V(std::array::from_fn(|l| g[idx[l]]))),
+            Gain::SpinSquared => Some(spin * spin),
+        }
     }
 }
 
@@ -601,10 +616,28 @@ fn load_force(b: &Batch, idx: &[usize; G], r: usize, f: &mut [Z; 4]) {
     }
 }
 
-/// Solution `r` of the first `nl` lanes into the points g0.. of `out` (NaN for singular lanes).
+/// Solution `r` of the first `nl` lanes, times its gain and moved by the plane transform of `b`,
+/// into the points g0.. of `out` (NaN for singular lanes). The gain and the transform are lane
+/// operations here, on the values the per-point path ([`Batch::point`]) scales and moves one by
+/// one: the same IEEE operations, so the same bits, without a second pass over `out`.
 #[inline(always)]
-fn store(out: &mut [C64], bad: &[bool; G], g0: usize, nl: usize, nrhs: usize, r: usize, q: &[Z; 4]) {
-    let stride = 4 * nrhs;
+#[allow(clippy::too_many_arguments)]
+fn store(b: &Batch, gain: Option<V>, out: &mut [C64], bad: &[bool; G], g0: usize, nl: usize, r: usize, q: &[Z; 4]) {
+    let moved;
+    let q = if gain.is_none() && b.planes.is_none() {
+        q
+    } else {
+        let mut m = *q;
+        if let Some(g) = gain {
+            m = m.map(|z| z.scale(g));
+        }
+        if let Some(t) = &b.planes {
+            m = crate::model::planes_lanes(t, m);
+        }
+        moved = m;
+        &moved
+    };
+    let stride = 4 * b.nrhs;
     let dst = &mut out[g0 * stride..(g0 + nl) * stride];
     for (l, p) in dst.chunks_exact_mut(stride).enumerate() {
         let p = &mut p[4 * r..4 * r + 4];
@@ -678,7 +711,8 @@ where
             }
             continue;
         }
-        store(out, &lu.bad, g0, nl, nrhs, 0, &q[0]);
+        let gain = b.gain_lanes(&idx, gi.spin);
+        store(b, gain, out, &lu.bad, g0, nl, 0, &q[0]);
         let mut r = 1;
         while r < nrhs {
             let m = MAX_RHS.min(nrhs - r);
@@ -687,7 +721,7 @@ where
             }
             solve(&lu, &f, &mut q, m);
             for t in 0..m {
-                store(out, &lu.bad, g0, nl, nrhs, r + t, &q[t]);
+                store(b, gain, out, &lu.bad, g0, nl, r + t, &q[t]);
             }
             r += m;
         }
@@ -789,18 +823,8 @@ fn forced_chunk_dispatch(b: &Batch, start: usize, out: &mut [C64]) -> usize {
 
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn forced_kernel(rotor: &Rotor, kb: &[f64], cb: &[f64], spin: &[f64], w: &[f64], force: &[C64], nrhs: usize, gain: Gain, planes: Option<&[f64; 4]>, out: &mut [C64]) -> usize {
-    let b = Batch::new(rotor, kb, cb, spin, w, force, nrhs);
-    let chunk = |start: usize, o: &mut [C64]| {
-        let ns = forced_chunk_dispatch(&b, start, o);
-        apply_gain(gain, spin, start, nrhs, o);
-        if let Some(t) = planes {
-            for p in o.chunks_exact_mut(4) {
-                let moved = planes_point(t, [p[0], p[1], p[2], p[3]]);
-                p.copy_from_slice(&moved);
-            }
-        }
-        ns
-    };
+    let b = Batch::new(rotor, kb, cb, spin, w, force, nrhs, gain, planes);
+    let chunk = |start: usize, o: &mut [C64]| forced_chunk_dispatch(&b, start, o);
     if w.len() < SERIAL_BELOW {
         return chunk(0, out);
     }
@@ -922,7 +946,7 @@ mod tests {
         let n = p.w.len();
         let mut lanes = vec![C64::new(0.0, 0.0); n * p.nrhs * 4];
         let bad_lanes = forced_response(&p.rotor, &p.kb, &p.cb, &p.spin, &p.w, &p.force, p.nrhs, &mut lanes).unwrap();
-        let b = Batch::new(&p.rotor, &p.kb, &p.cb, &p.spin, &p.w, &p.force, p.nrhs);
+        let b = Batch::new(&p.rotor, &p.kb, &p.cb, &p.spin, &p.w, &p.force, p.nrhs, Gain::One, None);
         let mut base = vec![C64::new(0.0, 0.0); lanes.len()];
         let bad_base = lanes_baseline(&b, &mut base);
         let mut reference = vec![C64::new(0.0, 0.0); lanes.len()];

@@ -444,18 +444,6 @@ fn load_q(p: &IdentProblem, b: usize, r: usize, i: usize) -> [C64; 4] {
     }
 }
 
-/// [`crate::model::planes_point`] on L points at once (the same operations, lane by lane).
-#[inline(always)]
-fn planes_lanes(t: &[f64; 4], q: [Z; 4]) -> [Z; 4] {
-    let (t0, t1, t2, t3) = (V::splat(t[0]), V::splat(t[1]), V::splat(t[2]), V::splat(t[3]));
-    [
-        q[0].scale(t0) + q[1].scale(t1),
-        q[0].scale(t2) + q[1].scale(t3),
-        q[2].scale(t0) + q[3].scale(t1),
-        q[2].scale(t2) + q[3].scale(t3),
-    ]
-}
-
 /// Absolute motion q + q_ped of (batch b, run r, point i); q itself without pedestals.
 #[inline(always)]
 fn load_abs(p: &IdentProblem, b: usize, r: usize, i: usize) -> [C64; 4] {
@@ -571,7 +559,7 @@ fn forces_chunk(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize
                 }
             }
             if let Some(t) = &p.planes {
-                q = planes_lanes(t, q);
+                q = crate::model::planes_lanes(t, q);
             }
             if shared_e {
                 for dd in 0..4 {

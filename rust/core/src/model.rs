@@ -5,6 +5,8 @@
 //! - bearing coefficients of one point are 8 numbers ordered [bearing][i][j] with i, j in (x, y),
 //!   i.e. index = 4*bearing + 2*i + j.
 
+use crate::lanes::{Z, V};
+
 pub type C64 = num_complex::Complex64;
 
 /// Rigid rotor: mass, transverse and polar inertia, bearing distances from the CG.
@@ -78,6 +80,19 @@ pub fn assemble(b: &[f64], l1: f64, l2: f64) -> [[f64; 4]; 4] {
 #[inline(always)]
 pub fn planes_point(t: &[f64; 4], q: [C64; 4]) -> [C64; 4] {
     [q[0] * t[0] + q[1] * t[1], q[0] * t[2] + q[1] * t[3], q[2] * t[0] + q[3] * t[1], q[2] * t[2] + q[3] * t[3]]
+}
+
+/// [`planes_point`] on N points at once (SIMD lanes): the same operations lane by lane, so each
+/// lane holds the bits [`planes_point`] gives for its point.
+#[inline(always)]
+pub fn planes_lanes<const N: usize>(t: &[f64; 4], q: [Z<N>; 4]) -> [Z<N>; 4] {
+    let (t0, t1, t2, t3) = (V::splat(t[0]), V::splat(t[1]), V::splat(t[2]), V::splat(t[3]));
+    [
+        q[0].scale(t0) + q[1].scale(t1),
+        q[0].scale(t2) + q[1].scale(t3),
+        q[2].scale(t0) + q[3].scale(t1),
+        q[2].scale(t2) + q[3].scale(t3),
+    ]
 }
 
 /// Points per parallel task of [`apply_planes`] (memory-bound: large tasks).

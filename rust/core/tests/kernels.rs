@@ -214,6 +214,48 @@ proptest! {
         prop_assert!(forced::forced_response_with(&r, &k, &cc, &w, &w, &e, nrhs, forced::Gain::PerPoint(&short), Some(&t), &mut got).is_err());
     }
 
+    /// The gains and the plane transform, applied to the kernel's lanes before they are stored,
+    /// give the bits of the unit-gain response scaled point by point (`v *= g`) and then moved by
+    /// `apply_planes`: per-point gains and Omega^2, 1-3 right-hand sides, tails of a group,
+    /// parallel chunks, and a point with a non-finite coefficient (its group takes the per-point
+    /// path, which must scale and move the same way; that point itself is NaN).
+    #[test]
+    fn gains_and_planes_in_the_lanes_equal_scaling_and_moving_afterwards(
+        r in rotors(), (k, cc) in bearings(), n in 1usize..3000, nrhs in 1usize..4,
+        t in proptest::collection::vec(-2.0f64..2.0, 4), g in proptest::collection::vec(-3.0f64..3.0, 1..40),
+        nan_at in proptest::option::of(0usize..3000), square in any::<bool>(), move_planes in any::<bool>())
+    {
+        let w = speeds_for(&r, &k, n.max(2));
+        let n = w.len();
+        let t: [f64; 4] = t.try_into().unwrap();
+        let gain: Vec<f64> = (0..n).map(|i| g[i % g.len()] * (1.0 + i as f64)).collect();
+        let mut kp: Vec<f64> = (0..n).flat_map(|_| k.iter().copied()).collect();
+        if let Some(i) = nan_at {
+            kp[8 * (i % n) + 3] = f64::NAN;
+        }
+        let e: Vec<C64> = (0..4 * nrhs).map(|i| c(0.1 * i as f64 - 0.3, 0.05 * (i % 3) as f64)).collect();
+        let mut unit = vec![c(0.0, 0.0); 4 * nrhs * n];
+        forced::forced_response(&r, &kp, &cc, &w, &w, &e, nrhs, &mut unit).unwrap();
+        let mut want = unit.clone();
+        for (i, p) in want.chunks_mut(4 * nrhs).enumerate() {
+            let gi = if square { w[i] * w[i] } else { gain[i] };
+            p.iter_mut().for_each(|v| *v *= gi);
+        }
+        if move_planes {
+            let scaled = want.clone();
+            rotorid_core::model::apply_planes(&t, &scaled, &mut want).unwrap();
+        }
+        let mut got = vec![c(0.0, 0.0); want.len()];
+        let gk = if square { forced::Gain::SpinSquared } else { forced::Gain::PerPoint(&gain) };
+        let nsing = forced::forced_response_with(&r, &kp, &cc, &w, &w, &e, nrhs, gk, move_planes.then_some(&t), &mut got).unwrap();
+        let bits = |v: &[C64]| v.iter().map(|z| (z.re.to_bits(), z.im.to_bits())).collect::<Vec<_>>();
+        prop_assert_eq!(bits(&got), bits(&want));
+        if let Some(i) = nan_at {
+            prop_assert!(got[4 * nrhs * (i % n)].re.is_nan());
+            prop_assert!(nsing >= 1);
+        }
+    }
+
     /// Exact responses of 2-4 runs identify the bearings they came from (both solvers), and the
     /// two solvers agree.
     #[test]
