@@ -257,7 +257,7 @@ struct Batch<'a> {
     w: &'a [f64],
     force: &'a [C64],
     nrhs: usize,
-    /// the scaling of each solution, applied to the lanes before they are stored
+    /// the scaling of each solution, applied to each lane's values as they are stored
     gain: Gain<'a>,
     /// eq. 19 transform of each solution (after the gain), or None
     planes: Option<[f64; 4]>,
@@ -572,7 +572,7 @@ fn substitute_lane(a: &[[C64; 4]; 4], ins: &[f64; 4], piv: &[f64; 4], f: &[Z; 4]
 
 /// The lanes 0..n in sweeps of `W` consecutive lanes: the lane loops run sweep by sweep, so that
 /// LLVM vectorizes each sweep with one register per value (W = 8 for AVX-512, 4 for AVX2, 2 for
-/// the baseline). A sweep wider than the registers (16 lanes on AVX2 as two sets of 8) keeps two
+/// the baseline). A sweep wider than the registers (8 lanes on AVX2's 4-wide registers) keeps two
 /// or more registers live for every value of the elimination and spills: at AVX2 the 4-lane
 /// sweeps take 12 % less time per point than 8-lane ones (35.3 against 40.2 ns, best of 12
 /// interleaved runs of `examples/forced_points 4096 200 imbalance`). The order of the lanes, and so
@@ -636,8 +636,8 @@ fn load_force(b: &Batch, idx: &[usize; G], r: usize, f: &mut [Z; 4]) {
 /// Solution `r` of the first `nl` lanes, times its gain and moved by the plane transform of `b`,
 /// into the points g0.. of `out` (NaN for singular lanes). The gain and the transform are applied
 /// to each lane's values as they are scattered, with the operations of the per-point path
-/// ([`Batch::point`]), so the same bits, and no second pass over `out` (a lane-vector copy scaled
-/// before the scatter cost ~2 ns per point more).
+/// ([`Batch::point`]), so the same bits, and no second pass over `out` (scaling a copy of the lane
+/// vectors before the scatter took 26-35 more instructions per point).
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn store(b: &Batch, gain: Option<V>, out: &mut [C64], bad: &[bool; G], g0: usize, nl: usize, r: usize, q: &[Z; 4]) {

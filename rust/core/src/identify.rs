@@ -623,7 +623,7 @@ fn forces_chunk<const N: usize, S: SolveSystem<N>>(p: &IdentProblem, kc: &Consts
             let f1y = (rv1.scale(l2) + rv3).scale(il);
             let f2x = (rv2 + rv0.scale(l1)).scale(il);
             let f2y = (rv1.scale(l1) - rv3).scale(il);
-            // stored field by field (a whole [Z<N>; 4] temporary went through memcpy)
+            // stored field by field (a whole [Z; 4] temporary went through memcpy)
             put_row(&mut rows[0][nr[0]], q[0], q[2], f1x, f1y);
             nr[0] += 1;
             let s2 = if p.identical { 0 } else { 1 };
@@ -660,7 +660,7 @@ fn forces_chunk<const N: usize, S: SolveSystem<N>>(p: &IdentProblem, kc: &Consts
                 let var_half = s.res2[row] * V::<N>::splat(if dof > 0.0 { 0.5 / dof } else { f64::NAN });
                 for col in 0..2 {
                     let o = 4 * sb + 2 * row + col;
-                    // Z<N> = K + s C = (K + sigma C) + j w C
+                    // Z = K + s C = (K + sigma C) + j w C
                     cv[o] = s.z[row][col].im * iw;
                     kv[o] = s.z[row][col].re - sig * cv[o];
                     if want_std {
@@ -693,7 +693,7 @@ fn forces_chunk<const N: usize, S: SolveSystem<N>>(p: &IdentProblem, kc: &Consts
             }
         }
         let mut csv = [V::<N>::zero(); 8];
-        let kfac = (V::<N>::splat(1.0) + sig * sig * iw * iw).sqrt(); // var(K) = var(Re Z<N>) (1 + (sigma/w)^2)
+        let kfac = (V::<N>::splat(1.0) + sig * sig * iw * iw).sqrt(); // var(K) = var(Re Z) (1 + (sigma/w)^2)
         for o in 0..8 {
             csv[o] = sv[o] * iw;
             sv[o] = sv[o] * kfac;
