@@ -503,9 +503,13 @@ fn put_row<const N: usize>(row: &mut [Z<N>; 4], x: Z<N>, y: Z<N>, fx: Z<N>, fy: 
 }
 
 /// One chunk of consecutive points starting at flat index `start` (= b * n + i), N at a time
-/// (one register's width, see [`forces_chunk_dispatch`]); `solver` solves each bearing system.
+/// (one register's width, see [`forces_chunk_dispatch`]); `solve` solves each bearing system
+/// ([`solve_lanes`], compiled apart) into the solution it is given.
 #[inline(always)]
-fn forces_chunk<const N: usize, S: SolveSystem<N>>(p: &IdentProblem, kc: &Consts, start: usize, out: Outs, solver: S) -> usize {
+fn forces_chunk<const N: usize, S>(p: &IdentProblem, kc: &Consts, start: usize, out: Outs, solve: S) -> usize
+where
+    S: Fn(&[[Z<N>; 4]], &mut LaneSol<N>),
+{
     let Outs { k, c, cond, resid, amp, mut ks, mut cs, rel: mut rel_out } = out;
     let n = p.w.len();
     let npts = resid.len();
@@ -630,8 +634,8 @@ fn forces_chunk<const N: usize, S: SolveSystem<N>>(p: &IdentProblem, kc: &Consts
             put_row(&mut rows[s2][nr[s2]], q[1], q[3], f2x, f2y);
             nr[s2] += 1;
         }
-        solver.solve(&rows[0][..nr[0]], &mut sols[0]);
-        solver.solve(&rows[1][..nr[1]], &mut sols[1]);
+        solve(&rows[0][..nr[0]], &mut sols[0]);
+        solve(&rows[1][..nr[1]], &mut sols[1]);
         // rows of the systems together hold every entry of q and E: a NaN/inf input shows up here
         let mut bad = [false; N];
         for l in 0..N {
@@ -727,33 +731,6 @@ fn forces_chunk<const N: usize, S: SolveSystem<N>>(p: &IdentProblem, kc: &Consts
     nbad
 }
 
-/// How the group loop solves a bearing system of its N points ([`solve_lanes`]).
-trait SolveSystem<const N: usize> {
-    fn solve(&self, rows: &[[Z<N>; 4]], out: &mut LaneSol<N>);
-}
-
-/// [`solve_lanes`] inlined into the group loop (AVX-512, where 32 registers hold it).
-struct Inline;
-
-impl<const N: usize> SolveSystem<N> for Inline {
-    #[inline(always)]
-    fn solve(&self, rows: &[[Z<N>; 4]], out: &mut LaneSol<N>) {
-        *out = solve_lanes(rows);
-    }
-}
-
-/// [`solve_lanes`] as a call of a function of its own, compiled for the caller's instruction set
-/// (AVX2 and the baseline: with 16 registers, inlined into the group loop it spilled its
-/// accumulators around everything else the loop holds).
-struct Call<F>(F);
-
-impl<const N: usize, F: Fn(&[[Z<N>; 4]], &mut LaneSol<N>)> SolveSystem<N> for Call<F> {
-    #[inline(always)]
-    fn solve(&self, rows: &[[Z<N>; 4]], out: &mut LaneSol<N>) {
-        (self.0)(rows, out)
-    }
-}
-
 #[inline(never)]
 fn solve_baseline(rows: &[[Z<2>; 4]], out: &mut LaneSol<2>) {
     *out = solve_lanes(rows);
@@ -767,34 +744,34 @@ fn solve_avx2(rows: &[[Z<4>; 4]], out: &mut LaneSol<4>) {
 }
 
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512dq,avx2,fma")]
-fn forces_chunk_avx512(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize {
-    forces_chunk::<8, _>(p, kc, start, out, Inline)
-}
-
-#[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 fn forces_chunk_avx2(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize {
     // the closure has this function's features: calling solve_avx2 from it is safe
-    forces_chunk::<4, _>(p, kc, start, out, Call(|r: &[[Z<4>; 4]], s: &mut LaneSol<4>| solve_avx2(r, s)))
+    forces_chunk::<4, _>(p, kc, start, out, |r: &[[Z<4>; 4]], s: &mut LaneSol<4>| solve_avx2(r, s))
 }
 
-/// [`forces_chunk`] at the widest SIMD level of this CPU, with one register's width of lanes (8
-/// at AVX-512, 4 at AVX2, 2 at the baseline): the same operations lane by lane at every level, so
-/// the same bits. At AVX2 and the baseline the bearing systems are solved by a call
-/// ([`Call`]) into a group loop whose results are passed through memory ([`LaneSol`]): 8 lanes with
-/// the solver inlined held two registers per value and spilled. One thread, 4,096 points, best of
-/// 12-16 interleaved runs of `examples/identify_points` (ns per point, before -> after): AVX2, 4
-/// runs 118-125 -> 89; with standard errors 148 -> 127; 2 runs 62 -> 48; baseline, 4 runs 201-209 ->
-/// 159-161; AVX-512 (8 lanes, inlined, as before) 112-120 -> 115-119.
+/// [`forces_chunk`] for this CPU: 4 lanes of AVX2 code on AVX2 and AVX-512 CPUs, 2 lanes of the
+/// build's baseline elsewhere; the same operations lane by lane, so the same bits. The bearing
+/// systems are solved by a function of their own ([`solve_lanes`] behind `solve_avx2` /
+/// `solve_baseline`), the solution passed back through memory: with 8 lanes and the solver
+/// inlined into the group loop, every value took two AVX2 registers and the loop spilled them.
+/// One thread, 4,096 points from 4 runs, best of 12-20 interleaved runs of
+/// `examples/identify_points` on an AMD EPYC (Zen 4), ns per point:
+/// - 8 lanes, solver inlined (the former kernel): AVX-512 code 112-120, AVX2 code 115-125;
+/// - 4 lanes, solver apart: AVX2 code 89-92, and on the same CPU compiled for AVX-512 133;
+/// - 8 lanes, solver apart, AVX-512 code: 146-149;
+/// - baseline: 201-209 with 8 lanes, 159-161 with 2.
+///
+/// So an AVX-512 CPU runs the AVX2 code here (its 512-bit registers bought nothing this kernel
+/// could keep in them); the forward kernel, whose lane loops hold their values in registers,
+/// keeps its AVX-512 version.
 fn forces_chunk_dispatch(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize {
     match crate::lanes::simd() {
-        // SAFETY: simd() reports the CPU has the features these versions are compiled for.
+        // SAFETY: simd() reports AVX2 and FMA at the Avx2 level; CPUs with AVX-512 F and DQ have
+        // them too (every kernel's AVX-512 version is compiled with them enabled).
         #[cfg(target_arch = "x86_64")]
-        crate::lanes::Simd::Avx512 => unsafe { forces_chunk_avx512(p, kc, start, out) },
-        #[cfg(target_arch = "x86_64")]
-        crate::lanes::Simd::Avx2 => unsafe { forces_chunk_avx2(p, kc, start, out) },
-        _ => forces_chunk::<2, _>(p, kc, start, out, Call(solve_baseline)),
+        crate::lanes::Simd::Avx512 | crate::lanes::Simd::Avx2 => unsafe { forces_chunk_avx2(p, kc, start, out) },
+        _ => forces_chunk::<2, _>(p, kc, start, out, solve_baseline),
     }
 }
 
