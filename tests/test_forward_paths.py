@@ -207,6 +207,38 @@ def test_axes_formed_by_the_core_give_the_same_bits(rig):
         _core.identify(p, f[:-1], spin_n[:1], [tt.q for tt in tests], e, np.ones(1), w_scale=2 * np.pi)
 
 
+def test_synchronous_speed_axis_formed_by_the_core_gives_the_same_bits(rig):
+    """identify_synchronous hands the core the speeds in rpm (w_scale) with no spin array (spin =
+    w, formed once) and no gain (Omega^2): the result is the core call on the (n,) arrays NumPy
+    would have built, bit for bit, with and without standard errors, for both solvers; a spin of
+    another length is still refused naming it."""
+    from rotorid import _core
+    from rotorid.simulate import RPM
+
+    rpm = np.linspace(1500.0, 9800.0, 1031)
+    runs = [rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[x], speed_rpm=rpm) for x in "ABC"]
+    ident = rotorid.identify_synchronous(rig.rotor, runs)
+    p = rig.rotor.core_params()
+    e = np.stack([r.imbalance.generalized(rig.rotor) for r in runs]).astype(complex)[None]
+    om = rpm * RPM
+    qs = [r.q for r in runs]
+    want = _core.identify(p, om, om, qs, e, om ** 2, with_std=True)
+    np.testing.assert_array_equal(ident.k, want[0][0])
+    np.testing.assert_array_equal(ident.c, want[1][0])
+    np.testing.assert_array_equal(ident.k_std, want[5][0])
+    for method in ("forces", "report"):
+        for with_std in (False, True):
+            a = _core.identify(p, om, om, qs, e, None, method=method, with_std=with_std)
+            b = _core.identify(p, rpm, None, qs, e, None, method=method, with_std=with_std, w_scale=RPM)
+            for x, y in zip(a[:7], b[:7]):
+                if x is None:
+                    assert y is None
+                else:
+                    np.testing.assert_array_equal(x, y)
+    with pytest.raises(ValueError, match=r"spin has shape \[5\], expected \(1031,\) or \(1,\)"):
+        _core.identify(p, om, om[:5], qs, e, None)
+
+
 def _time_response_from_states(rig, u, fs, speed, at, pedestals):
     """impact_time_response as it was computed before the core formed its outputs: the (N, n)
     states read back, then q, p and the pedestals' acceleration in NumPy (the reference)."""

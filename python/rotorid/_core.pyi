@@ -46,7 +46,7 @@ def imbalance_response(
 def identify(
     rotor: npt.NDArray[np.float64],
     w: npt.NDArray[np.float64],  # (n,)
-    spin: npt.NDArray[np.float64],  # (n,)
+    spin: npt.NDArray[np.float64] | None,  # (n,) or (1,); None: spin = w (synchronous runs, after w_scale)
     q: npt.NDArray[np.complex128],  # (batch, runs, n, 4)
     e: npt.NDArray[np.complex128],  # (1 or batch, runs, 4)
     gain: npt.NDArray[np.float64] | None,  # (n,) or (1,): excitation at point i is e * gain[i]; None: spin^2

@@ -428,11 +428,11 @@ def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", ide
     check_imbalance_independence(rotor, [r.imbalance for r in runs], labels, identical=identical)
     rpm = runs[0].speed_rpm
     _check_same_axis("speed_rpm", [r.speed_rpm for r in runs], labels, "runs", "speeds", "interpolate the 1X vectors first")
-    om = rpm * RPM
     e = np.stack([r.imbalance.generalized(rotor) for r in runs])  # (R, 4), scaled by Omega^2 below
     if _has_pedestal(runs, labels):
         qs, qps, covs, dofs, flags = _pedestal_inputs(rotor, runs, labels, "speed_rpm", rpm)
         cal = _calibration_inputs(rotor, runs, labels, accel_gain_std, accel_phase_std_deg)
+        om = rpm * RPM
         return _solve(rotor, "speed_rpm", rpm, om, om, qs, e, None, None, identical=identical, method=method,
                       labels=labels, cond_max=cond_max, min_rel_amplitude=min_rel_amplitude, what="responses",
                       covs=covs, dofs=dofs, max_rel_std=max_rel_std, estimator=estimator, extra_flags=flags,
@@ -441,12 +441,13 @@ def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", ide
     at_b, planes = _for_the_core(rotor, runs, may_use_planes=shared_cov is None)
     qs = [np.ascontiguousarray(r.q, dtype=complex) for r in at_b]  # the runs as they are: no copy, no stack
     covs = _run_covs(at_b, labels)
-    # gain None: the core forms Omega^2 itself (a second (n,) temporary next to om made glibc return
-    # and fault in megabytes on every call)
-    return _solve(rotor, "speed_rpm", rpm, om, om, qs, e, None, None, identical=identical, method=method,
+    # the core forms Omega = RPM * rpm (w_scale), takes it as the spin speed too (spin None) and
+    # forms Omega^2 (gain None): no (n,) temporaries (two of them freed together made glibc return
+    # and fault in megabytes on every call; one cost 50-180 µs of a 100,000-speed call)
+    return _solve(rotor, "speed_rpm", rpm, rpm, None, qs, e, None, None, identical=identical, method=method,
                   labels=labels, cond_max=cond_max, min_rel_amplitude=min_rel_amplitude, what="responses",
                   covs=covs, dofs=None if covs is None else _run_dofs(at_b), max_rel_std=max_rel_std,
-                  estimator=estimator, shared_cov=_shared(rotor, runs, shared_cov), planes=planes)
+                  estimator=estimator, shared_cov=_shared(rotor, runs, shared_cov), planes=planes, w_scale=RPM)
 
 
 #: pedestal motion above this multiple of the relative motion: a point is flagged (and warned about)
@@ -671,7 +672,8 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
     ``gain`` None: spin^2 (an imbalance), formed by the core. ``planes``: the (2, 2) eq. 19
     transform when ``qs`` are at the probe planes (no covariances then), else None.
     ``w_scale``: ``w`` is given in the axis' unit and is w_scale times that in rad/s (formed by
-    the core: no (n,) temporary unless the uncertainty propagation needs it)."""
+    the core: no (n,) temporary unless the uncertainty propagation needs it). ``spin`` None: the
+    spin speed is w (synchronous runs)."""
     assert planes is None or (covs is None and calibration is None and q_ped is None)
     from .uncertainty import propagate, std_from_cov
 
@@ -687,6 +689,8 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
         w_scale=w_scale)
     if w_scale is not None and (covs is not None or calibration is not None):
         w = w_scale * w  # rad/s for the propagation below
+    if spin is None and (covs is not None or calibration is not None):
+        spin = w  # synchronous runs: the spin speed is the vibration frequency
     if nbad:
         qs = np.stack(qs)
         if q_ped is not None and not np.isfinite(np.stack(q_ped)).all():

@@ -381,7 +381,8 @@ fn pedestal_responses<'py>(q_ped: Option<&Bound<'py, PyAny>>, resp: &Responses<'
 
 /// Batched identification (see identify.rs).
 /// q: (B, R, n, 4) complex, or a list of R arrays (n, 4) for B = 1; e: (1 or B, R, 4) complex;
-/// w, spin: (n,); gain: (n,), (1,) or None (spin^2: an imbalance); planes: None, or the (2, 2)
+/// w, spin: (n,) (spin also (1,)); spin None: spin = w (synchronous runs, after `w_scale`);
+/// gain: (n,), (1,) or None (spin^2: an imbalance); planes: None, or the (2, 2)
 /// eq. 19 transform from the planes q was measured at to the bearings. method: "forces" (default solver) or "report" (16-unknown real
 /// formulation). Returns (k, c, cond, resid, amp, k_std, c_std, rel_std, n_nonfinite) with
 /// k, c: (B, n, 2, 2, 2), cond (B, n, 2), resid, amp (rms response amplitude) and rel_std (largest
@@ -394,7 +395,7 @@ fn py_identify<'py>(
     py: Python<'py>,
     rotor: PyReadonlyArrayDyn<'py, f64>,
     w: PyReadonlyArrayDyn<'py, f64>,
-    spin: PyReadonlyArrayDyn<'py, f64>,
+    spin: Option<PyReadonlyArrayDyn<'py, f64>>,
     q: &Bound<'py, PyAny>,
     e: PyReadonlyArrayDyn<'py, C64>,
     gain: Option<PyReadonlyArrayDyn<'py, f64>>,
@@ -421,7 +422,10 @@ fn py_identify<'py>(
         Some(pr) => pr.blocks()?,
         None => Vec::new(),
     };
-    let prob = ident_problem(rot, &resp, &axes, &spin, &e, &gain, &blocks, &ped_blocks, planes.as_ref(), identical)?;
+    let mut prob = ident_problem(rot, &resp, &axes, spin.as_ref().unwrap_or(&w), &e, &gain, &blocks, &ped_blocks, planes.as_ref(), identical)?;
+    if spin.is_none() {
+        prob.spin = &axes.w; // synchronous: the spin speed is the vibration frequency
+    }
     let npts = batch.checked_mul(n).ok_or_else(|| PyMemoryError::new_err("identify: batch x points overflows"))?;
     let want_std = with_std && !report;
     check_alloc("identify", npts.checked_mul(if want_std { 37 } else { 20 }), 8)?;
