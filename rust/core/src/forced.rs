@@ -305,15 +305,23 @@ impl<'a> Batch<'a> {
             Gain::SpinSquared => Some(self.spin[i] * self.spin[i]),
         };
         for p in o.chunks_exact_mut(4) {
-            if let Some(g) = g {
-                p.iter_mut().for_each(|v| *v *= g);
-            }
-            if let Some(t) = &self.planes {
-                let moved = planes_point(t, [p[0], p[1], p[2], p[3]]);
-                p.copy_from_slice(&moved);
-            }
+            let v = self.finish(g, [p[0], p[1], p[2], p[3]]);
+            p.copy_from_slice(&v);
         }
         singular
+    }
+
+    /// One solution times its gain `g`, then moved by the plane transform: the operations of the
+    /// per-point path and of the lanes' scatter alike (so both give the same bits).
+    #[inline(always)]
+    fn finish(&self, g: Option<f64>, mut v: [C64; 4]) -> [C64; 4] {
+        if let Some(g) = g {
+            v.iter_mut().for_each(|x| *x *= g);
+        }
+        match &self.planes {
+            Some(t) => planes_point(t, v),
+            None => v,
+        }
     }
 
     /// The gains of the points `idx` as lanes (None for unit gains).
@@ -635,8 +643,8 @@ fn load_force(b: &Batch, idx: &[usize; G], r: usize, f: &mut [Z; 4]) {
 
 /// Solution `r` of the first `nl` lanes, times its gain and moved by the plane transform of `b`,
 /// into the points g0.. of `out` (NaN for singular lanes). The gain and the transform are applied
-/// to each lane's values as they are scattered, with the operations of the per-point path
-/// ([`Batch::point`]), so the same bits, and no second pass over `out` (scaling a copy of the lane
+/// to each lane's values as they are scattered, by the per-point path's own [`Batch::finish`], so
+/// the same bits, and no second pass over `out` (scaling a copy of the lane
 /// vectors before the scatter took 26-35 more instructions per point).
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
@@ -644,13 +652,7 @@ fn store(b: &Batch, gain: Option<V>, out: &mut [C64], bad: &[bool; G], g0: usize
     let stride = 4 * b.nrhs;
     let dst = &mut out[g0 * stride..(g0 + nl) * stride];
     for (l, p) in dst.chunks_exact_mut(stride).enumerate() {
-        let mut v = lane_get(q, l);
-        if let Some(g) = gain {
-            v.iter_mut().for_each(|x| *x *= g.0[l]);
-        }
-        if let Some(t) = &b.planes {
-            v = planes_point(t, v);
-        }
+        let v = b.finish(gain.map(|g| g.0[l]), lane_get(q, l));
         let p = &mut p[4 * r..4 * r + 4];
         p.copy_from_slice(&v);
         if bad[l] {
