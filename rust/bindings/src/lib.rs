@@ -422,10 +422,7 @@ fn py_identify<'py>(
         Some(pr) => pr.blocks()?,
         None => Vec::new(),
     };
-    let mut prob = ident_problem(rot, &resp, &axes, spin.as_ref().unwrap_or(&w), &e, &gain, &blocks, &ped_blocks, planes.as_ref(), identical)?;
-    if spin.is_none() {
-        prob.spin = &axes.w; // synchronous: the spin speed is the vibration frequency
-    }
+    let prob = ident_problem(rot, &resp, &axes, spin.as_ref(), &e, &gain, &blocks, &ped_blocks, planes.as_ref(), identical)?;
     let npts = batch.checked_mul(n).ok_or_else(|| PyMemoryError::new_err("identify: batch x points overflows"))?;
     let want_std = with_std && !report;
     check_alloc("identify", npts.checked_mul(if want_std { 37 } else { 20 }), 8)?;
@@ -732,7 +729,7 @@ fn ident_problem<'a>(
     rotor: Rotor,
     resp: &Responses<'_>,
     axes: &'a AxisValues<'a>,
-    spin: &'a PyReadonlyArrayDyn<'_, f64>,
+    spin: Option<&'a PyReadonlyArrayDyn<'_, f64>>,
     e: &'a PyReadonlyArrayDyn<'_, C64>,
     gain: &'a Option<PyReadonlyArrayDyn<'_, f64>>,
     q: &'a [&'a [C64]],
@@ -744,7 +741,7 @@ fn ident_problem<'a>(
     if runs == 0 {
         return Err(PyValueError::new_err("at least one run is needed"));
     }
-    for (name, a) in [("spin", Some(spin)), ("gain", gain.as_ref())] {
+    for (name, a) in [("spin", spin), ("gain", gain.as_ref())] {
         let Some(a) = a else { continue };
         if a.shape() != [n] && a.shape() != [1] {
             return Err(PyValueError::new_err(format!("{name} has shape {:?}, expected ({n},) or (1,)", a.shape())));
@@ -757,7 +754,11 @@ fn ident_problem<'a>(
     let prob = identify::IdentProblem {
         rotor,
         w: &axes.w,
-        spin: slice(spin, "spin")?,
+        // None: synchronous runs, whose spin speed is the vibration frequency
+        spin: match spin {
+            Some(s) => slice(s, "spin")?,
+            None => &axes.w,
+        },
         q,
         e: slice(e, "e")?,
         gain: match gain {
@@ -802,7 +803,7 @@ fn bearing_forces<'py>(
         Some(pr) => pr.blocks()?,
         None => Vec::new(),
     };
-    let prob = ident_problem(rot, &resp, &axes, &spin, &e, &gain, &blocks, &ped_blocks, planes.as_ref(), false)?;
+    let prob = ident_problem(rot, &resp, &axes, Some(&spin), &e, &gain, &blocks, &ped_blocks, planes.as_ref(), false)?;
     let total = batch.checked_mul(runs).and_then(|v| v.checked_mul(n)).and_then(|v| v.checked_mul(4));
     check_alloc("bearing_forces", total, 16)?;
     let total = total.unwrap_or(0);
@@ -853,10 +854,7 @@ fn pedestal_fit<'py>(
     let blocks = resp.blocks()?;
     let ped = pedestal_responses(Some(q_ped), &resp)?.ok_or_else(|| PyValueError::new_err("q_ped is needed"))?;
     let ped_blocks = ped.blocks()?;
-    let mut forces = ident_problem(rot, &resp, &axes, spin.as_ref().unwrap_or(&w), &e, &gain, &blocks, &ped_blocks, None, false)?;
-    if spin.is_none() {
-        forces.spin = &axes.w; // synchronous: the spin speed is the vibration frequency
-    }
+    let forces = ident_problem(rot, &resp, &axes, spin.as_ref(), &e, &gain, &blocks, &ped_blocks, None, false)?;
     let select: Option<PyReadonlyArrayDyn<'py, bool>> = match select {
         Some(s) if !s.is_none() => Some(s.extract().map_err(|_| PyTypeError::new_err(format!("select must be a bool array of shape ({n},)")))?),
         _ => None,
