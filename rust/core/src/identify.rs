@@ -13,7 +13,7 @@
 //!   faer's QR. Kept as the reference; it equals the default exactly for two runs.
 
 use crate::error::{expect_len, expect_len_or_broadcast, product, CoreError};
-use crate::lanes::{RowStore, ScalarRows, Z, V};
+use crate::lanes::{Z, V};
 use crate::model::{Rotor, C64};
 use crate::par::Disjoint;
 use faer::linalg::solvers::SolveLstsq;
@@ -483,6 +483,17 @@ struct Outs<'a> {
     rel: Option<&'a mut [f64]>,
 }
 
+/// Lanes -> rows of 8 values per point (an 8 x N transpose) for the `nl` points from `g0` on,
+/// stored straight into `dst` ((points, 8)).
+#[inline(always)]
+fn put_rows<const N: usize>(dst: &mut [f64], g0: usize, nl: usize, src: &[V<N>; 8]) {
+    for (l, row) in dst[8 * g0..8 * (g0 + nl)].chunks_exact_mut(8).enumerate() {
+        for o in 0..8 {
+            row[o] = src[o].0[l];
+        }
+    }
+}
+
 #[inline(always)]
 fn put_row<const N: usize>(row: &mut [Z<N>; 4], x: Z<N>, y: Z<N>, fx: Z<N>, fy: Z<N>) {
     row[0] = x;
@@ -495,10 +506,9 @@ fn put_row<const N: usize>(row: &mut [Z<N>; 4], x: Z<N>, y: Z<N>, fx: Z<N>, fy: 
 /// (one register's width, see [`forces_chunk_dispatch`]); `solve` solves each bearing system
 /// ([`solve_lanes`], compiled apart) into the solution it is given.
 #[inline(always)]
-fn forces_chunk<const N: usize, S, R>(p: &IdentProblem, kc: &Consts, start: usize, out: Outs, solve: S, rs: R) -> usize
+fn forces_chunk<const N: usize, S>(p: &IdentProblem, kc: &Consts, start: usize, out: Outs, solve: S) -> usize
 where
     S: Fn(&[[Z<N>; 4]], &mut LaneSol<N>),
-    R: RowStore<N>,
 {
     let Outs { k, c, cond, resid, amp, mut ks, mut cs, rel: mut rel_out } = out;
     let n = p.w.len();
@@ -515,42 +525,26 @@ where
     for g0 in (0..npts).step_by(N) {
         let nl = N.min(npts - g0);
         let mut bi = [(0usize, 0usize); N];
+        let (mut w, mut spin, mut gain, mut sig) = (V::<N>::zero(), V::<N>::zero(), V::<N>::zero(), V::<N>::zero());
         // (batch, point) of each lane: one division per group, then step with wrap-around
         let first = start + g0;
         let (mut b, mut i) = (first / n, first % n);
-        // all lanes are consecutive points of one batch row: contiguous loads
-        let contiguous = nl == N && i + N <= n;
-        let (w, spin, gain, sig);
-        if contiguous {
-            for l in 0..N {
-                bi[l] = (b, i + l);
-            }
-            w = V::<N>::load(&p.w[i..]);
-            spin = if p.spin.len() == 1 { V::splat(p.spin[0]) } else { V::load(&p.spin[i..]) };
-            gain = match p.gain.len() {
-                0 => spin * spin,
-                1 => V::splat(p.gain[0]),
-                _ => V::load(&p.gain[i..]),
-            };
-            sig = if p.sigma.is_empty() { V::zero() } else { V::load(&p.sigma[i..]) };
-        } else {
-            let (mut wv, mut sv, mut gv, mut sg) = (V::<N>::zero(), V::<N>::zero(), V::<N>::zero(), V::<N>::zero());
-            for l in 0..N {
-                bi[l] = (b, i);
-                wv.0[l] = p.w[i];
-                sv.0[l] = p.spin[if p.spin.len() == 1 { 0 } else { i }];
-                gv.0[l] = gain_at(p, i);
-                sg.0[l] = sigma_at(p, i);
-                if l + 1 < nl {
-                    i += 1;
-                    if i == n {
-                        i = 0;
-                        b += 1;
-                    }
+        for l in 0..N {
+            bi[l] = (b, i);
+            w.0[l] = p.w[i];
+            spin.0[l] = p.spin[if p.spin.len() == 1 { 0 } else { i }];
+            gain.0[l] = gain_at(p, i);
+            sig.0[l] = sigma_at(p, i);
+            if l + 1 < nl {
+                i += 1;
+                if i == n {
+                    i = 0;
+                    b += 1;
                 }
             }
-            (w, spin, gain, sig) = (wv, sv, gv, sg);
         }
+        // all lanes are consecutive points of one batch row: contiguous loads
+        let contiguous = nl == N && bi[0].0 == bi[N - 1].0;
         // -s^2 = (w^2 - sigma^2) - j 2 sigma w and -s Omega I_p/L = -(sigma + j w) Omega I_p/L
         let a2 = w * w - sig * sig;
         let b2 = V::<N>::splat(2.0) * sig * w;
@@ -643,7 +637,10 @@ where
         solve(&rows[0][..nr[0]], &mut sols[0]);
         solve(&rows[1][..nr[1]], &mut sols[1]);
         // rows of the systems together hold every entry of q and E: a NaN/inf input shows up here
-        let bad = (sols[0].total + if p.identical { V::<N>::zero() } else { sols[1].total }).non_finite();
+        let mut bad = [false; N];
+        for l in 0..N {
+            bad[l] = !(sols[0].total.0[l] + if p.identical { 0.0 } else { sols[1].total.0[l] }).is_finite();
+        }
         for sb in 0..nsys {
             for l in 0..nl {
                 if !(sols[sb].cond.0[l] < CSNE_COND) {
@@ -654,7 +651,7 @@ where
         if p.identical {
             sols[1] = sols[0];
         }
-        // lane-form outputs, then one transposed store per output array
+        // lane-form outputs, then one scatter per lane
         let iw = w.recip();
         let mut kv = [V::<N>::zero(); 8];
         let mut cv = [V::<N>::zero(); 8];
@@ -681,53 +678,53 @@ where
         let rel = (res_tot * rhs_tot.recip()).sqrt();
         let qsum = sols[0].qq + if p.identical { V::<N>::zero() } else { sols[1].qq };
         let rms = (qsum * V::<N>::splat(1.0 / (4.0 * p.runs as f64))).sqrt();
-        // singular systems and non-finite input give NaN coefficients; the condition number is
-        // inf for a singular system and NaN for non-finite input
-        let singular = [sols[0].cond.not_below(SINGULAR_COND), sols[1].cond.not_below(SINGULAR_COND)];
-        let nan = [singular[0].or(bad), singular[1].or(bad)];
-        if nan[0].or(nan[1]).any() {
-            for o in 0..8 {
-                kv[o] = kv[o].or_where(nan[o / 4], f64::NAN);
-                cv[o] = cv[o].or_where(nan[o / 4], f64::NAN);
-                sv[o] = sv[o].or_where(nan[o / 4], f64::NAN);
+        // singular systems and non-finite input give NaN coefficients
+        let mut nanm = [[false; N]; 2];
+        for sb in 0..2 {
+            for l in 0..N {
+                nanm[sb][l] = !(sols[sb].cond.0[l] < SINGULAR_COND) || bad[l];
             }
         }
-        let condv = [0, 1].map(|sb| sols[sb].cond.or_where(singular[sb], f64::INFINITY).or_where(bad, f64::NAN));
-        let relv = rel.or_where(bad.or(rhs_tot.not_above(0.0)), f64::NAN);
+        if nanm.iter().flatten().any(|&m| m) {
+            for o in 0..8 {
+                for l in 0..N {
+                    if nanm[o / 4][l] {
+                        kv[o].0[l] = f64::NAN;
+                        cv[o].0[l] = f64::NAN;
+                        sv[o].0[l] = f64::NAN;
+                    }
+                }
+            }
+        }
         let mut csv = [V::<N>::zero(); 8];
         let kfac = (V::<N>::splat(1.0) + sig * sig * iw * iw).sqrt(); // var(K) = var(Re Z) (1 + (sigma/w)^2)
         for o in 0..8 {
             csv[o] = sv[o] * iw;
             sv[o] = sv[o] * kfac;
         }
-        nbad += (0..nl).filter(|&l| bad.at(l)).count();
-        let pts = g0..g0 + nl;
-        if nl == N {
-            rs.rows8(&mut k[8 * g0..8 * (g0 + N)], &kv);
-            rs.rows8(&mut c[8 * g0..8 * (g0 + N)], &cv);
-            rs.rows2(&mut cond[2 * g0..2 * (g0 + N)], condv[0], condv[1]);
-            resid[pts.clone()].copy_from_slice(&relv.0);
-            amp[pts.clone()].copy_from_slice(&rms.0);
-        } else {
-            ScalarRows.rows8(&mut k[8 * g0..8 * (g0 + nl)], &kv);
-            ScalarRows.rows8(&mut c[8 * g0..8 * (g0 + nl)], &cv);
-            ScalarRows.rows2(&mut cond[2 * g0..2 * (g0 + nl)], condv[0], condv[1]);
-            resid[pts.clone()].copy_from_slice(&relv.0[..nl]);
-            amp[pts.clone()].copy_from_slice(&rms.0[..nl]);
-        }
+        // lanes -> rows of 8 values per point (an 8 x N transpose), stored as one block
+        put_rows(k, g0, nl, &kv);
+        put_rows(c, g0, nl, &cv);
         if let (Some(ks), Some(cs)) = (ks.as_deref_mut(), cs.as_deref_mut()) {
-            if nl == N {
-                rs.rows8(&mut ks[8 * g0..8 * (g0 + N)], &sv);
-                rs.rows8(&mut cs[8 * g0..8 * (g0 + N)], &csv);
-            } else {
-                ScalarRows.rows8(&mut ks[8 * g0..8 * (g0 + nl)], &sv);
-                ScalarRows.rows8(&mut cs[8 * g0..8 * (g0 + nl)], &csv);
-            }
+            put_rows(ks, g0, nl, &sv);
+            put_rows(cs, g0, nl, &csv);
             if let Some(rel_out) = rel_out.as_deref_mut() {
-                for t in pts {
+                for t in g0..g0 + nl {
                     let at = |a: &[f64]| -> [f64; 8] { a[8 * t..8 * t + 8].try_into().unwrap() };
                     rel_out[t] = relative_std_point(&at(k), &at(c), &at(ks), &at(cs));
                 }
+            }
+        }
+        for l in 0..nl {
+            let t = g0 + l;
+            let nan = [nanm[0][l], nanm[1][l]];
+            for sb in 0..2 {
+                cond[2 * t + sb] = if nan[sb] && !bad[l] { f64::INFINITY } else if bad[l] { f64::NAN } else { sols[sb].cond.0[l] };
+            }
+            resid[t] = if bad[l] || !(rhs_tot.0[l] > 0.0) { f64::NAN } else { rel.0[l] };
+            amp[t] = rms.0[l];
+            if bad[l] {
+                nbad += 1;
             }
         }
     }
@@ -750,9 +747,7 @@ fn solve_avx2(rows: &[[Z<4>; 4]], out: &mut LaneSol<4>) {
 #[target_feature(enable = "avx2,fma")]
 fn forces_chunk_avx2(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize {
     // the closure has this function's features: calling solve_avx2 from it is safe
-    // SAFETY: this function runs only on CPUs with AVX2 (forces_chunk_dispatch)
-    let rows = unsafe { crate::lanes::Avx2Rows::new() };
-    forces_chunk::<4, _, _>(p, kc, start, out, |r: &[[Z<4>; 4]], s: &mut LaneSol<4>| solve_avx2(r, s), rows)
+    forces_chunk::<4, _>(p, kc, start, out, |r: &[[Z<4>; 4]], s: &mut LaneSol<4>| solve_avx2(r, s))
 }
 
 /// [`forces_chunk`] for this CPU: 4 lanes of AVX2 code on AVX2 and AVX-512 CPUs, 2 lanes of the
@@ -776,7 +771,7 @@ fn forces_chunk_dispatch(p: &IdentProblem, kc: &Consts, start: usize, out: Outs)
         // them too (every kernel's AVX-512 version is compiled with them enabled).
         #[cfg(target_arch = "x86_64")]
         crate::lanes::Simd::Avx512 | crate::lanes::Simd::Avx2 => unsafe { forces_chunk_avx2(p, kc, start, out) },
-        _ => forces_chunk::<2, _, _>(p, kc, start, out, solve_baseline, ScalarRows),
+        _ => forces_chunk::<2, _>(p, kc, start, out, solve_baseline),
     }
 }
 
