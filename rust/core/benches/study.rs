@@ -67,7 +67,10 @@ at_simd!(bins_avx2, bins(e: &[f64], out: &mut [u32]));
 
 fn main() {
     let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+    #[cfg(target_arch = "x86_64")]
     let avx2 = std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma");
+    #[cfg(not(target_arch = "x86_64"))]
+    let avx2 = false;
     pool.install(|| {
         let rotor = Rotor::from_slice(&[45.3, 0.704, 0.299, 0.189, 0.217]).unwrap();
         let kb = [3.0e6, 5.0e4, 3.0e4, 3.5e6, 3.0e6, 5.0e4, 3.0e4, 3.5e6];
@@ -122,22 +125,28 @@ fn main() {
         let ev: Vec<f64> = (0..m).map(|i| (i as f64 - 2048.0) * 1e-5).collect();
         let mut bo = vec![0u32; m];
         let per_value = (m * reps) as f64;
-        let (t_pair, t_rot, t_bin) = if avx2 {
+        #[cfg(target_arch = "x86_64")]
+        let at_avx2 = if avx2 {
             // SAFETY: the CPU has AVX2 and FMA (checked above)
             unsafe {
-                (
+                Some((
                     best_s(|| (0..reps).for_each(|r| pairs_avx2(black_box(r as u64), &mut a, &mut b))) / per_value,
                     best_s(|| (0..reps).for_each(|_| rotations_avx2(black_box(&t), &mut a, &mut b))) / per_value,
                     best_s(|| (0..reps).for_each(|_| bins_avx2(black_box(&ev), &mut bo))) / per_value,
-                )
+                ))
             }
         } else {
+            None
+        };
+        #[cfg(not(target_arch = "x86_64"))]
+        let at_avx2: Option<(f64, f64, f64)> = None;
+        let (t_pair, t_rot, t_bin) = at_avx2.unwrap_or_else(|| {
             (
                 best_s(|| (0..reps).for_each(|r| pairs(black_box(r as u64), &mut a, &mut b))) / per_value,
                 best_s(|| (0..reps).for_each(|_| rotations(black_box(&t), &mut a, &mut b))) / per_value,
                 best_s(|| (0..reps).for_each(|_| bins(black_box(&ev), &mut bo))) / per_value,
             )
-        };
+        });
         black_box((&a, &b, &bo));
         let floor = 16.0 * t_pair + 16.0 * t_rot + t_id + 16.0 * t_bin;
         println!("one thread, {} SIMD level for the parts", if avx2 { "AVX2 + FMA" } else { "baseline" });
