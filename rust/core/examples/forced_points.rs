@@ -31,10 +31,13 @@ fn main() {
     let mut q = vec![C64::new(0.0, 0.0); n * 4];
     let threads = std::env::var("THREADS").ok().and_then(|v| v.parse().ok()).unwrap_or(1);
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+    // one hand-off to the pool for all repetitions (one per call cost ~30 µs, 7 ns per point at 4,096)
     let t = Instant::now();
-    for _ in 0..reps {
-        pool.install(|| forced_response_with(&rotor, &kb, &cb, &w, &w, &f, 1, gain, planes.as_ref(), &mut q).unwrap());
-    }
+    pool.install(|| {
+        for _ in 0..reps {
+            forced_response_with(&rotor, &kb, &cb, &w, &w, &f, 1, gain, planes.as_ref(), &mut q).unwrap();
+        }
+    });
     let per = t.elapsed().as_secs_f64() / (n * reps) as f64;
     println!("{n} points x {reps}, {mode}: {:.1} ns per point ({threads} thread(s)); q[0] {:.6e}", per * 1e9, q[0].re);
 }
