@@ -7,8 +7,8 @@
 //! these digests must not change with `ROTORID_SIMD` (avx512, avx2, baseline), with the number of
 //! threads, or between x86-64 and aarch64:
 //!
-//!     cargo run --release -p rotorid-core --example bit_digest
-//!     ROTORID_SIMD=baseline cargo run --release -p rotorid-core --example bit_digest
+//!     cargo run --profile test -p rotorid-core --example bit_digest
+//!     ROTORID_SIMD=baseline cargo run --profile test -p rotorid-core --example bit_digest
 //!     CARGO_TARGET_AARCH64_UNKNOWN_LINUX_GNU_LINKER=aarch64-linux-gnu-gcc \
 //!     CARGO_TARGET_AARCH64_UNKNOWN_LINUX_GNU_RUNNER="qemu-aarch64 -L /usr/aarch64-linux-gnu" \
 //!         cargo run --release -p rotorid-core --example bit_digest --target aarch64-unknown-linux-gnu
