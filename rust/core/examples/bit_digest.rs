@@ -118,7 +118,7 @@ fn forward(d: &mut Digest, rotor: Rotor) {
         let (kp, cp): (Vec<f64>, Vec<f64>) = if per_point {
             let mut kp: Vec<f64> = (0..8 * n).map(|j| kb[j % 8] * (1.0 + 0.3 * val(j, 5))).collect();
             kp[8 * (n / 2) + 3] = f64::NAN;
-            ((kp), (0..8 * n).map(|j| cb[j % 8] * (1.0 + 0.3 * val(j, 6))).collect())
+            (kp, (0..8 * n).map(|j| cb[j % 8] * (1.0 + 0.3 * val(j, 6))).collect())
         } else {
             (kb.to_vec(), cb.to_vec())
         };

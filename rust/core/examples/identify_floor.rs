@@ -40,14 +40,11 @@ fn stream_chunk(blocks: &[&[C64]], i0: usize, k: &mut [f64], c: &mut [f64], cond
     }
 }
 
-fn best_ms(rounds: usize, mut f: impl FnMut()) -> f64 {
-    let mut best = f64::INFINITY;
-    for _ in 0..rounds {
-        let t = Instant::now();
-        f();
-        best = best.min(t.elapsed().as_secs_f64() * 1e3);
-    }
-    best
+/// Wall time of one call of `f`, in ms.
+fn time_ms(f: &mut impl FnMut()) -> f64 {
+    let t = Instant::now();
+    f();
+    t.elapsed().as_secs_f64() * 1e3
 }
 
 fn main() {
@@ -81,8 +78,8 @@ fn main() {
     // interleaved rounds, best of each
     let (mut t_id, mut t_floor) = (f64::INFINITY, f64::INFINITY);
     for _ in 0..rounds {
-        t_id = t_id.min(best_ms(1, &mut identify));
-        t_floor = t_floor.min(best_ms(1, &mut stream));
+        t_id = t_id.min(time_ms(&mut identify));
+        t_floor = t_floor.min(time_ms(&mut stream));
     }
     let bytes = (runs * 4 * 16 + 20 * 8) as f64 * n as f64;
     println!(
