@@ -115,11 +115,14 @@ macro_rules! simd_dispatch {
 pub(crate) use simd_dispatch;
 
 /// `N` values in lock-step, one per lane (`L` unless a kernel works on wider groups).
+/// (`repr(transparent)`: an `[f64; N]`, so an AVX2 kernel may move a `V<4>` to and from a register.)
 #[derive(Clone, Copy, Debug)]
+#[repr(transparent)]
 pub struct V<const N: usize = L>(pub [f64; N]);
 
 /// `N` complex values in lock-step, real and imaginary parts in separate lane vectors.
 #[derive(Clone, Copy, Debug)]
+#[repr(C)]
 pub struct Z<const N: usize = L> {
     pub re: V<N>,
     pub im: V<N>,

@@ -20,6 +20,9 @@ use faer::linalg::solvers::SolveLstsq;
 use faer::Mat;
 use rayon::prelude::*;
 
+#[cfg(target_arch = "x86_64")]
+mod avx2;
+
 const SINGULAR_COND: f64 = 1e14;
 
 /// Streaming QR of an m x 2 complex least-squares problem with two right-hand sides.
@@ -743,13 +746,6 @@ fn solve_avx2(rows: &[[Z<4>; 4]], out: &mut LaneSol<4>) {
     *out = solve_lanes(rows);
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-fn forces_chunk_avx2(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize {
-    // the closure has this function's features: calling solve_avx2 from it is safe
-    forces_chunk::<4, _>(p, kc, start, out, |r: &[[Z<4>; 4]], s: &mut LaneSol<4>| solve_avx2(r, s))
-}
-
 /// [`forces_chunk`] for this CPU: 4 lanes of AVX2 code on AVX2 and AVX-512 CPUs, 2 lanes of the
 /// build's baseline elsewhere; the same operations lane by lane, so the same bits. The bearing
 /// systems are solved by a function of their own ([`solve_lanes`] behind `solve_avx2` /
@@ -770,7 +766,7 @@ fn forces_chunk_dispatch(p: &IdentProblem, kc: &Consts, start: usize, out: Outs)
         // SAFETY: simd() reports AVX2 and FMA at the Avx2 level; CPUs with AVX-512 F and DQ have
         // them too (every kernel's AVX-512 version is compiled with them enabled).
         #[cfg(target_arch = "x86_64")]
-        crate::lanes::Simd::Avx512 | crate::lanes::Simd::Avx2 => unsafe { forces_chunk_avx2(p, kc, start, out) },
+        crate::lanes::Simd::Avx512 | crate::lanes::Simd::Avx2 => unsafe { avx2::forces_chunk(p, kc, start, out) },
         _ => forces_chunk::<2, _>(p, kc, start, out, solve_baseline),
     }
 }
