@@ -506,8 +506,9 @@ fn put_row<const N: usize>(row: &mut [Z<N>; 4], x: Z<N>, y: Z<N>, fx: Z<N>, fy: 
 }
 
 /// One chunk of consecutive points starting at flat index `start` (= b * n + i), N at a time
-/// (one register's width, see [`forces_chunk_dispatch`]); `solve` solves each bearing system
-/// ([`solve_lanes`], compiled apart) into the solution it is given.
+/// (one register's width: 2 at the baseline, see [`forces_chunk_dispatch`]; [`avx2`] is this
+/// function on AVX2 registers); `solve` solves each bearing system ([`solve_lanes`], compiled
+/// apart) into the solution it is given.
 #[inline(always)]
 fn forces_chunk<const N: usize, S>(p: &IdentProblem, kc: &Consts, start: usize, out: Outs, solve: S) -> usize
 where
@@ -739,24 +740,18 @@ fn solve_baseline(rows: &[[Z<2>; 4]], out: &mut LaneSol<2>) {
     *out = solve_lanes(rows);
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-#[inline(never)]
-fn solve_avx2(rows: &[[Z<4>; 4]], out: &mut LaneSol<4>) {
-    *out = solve_lanes(rows);
-}
-
-/// [`forces_chunk`] for this CPU: 4 lanes of AVX2 code on AVX2 and AVX-512 CPUs, 2 lanes of the
-/// build's baseline elsewhere; the same operations lane by lane, so the same bits. The bearing
-/// systems are solved by a function of their own ([`solve_lanes`] behind `solve_avx2` /
-/// `solve_baseline`), the solution passed back through memory: with 8 lanes and the solver
-/// inlined into the group loop, every value took two AVX2 registers and the loop spilled them.
-/// One thread, 4,096 points from 4 runs, best of 12-20 interleaved runs of
-/// `examples/identify_points` on an AMD EPYC (Zen 4), ns per point:
-/// - 8 lanes, solver inlined (the former kernel): AVX-512 code 112-120, AVX2 code 115-125;
-/// - 4 lanes, solver apart: AVX2 code 89-92, and on the same CPU compiled for AVX-512 133;
-/// - 8 lanes, solver apart, AVX-512 code: 146-149;
-/// - baseline: 201-209 with 8 lanes, 159-161 with 2.
+/// [`forces_chunk`] for this CPU: on AVX2 and AVX-512 CPUs the kernel written on AVX2 registers
+/// ([`avx2`]), 2 lanes of the build's baseline elsewhere; the same operations lane by lane, so
+/// the same values (a property test and CI's bit digest compare them).
+///
+/// History (one thread, 4,096 points from 4 runs, best of 12-20 interleaved runs of
+/// `examples/identify_points` on an AMD EPYC (Zen 4), ns per point):
+/// - generic lanes, 8 wide with the solver inlined (the first kernel): AVX-512 code 112-120,
+///   AVX2 code 115-125 (every value in two AVX2 registers: the loop spilled them);
+/// - generic lanes, 4 wide with the solver a function of its own: AVX2 code 89-92 (compiled for
+///   AVX-512 on the same CPU 133; 8 wide, AVX-512 code 146-149); baseline 159-161 with 2 lanes;
+/// - [`avx2`], transposes in and out and the flags as lane masks: 67.5-70 (1,181 -> 918
+///   instructions per point); with 2 runs 46.3 -> 29.3.
 ///
 /// So an AVX-512 CPU runs the AVX2 code here (its 512-bit registers bought nothing this kernel
 /// could keep in them); the forward kernel, whose lane loops hold their values in registers,
