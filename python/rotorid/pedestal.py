@@ -12,7 +12,7 @@ rotor's inertia on its absolute motion:
 
 The physics (series impedance, forced response, 16-state modal analysis, identification on
 relative + pedestal motion, bearing forces) is in the Rust core (``rust/core/src/pedestal.rs``,
-``identify.rs``); this module holds the model object, the accelerometer conversion and the
+``identify/mod.rs``); this module holds the model object, the accelerometer conversion and the
 pedestal identification.
 """
 

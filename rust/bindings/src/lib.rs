@@ -379,7 +379,7 @@ fn pedestal_responses<'py>(q_ped: Option<&Bound<'py, PyAny>>, resp: &Responses<'
     Ok(Some(pr))
 }
 
-/// Batched identification (see identify.rs).
+/// Batched identification (see rotorid_core::identify).
 /// q: (B, R, n, 4) complex, or a list of R arrays (n, 4) for B = 1; e: (1 or B, R, 4) complex;
 /// w, spin: (n,) (spin also (1,)); spin None: spin = w (synchronous runs, after `w_scale`);
 /// gain: (n,), (1,) or None (spin^2: an imbalance); planes: None, or the (2, 2)

@@ -17,9 +17,13 @@
 //!
 //! The bearing systems are solved on registers too: two rows (two runs, the impact case) by
 //! Cramer's rule inlined in the group loop, more by the corrected semi-normal equations
-//! ([`super::solve_lanes`]'s operations). Instructions per point, one thread, callgrind on
-//! `examples/identify_points 4096 5 nostd R` (kernel and solver): 2 runs 571 -> 380, 4 runs
-//! 1,181 -> 918; time per point 46.3 -> 29.3 ns and 86.7 -> 67.5-70 ns.
+//! ([`super::solve_lanes`]'s operations), whose row loops run once per right-hand side so that
+//! their accumulators fit the 16 registers. Instructions per point (callgrind on
+//! `examples/identify_points 4096 5 nostd R`, kernel and solver) and time per point (one thread,
+//! best of 10 interleaved runs) against the generic kernel on AVX2: 2 runs 571 -> 346 and 46.3
+//! -> 27.0 ns, 4 runs 1,181 -> 851 and 86.7 -> 63.4 ns. Tried and dropped: the same code with
+//! AVX-512VL's 32 registers (no faster: 63.5 against 62.9 ns with 4 runs, 25.3 against 27.0
+//! with 2), and the lane pointers in a function of their own (inlined, 4 runs took 74 ns).
 
 use super::{givens_lane, relative_std_point, Consts, IdentProblem, LaneSol, Outs, CSNE_COND, SINGULAR_COND};
 use crate::lanes::{V, Z};
@@ -220,6 +224,9 @@ fn solve(rows: &[[C; 4]], out: &mut Sol) {
     let sp = _mm256_set1_pd;
     let zero = _mm256_setzero_pd();
     let zc0 = C { re: zero, im: zero };
+    // The row loops run once per right-hand side, each with the accumulators that side needs
+    // (9 and 5 values, then 9 twice): together they are 22 and 26 registers, over AVX2's 16, and
+    // the single loops spilled them. Each sum still adds the rows in order: the same bits.
     let (mut a, mut d, mut gxy) = (zero, zero, zc0);
     let mut h = [[zc0; 2]; 2];
     let mut rhs2 = [zero; 2];
@@ -227,11 +234,14 @@ fn solve(rows: &[[C; 4]], out: &mut Sol) {
         a = _mm256_add_pd(a, norm_sqr(r[0]));
         d = _mm256_add_pd(d, norm_sqr(r[1]));
         gxy = add(gxy, cmul(r[0], r[1]));
-        for k in 0..2 {
-            h[k][0] = add(h[k][0], cmul(r[0], r[2 + k]));
-            h[k][1] = add(h[k][1], cmul(r[1], r[2 + k]));
-            rhs2[k] = _mm256_add_pd(rhs2[k], norm_sqr(r[2 + k]));
-        }
+        h[0][0] = add(h[0][0], cmul(r[0], r[2]));
+        h[0][1] = add(h[0][1], cmul(r[1], r[2]));
+        rhs2[0] = _mm256_add_pd(rhs2[0], norm_sqr(r[2]));
+    }
+    for r in rows {
+        h[1][0] = add(h[1][0], cmul(r[0], r[3]));
+        h[1][1] = add(h[1][1], cmul(r[1], r[3]));
+        rhs2[1] = _mm256_add_pd(rhs2[1], norm_sqr(r[3]));
     }
     let g2 = norm_sqr(gxy);
     let det = _mm256_sub_pd(_mm256_mul_pd(a, d), g2);
@@ -244,18 +254,16 @@ fn solve(rows: &[[C; 4]], out: &mut Sol) {
     let cond = _mm256_sqrt_pd(_mm256_mul_pd(_mm256_mul_pd(lmax, lmax), idet));
     let gc = conj(gxy);
     let mut z = [solve_gram(h[0], a, d, gxy, gc, idet), solve_gram(h[1], a, d, gxy, gc, idet)];
-    let mut ahr = [[zc0; 2]; 2];
     let mut res2 = [zero; 2];
-    for r in rows {
-        for k in 0..2 {
+    for k in 0..2 {
+        let mut ahr = [zc0; 2];
+        for r in rows {
             let res = sub(sub(r[2 + k], mul(r[0], z[k][0])), mul(r[1], z[k][1]));
             res2[k] = _mm256_add_pd(res2[k], norm_sqr(res));
-            ahr[k][0] = add(ahr[k][0], cmul(r[0], res));
-            ahr[k][1] = add(ahr[k][1], cmul(r[1], res));
+            ahr[0] = add(ahr[0], cmul(r[0], res));
+            ahr[1] = add(ahr[1], cmul(r[1], res));
         }
-    }
-    for k in 0..2 {
-        let dz = solve_gram(ahr[k], a, d, gxy, gc, idet);
+        let dz = solve_gram(ahr, a, d, gxy, gc, idet);
         z[k][0] = add(z[k][0], dz[0]);
         z[k][1] = add(z[k][1], dz[1]);
     }
@@ -312,6 +320,13 @@ fn lanes_of(f: impl Fn(usize) -> f64) -> __m256d {
     _mm256_setr_pd(f(0), f(1), f(2), f(3))
 }
 
+/// The excitation e[o..o + 4] in every lane.
+#[target_feature(enable = "avx2,fma")]
+#[inline]
+fn splat_e(e: &[crate::model::C64], o: usize) -> [C; 4] {
+    std::array::from_fn(|dd| C { re: _mm256_set1_pd(e[o + dd].re), im: _mm256_set1_pd(e[o + dd].im) })
+}
+
 /// Lanes where x is neither NaN nor +-inf, as an all-ones mask.
 #[target_feature(enable = "avx2,fma")]
 #[inline]
@@ -344,6 +359,8 @@ pub(super) fn forces_chunk(p: &IdentProblem, kc: &Consts, start: usize, out: Out
     let nanv = sp(f64::NAN);
     let want_std = ks.is_some() && cs.is_some();
     let inv_4runs = sp(1.0 / (4.0 * p.runs as f64));
+    // excitations shared by every point: splat once per chunk (read by the multiplies from memory)
+    let e_shared: Vec<[C; 4]> = if shared_e { (0..p.runs).map(|r| splat_e(p.e, 4 * r)).collect() } else { Vec::new() };
     for g0 in (0..npts).step_by(N) {
         let nl = N.min(npts - g0);
         // (batch, point) of each lane; lanes past the chunk's end repeat its last point
@@ -393,6 +410,12 @@ pub(super) fn forces_chunk(p: &IdentProblem, kc: &Consts, start: usize, out: Out
         let mut nr = [0usize; 2];
         for r in 0..p.runs {
             let ptrs = |blocks: &[&[crate::model::C64]]| -> [*const f64; N] {
+                if contiguous {
+                    // one bounds check for the group: its points are 4 * i0.. 4 * (i0 + 4) of a block
+                    let base = blocks[b0 * p.runs + r][4 * i0..4 * (i0 + N)].as_ptr() as *const f64;
+                    // SAFETY: the slice above holds the 4 points' 32 doubles
+                    return std::array::from_fn(|l| unsafe { base.add(8 * l) });
+                }
                 let mut o = [std::ptr::null(); N];
                 for l in 0..N {
                     let (b, i) = bi[l];
@@ -410,15 +433,18 @@ pub(super) fn forces_chunk(p: &IdentProblem, kc: &Consts, start: usize, out: Out
                     add(scale(q[2], t[2]), scale(q[3], t[3])),
                 ];
             }
-            let e: [C; 4] = if shared_e || one_row {
-                let be = if shared_e { 0 } else { bi[0].0 };
-                let eo = (be * p.runs + r) * 4;
-                std::array::from_fn(|dd| C { re: sp(p.e[eo + dd].re), im: sp(p.e[eo + dd].im) })
+            let e_row: [C; 4];
+            let e: &[C; 4] = if shared_e {
+                &e_shared[r]
+            } else if one_row {
+                e_row = splat_e(p.e, (bi[0].0 * p.runs + r) * 4);
+                &e_row
             } else {
-                std::array::from_fn(|dd| {
+                e_row = std::array::from_fn(|dd| {
                     let ev = |l: usize| p.e[(bi[l].0 * p.runs + r) * 4 + dd];
                     C { re: lanes_of(|l| ev(l).re), im: lanes_of(|l| ev(l).im) }
-                })
+                });
+                &e_row
             };
             // the inertia acts on the absolute motion: q + q_ped with flexible pedestals
             let qa = if has_ped {

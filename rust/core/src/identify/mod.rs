@@ -750,8 +750,8 @@ fn solve_baseline(rows: &[[Z<2>; 4]], out: &mut LaneSol<2>) {
 ///   AVX2 code 115-125 (every value in two AVX2 registers: the loop spilled them);
 /// - generic lanes, 4 wide with the solver a function of its own: AVX2 code 89-92 (compiled for
 ///   AVX-512 on the same CPU 133; 8 wide, AVX-512 code 146-149); baseline 159-161 with 2 lanes;
-/// - [`avx2`], transposes in and out and the flags as lane masks: 67.5-70 (1,181 -> 918
-///   instructions per point); with 2 runs 46.3 -> 29.3.
+/// - [`avx2`], transposes in and out, the flags as lane masks, the solver on registers: 63.4
+///   (1,181 -> 851 instructions per point); with 2 runs 46.3 -> 27.0 (571 -> 346).
 ///
 /// So an AVX-512 CPU runs the AVX2 code here (its 512-bit registers bought nothing this kernel
 /// could keep in them); the forward kernel, whose lane loops hold their values in registers,
