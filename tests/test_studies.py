@@ -133,6 +133,43 @@ def test_percentiles_from_histograms():
     assert np.all(np.isnan(percentiles_from_counts(np.zeros((2, edges.size - 1), np.uint32), [50])))
 
 
+def test_percentiles_from_counts_equal_the_oracle_bit_for_bit():
+    """The core's percentiles (one pass per histogram) are docs/studies.md's rule as
+    tests/study_oracle.py writes it, bit for bit: sparse and dense histograms, empty ones, counts
+    in the open end bins only, a single count, percentiles 0 and 100, every integer type, leading
+    axes of any shape."""
+    import study_oracle as O
+
+    rng = np.random.default_rng(5)
+    nb = bin_edges().size - 1
+    dense = rng.integers(0, 50, (6, 3, nb)).astype(np.uint32)
+    sparse = np.zeros((7, nb), np.uint32)
+    for r in range(7):
+        sparse[r, rng.integers(0, nb, r)] = rng.integers(1, 9, r)  # row 0 empty, row 1 one bin
+    ends = np.zeros((3, nb), np.uint32)
+    ends[0, 0] = 5
+    ends[1, -1] = 2
+    ends[2, [0, -1]] = [1, 4]
+    q = [0, 0.1, 5, 50, 95, 99.9, 100]
+    for counts in (dense, sparse, ends, sparse.astype(np.int64), dense.astype(np.uint16), dense.astype(np.uint64),
+                   dense[0, 0]):
+        got = percentiles_from_counts(counts, q)
+        want = O.percentiles_from_histogram(counts, q)
+        assert got.shape == want.shape
+        np.testing.assert_array_equal(got, want)
+
+
+def test_percentiles_from_counts_refuses_bad_histograms():
+    nb = bin_edges().size - 1
+    for bad in (np.zeros((2, nb - 1), np.uint32), np.zeros((2, nb)), -np.ones((1, nb), np.int64), np.zeros(()),
+                [["a"] * nb]):
+        with pytest.raises(RotoridError):
+            percentiles_from_counts(bad, [50])
+    for q in ([], [101], [-1], [np.nan], "50"):
+        with pytest.raises(RotoridError):
+            percentiles_from_counts(np.zeros((1, nb), np.uint32), q)
+
+
 def test_same_seed_same_result_different_seed_different_result():
     errors = SyncErrors(amplitude_rel=0.01, phase_deg=0.3)
     a = synchronous_study(RIG.rotor, RIG.bearings, RUNS, RPM_GOOD, errors, trials=200, seed=11)

@@ -199,3 +199,9 @@ def study_realize(
 
 def study_bin_edges() -> npt.NDArray[np.float64]:
     """Bin edges of the study histograms, (STUDY_BINS + 1,), from -inf to +inf."""
+
+def study_percentiles(
+    counts: npt.NDArray[np.uint32] | npt.NDArray[np.uint64],
+    percentiles: npt.NDArray[np.float64],
+) -> npt.NDArray[np.float64]:
+    """Percentiles (P, rows) of C-contiguous histograms (..., STUDY_BINS) (docs/studies.md rule)."""

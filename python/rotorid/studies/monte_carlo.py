@@ -188,9 +188,12 @@ def bin_edges() -> np.ndarray:
 
 def _check_percentiles(percentiles):
     try:
-        p = np.atleast_1d(np.asarray(percentiles, dtype=float))
+        p = np.atleast_1d(np.asarray(percentiles))
     except (TypeError, ValueError):
         raise RotoridError(f"percentiles must be numbers between 0 and 100, got {percentiles!r}") from None
+    if p.size and p.dtype.kind not in "iuf":  # not strings ("50" would pass as a float)
+        raise RotoridError(f"percentiles must be numbers between 0 and 100, got {percentiles!r}")
+    p = p.astype(float)
     if p.ndim != 1 or p.size == 0 or p.size > 99:
         raise RotoridError(f"percentiles must be a non-empty list of at most 99 numbers, got {percentiles!r}")
     if not np.all(np.isfinite(p)) or np.any(p < 0) or np.any(p > 100):
@@ -210,24 +213,13 @@ def percentiles_from_counts(counts, percentiles) -> np.ndarray:
     if counts.dtype.kind == "i" and counts.size and counts.min() < 0:
         raise RotoridError("counts must be >= 0")
     percentiles = _check_percentiles(percentiles)
-    lo_e = edges[:-1].copy()
-    hi_e = edges[1:].copy()
-    lo_e[0] = hi_e[0]  # the open end bins: their finite edge
-    hi_e[-1] = lo_e[-1]
     shape = counts.shape[:-1]
-    flat = counts.reshape(-1, counts.shape[-1])
-    out = np.full((len(percentiles), flat.shape[0]), np.nan)
-    for s in range(0, flat.shape[0], 4096):
-        cum = np.cumsum(flat[s:s + 4096], axis=1, dtype=np.int64)
-        total = cum[:, -1]
-        for i, q in enumerate(percentiles):
-            target = q / 100.0 * total
-            b = np.argmax(cum >= np.maximum(target, 1e-9)[:, None], axis=1)
-            before = np.where(b > 0, cum[np.arange(len(b)), np.maximum(b - 1, 0)], 0)
-            inbin = flat[s:s + 4096][np.arange(len(b)), b]
-            frac = np.clip((target - before) / np.maximum(inbin, 1), 0.0, 1.0)
-            v = lo_e[b] + frac * (hi_e[b] - lo_e[b])
-            out[i, s:s + 4096] = np.where(total > 0, v, np.nan)
+    # the core reads uint32 (the studies' own counts) or uint64 histograms in place; other
+    # integer types (already checked >= 0) as uint64. One pass per histogram, without the GIL:
+    # the NumPy version (cumsum, then a comparison per percentile) took 0.15 s for the 512 x 16
+    # histograms of one point range, serial between the ranges' parallel work.
+    flat = np.ascontiguousarray(counts if counts.dtype == np.uint32 else counts.astype(np.uint64, copy=False))
+    out = _core.study_percentiles(flat, np.asarray(percentiles, dtype=float))
     return out.reshape((len(percentiles),) + shape)
 
 

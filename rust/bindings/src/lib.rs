@@ -1265,6 +1265,33 @@ fn study_realize<'py>(
     Ok((to_py(py, q, &[nt, runs, n, 4])?, to_py(py, wt, &[nt, n])?))
 }
 
+/// Percentiles of study histograms (see study::percentiles_of_counts): `counts` C-contiguous
+/// uint32 or uint64 of any shape (..., BINS), `percentiles` (P,) -> (P, rows), rows = the
+/// product of the leading axes.
+#[pyfunction]
+fn study_percentiles<'py>(py: Python<'py>, counts: &Bound<'py, PyAny>, percentiles: PyReadonlyArrayDyn<'py, f64>) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+    fn of<T: Copy + Into<u64> + Sync>(py: Python<'_>, cs: &[T], q: &[f64]) -> PyResult<Vec<f64>> {
+        py.detach(|| {
+            guarded(|| {
+                let mut out = out_buf(cs.len() / study::BINS * q.len());
+                study::percentiles_of_counts(cs, q, &mut out).map(|_| out)
+            })
+        })?
+        .map_err(core_err)
+    }
+    let q = slice(&percentiles, "percentiles")?;
+    let (len, out) = if let Ok(c) = counts.extract::<PyReadonlyArrayDyn<'py, u32>>() {
+        let cs = slice(&c, "counts")?;
+        (cs.len(), of(py, cs, q)?)
+    } else if let Ok(c) = counts.extract::<PyReadonlyArrayDyn<'py, u64>>() {
+        let cs = slice(&c, "counts")?;
+        (cs.len(), of(py, cs, q)?)
+    } else {
+        return Err(PyValueError::new_err("counts must be a uint32 or uint64 array"));
+    };
+    to_py(py, out, &[q.len(), len / study::BINS])
+}
+
 /// Edges of the study histograms' bins: (BINS + 1,), bin b holds [edges[b], edges[b + 1]), the end
 /// bins reach to -inf and +inf.
 #[pyfunction]
@@ -1300,6 +1327,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(study_accumulate, m)?)?;
     m.add_function(wrap_pyfunction!(study_realize, m)?)?;
     m.add_function(wrap_pyfunction!(study_bin_edges, m)?)?;
+    m.add_function(wrap_pyfunction!(study_percentiles, m)?)?;
     m.add("STUDY_BINS", study::BINS)?;
     m.add("STUDY_E0", study::E0)?;
     m.add("STUDY_SUB", study::stats::SUB)?;

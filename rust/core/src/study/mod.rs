@@ -28,7 +28,7 @@ use crate::identify::{identify_forces, identify_report, IdentOut, IdentProblem, 
 use crate::model::{Rotor, C64};
 use rayon::prelude::*;
 use rng::{normal_pair, stream_key};
-pub use stats::{bin_edges, StudyStats, BINS, E0};
+pub use stats::{bin_edges, percentiles_of_counts, StudyStats, BINS, E0};
 
 /// Coefficients per point: K and C of both bearings in the report's order (eq. 9).
 pub const NCOEF: usize = 16;

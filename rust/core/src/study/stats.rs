@@ -84,6 +84,56 @@ pub fn bin_edges(b: usize) -> (f64, f64) {
     }
 }
 
+/// Percentiles of histograms: `counts` holds `rows` histograms of [`BINS`] bins one after the
+/// other, `out` receives (percentiles.len(), rows) row-major. For percentile q of a histogram with
+/// total count N and cumulative counts C_b, the value lies in the first bin b with C_b >=
+/// max(q N / 100, 1e-9), at the fraction f = clamp((q N / 100 - C_(b-1)) / max(n_b, 1), 0, 1)
+/// of the bin: lo_b + f (hi_b - lo_b), with lo_b, hi_b the bin's edges (the two end bins, open
+/// on one side, both edges at their finite one). NaN for an empty histogram. One pass over the
+/// counts per histogram, a binary search per percentile.
+pub fn percentiles_of_counts<T: Copy + Into<u64>>(counts: &[T], percentiles: &[f64], out: &mut [f64]) -> Result<(), crate::error::CoreError> {
+    use crate::error::{expect_len, CoreError};
+    if counts.len() % BINS != 0 {
+        return Err(CoreError::length("counts", counts.len(), format!("a multiple of {BINS} (histograms of {BINS} bins)")));
+    }
+    let rows = counts.len() / BINS;
+    expect_len("out", out, rows * percentiles.len())?;
+    if let Some(q) = percentiles.iter().find(|q| !(0.0..=100.0).contains(*q)) {
+        return Err(CoreError::value("percentiles", format!("must be between 0 and 100, got {q}")));
+    }
+    // lower edge of every bin; the upper edge is the next bin's lower edge (+inf for the last)
+    let mut lo = [0.0f64; BINS];
+    let mut hi = [0.0f64; BINS];
+    for b in 0..BINS {
+        lo[b] = bin_edges(b).0;
+    }
+    for b in 0..BINS - 1 {
+        hi[b] = lo[b + 1];
+    }
+    lo[0] = hi[0];
+    hi[BINS - 1] = lo[BINS - 1];
+    let mut cum = vec![0u64; BINS];
+    for (r, h) in counts.chunks_exact(BINS).enumerate() {
+        let mut c = 0u64;
+        for (dst, &v) in cum.iter_mut().zip(h) {
+            c += v.into();
+            *dst = c;
+        }
+        let total = c as f64;
+        for (i, &q) in percentiles.iter().enumerate() {
+            let target = q / 100.0 * total;
+            let thr = target.max(1e-9);
+            let b = cum.partition_point(|&c| (c as f64) < thr);
+            let b = if b == BINS { 0 } else { b };
+            let before = if b > 0 { cum[b - 1] as f64 } else { 0.0 };
+            let inbin = h[b].into().max(1) as f64;
+            let frac = ((target - before) / inbin).clamp(0.0, 1.0);
+            out[i * rows + r] = if c > 0 { lo[b] + frac * (hi[b] - lo[b]) } else { f64::NAN };
+        }
+    }
+    Ok(())
+}
+
 /// Add the errors of one trial at a block of points: `errs` and their `bins` (points * 16),
 /// counts (points * 16 histograms, `stride` apart) and the per-coefficient sums.
 #[inline(always)]
