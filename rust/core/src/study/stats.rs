@@ -93,7 +93,7 @@ pub fn bin_edges(b: usize) -> (f64, f64) {
 /// counts per histogram, a binary search per percentile.
 pub fn percentiles_of_counts<T: Copy + Into<u64>>(counts: &[T], percentiles: &[f64], out: &mut [f64]) -> Result<(), crate::error::CoreError> {
     use crate::error::{expect_len, CoreError};
-    if counts.len() % BINS != 0 {
+    if !counts.len().is_multiple_of(BINS) {
         return Err(CoreError::length("counts", counts.len(), format!("a multiple of {BINS} (histograms of {BINS} bins)")));
     }
     let rows = counts.len() / BINS;
@@ -102,14 +102,9 @@ pub fn percentiles_of_counts<T: Copy + Into<u64>>(counts: &[T], percentiles: &[f
         return Err(CoreError::value("percentiles", format!("must be between 0 and 100, got {q}")));
     }
     // lower edge of every bin; the upper edge is the next bin's lower edge (+inf for the last)
-    let mut lo = [0.0f64; BINS];
+    let mut lo: [f64; BINS] = std::array::from_fn(|b| bin_edges(b).0);
     let mut hi = [0.0f64; BINS];
-    for b in 0..BINS {
-        lo[b] = bin_edges(b).0;
-    }
-    for b in 0..BINS - 1 {
-        hi[b] = lo[b + 1];
-    }
+    hi[..BINS - 1].copy_from_slice(&lo[1..]);
     lo[0] = hi[0];
     hi[BINS - 1] = lo[BINS - 1];
     let mut cum = vec![0u64; BINS];
@@ -154,6 +149,27 @@ pub fn add_block(errs: &[f64], bins: &[u32], counts: &mut [u32], stride: usize, 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn percentiles_interpolate_inside_the_bin_of_the_rank() {
+        // 10 counts in bin 600 and 30 in bin 700: the median (target 20) is a third into bin 700,
+        // percentile 0 the start of bin 600's values, 100 the end of bin 700
+        let mut h = vec![0u32; 2 * BINS];
+        h[600] = 10;
+        h[700] = 30;
+        let mut out = vec![0.0; 6];
+        percentiles_of_counts(&h, &[0.0, 50.0, 100.0], &mut out).unwrap();
+        let (lo7, hi7) = (bin_edges(700).0, bin_edges(701).0);
+        assert_eq!(out[0], bin_edges(600).0);
+        assert_eq!(out[2], lo7 + (10.0 / 30.0) * (hi7 - lo7));
+        assert_eq!(out[4], hi7);
+        // the second histogram is empty
+        assert!(out[1].is_nan() && out[3].is_nan() && out[5].is_nan());
+        assert!(percentiles_of_counts(&h[..BINS - 1], &[50.0], &mut out[..0]).is_err());
+        assert!(percentiles_of_counts(&h, &[50.0], &mut out[..1]).is_err());
+        assert!(percentiles_of_counts(&h, &[f64::NAN], &mut out[..2]).is_err());
+        assert!(percentiles_of_counts(&h, &[100.5], &mut out[..2]).is_err());
+    }
 
     #[test]
     fn every_error_falls_in_the_bin_whose_edges_enclose_it() {
