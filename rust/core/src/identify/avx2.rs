@@ -346,16 +346,14 @@ pub(super) fn forces_chunk(p: &IdentProblem, kc: &Consts, start: usize, out: Out
     let has_ped = !p.q_ped.is_empty();
     let nsys = if p.identical { 1 } else { 2 };
     let mut nbad = 0;
-    let zrow = [C { re: _mm256_setzero_pd(), im: _mm256_setzero_pd() }; 4];
-    let mut rows = [vec![zrow; 2 * p.runs], vec![zrow; 2 * p.runs]];
-    let zero_c = C { re: _mm256_setzero_pd(), im: _mm256_setzero_pd() };
-    let zero_v = _mm256_setzero_pd();
-    let mut sols = [Sol { z: [[zero_c; 2]; 2], g: [zero_v; 2], cond: zero_v, res2: [zero_v; 2], rhs2: [zero_v; 2], total: zero_v, qq: zero_v }; 2];
+    let zero = _mm256_setzero_pd();
+    let zero_c = C { re: zero, im: zero };
+    let mut rows = [vec![[zero_c; 4]; 2 * p.runs], vec![[zero_c; 4]; 2 * p.runs]];
+    let mut sols = [Sol { z: [[zero_c; 2]; 2], g: [zero; 2], cond: zero, res2: [zero; 2], rhs2: [zero; 2], total: zero, qq: zero }; 2];
     let sp = _mm256_set1_pd;
     let (ml2, ml1, it) = (sp(kc.ml2), sp(kc.ml1), sp(kc.it));
     let (l1, l2, il, ip) = (sp(kc.l1), sp(kc.l2), sp(kc.il), sp(kc.ip));
     let planes = p.planes.map(|t| [sp(t[0]), sp(t[1]), sp(t[2]), sp(t[3])]);
-    let zero = _mm256_setzero_pd();
     let nanv = sp(f64::NAN);
     let want_std = ks.is_some() && cs.is_some();
     let inv_4runs = sp(1.0 / (4.0 * p.runs as f64));
@@ -489,9 +487,6 @@ pub(super) fn forces_chunk(p: &IdentProblem, kc: &Consts, start: usize, out: Out
             } else {
                 solve(&rows[sb][..nr[sb]], &mut sols[sb]);
             }
-        }
-        if p.identical {
-            sols[1] = sols[0];
         }
         // rows of the systems together hold every entry of q and E: a NaN/inf input shows up here
         let total = _mm256_add_pd(sols[0].total, if p.identical { zero } else { sols[1].total });
