@@ -25,7 +25,7 @@
 //! AVX-512VL's 32 registers (no faster: 63.5 against 62.9 ns with 4 runs, 25.3 against 27.0
 //! with 2), and the lane pointers in a function of their own (inlined, 4 runs took 74 ns).
 
-use super::{givens_lane, relative_std_point, Consts, IdentProblem, LaneSol, Outs, CSNE_COND, SINGULAR_COND};
+use super::{givens_lane, relative_std_rows, Consts, IdentProblem, LaneSol, Outs, CSNE_COND, SINGULAR_COND};
 use crate::lanes::{V, Z};
 use std::arch::x86_64::*;
 
@@ -555,10 +555,7 @@ pub(super) fn forces_chunk(p: &IdentProblem, kc: &Consts, start: usize, out: Out
             put_rows(ks, g0, nl, &sv);
             put_rows(cs, g0, nl, &csv);
             if let Some(rel_out) = rel_out.as_deref_mut() {
-                for t in g0..g0 + nl {
-                    let at = |a: &[f64]| -> [f64; 8] { a[8 * t..8 * t + 8].try_into().unwrap() };
-                    rel_out[t] = relative_std_point(&at(k), &at(c), &at(ks), &at(cs));
-                }
+                relative_std_rows(rel_out, k, c, ks, cs, g0..g0 + nl);
             }
         }
         // cond: inf for a singular system, NaN for non-finite input; (points, 2) by interleaving

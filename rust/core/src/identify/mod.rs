@@ -713,10 +713,7 @@ where
             put_rows(ks, g0, nl, &sv);
             put_rows(cs, g0, nl, &csv);
             if let Some(rel_out) = rel_out.as_deref_mut() {
-                for t in g0..g0 + nl {
-                    let at = |a: &[f64]| -> [f64; 8] { a[8 * t..8 * t + 8].try_into().unwrap() };
-                    rel_out[t] = relative_std_point(&at(k), &at(c), &at(ks), &at(cs));
-                }
+                relative_std_rows(rel_out, k, c, ks, cs, g0..g0 + nl);
             }
         }
         for l in 0..nl {
@@ -1004,6 +1001,15 @@ pub fn relative_std(k: &[f64], c: &[f64], k_std: &[f64], c_std: &[f64], out: &mu
         }
     });
     Ok(())
+}
+
+/// [`relative_std_point`] of the points `pts` of the (points, 8) rows just written by a kernel.
+#[inline(always)]
+fn relative_std_rows(out: &mut [f64], k: &[f64], c: &[f64], ks: &[f64], cs: &[f64], pts: std::ops::Range<usize>) {
+    for t in pts {
+        let at = |a: &[f64]| -> [f64; 8] { a[8 * t..8 * t + 8].try_into().unwrap() };
+        out[t] = relative_std_point(&at(k), &at(c), &at(ks), &at(cs));
+    }
 }
 
 /// [`relative_std`] of one point (the identification kernel calls it on the values it has just
