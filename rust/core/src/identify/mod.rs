@@ -6,9 +6,10 @@
 //! per run. Two solvers are provided:
 //! - `identify_forces` (default): the four rotor equations give the reaction force of each
 //!   bearing, and each bearing becomes a complex least-squares problem [x_b y_b] z = f_b with two
-//!   unknowns and two right-hand sides (x row and y row of Z_b). Eight points are solved in
-//!   lock-step (SIMD lanes): two rows by Cramer's rule, more rows by the corrected semi-normal
-//!   equations, and any lane with cond > 1e6 again by a complex Givens QR.
+//!   unknowns and two right-hand sides (x row and y row of Z_b). Points are solved in lock-step
+//!   (SIMD lanes: 4 in `avx2.rs` on AVX2 and AVX-512 CPUs, 2 in the generic kernel here
+//!   elsewhere, the same bits): two rows by Cramer's rule, more rows by the corrected
+//!   semi-normal equations, and any lane with cond > 1e6 again by a complex Givens QR.
 //! - `identify_report`: the report's 16-unknown real formulation (eq. 8-12, 16-18) solved with
 //!   faer's QR. Kept as the reference; it equals the default exactly for two runs.
 
