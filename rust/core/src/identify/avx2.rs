@@ -591,7 +591,7 @@ pub(super) fn forces_chunk(p: &IdentProblem, kc: &Consts, start: usize, out: Out
 
 #[cfg(test)]
 mod tests {
-    use super::super::{forces_chunk as generic_chunk, solve_baseline};
+    use super::super::forces_chunk as generic_chunk;
     use super::*;
     use crate::model::{Rotor, C64};
     use proptest::prelude::*;
@@ -613,7 +613,7 @@ mod tests {
         };
         let kc = Consts::new(&p.rotor);
         // SAFETY: called only when the CPU has AVX2 and FMA
-        let nbad = if avx2 { unsafe { forces_chunk(p, &kc, 0, outs) } } else { generic_chunk::<2, _>(p, &kc, 0, outs, solve_baseline) };
+        let nbad = if avx2 { unsafe { forces_chunk(p, &kc, 0, outs) } } else { generic_chunk::<2>(p, &kc, 0, outs) };
         (nbad, o)
     }
 

@@ -508,13 +508,8 @@ fn put_row<const N: usize>(row: &mut [Z<N>; 4], x: Z<N>, y: Z<N>, fx: Z<N>, fy: 
 
 /// One chunk of consecutive points starting at flat index `start` (= b * n + i), N at a time
 /// (one register's width: 2 at the baseline, see [`forces_chunk_dispatch`]; [`avx2`] is this
-/// function on AVX2 registers); `solve` solves each bearing system ([`solve_lanes`], compiled
-/// apart) into the solution it is given.
-#[inline(always)]
-fn forces_chunk<const N: usize, S>(p: &IdentProblem, kc: &Consts, start: usize, out: Outs, solve: S) -> usize
-where
-    S: Fn(&[[Z<N>; 4]], &mut LaneSol<N>),
-{
+/// function on AVX2 registers); each bearing system is solved by [`solve_apart`].
+fn forces_chunk<const N: usize>(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize {
     let Outs { k, c, cond, resid, amp, mut ks, mut cs, rel: mut rel_out } = out;
     let n = p.w.len();
     let npts = resid.len();
@@ -639,8 +634,8 @@ where
             put_row(&mut rows[s2][nr[s2]], q[1], q[3], f2x, f2y);
             nr[s2] += 1;
         }
-        solve(&rows[0][..nr[0]], &mut sols[0]);
-        solve(&rows[1][..nr[1]], &mut sols[1]);
+        solve_apart(&rows[0][..nr[0]], &mut sols[0]);
+        solve_apart(&rows[1][..nr[1]], &mut sols[1]);
         // rows of the systems together hold every entry of q and E: a NaN/inf input shows up here
         let mut bad = [false; N];
         for l in 0..N {
@@ -733,8 +728,9 @@ where
     nbad
 }
 
+/// [`solve_lanes`] as a function of its own: inlined into the group loop, its values spilled.
 #[inline(never)]
-fn solve_baseline(rows: &[[Z<2>; 4]], out: &mut LaneSol<2>) {
+fn solve_apart<const N: usize>(rows: &[[Z<N>; 4]], out: &mut LaneSol<N>) {
     *out = solve_lanes(rows);
 }
 
@@ -760,7 +756,7 @@ fn forces_chunk_dispatch(p: &IdentProblem, kc: &Consts, start: usize, out: Outs)
         // them too (every kernel's AVX-512 version is compiled with them enabled).
         #[cfg(target_arch = "x86_64")]
         crate::lanes::Simd::Avx512 | crate::lanes::Simd::Avx2 => unsafe { avx2::forces_chunk(p, kc, start, out) },
-        _ => forces_chunk::<2, _>(p, kc, start, out, solve_baseline),
+        _ => forces_chunk::<2>(p, kc, start, out),
     }
 }
 
