@@ -304,3 +304,92 @@ def test_report_method_with_redundant_runs_says_its_standard_errors_are_unknown(
     assert not np.char.find(rep.flag.astype(str), "uncertain").max() >= 0
     fast = rotorid.identify_synchronous(rig.rotor, runs)
     assert fast.std_source == "residual" and np.isfinite(fast.k_std).all() and fast.dof.shape == rpm.shape
+
+
+@pytest.mark.parametrize("with_std", [True, False])
+def test_core_flags_in_the_identify_call_equal_the_separate_flag_pass(with_std):
+    # the API takes the flags from the identify call itself; they must be those flag_codes gives
+    # on that call's outputs, per batch row (its own peak amplitude), NaN points and all
+    from rotorid import _core
+
+    rig = rotorid.nsf_rig()
+    rpm = np.linspace(1500, 9000, 700)  # low amplitude at the low speeds, ill-conditioned near some
+    om = rpm * np.pi / 30
+    truth = np.stack([rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[n], speed_rpm=rpm).q
+                      for n in "ABC"])
+    rng = np.random.default_rng(5)
+    q = truth[None] * (1 + 0.05 * rng.standard_normal((3,) + truth.shape))
+    q[1] *= 7.0  # another peak amplitude in the second row
+    q[2, 1, 40, 2] = np.nan
+    q[0, :, 90] = 0.0  # a singular point
+    e = np.stack([rig.imbalances[n].generalized(rig.rotor) for n in "ABC"])[None]
+    limits = (50.0, 0.2, 0.05)
+    *_, rel_std, code, rel_amp, nbad = _core.identify(rig.rotor.core_params(), om, om, q, e, om ** 2,
+                                                       with_std=with_std, flag_limits=limits)
+    k, c, cond, resid, amp, *_ = _core.identify(rig.rotor.core_params(), om, om, q, e, om ** 2, with_std=with_std)
+    assert nbad == 1 and code.dtype == np.uint8 and code.shape == rel_amp.shape == (3, rpm.size)
+    for b in range(3):
+        want_code, want_rel = _core.flag_codes(cond[b], amp[b], rel_std[b] if with_std else None, *limits)
+        np.testing.assert_array_equal(code[b], want_code)
+        np.testing.assert_array_equal(rel_amp[b], want_rel)
+    # every reason occurs somewhere, so the comparison covers each bit
+    for bit in (1, 2, 8) + ((4,) if with_std else ()):
+        assert (code & bit).any(), bit
+    assert code[0, 90] & 1 and not code[1, 90] & 1
+    # a row with a NaN point has no peak amplitude: relative amplitude 0 (the API refuses NaN input)
+    assert (rel_amp[2] == 0).all() and (rel_amp[1] > 0).all()
+    no_flags = _core.identify(rig.rotor.core_params(), om, om, q, e, om ** 2, with_std=with_std)
+    assert no_flags[8] is None and no_flags[9] is None
+    from rotorid._corecall import core
+
+    for bad in ((50.0, 0.2), "abc", (50.0, None, 0.1)):
+        with pytest.raises(RotoridError, match="flag_limits"):
+            core.identify(rig.rotor.core_params(), om, om, q, e, om ** 2, flag_limits=bad)
+
+
+def test_wake_pool_refuses_bad_waits_and_leaves_results_alone():
+    from rotorid import _corecall
+
+    for bad in (-1.0, float("nan"), float("inf"), 2e6):
+        with pytest.raises(RotoridError, match="max_wait_us"):
+            _corecall.core.wake_pool(bad)
+    rig = rotorid.nsf_rig()
+    f = np.linspace(2, 300, 9000)
+    tests = [rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=1000.0, freq_hz=f, plane=0.0, direction=d)
+             for d in "xy"]
+    ref = rotorid.identify_impact(rig.rotor, tests)
+    for wait in (0.0, 50.0, 2000.0):
+        _corecall.core.wake_pool(wait)  # a wake with no call after it ends by itself
+    _corecall.core.wake_pool()
+    _corecall.core.wake_pool()  # a second wake while the first holds the helpers is a no-op
+    again = rotorid.identify_impact(rig.rotor, tests)
+    np.testing.assert_array_equal(again.k, ref.k)
+    np.testing.assert_array_equal(again.flag_code, ref.flag_code)
+
+
+@given(st.integers(2, 6), st.integers(0, 2 ** 32 - 1), st.floats(-250, 250), st.booleans())
+def test_second_singular_ratio_is_the_svd_one(rows, seed, log_scale, dependent):
+    from rotorid.identify import _second_singular_ratio
+
+    rng = np.random.default_rng(seed)
+    U = rng.standard_normal((rows, 2)) + 1j * rng.standard_normal((rows, 2))
+    if dependent:
+        U[:, 1] = U[:, 0] * (0.3 - 2j) + 1e-10 * rng.standard_normal(rows)
+    U *= 10.0 ** log_scale
+    sv = np.linalg.svd(U, compute_uv=False)
+    ratio = _second_singular_ratio([tuple(r) for r in U.tolist()])
+    # both are exact to rounding: an absolute error of a few eps relative to the largest value
+    assert abs(ratio - sv[-1] / sv[0]) <= 1e-13 + 1e-9 * sv[-1] / sv[0]
+
+
+def test_imbalance_forcing_is_the_numpy_formula_to_the_bit():
+    rig = rotorid.nsf_rig()
+    rng = np.random.default_rng(2)
+    for _ in range(200):
+        imb = Imbalance(tuple(rng.uniform(0, 0.05, 2)), tuple(rng.uniform(-720, 720, 2)))
+        f = np.asarray(imb.mass_kg) * np.asarray(rig.rotor.r) * np.exp(-1j * np.deg2rad(imb.angle_deg))
+        np.testing.assert_array_equal(imb.forcing(rig.rotor), f)
+        f1, f2 = f
+        d1, d2 = rig.rotor.d
+        g = np.array([f1 + f2, -1j * (f1 + f2), -f1 * d1 + f2 * d2, -1j * (f1 * d1 - f2 * d2)])
+        np.testing.assert_array_equal(imb.generalized(rig.rotor), g)

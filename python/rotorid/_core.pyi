@@ -57,6 +57,7 @@ def identify(
     q_ped: npt.NDArray[np.complex128] | None = None,  # as q: pedestal motion at the bearings (inertia sees q + q_ped)
     planes: npt.NDArray[np.float64] | None = None,  # (2, 2): q is at the probe planes, eq. 19 moves it to the bearings
     w_scale: float | None = None,  # w is given in another unit: w_scale * w rad/s (e.g. Hz and 2 pi)
+    flag_limits: tuple[float, float, float] | None = None,  # (cond_max, min_rel_amplitude, max_rel_std)
 ) -> tuple[
     npt.NDArray[np.float64],  # k (batch, n, 2, 2, 2)
     npt.NDArray[np.float64],  # c (batch, n, 2, 2, 2)
@@ -65,8 +66,16 @@ def identify(
     npt.NDArray[np.float64],  # rms response amplitude (batch, n)
     npt.NDArray[np.float64] | None,  # k standard error (batch, n, 2, 2, 2)
     npt.NDArray[np.float64] | None,  # c standard error
+    npt.NDArray[np.float64] | None,  # largest relative standard error per point (batch, n)
+    npt.NDArray[np.uint8] | None,  # flag codes (bit i: singular, ill-conditioned, uncertain, low amplitude), with flag_limits
+    npt.NDArray[np.float64] | None,  # amplitude / its maximum over each batch row (batch, n), with flag_limits
     int,  # number of points with NaN/inf input
 ]: ...
+
+def wake_pool(max_wait_us: float = 2000.0) -> None:
+    """Wake the thread pool's helpers ahead of a parallel call; they spin until it begins, or for
+    at most max_wait_us microseconds (0 to 1e6)."""
+    ...
 
 def modal(
     rotor: npt.NDArray[np.float64],

@@ -237,6 +237,20 @@ def _as_runs(runs):
     raise RotoridError(f"runs must be a list or dict of SyncResponse, got {type(runs).__name__}")
 
 
+def _second_singular_ratio(rows):
+    """s2 / s1 of the complex (R, 2) matrix ``rows`` (R >= 2, not all zero): the singular values
+    from G = U^H U in closed form, s1^2 + s2^2 = tr G and s1^2 s2^2 = det G with det G the sum over
+    i < j of |u_i1 u_j2 - u_j1 u_i2|^2 (Lagrange's identity, free of the cancellation of
+    g11 g22 - |g12|^2). Python scalars: an SVD call on a few numbers costs ~25 µs."""
+    top = max(max(abs(a), abs(b)) for a, b in rows)
+    rows = [(a / top, b / top) for a, b in rows]  # no overflow of the squares below
+    det = sum(abs(rows[i][0] * rows[j][1] - rows[j][0] * rows[i][1]) ** 2
+              for i in range(len(rows)) for j in range(i + 1, len(rows)))
+    tr = sum(abs(a) ** 2 + abs(b) ** 2 for a, b in rows)
+    s1 = math.sqrt((tr + math.sqrt(max(tr * tr - 4.0 * det, 0.0))) / 2.0)
+    return math.sqrt(det) / s1 / s1
+
+
 def check_imbalance_independence(rotor: RigidRotor, imbalances, labels, *, identical=False):
     """Raise IdentifiabilityError when the imbalance sets cannot excite independent responses."""
     need = 1 if identical else 2
@@ -244,21 +258,21 @@ def check_imbalance_independence(rotor: RigidRotor, imbalances, labels, *, ident
         raise IdentifiabilityError(
             f"{len(imbalances)} run(s) given; identifying {'8' if identical else 'all 16'} coefficients needs at least "
             f"{need} imbalance run(s) with linearly independent imbalance sets (report eq. 11)")
-    U = np.array([imb.forcing(rotor) for imb in imbalances])  # (R, 2): (f1, f2) per run
-    scale = np.abs(U).max(axis=1)
-    for i, s in enumerate(scale):
-        if s == 0:
+    rows = [imb._forcing(rotor) for imb in imbalances]  # (f1, f2) per run, Python complex
+    for i, (f1, f2) in enumerate(rows):
+        if f1 == 0 and f2 == 0:
             raise IdentifiabilityError(f"{labels[i]} has no imbalance mass (zero excitation)")
     if identical:
         return
-    sv = np.linalg.svd(U, compute_uv=False)
+    U = np.array(rows)  # (R, 2), for the messages
     d1, d2 = rotor.d
     if abs(d1 + d2) <= 1e-9 * max(abs(d1) + abs(d2), rotor.span):
         raise IdentifiabilityError(
             f"the rotor's two imbalance planes coincide (d1 = {d1:g} m from the CG toward bearing 1 is the same axial "
             f"position as d2 = {d2:g} m toward bearing 2): masses in one plane excite a force and a moment in a fixed "
             "ratio, so no set of runs is independent. Check d in the rotor definition")
-    if sv[-1] <= 1e-9 * sv[0]:
+    if _second_singular_ratio(rows) <= 1e-9:
+        scale = np.abs(U).max(axis=1)
         planes = np.abs(U) > 1e-12 * scale[:, None]
         if np.all(~planes[:, 1]) or np.all(~planes[:, 0]):
             p = 1 if np.all(~planes[:, 1]) else 2
@@ -310,16 +324,20 @@ def _flag_strings(code, reasons):
 
 def _finish(axis_name, axis, amp, k, c, cond, resid, ks, cs, cond_max, min_rel_amplitude, method, labels,
             std_source="none", dof=None, cov=None, max_rel_std=MAX_REL_STD, extra_flags=None, ks_res=None, cs_res=None,
-            bias_k=None, bias_c=None, estimator="ls", rel_std=None, std_known=True):
+            bias_k=None, bias_c=None, estimator="ls", rel_std=None, std_known=True, flags=None):
     """Result object with per-point flags. ``amp``: rms response amplitude over runs and coordinates;
     ``rel_std``: the relative standard error of ``ks``, ``cs`` when the core computed it;
-    ``std_known=False``: there are no standard errors (no point can be "uncertain")."""
+    ``std_known=False``: there are no standard errors (no point can be "uncertain");
+    ``flags``: (code, amp / max amp) when the core computed them with the identification."""
     if rel_std is None:
         rel_std = _core.relative_std(*(np.ascontiguousarray(a, dtype=float).reshape(-1, 8) for a in (k, c, ks, cs)))
-    # bit i of the code is reason i of _BASE_REASONS, set in one pass by the core
-    code, rel = _core.flag_codes(np.ascontiguousarray(cond), np.ascontiguousarray(amp),
-                                 np.ascontiguousarray(rel_std, dtype=float) if std_known else None, float(cond_max),
-                                 float(min_rel_amplitude), float(max_rel_std))
+    if flags is not None:
+        code, rel = flags
+    else:
+        # bit i of the code is reason i of _BASE_REASONS, set in one pass by the core
+        code, rel = _core.flag_codes(np.ascontiguousarray(cond), np.ascontiguousarray(amp),
+                                     np.ascontiguousarray(rel_std, dtype=float) if std_known else None,
+                                     float(cond_max), float(min_rel_amplitude), float(max_rel_std))
     reasons = list(_BASE_REASONS)
     if extra_flags is not None:
         try:
@@ -337,6 +355,21 @@ def _finish(axis_name, axis, amp, k, c, cond, resid, ks, cs, cond_max, min_rel_a
     ok = code == 0
     return Identification(axis_name, axis, k, c, cond, resid, rel, ks, cs, ok, code, method, labels, std_source, dof,
                           cov, rel_std, ks_res, cs_res, bias_k, bias_c, estimator, tuple(reasons))
+
+
+#: the fewest points for which an API call wakes the core's threads before its own checks (the
+#: core splits identifications into tasks of 1,024 points; below a few tasks the caller works alone)
+WAKE_FROM = 4096
+
+
+def _wake_core_threads(resp):
+    """Wake the core's thread pool while the API checks its inputs (~50 µs), so that its threads
+    are running when the core call begins rather than being woken by it: at 10,000 impact
+    frequencies a woken-late helper added ~50 µs to the 0.2 ms call. ``resp``: the first run or
+    test, for its number of points."""
+    q = getattr(resp, "q", None)
+    if getattr(q, "shape", (0,))[0] >= WAKE_FROM:
+        _core.wake_pool()
 
 
 def _check_bool(name, value):
@@ -425,10 +458,12 @@ def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", ide
             raise RotoridError(f"{_run_label(i, r)} has no imbalance: the identification needs the added imbalance of "
                                "every run (SyncResponse(imbalance=rotorid.Imbalance(...)))")
         labels.append(_run_label(i, r))
+    if runs:
+        _wake_core_threads(runs[0])
     check_imbalance_independence(rotor, [r.imbalance for r in runs], labels, identical=identical)
     rpm = runs[0].speed_rpm
     _check_same_axis("speed_rpm", [r.speed_rpm for r in runs], labels, "runs", "speeds", "interpolate the 1X vectors first")
-    e = np.stack([r.imbalance.generalized(rotor) for r in runs])  # (R, 4), scaled by Omega^2 below
+    e = np.array([r.imbalance._generalized(rotor) for r in runs])  # (R, 4), scaled by Omega^2 below
     if _has_pedestal(runs, labels):
         qs, qps, covs, dofs, flags = _pedestal_inputs(rotor, runs, labels, "speed_rpm", rpm)
         cal = _calibration_inputs(rotor, runs, labels, accel_gain_std, accel_phase_std_deg)
@@ -684,10 +719,13 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
     # standard errors need redundant equations: more rows than the 2 unknowns of each system
     nruns = len(qs)
     redundant = nruns * (2 if identical else 1) > 2
-    k, c, cond, resid, amp, ks, cs, rel_std, nbad = _core.identify(
+    # the flags come from the same call unless the standard errors change below (propagated
+    # covariance, accelerometer calibration)
+    k, c, cond, resid, amp, ks, cs, rel_std, code, rel_amp, nbad = _core.identify(
         rotor.core_params(), np.ascontiguousarray(w), spin, list(qs), np.ascontiguousarray(e[None], dtype=complex),
         gain, identical=identical, method=method, with_std=redundant, sigma=sigma, q_ped=q_ped, planes=planes,
-        w_scale=w_scale)
+        w_scale=w_scale, flag_limits=None if covs is not None or calibration is not None else
+        (cond_max, min_rel_amplitude, max_rel_std))
     if w_scale is not None and (covs is not None or calibration is not None):
         w = w_scale * w  # rad/s for the propagation below
     if spin is None and (covs is not None or calibration is not None):
@@ -786,7 +824,7 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
             source = f"{source} + accelerometer calibration"
     return _finish(axis_name, axis, amp[0], k[0], c[0], cond[0], resid[0], ks, cs, cond_max, min_rel_amplitude,
                    method, labels, source, dof, cov, max_rel_std, extra_flags, ks_res, cs_res, bias_k, bias_c,
-                   estimator, rel_std, std_known)
+                   estimator, rel_std, std_known, flags=None if code is None else (code[0], rel_amp[0]))
 
 
 def identify_synchronous_batch(rotor: RigidRotor, speed_rpm, q, imbalances, *, method: str = "forces",
@@ -832,7 +870,7 @@ def identify_synchronous_batch(rotor: RigidRotor, speed_rpm, q, imbalances, *, m
                                        "linearly dependent across the runs (complex multiples of one another): those "
                                        "trials cannot identify the coefficients")
     om = rpm * RPM
-    k, c, cond, resid, amp, ks, cs, _, _ = _core.identify(rotor.core_params(), om, om, np.ascontiguousarray(q),
+    k, c, cond, resid, amp, ks, cs, *_ = _core.identify(rotor.core_params(), om, om, np.ascontiguousarray(q),
                                                       np.ascontiguousarray(e), om ** 2, identical=identical,
                                                       method=method, with_std=with_std)
     out = dict(k=k, c=c, cond=cond, residual=resid, amplitude=amp)
@@ -929,6 +967,7 @@ def identify_impact(rotor: RigidRotor, tests, *, method: str = "forces", identic
         labels.append(f"test {i} ({t.name!r})" if t.name else f"test {i}")
     if not tests:
         raise IdentifiabilityError("no impact tests given")
+    _wake_core_threads(tests[0])
     f = tests[0].freq_hz
     speed = tests[0].speed_rpm
     _check_same_axis("freq_hz", [t.freq_hz for t in tests], labels, "tests", "frequencies",

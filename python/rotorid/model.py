@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import math
+
 import numpy as np
 
 from ._validate import finite_scalar, positive_scalar, real_array
@@ -245,14 +247,23 @@ class Imbalance:
 
     def forcing(self, rotor: RigidRotor) -> np.ndarray:
         """(f1, f2) = m_i r_i exp(-j phi_i), kg·m (eq. 5)."""
-        m = np.asarray(self.mass_kg)
-        return m * np.asarray(rotor.r) * np.exp(-1j * np.deg2rad(self.angle_deg))
+        return np.array(self._forcing(rotor))
 
     def generalized(self, rotor: RigidRotor) -> np.ndarray:
         """F_o / Omega^2 of eq. 4 (complex 4-vector, kg·m and kg·m²)."""
-        f1, f2 = self.forcing(rotor)
+        return np.array(self._generalized(rotor))
+
+    def _forcing(self, rotor: RigidRotor) -> tuple:
+        """:meth:`forcing` as Python complex numbers (the identification's checks run on a few
+        scalars, where NumPy's per-call cost is most of the time)."""
+        return tuple(m * r * complex(math.cos(a), -math.sin(a))
+                     for m, r, a in zip(self.mass_kg, rotor.r, map(math.radians, self.angle_deg)))
+
+    def _generalized(self, rotor: RigidRotor) -> list:
+        """:meth:`generalized` as a list of Python complex numbers."""
+        f1, f2 = self._forcing(rotor)
         d1, d2 = rotor.d
-        return np.array([f1 + f2, -1j * (f1 + f2), -f1 * d1 + f2 * d2, -1j * (f1 * d1 - f2 * d2)])
+        return [f1 + f2, -1j * (f1 + f2), -f1 * d1 + f2 * d2, -1j * (f1 * d1 - f2 * d2)]
 
     def to_ross(self, *, rotor: RigidRotor, ross_rotor, nodes=None) -> dict:
         """ROSS unbalance arguments, phase convention handled (see :func:`rotorid.ross.imbalance_to_ross`)."""

@@ -314,6 +314,8 @@ type IdentTuple<'py> = (
     Option<Bound<'py, PyArrayDyn<f64>>>,
     Option<Bound<'py, PyArrayDyn<f64>>>,
     Option<Bound<'py, PyArrayDyn<f64>>>,
+    Option<Bound<'py, PyArrayDyn<u8>>>,
+    Option<Bound<'py, PyArrayDyn<f64>>>,
     usize,
 );
 
@@ -384,12 +386,15 @@ fn pedestal_responses<'py>(q_ped: Option<&Bound<'py, PyAny>>, resp: &Responses<'
 /// w, spin: (n,) (spin also (1,)); spin None: spin = w (synchronous runs, after `w_scale`);
 /// gain: (n,), (1,) or None (spin^2: an imbalance); planes: None, or the (2, 2)
 /// eq. 19 transform from the planes q was measured at to the bearings. method: "forces" (default solver) or "report" (16-unknown real
-/// formulation). Returns (k, c, cond, resid, amp, k_std, c_std, rel_std, n_nonfinite) with
-/// k, c: (B, n, 2, 2, 2), cond (B, n, 2), resid, amp (rms response amplitude) and rel_std (largest
-/// standard error relative to the bearing's direct coefficients, see identify::relative_std)
-/// (B, n).
+/// formulation). Returns (k, c, cond, resid, amp, k_std, c_std, rel_std, flag_code, rel_amp,
+/// n_nonfinite) with k, c: (B, n, 2, 2, 2), cond (B, n, 2), resid, amp (rms response amplitude)
+/// and rel_std (largest standard error relative to the bearing's direct coefficients, see
+/// identify::relative_std) (B, n). `flag_limits` (cond_max, min_rel_amplitude, max_rel_std):
+/// also the flag codes (uint8) and amp / max amp of each batch row (B, n), as `flag_codes` gives
+/// them, computed in the same call (None otherwise); "uncertain" only when standard errors are
+/// computed.
 #[pyfunction]
-#[pyo3(name = "identify", signature = (rotor, w, spin, q, e, gain, identical=false, method="forces", with_std=true, sigma=None, q_ped=None, planes=None, w_scale=None))]
+#[pyo3(name = "identify", signature = (rotor, w, spin, q, e, gain, identical=false, method="forces", with_std=true, sigma=None, q_ped=None, planes=None, w_scale=None, flag_limits=None))]
 #[allow(clippy::too_many_arguments)]
 fn py_identify<'py>(
     py: Python<'py>,
@@ -406,7 +411,12 @@ fn py_identify<'py>(
     q_ped: Option<&Bound<'py, PyAny>>,
     planes: Option<PyReadonlyArrayDyn<'py, f64>>,
     w_scale: Option<f64>,
+    flag_limits: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<IdentTuple<'py>> {
+    let flag_limits = flag_limits
+        .map(|f| f.extract::<(f64, f64, f64)>())
+        .transpose()
+        .map_err(|e| PyValueError::new_err(format!("flag_limits must be (cond_max, min_rel_amplitude, max_rel_std): {e}")))?;
     let rot = rotor_of(&rotor)?;
     let resp = responses(q)?;
     let (batch, n) = (resp.batch, resp.n);
@@ -447,16 +457,35 @@ fn py_identify<'py>(
                 rel_std: if want_std { Some(&mut rel[..]) } else { None },
             };
             let nbad = if report { identify::identify_report(&prob, out) } else { identify::identify_forces(&prob, out) }?;
-            Ok::<_, CoreError>((k, c, cond, resid, amp, ks, cs, rel, nbad))
+            // the flags of each batch row while its outputs are still in cache (and the pool's
+            // threads awake): no second call from Python
+            let flags = match flag_limits {
+                Some((cond_max, min_rel_amplitude, max_rel_std)) => {
+                    let mut code = vec![0u8; npts];
+                    let mut rel_amp = out_buf(npts);
+                    for (b, (oc, ra)) in code.chunks_mut(n.max(1)).zip(rel_amp.chunks_mut(n.max(1))).enumerate() {
+                        let rows = b * n..(b + 1) * n;
+                        let rs = if want_std { &rel[rows.clone()] } else { &[][..] };
+                        identify::flag_codes(&cond[2 * rows.start..2 * rows.end], &amp[rows], rs, cond_max, min_rel_amplitude, max_rel_std, ra, oc)?;
+                    }
+                    Some((code, rel_amp))
+                }
+                None => None,
+            };
+            Ok::<_, CoreError>((k, c, cond, resid, amp, ks, cs, rel, flags, nbad))
         })
     })?
     .map_err(core_err)?;
-    let (k, c, cond, resid, amp, ks, cs, rel, nbad) = res;
+    let (k, c, cond, resid, amp, ks, cs, rel, flags, nbad) = res;
     let sh = [batch, n, 2, 2, 2];
     let kst = if want_std { Some(to_py(py, ks, &sh)?) } else { None };
     let cst = if want_std { Some(to_py(py, cs, &sh)?) } else { None };
     let relp = if want_std { Some(to_py(py, rel, &[batch, n])?) } else { None };
-    Ok((to_py(py, k, &sh)?, to_py(py, c, &sh)?, to_py(py, cond, &[batch, n, 2])?, to_py(py, resid, &[batch, n])?, to_py(py, amp, &[batch, n])?, kst, cst, relp, nbad))
+    let (code, rel_amp) = match flags {
+        Some((code, rel_amp)) => (Some(to_py(py, code, &[batch, n])?), Some(to_py(py, rel_amp, &[batch, n])?)),
+        None => (None, None),
+    };
+    Ok((to_py(py, k, &sh)?, to_py(py, c, &sh)?, to_py(py, cond, &[batch, n, 2])?, to_py(py, resid, &[batch, n])?, to_py(py, amp, &[batch, n])?, kst, cst, relp, code, rel_amp, nbad))
 }
 
 /// Largest standard error relative to the bearing's direct coefficients per point (see
@@ -1301,6 +1330,18 @@ fn study_bin_edges(py: Python<'_>) -> PyResult<Bound<'_, PyArrayDyn<f64>>> {
     to_py(py, e, &[study::BINS + 1])
 }
 
+/// Wake the thread pool's helpers ahead of a parallel core call (rotorid_core::par::wake_helpers):
+/// they spin until the next parallel call begins, or for at most `max_wait_us` microseconds.
+#[pyfunction]
+#[pyo3(signature = (max_wait_us = 2000.0))]
+fn wake_pool(max_wait_us: f64) -> PyResult<()> {
+    if !(max_wait_us.is_finite() && (0.0..=1e6).contains(&max_wait_us)) {
+        return Err(PyValueError::new_err(format!("max_wait_us must be within 0 and 1e6 (1 s), got {max_wait_us}")));
+    }
+    rotorid_core::par::wake_helpers(std::time::Duration::from_secs_f64(max_wait_us * 1e-6));
+    Ok(())
+}
+
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     LOADED_BY.get_or_init(std::process::id);
@@ -1319,6 +1360,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(series_impedance, m)?)?;
     m.add_function(wrap_pyfunction!(relative_std, m)?)?;
     m.add_function(wrap_pyfunction!(flag_codes, m)?)?;
+    m.add_function(wrap_pyfunction!(wake_pool, m)?)?;
     m.add_function(wrap_pyfunction!(imbalance_response, m)?)?;
     m.add_function(wrap_pyfunction!(apply_planes, m)?)?;
     m.add_function(wrap_pyfunction!(lti_run, m)?)?;

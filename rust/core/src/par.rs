@@ -13,7 +13,7 @@
 
 use std::marker::PhantomData;
 use std::any::Any;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
 /// The counters a call shares with the jobs it spawns; the jobs own them (a job that starts after
@@ -53,6 +53,7 @@ pub fn for_each_task<F: Fn(usize) + Sync>(n: usize, task: F) {
         (0..n).into_par_iter().for_each(&task);
         return;
     }
+    CALLS.fetch_add(1, Ordering::Release);
     let counters = Arc::new(Counters { next: AtomicUsize::new(0), done: AtomicUsize::new(0), panic: Mutex::new(None) });
     let dyn_task: &(dyn Fn(usize) + Sync) = &task;
     // SAFETY (lifetime erasure): see TaskRef; the wait below outlives every dereference.
@@ -88,6 +89,48 @@ pub fn for_each_task<F: Fn(usize) + Sync>(n: usize, task: F) {
     let first_panic = counters.panic.lock().unwrap_or_else(|p| p.into_inner()).take();
     if let Some(payload) = first_panic {
         std::panic::resume_unwind(payload);
+    }
+}
+
+/// Parallel calls begun from outside the pool (see [`wake_helpers`]).
+static CALLS: AtomicUsize = AtomicUsize::new(0);
+/// Set while helper threads are held awake by [`wake_helpers`].
+static AWAKE: AtomicBool = AtomicBool::new(false);
+
+/// Wake the pool's threads ahead of a parallel call, so that they are running when the call's
+/// tasks arrive instead of being woken by them.
+///
+/// A caller that has work of its own to do before its parallel call (the Python API validates
+/// its inputs for ~50 µs before the core call) calls this first: each helper thread is woken now,
+/// while the caller works, and spins until the next [`for_each_task`] from outside the pool begins
+/// or `max_wait` has passed, then takes that call's tasks at once. Without it, the first tasks of
+/// a call after an idle pause wait for the wake-up of a sleeping thread (tens to hundreds of
+/// microseconds on a virtual machine), and a short call runs mostly on the caller alone.
+/// At most one set of helpers is held awake at a time; nothing happens on a one-thread pool or
+/// from inside a pool. The cost when no call follows is `max_wait` of CPU time per helper.
+pub fn wake_helpers(max_wait: std::time::Duration) {
+    let helpers = rayon::current_num_threads().saturating_sub(1);
+    if helpers == 0 || rayon::current_thread_index().is_some() || AWAKE.swap(true, Ordering::AcqRel) {
+        return;
+    }
+    let calls = CALLS.load(Ordering::Acquire);
+    let waiting = Arc::new(AtomicUsize::new(helpers));
+    for _ in 0..helpers {
+        let waiting = Arc::clone(&waiting);
+        rayon::spawn(move || {
+            let start = std::time::Instant::now();
+            let mut spins = 0u32;
+            while CALLS.load(Ordering::Acquire) == calls {
+                std::hint::spin_loop();
+                spins = spins.wrapping_add(1);
+                if spins % 256 == 0 && start.elapsed() >= max_wait {
+                    break;
+                }
+            }
+            if waiting.fetch_sub(1, Ordering::AcqRel) == 1 {
+                AWAKE.store(false, Ordering::Release);
+            }
+        });
     }
 }
 
@@ -148,6 +191,33 @@ mod tests {
             let total = pool.install(|| sum_tasks(n, |i| i));
             assert_eq!(total, n * n.saturating_sub(1) / 2);
         }
+    }
+
+    #[test]
+    fn woken_helpers_end_their_wait_at_the_next_call_or_by_themselves() {
+        use std::time::{Duration, Instant};
+        let until_asleep = |limit: Duration| {
+            let t = Instant::now();
+            while AWAKE.load(Ordering::Acquire) {
+                assert!(t.elapsed() < limit, "helpers still held awake after {limit:?}");
+                std::thread::sleep(Duration::from_micros(100));
+            }
+        };
+        // a call after the wake: every task once, and the helpers let go
+        wake_helpers(Duration::from_secs(5));
+        let hits: Vec<AtomicUsize> = (0..500).map(|_| AtomicUsize::new(0)).collect();
+        for_each_task(hits.len(), |i| {
+            hits[i].fetch_add(1, Ordering::Relaxed);
+        });
+        assert!(hits.iter().all(|h| h.load(Ordering::Relaxed) == 1));
+        until_asleep(Duration::from_secs(2));
+        // no call: the wait ends by itself after max_wait
+        wake_helpers(Duration::from_millis(1));
+        until_asleep(Duration::from_secs(2));
+        // from inside a pool it does nothing (the pool's own threads are running)
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
+        pool.install(|| wake_helpers(Duration::from_secs(5)));
+        assert!(!AWAKE.load(Ordering::Acquire));
     }
 
     #[test]
