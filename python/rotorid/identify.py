@@ -264,7 +264,6 @@ def check_imbalance_independence(rotor: RigidRotor, imbalances, labels, *, ident
             raise IdentifiabilityError(f"{labels[i]} has no imbalance mass (zero excitation)")
     if identical:
         return
-    U = np.array(rows)  # (R, 2), for the messages
     d1, d2 = rotor.d
     if abs(d1 + d2) <= 1e-9 * max(abs(d1) + abs(d2), rotor.span):
         raise IdentifiabilityError(
@@ -272,6 +271,7 @@ def check_imbalance_independence(rotor: RigidRotor, imbalances, labels, *, ident
             f"position as d2 = {d2:g} m toward bearing 2): masses in one plane excite a force and a moment in a fixed "
             "ratio, so no set of runs is independent. Check d in the rotor definition")
     if _second_singular_ratio(rows) <= 1e-9:
+        U = np.array(rows)  # (R, 2)
         scale = np.abs(U).max(axis=1)
         planes = np.abs(U) > 1e-12 * scale[:, None]
         if np.all(~planes[:, 1]) or np.all(~planes[:, 0]):
@@ -701,6 +701,12 @@ def _nan_view(shape):
     return np.ndarray(shape, float, buffer=_NAN_BYTES, strides=(0,) * len(shape))
 
 
+def _constant_view(value, shape):
+    """As :func:`_nan_view`, for any float ``value`` (``np.broadcast_to`` took ~30 µs inside real
+    calls, right after the core's threads had used the caches)."""
+    return np.ndarray(shape, float, buffer=np.float64(value).tobytes(), strides=(0,) * len(shape))
+
+
 def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, method, labels, cond_max,
            min_rel_amplitude, what, covs=None, dofs=None, max_rel_std=MAX_REL_STD, extra_flags=None,
            estimator="ls", shared_cov=None, q_ped=None, calibration=None, planes=None, w_scale=None):
@@ -748,7 +754,7 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
         ks = cs = _nan_view(k.shape)
         rel_std = _nan_view(k.shape[:2])
     # no finite condition number: the first point nearly always has one (then no pass over cond)
-    if not (math.isfinite(cond.flat[0]) or np.fmin.reduce(cond, axis=None) < np.inf):
+    if not (math.isfinite(cond.item(0)) or np.fmin.reduce(cond, axis=None) < np.inf):
         raise IdentifiabilityError(_diagnose_singular(np.stack(qs), labels))
     ks, cs = ks[0], cs[0]
     rel_std = None if rel_std is None else rel_std[0]
@@ -759,7 +765,7 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
         # residual dof per bearing system: R complex equations (2R real) for 2 complex unknowns
         # one value for every point: a read-only view, not an (n,) array (freed with om, two such
         # arrays made glibc return and fault in the memory on every call)
-        dof = np.broadcast_to(np.float64(2.0 * (nruns * (2 if identical else 1) - 2)), (axis.size,))
+        dof = _constant_view(2.0 * (nruns * (2 if identical else 1) - 2), (axis.size,))
     choice("estimator", estimator, {"ls", "bias-corrected"})
     if estimator == "bias-corrected" and covs is None:
         raise RotoridError("estimator='bias-corrected' needs the measurement covariance of every run or test (cov=)")
