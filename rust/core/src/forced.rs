@@ -370,6 +370,9 @@ struct Elim {
     pmin: f64,
     pmax: f64,
     bad: bool,
+    /// some step's pivot is not on the diagonal (set by the exchange-free steps, which then
+    /// leave the factors unusable: the lane is factored again with exchanges)
+    exchange: bool,
 }
 
 impl Elim {
@@ -386,7 +389,7 @@ impl Elim {
                 total += m;
             }
         }
-        (Elim { a: h, ins: [0.0; 4], piv: [0.0; 4], tiny: scale * 1e-15, pmin: f64::INFINITY, pmax: 0.0, bad: false }, total)
+        (Elim { a: h, ins: [0.0; 4], piv: [0.0; 4], tiny: scale * 1e-15, pmin: f64::INFINITY, pmax: 0.0, bad: false, exchange: false }, total)
     }
 }
 
@@ -402,22 +405,34 @@ impl Elim {
 /// 1 / (c + j d) = (c - j d) r, r = 1 / (c^2 + d^2) (one division per step, r kept for the back
 /// substitution; `solve4` does the same, so both give the same bits), then H_ij -= f_i H_kj
 /// for i, j > k, the multiplier f_i being kept in place of H_ik.
+///
+/// `EXCHANGE` false: the step as it is when the pivot is on the diagonal (no row exchange, no
+/// selects), recording in `e.exchange` whether some row below would have been chosen instead.
+/// When no step records one, the factors, pivots and flags are those of the step with exchanges,
+/// bit for bit (the exchanges would all have been of a row with itself); when one does, they are
+/// not, and the lane is factored again with `EXCHANGE` true.
 #[inline(always)]
-fn elim_step<const K: usize>(e: &mut Elim) {
+fn elim_step<const K: usize, const EXCHANGE: bool>(e: &mut Elim) {
     let a = &mut e.a;
-    let mut best = mag(a[K][K]);
+    let diag = mag(a[K][K]);
+    let mut best = diag;
     let mut p = K as f64;
     for i in (K + 1)..4 {
         let v = mag(a[i][K]);
         let gt = v > best;
-        best = if gt { v } else { best };
-        p = if gt { i as f64 } else { p };
+        if EXCHANGE {
+            best = if gt { v } else { best };
+            p = if gt { i as f64 } else { p };
+        } else {
+            // a tie too: the first of equal rows is the pivot, which depends on the row order
+            e.exchange |= !(v < diag);
+        }
     }
     e.pmin = if best < e.pmin { best } else { e.pmin };
     e.pmax = if best > e.pmax { best } else { e.pmax };
     e.bad |= !(best > e.tiny) | (e.pmin < MAX_SPREAD * e.pmax);
     e.piv[K] = p;
-    if K < 3 {
+    if EXCHANGE && K < 3 {
         let rk = a[K];
         for i in (K + 1)..4 {
             let t = p == i as f64;
@@ -450,19 +465,23 @@ fn elim_step<const K: usize>(e: &mut Elim) {
 /// `examples/forced_points`).
 #[inline(always)]
 fn substitute(a: &[[C64; 4]; 4], ins: &[f64; 4], piv: &[f64; 4], b: &mut [C64; 4]) {
-    forward_step::<0>(a, piv, b);
-    forward_step::<1>(a, piv, b);
-    forward_step::<2>(a, piv, b);
+    forward_step::<0, true>(a, piv, b);
+    forward_step::<1, true>(a, piv, b);
+    forward_step::<2, true>(a, piv, b);
     back_step::<3>(a, ins, b);
     back_step::<2>(a, ins, b);
     back_step::<1>(a, ins, b);
     back_step::<0>(a, ins, b);
 }
 
+/// `EXCHANGE` false: the factors come from exchange-free steps (`piv[K]` = K, nothing to swap).
 #[inline(always)]
-fn forward_step<const K: usize>(a: &[[C64; 4]; 4], piv: &[f64; 4], b: &mut [C64; 4]) {
+fn forward_step<const K: usize, const EXCHANGE: bool>(a: &[[C64; 4]; 4], piv: &[f64; 4], b: &mut [C64; 4]) {
     let bk = b[K];
     for i in (K + 1)..4 {
+        if !EXCHANGE {
+            break;
+        }
         let t = piv[K] == i as f64;
         let bi = b[i];
         b[K] = if t { bi } else { b[K] };
@@ -504,40 +523,84 @@ fn lane_put(z: &mut [Z; 4], l: usize, v: &[C64; 4]) {
 /// Lane loop 1: H = K - w^2 M + j w (C + Omega G) of every lane (`dynamic_stiffness`), its
 /// factors (stored in `lu` for further right-hand sides if `KEEP`) and the solution q of the
 /// first right-hand side f, in sweeps of `W` lanes ([`sweeps`]).
+///
+/// Each sweep runs first without row exchanges ([`elim_step`] with `EXCHANGE` false), which is
+/// the elimination with partial pivoting itself wherever every pivot is on the diagonal (the
+/// usual case: H's rows are ordered with the direct terms of x1, x2, y1, y2 on it); a sweep in
+/// which some lane needed an exchange runs again with exchanges. Either way the results are
+/// those of the pivoting elimination, bit for bit.
 #[inline(always)]
 fn factor_solve_lanes<const KEEP: bool, const W: usize>(b: &Batch, gi: &GroupIn, f: &[Z; 4], lu: &mut LaneLu, q: &mut [Z; 4]) {
     for (lo, hi) in sweeps::<W>(L) {
-        for l0 in lo..hi {
-            let l1 = l0 + L;
-            let (mut e0, t0) = Elim::new(lane_h(b, gi, l0));
-            let (mut e1, t1) = Elim::new(lane_h(b, gi, l1));
-            elim_step::<0>(&mut e0);
-            elim_step::<0>(&mut e1);
-            elim_step::<1>(&mut e0);
-            elim_step::<1>(&mut e1);
-            elim_step::<2>(&mut e0);
-            elim_step::<2>(&mut e1);
-            elim_step::<3>(&mut e0);
-            elim_step::<3>(&mut e1);
-            let mut x0 = lane_get(f, l0);
-            let mut x1 = lane_get(f, l1);
-            forward_step::<0>(&e0.a, &e0.piv, &mut x0);
-            forward_step::<0>(&e1.a, &e1.piv, &mut x1);
-            forward_step::<1>(&e0.a, &e0.piv, &mut x0);
-            forward_step::<1>(&e1.a, &e1.piv, &mut x1);
-            forward_step::<2>(&e0.a, &e0.piv, &mut x0);
-            forward_step::<2>(&e1.a, &e1.piv, &mut x1);
-            back_step::<3>(&e0.a, &e0.ins, &mut x0);
-            back_step::<3>(&e1.a, &e1.ins, &mut x1);
-            back_step::<2>(&e0.a, &e0.ins, &mut x0);
-            back_step::<2>(&e1.a, &e1.ins, &mut x1);
-            back_step::<1>(&e0.a, &e0.ins, &mut x0);
-            back_step::<1>(&e1.a, &e1.ins, &mut x1);
-            back_step::<0>(&e0.a, &e0.ins, &mut x0);
-            back_step::<0>(&e1.a, &e1.ins, &mut x1);
-            keep_lane::<KEEP>(lu, q, l0, &e0, t0, &x0);
-            keep_lane::<KEEP>(lu, q, l1, &e1, t1, &x1);
+        let mut exchange = [true; W];
+        if !KEEP {
+            factor_solve_sweep::<KEEP, W, false>(b, gi, f, lu, q, lo, hi, &mut exchange);
         }
+        if exchange.iter().any(|&x| x) {
+            #[cfg(test)]
+            tests::SWEEPS_WITH_EXCHANGES.with(|c| c.set(c.get() + 1));
+            factor_solve_sweep::<KEEP, W, true>(b, gi, f, lu, q, lo, hi, &mut exchange);
+        }
+        #[cfg(test)]
+        tests::SWEEPS.with(|c| c.set(c.get() + 1));
+    }
+}
+
+/// Lanes lo..hi and lo + L..hi + L of [`factor_solve_lanes`], with or without row exchanges;
+/// `exchange[l - lo]`: lane l or l + L needed one (set only when `EXCHANGE` is false).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn factor_solve_sweep<const KEEP: bool, const W: usize, const EXCHANGE: bool>(
+    b: &Batch,
+    gi: &GroupIn,
+    f: &[Z; 4],
+    lu: &mut LaneLu,
+    q: &mut [Z; 4],
+    lo: usize,
+    hi: usize,
+    exchange: &mut [bool; W],
+) {
+    for l0 in lo..hi {
+        let l1 = l0 + L;
+        let (mut e0, t0) = Elim::new(lane_h(b, gi, l0));
+        let (mut e1, t1) = Elim::new(lane_h(b, gi, l1));
+        let mut x0 = lane_get(f, l0);
+        let mut x1 = lane_get(f, l1);
+        if !EXCHANGE {
+            // rows (Fx, Mx, Fy, My): the order in which the pivots of a rotor on bearings
+            // usually fall on the diagonal
+            e0.a.swap(1, 2);
+            e1.a.swap(1, 2);
+            x0.swap(1, 2);
+            x1.swap(1, 2);
+        }
+        elim_step::<0, EXCHANGE>(&mut e0);
+        elim_step::<0, EXCHANGE>(&mut e1);
+        elim_step::<1, EXCHANGE>(&mut e0);
+        elim_step::<1, EXCHANGE>(&mut e1);
+        elim_step::<2, EXCHANGE>(&mut e0);
+        elim_step::<2, EXCHANGE>(&mut e1);
+        elim_step::<3, EXCHANGE>(&mut e0);
+        elim_step::<3, EXCHANGE>(&mut e1);
+        if !EXCHANGE {
+            exchange[l0 - lo] = e0.exchange | e1.exchange;
+        }
+        forward_step::<0, EXCHANGE>(&e0.a, &e0.piv, &mut x0);
+        forward_step::<0, EXCHANGE>(&e1.a, &e1.piv, &mut x1);
+        forward_step::<1, EXCHANGE>(&e0.a, &e0.piv, &mut x0);
+        forward_step::<1, EXCHANGE>(&e1.a, &e1.piv, &mut x1);
+        forward_step::<2, EXCHANGE>(&e0.a, &e0.piv, &mut x0);
+        forward_step::<2, EXCHANGE>(&e1.a, &e1.piv, &mut x1);
+        back_step::<3>(&e0.a, &e0.ins, &mut x0);
+        back_step::<3>(&e1.a, &e1.ins, &mut x1);
+        back_step::<2>(&e0.a, &e0.ins, &mut x0);
+        back_step::<2>(&e1.a, &e1.ins, &mut x1);
+        back_step::<1>(&e0.a, &e0.ins, &mut x0);
+        back_step::<1>(&e1.a, &e1.ins, &mut x1);
+        back_step::<0>(&e0.a, &e0.ins, &mut x0);
+        back_step::<0>(&e1.a, &e1.ins, &mut x1);
+        keep_lane::<KEEP>(lu, q, l0, &e0, t0, &x0);
+        keep_lane::<KEEP>(lu, q, l1, &e1, t1, &x1);
     }
 }
 
@@ -967,6 +1030,117 @@ mod tests {
         (d1.max(d2), e1 && e2, bad_lanes == bad_ref && bad_base == bad_ref, bad_ref)
     }
 
+    thread_local! {
+        /// Sweeps of the lane loop 1 run on this thread, and those of them run again with row
+        /// exchanges (serial calls only: below SERIAL_BELOW points the caller does all the work).
+        pub(super) static SWEEPS: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
+        pub(super) static SWEEPS_WITH_EXCHANGES: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
+    }
+
+    /// (sweeps, sweeps run again with exchanges) of one serial forced response.
+    fn sweep_counts(p: &Inputs) -> (usize, usize) {
+        let before = (SWEEPS.with(|c| c.get()), SWEEPS_WITH_EXCHANGES.with(|c| c.get()));
+        let mut q = vec![C64::new(0.0, 0.0); p.w.len() * p.nrhs * 4];
+        forced_response(&p.rotor, &p.kb, &p.cb, &p.spin, &p.w, &p.force, p.nrhs, &mut q).unwrap();
+        (SWEEPS.with(|c| c.get()) - before.0, SWEEPS_WITH_EXCHANGES.with(|c| c.get()) - before.1)
+    }
+
+    /// The exchange-free first pass: the NSF rotor on its bearings needs no row exchange at any
+    /// speed (rows Fx, Mx, Fy, My), so no sweep runs twice; a bearing with one direct stiffness
+    /// far below its cross-coupled ones puts a pivot off the diagonal, so sweeps run again; and
+    /// both give the pivoting solve's values to the bit.
+    #[test]
+    fn exchange_free_pass_covers_a_rotor_on_bearings_and_falls_back_otherwise() {
+        let rotor = Rotor { m: 30.7, it: 0.62, ip: 0.062, l1: 0.146, l2: 0.137 };
+        let k = [3.2e6, 4e5, -3e5, 2.9e6, 3.5e6, 2e5, -2e5, 3.1e6];
+        let c = [2.1e3, 1e2, 1e2, 2.3e3, 2.2e3, 0.0, 0.0, 2.0e3];
+        let w: Vec<f64> = (0..200).map(|i| 1.0 + 1500.0 * i as f64 / 200.0).collect();
+        let force = vec![C64::new(1.0, 0.5); 4];
+        let mut p = Inputs { rotor, kb: k.to_vec(), cb: c.to_vec(), spin: w.clone(), w, force, nrhs: 1 };
+        let (sweeps, again) = sweep_counts(&p);
+        assert!(sweeps > 0 && again == 0, "{again} of {sweeps} sweeps ran again");
+        let (diff, equal, same_count, _) = run(&p);
+        assert!(diff == 0.0 && equal && same_count);
+        p.kb = vec![1e3, 4e6, -4e6, 1e3, 3.5e6, 2e5, -2e5, 3.1e6];
+        let (sweeps, again) = sweep_counts(&p);
+        assert!(again > 0 && again <= sweeps);
+        let (diff, equal, same_count, _) = run(&p);
+        assert!(diff <= 1e-12 && equal && same_count);
+    }
+
+    /// H q = b by the steps of the lane loop: with exchanges on H as it is, or exchange-free on
+    /// H with rows 1 and 2 swapped (None when a step found its diagonal not the unique largest).
+    fn solve_by_steps<const EXCHANGE: bool>(h: [[C64; 4]; 4], b: [C64; 4]) -> Option<[C64; 4]> {
+        let (mut e, _) = Elim::new(h);
+        let mut x = b;
+        if !EXCHANGE {
+            e.a.swap(1, 2);
+            x.swap(1, 2);
+        }
+        elim_step::<0, EXCHANGE>(&mut e);
+        elim_step::<1, EXCHANGE>(&mut e);
+        elim_step::<2, EXCHANGE>(&mut e);
+        elim_step::<3, EXCHANGE>(&mut e);
+        forward_step::<0, EXCHANGE>(&e.a, &e.piv, &mut x);
+        forward_step::<1, EXCHANGE>(&e.a, &e.piv, &mut x);
+        forward_step::<2, EXCHANGE>(&e.a, &e.piv, &mut x);
+        back_step::<3>(&e.a, &e.ins, &mut x);
+        back_step::<2>(&e.a, &e.ins, &mut x);
+        back_step::<1>(&e.a, &e.ins, &mut x);
+        back_step::<0>(&e.a, &e.ins, &mut x);
+        (EXCHANGE || !e.exchange).then_some(x)
+    }
+
+    proptest! {
+        #![proptest_config(cfg(500))]
+
+        /// Wherever each pivot of rows (Fx, Mx, Fy, My) is the unique largest candidate, the
+        /// exchange-free steps give the pivoting solve's bits; else they decline. Random complex
+        /// H with a diagonal boost of 10^0..10^2 after the row swap (so both cases occur).
+        #[test]
+        fn exchange_free_steps_give_the_pivoting_bits_or_decline(
+            v in proptest::collection::vec(-1.0f64..1.0, 40), boost in 0.0f64..2.0)
+        {
+            let mut h = [[C64::new(0.0, 0.0); 4]; 4];
+            for i in 0..4 {
+                for j in 0..4 {
+                    h[i][j] = C64::new(v[8 * i + 2 * j], v[8 * i + 2 * j + 1]);
+                }
+            }
+            // the diagonal of the swapped rows: H[0][0], H[2][1], H[1][2], H[3][3]
+            for (i, j) in [(0, 0), (2, 1), (1, 2), (3, 3)] {
+                h[i][j] *= 10f64.powf(boost);
+            }
+            let b = [C64::new(v[32], v[33]), C64::new(v[34], v[35]), C64::new(v[36], v[37]), C64::new(v[38], v[39])];
+            let pivoting = solve_by_steps::<true>(h, b).unwrap();
+            if let Some(x) = solve_by_steps::<false>(h, b) {
+                for (a, r) in x.iter().zip(&pivoting) {
+                    prop_assert!(a.re.to_bits() == r.re.to_bits() && a.im.to_bits() == r.im.to_bits(), "{x:?} vs {pivoting:?}");
+                }
+            }
+        }
+    }
+
+    /// A tie between the diagonal and a row below it: the pivoting steps take the first of the
+    /// tied rows in their own order (Fy before Mx), the exchange-free steps would take Mx, so they
+    /// must decline; without the tie they go ahead.
+    #[test]
+    fn exchange_free_steps_decline_a_tied_pivot() {
+        let z = |re: f64, im: f64| C64::new(re, im);
+        // step 0 pivots on Fx (row 0); at step 1 Fy and Mx both have |re| + |im| = 4 in column 1
+        let mut h = [
+            [z(8.0, 0.0), z(0.0, 0.0), z(0.3, 0.1), z(0.2, 0.0)],
+            [z(0.0, 0.0), z(3.0, 1.0), z(0.5, 0.0), z(0.1, 0.2)],
+            [z(0.0, 0.0), z(1.0, 3.0), z(0.2, 0.4), z(0.3, 0.0)],
+            [z(0.0, 0.0), z(0.5, 0.0), z(0.1, 0.0), z(6.0, 0.5)],
+        ];
+        let b = [z(1.0, 0.0), z(0.0, 1.0), z(-1.0, 0.5), z(0.25, 0.0)];
+        assert!(solve_by_steps::<false>(h, b).is_none());
+        h[1][1] = z(2.5, 1.0); // Mx alone is the largest: no exchange needed
+        let x = solve_by_steps::<false>(h, b).unwrap();
+        assert_eq!(x, solve_by_steps::<true>(h, b).unwrap());
+    }
+
     /// Undamped rotor with equal isotropic bearings and l1 = l2: w = sqrt(2k/m) is its bounce
     /// resonance, where H is singular.
     fn resonant(m: f64, it: f64, ip: f64, l: f64, k: f64) -> (Rotor, [f64; 8], f64) {
@@ -1015,6 +1189,30 @@ mod tests {
             prop_assert!(same_count);
             let resonant = (0..n).filter(|&i| at(i)).count();
             prop_assert!(bad >= resonant, "{bad} singular points, {resonant} at the resonance");
+        }
+
+        /// Ties between candidate pivots (l1 = 1 m, so a moment row equals a force row in
+        /// magnitude; coefficients and speeds of a few significant digits, so entries repeat
+        /// exactly) and forced exchanges: the first of equal rows is the pivot, which depends on
+        /// the order of the rows, so the exchange-free pass (rows in another order) must give way
+        /// to the pivoting one; the values are the per-point solve's.
+        #[test]
+        fn pivot_ties_and_exchanges_give_the_per_point_values(
+            m in 1u32..50, it in 1u32..20, ip in 0u32..5, l2 in prop::sample::select(vec![1.0f64, 0.5, 2.0]),
+            kb in proptest::collection::vec(-4i32..5, 8), cb in proptest::collection::vec(-2i32..3, 8),
+            ws in proptest::collection::vec(0u32..4, 1..41), spin_ratio in -2i32..3)
+        {
+            let rotor = Rotor { m: m as f64, it: it as f64, ip: ip as f64, l1: 1.0, l2 };
+            let kb: Vec<f64> = kb.iter().map(|&v| 1e6 * v as f64).collect();
+            let cb: Vec<f64> = cb.iter().map(|&v| 1e3 * v as f64).collect();
+            let w: Vec<f64> = ws.iter().map(|&v| 100.0 * v as f64).collect();
+            let spin: Vec<f64> = w.iter().map(|&x| x * spin_ratio as f64).collect();
+            let force = vec![C64::new(1.0, 0.0), C64::new(0.0, 1.0), C64::new(-1.0, 0.0), C64::new(0.5, 0.5)];
+            let p = Inputs { rotor, kb, cb, spin, w, force, nrhs: 1 };
+            let (diff, equal, same_count, _) = run(&p);
+            prop_assert!(diff <= 1e-12, "relative difference {diff:e}");
+            prop_assert!(equal);
+            prop_assert!(same_count);
         }
 
         /// NaN and inf inputs: the groups holding them take the per-point path, whose rules apply.
