@@ -39,76 +39,144 @@ fn mag(z: C64) -> f64 {
 
 #[inline(always)]
 fn solve4_impl(h: &mut [[C64; 4]; 4], rhs: &mut [C64], max_spread: f64) -> bool {
-    let nrhs = rhs.len() / 4;
-    let mut scale = 0.0f64;
-    for row in h.iter() {
-        for v in row.iter() {
-            scale = scale.max(mag(*v));
-        }
-    }
-    let tiny = scale * 1e-15;
-    // the pivots' spread bounds the condition number from below: at an undamped resonance the last
-    // pivot is rounding noise (1e-16 of the others), which must not pass as a huge response; a spread
-    // beyond 1e10 (a damping ratio below ~1e-10) is treated as singular
-    let (mut pmin, mut pmax) = (f64::INFINITY, 0.0f64);
-    let mut ins = [0.0f64; 4]; // 1 / |U_kk|^2
-    for k in 0..4 {
-        // pivot
-        let mut p = k;
-        let mut best = mag(h[k][k]);
-        for i in (k + 1)..4 {
-            let v = mag(h[i][k]);
-            if v > best {
-                best = v;
-                p = i;
+    match Lu4::factor(h, max_spread) {
+        Some(lu) => {
+            for b in rhs.chunks_exact_mut(4) {
+                lu.solve(b);
             }
+            true
         }
-        pmin = pmin.min(best);
-        pmax = pmax.max(best);
-        if !(best > tiny) || pmin < max_spread * pmax {
+        None => {
             for v in rhs.iter_mut() {
                 *v = C64::new(f64::NAN, f64::NAN);
             }
-            return false;
-        }
-        if p != k {
-            h.swap(p, k);
-            for r in 0..nrhs {
-                rhs.swap(4 * r + p, 4 * r + k);
-            }
-        }
-        // 1 / U_kk from one division (also used by the back substitution): the same operations
-        // as the lanes' `elim_step`, so both give the same bits
-        let d = h[k][k];
-        ins[k] = 1.0 / d.norm_sqr();
-        let inv = C64::new(d.re * ins[k], 0.0 - d.im * ins[k]);
-        for i in (k + 1)..4 {
-            let f = h[i][k] * inv;
-            if f == C64::new(0.0, 0.0) {
-                continue;
-            }
-            for j in (k + 1)..4 {
-                let t = h[k][j];
-                h[i][j] -= f * t;
-            }
-            for r in 0..nrhs {
-                let t = rhs[4 * r + k];
-                rhs[4 * r + i] -= f * t;
-            }
+            false
         }
     }
-    for r in 0..nrhs {
-        let b = &mut rhs[4 * r..4 * r + 4];
+}
+
+/// The LU factors of [`solve4`] (partial pivoting), kept to solve right-hand sides one after
+/// another: the inverse iteration of the modal analysis solves twice with one shifted matrix.
+/// Solving with them performs, on each right-hand side, the operations `solve4` performs on it,
+/// in the same order, so the results are the same bits.
+#[derive(Clone, Copy, Debug)]
+pub struct Lu4 {
+    /// U in the upper triangle (rows in pivot order; below it, values no solve reads)
+    u: [[C64; 4]; 4],
+    /// row exchanged with row k at step k
+    piv: [usize; 4],
+    /// multiplier of row i at step k (`mult[k][i]`, i > k; zero when the update was skipped)
+    mult: [[C64; 4]; 4],
+    /// 1 / |U_kk|^2
+    ins: [f64; 4],
+}
+
+impl Lu4 {
+    /// Factor `h` in place (left as `solve4` leaves it). None when a pivot is not above 1e-15 of
+    /// the largest |re| + |im| of H, or when the pivots' spread (smallest / largest) falls below
+    /// `max_spread` (0 accepts any nonzero pivot: [`Lu4::near_singular`]).
+    #[inline(always)]
+    fn factor(h: &mut [[C64; 4]; 4], max_spread: f64) -> Option<Lu4> {
+        let mut scale = 0.0f64;
+        for row in h.iter() {
+            for v in row.iter() {
+                scale = scale.max(mag(*v));
+            }
+        }
+        let tiny = scale * 1e-15;
+        // the pivots' spread bounds the condition number from below: at an undamped resonance the last
+        // pivot is rounding noise (1e-16 of the others), which must not pass as a huge response; a spread
+        // beyond 1e10 (a damping ratio below ~1e-10) is treated as singular
+        let (mut pmin, mut pmax) = (f64::INFINITY, 0.0f64);
+        let mut lu = Lu4 { u: [[C64::new(0.0, 0.0); 4]; 4], piv: [0, 1, 2, 3], mult: [[C64::new(0.0, 0.0); 4]; 4], ins: [0.0; 4] };
+        for k in 0..4 {
+            // pivot
+            let mut p = k;
+            let mut best = mag(h[k][k]);
+            for i in (k + 1)..4 {
+                let v = mag(h[i][k]);
+                if v > best {
+                    best = v;
+                    p = i;
+                }
+            }
+            pmin = pmin.min(best);
+            pmax = pmax.max(best);
+            if !(best > tiny) || pmin < max_spread * pmax {
+                return None;
+            }
+            lu.piv[k] = p;
+            if p != k {
+                h.swap(p, k);
+            }
+            // 1 / U_kk from one division (also used by the back substitution): the same operations
+            // as the lanes' `elim_step`, so both give the same bits
+            let d = h[k][k];
+            lu.ins[k] = 1.0 / d.norm_sqr();
+            let inv = C64::new(d.re * lu.ins[k], 0.0 - d.im * lu.ins[k]);
+            for i in (k + 1)..4 {
+                let f = h[i][k] * inv;
+                if f == C64::new(0.0, 0.0) {
+                    continue;
+                }
+                lu.mult[k][i] = f;
+                for j in (k + 1)..4 {
+                    let t = h[k][j];
+                    h[i][j] -= f * t;
+                }
+            }
+        }
+        lu.u = *h;
+        Some(lu)
+    }
+
+    /// The factors of `h` as [`solve4_near_singular`] forms them (only a zero pivot fails).
+    ///
+    /// ```
+    /// use rotorid_core::forced::{solve4_near_singular, Lu4};
+    /// use rotorid_core::C64;
+    /// let z = |re: f64, im: f64| C64::new(re, im);
+    /// let h = [[z(4.0, 1.0), z(1.0, 0.0), z(0.0, 0.5), z(0.0, 0.0)],
+    ///          [z(1.0, 0.0), z(3.0, -1.0), z(0.0, 0.0), z(0.2, 0.0)],
+    ///          [z(0.0, 0.5), z(0.0, 0.0), z(5.0, 0.0), z(1.0, 1.0)],
+    ///          [z(0.0, 0.0), z(0.2, 0.0), z(1.0, 1.0), z(2.0, 0.0)]];
+    /// let lu = Lu4::near_singular(&mut h.clone()).unwrap();
+    /// let mut x = [z(1.0, 0.0), z(0.0, 1.0), z(2.0, 0.0), z(0.0, 0.0)];
+    /// let mut y = x;
+    /// lu.solve(&mut x);
+    /// solve4_near_singular(&mut h.clone(), &mut y);
+    /// assert_eq!(x, y);
+    /// ```
+    #[inline(always)]
+    pub fn near_singular(h: &mut [[C64; 4]; 4]) -> Option<Lu4> {
+        Lu4::factor(h, 0.0)
+    }
+
+    /// Solve H x = b in place (`b`: 4 values): the exchanges and updates of each step, then
+    /// back substitution x_k = (b_k - sum_{j>k} U_kj x_j) / U_kk, the division as
+    /// (a + j b) (c - j d) / (c^2 + d^2) with the step's 1 / (c^2 + d^2).
+    #[inline(always)]
+    pub fn solve(&self, b: &mut [C64]) {
+        for k in 0..4 {
+            b.swap(self.piv[k], k);
+            for i in (k + 1)..4 {
+                let f = self.mult[k][i];
+                if f == C64::new(0.0, 0.0) {
+                    continue;
+                }
+                let t = b[k];
+                b[i] -= f * t;
+            }
+        }
         for k in (0..4).rev() {
             let mut s = b[k];
             for j in (k + 1)..4 {
-                s -= h[k][j] * b[j];
+                s -= self.u[k][j] * b[j];
             }
-            let d = h[k][k];
-            b[k] = C64::new((s.re * d.re + s.im * d.im) * ins[k], (s.im * d.re - s.re * d.im) * ins[k]);
+            let d = self.u[k][k];
+            b[k] = C64::new((s.re * d.re + s.im * d.im) * self.ins[k], (s.im * d.re - s.re * d.im) * self.ins[k]);
         }
     }
-    true
 }
 
 /// Dynamic stiffness H at one point (M and G precomputed by the caller).
@@ -1116,6 +1184,57 @@ mod tests {
             if let Some(x) = solve_by_steps::<false>(h, b) {
                 for (a, r) in x.iter().zip(&pivoting) {
                     prop_assert!(a.re.to_bits() == r.re.to_bits() && a.im.to_bits() == r.im.to_bits(), "{x:?} vs {pivoting:?}");
+                }
+            }
+        }
+    }
+
+    proptest! {
+        #![proptest_config(cfg(300))]
+
+        /// Factors kept for later right-hand sides (`Lu4`): each solve satisfies H x = b to
+        /// rounding, the kept factors solve as freshly formed ones do (to the bit: the modal
+        /// analysis factors once for two solves), and `solve4_near_singular` fails exactly where
+        /// they cannot be formed. Random H, some with zero entries, a zero row or rank one.
+        #[test]
+        fn kept_factors_solve_the_system(v in proptest::collection::vec(-1.0f64..1.0, 48), zeros in any::<u16>(),
+                                         kind in 0usize..3) {
+            let mut h = [[C64::new(0.0, 0.0); 4]; 4];
+            for i in 0..4 {
+                for j in 0..4 {
+                    if zeros >> (4 * i + j) & 1 == 0 {
+                        h[i][j] = C64::new(v[8 * i + 2 * j], v[8 * i + 2 * j + 1]);
+                    }
+                }
+            }
+            match kind {
+                1 => h[2] = [C64::new(0.0, 0.0); 4],
+                2 => for i in 1..4 { h[i] = h[0].map(|z| z * C64::new(i as f64, 0.5)); },
+                _ => {}
+            }
+            let bs: Vec<[C64; 4]> = (0..2).map(|r| std::array::from_fn(|d| C64::new(v[32 + 8 * r + 2 * d], v[33 + 8 * r + 2 * d]))).collect();
+            let lu = Lu4::near_singular(&mut h.clone());
+            for b in &bs {
+                let mut via = *b;
+                prop_assert_eq!(solve4_near_singular(&mut h.clone(), &mut via), lu.is_some());
+                let Some(lu) = &lu else { continue };
+                let mut x = *b;
+                lu.solve(&mut x);
+                let fresh = Lu4::near_singular(&mut h.clone()).unwrap();
+                let mut y = *b;
+                fresh.solve(&mut y);
+                for (a, r) in x.iter().zip(&y).chain(x.iter().zip(&via)) {
+                    prop_assert!(a.re.to_bits() == r.re.to_bits() && a.im.to_bits() == r.im.to_bits());
+                }
+                // H x = b to rounding, against |H| |x| + |b| (a singular-to-rounding H gives a
+                // huge x: the bound scales with it)
+                for i in 0..4 {
+                    let (mut r, mut size) = (b[i], b[i].norm());
+                    for j in 0..4 {
+                        r -= h[i][j] * x[j];
+                        size += h[i][j].norm() * x[j].norm();
+                    }
+                    prop_assert!(r.norm() <= 1e-12 * size, "row {i}: residual {} of {size}", r.norm());
                 }
             }
         }

@@ -1,7 +1,7 @@
 //! Batched eigen-analysis of the rotor-bearing system (state-space form of eq. 1 without forcing).
 
 use crate::error::{expect_len, product, CoreError};
-use crate::forced::solve4_near_singular;
+use crate::forced::Lu4;
 use crate::model::{assemble, Rotor, C64};
 use nalgebra::{Matrix4, SMatrix, Schur};
 use rayon::prelude::*;
@@ -130,6 +130,10 @@ fn mode_shape(m: &[[f64; 4]; 4], cg: &[[f64; 4]; 4], k: &[[f64; 4]; 4], lam: C64
                 dm0[r][col] = lam_s * lam_s * m[r][col] + lam_s * cg[r][col] + k[r][col];
             }
         }
+        // factored once for both steps (each step factored it anew before: the same factors)
+        let Some(lu) = Lu4::near_singular(&mut dm0) else {
+            continue 'shift;
+        };
         let mut v = start;
         // two steps: the first leaves the other directions at ~shift relative, the second at
         // ~shift^2 (the projection against `avoid` is repeated before each)
@@ -141,11 +145,8 @@ fn mode_shape(m: &[[f64; 4]; 4], cg: &[[f64; 4]; 4], k: &[[f64; 4]; 4], lam: C64
                     v[d] -= dot * u[d];
                 }
             }
-            let mut dm = dm0;
             let mut y = v;
-            if !solve4_near_singular(&mut dm, &mut y) {
-                continue 'shift;
-            }
+            lu.solve(&mut y);
             let nrm = y.iter().map(|z| z.norm_sqr()).sum::<f64>().sqrt();
             if !(nrm > 0.0 && nrm.is_finite()) {
                 continue 'shift;
@@ -245,7 +246,8 @@ fn modal_kernel(rotor: &Rotor, kb: &[f64], cb: &[f64], spin: &[f64], lam: &mut [
                     }
                 };
                 found[mi] = v;
-                let best = (0..4).fold(0, |b, d| if v[d].norm() > v[b].norm() { d } else { b });
+                let norms = v.map(|z| z.norm()); // each once (hypot), compared as before
+                let best = (0..4).fold(0, |b, d| if norms[d] > norms[b] { d } else { b });
                 let piv = v[best];
                 let scale = if piv.norm() > 0.0 { 1.0 / piv } else { C64::new(1.0, 0.0) };
                 for d in 0..4 {
