@@ -113,3 +113,38 @@ def test_a_validated_run_moved_to_the_bearings_is_the_transform_and_stays_checke
     runs[1].q[3, 2] = np.nan
     with pytest.raises(RotoridError, match="NaN or inf"):
         rotorid.identify_synchronous(rig.rotor, runs)
+
+
+@pytest.mark.parametrize("n, fs", [(2, 1.0), (17, 3.0), (70_001, 20_000.0), (200_000, 44_100.0)])
+def test_time_response_axis_is_arange_times_dt_to_the_bit(n, fs):
+    # the time axis comes from the core (memory it reuses); the values are np.arange(n) * (1 / fs)'s
+    rig = rotorid.nsf_rig()
+    force = np.zeros(n)
+    force[: min(n, 8)] = 10.0
+    tr = rotorid.impact_time_response(rig.rotor, rig.bearings, speed_rpm=3000.0, force_N=force, fs_hz=fs)
+    want = np.arange(n, dtype=float) * (1.0 / fs)
+    assert tr.t.dtype == np.float64 and tr.t.shape == (n,)
+    np.testing.assert_array_equal(tr.t.view(np.uint64), want.view(np.uint64))
+
+
+@pytest.mark.parametrize("value, kw, match", [
+    ([1.0, -0.5], dict(positive=True), "must be > 0 \\(got min -0.5\\)"),
+    ([1.0, 0.0], dict(positive=True), "must be > 0 \\(got min 0\\)"),
+    ([np.nan, -2.0, 3.0], dict(positive=True, finite=False), "must be > 0 \\(got min -2\\)"),
+    ([np.nan, -2.0], dict(nonneg=True, finite=False), "must be >= 0 \\(got min -2\\)"),
+    ([1.0, np.inf], dict(), "contains NaN or inf \\(first at index \\(1,\\)\\)"),
+    ([[1.0, 2.0], [-np.inf, 0.0]], dict(), "contains NaN or inf \\(first at index \\(1, 0\\)\\)"),
+])
+def test_array_bounds_are_checked_by_reductions_with_the_same_messages(value, kw, match):
+    from rotorid._validate import real_array
+
+    with pytest.raises(RotoridError, match=match):
+        real_array("x", value, **kw)
+
+
+def test_nan_passes_the_bounds_where_nan_is_allowed():
+    from rotorid._validate import real_array
+
+    a = real_array("x", [np.nan, 1.0, 2.0], positive=True, nonneg=True, finite=False)
+    assert np.isnan(a[0]) and a[2] == 2.0
+    assert np.isnan(real_array("x", [np.nan, np.nan], positive=True, finite=False)).all()

@@ -72,6 +72,8 @@ def identify(
     int,  # number of points with NaN/inf input
 ]: ...
 
+def sample_times(n: int, dt: float) -> npt.NDArray[np.float64]: ...  # i * dt for i in 0..n
+
 def wake_pool(max_wait_us: float = 2000.0) -> None:
     """Wake the thread pool's helpers ahead of a parallel call; they spin until it begins, or for
     at most max_wait_us microseconds (0 to 1e6)."""

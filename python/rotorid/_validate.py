@@ -75,13 +75,19 @@ def _check(name, a, ndim, shape, positive, nonneg, nonzero, finite=True):
         if len(shape) != a.ndim or any(s is not None and s != t for s, t in zip(shape, a.shape)):
             want = tuple("n" if s is None else s for s in shape)
             raise RotoridError(f"{name} has shape {a.shape}, expected {want}")
-    if finite and a.size and not np.all(np.isfinite(a)):
+    # bounds by reductions, not element-wise comparisons: no temporary array and one pass each
+    # (min and max propagate NaN, so a NaN or an inf makes one of them non-finite)
+    lo = hi = None
+    if a.size and (finite or positive or nonneg):
+        lo, hi = float(a.min()), float(a.max())
+    if finite and a.size and not (math.isfinite(lo) and math.isfinite(hi)):
         bad = np.argwhere(~np.isfinite(a))[0]
         raise RotoridError(f"{name} contains NaN or inf (first at index {tuple(int(i) for i in bad)})")
-    if positive and a.size and np.any(a <= 0):  # NaN (finite=False) passes every bound
-        raise RotoridError(f"{name} must be > 0 (got min {a.min():g})")
-    if nonneg and a.size and np.any(a < 0):
-        raise RotoridError(f"{name} must be >= 0 (got min {a.min():g})")
+    # NaN (finite=False) passes every bound; the minimum is then NaN, which no comparison fails
+    if positive and a.size and (lo <= 0 or math.isnan(lo) and np.any(a <= 0)):
+        raise RotoridError(f"{name} must be > 0 (got min {np.min(a, where=a <= 0, initial=0.0):g})")
+    if nonneg and a.size and (lo < 0 or math.isnan(lo) and np.any(a < 0)):
+        raise RotoridError(f"{name} must be >= 0 (got min {np.min(a, where=a < 0, initial=0.0):g})")
     if nonzero and a.size and np.any(a == 0):
         raise RotoridError(f"{name} must be non-zero")
     return a

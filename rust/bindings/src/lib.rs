@@ -905,6 +905,21 @@ fn pedestal_fit<'py>(
     Ok((to_py(py, theta, &[4, u])?, to_py(py, cov, &[4, u, u])?, to_py(py, rank, &[4])?, to_py(py, resid, &[4])?, fits[0].rows))
 }
 
+/// Sample times i dt of n samples (timesim::sample_times): (n,).
+#[pyfunction]
+fn sample_times<'py>(py: Python<'py>, n: usize, dt: f64) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+    check_alloc("sample_times", Some(n), 8)?;
+    let t = py.detach(|| {
+        guarded(|| {
+            let mut t = out_buf(n);
+            timesim::sample_times(dt, &mut t);
+            Ok::<_, CoreError>(t)
+        })
+    })?
+    .map_err(core_err)?;
+    to_py(py, t, &[n])
+}
+
 /// Time stepping of a discretized LTI system (see timesim.rs): phi (n, n), g0, g1 (n, m), u (N,
 /// m), x0 (n,). Without `outputs`: ([states (N, n)], first non-finite step or None). With
 /// `outputs`, a list of (c (p, n), d (p, m)): ([y_i (N, p_i) = c_i x + d_i u for each], first
@@ -1361,6 +1376,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(relative_std, m)?)?;
     m.add_function(wrap_pyfunction!(flag_codes, m)?)?;
     m.add_function(wrap_pyfunction!(wake_pool, m)?)?;
+    m.add_function(wrap_pyfunction!(sample_times, m)?)?;
     m.add_function(wrap_pyfunction!(imbalance_response, m)?)?;
     m.add_function(wrap_pyfunction!(apply_planes, m)?)?;
     m.add_function(wrap_pyfunction!(lti_run, m)?)?;
