@@ -148,3 +148,11 @@ def test_nan_passes_the_bounds_where_nan_is_allowed():
     a = real_array("x", [np.nan, 1.0, 2.0], positive=True, nonneg=True, finite=False)
     assert np.isnan(a[0]) and a[2] == 2.0
     assert np.isnan(real_array("x", [np.nan, np.nan], positive=True, finite=False)).all()
+
+
+@pytest.mark.parametrize("bad", [complex(1.0, np.nan), complex(np.inf, 0.0), complex(0.0, -np.inf)])
+def test_complex_arrays_refuse_non_finite_parts_either_way(bad):
+    from rotorid._validate import complex_array
+
+    with pytest.raises(RotoridError, match="q contains NaN or inf \\(first at index \\(1, 2\\)\\)"):
+        complex_array("q", [[1 + 1j, 2j, 3.0], [4.0, 5 - 1j, bad]])
