@@ -16,7 +16,11 @@ def _work(_):
     rotor, brg, remnant = rawsim.example_rig()
     rec = rawsim.imbalance_recording(rotor, brg, speeds_rpm=[3000.0], added=None, remnant=remnant, dwell_s=0.5)
     tr = signals.track(rec)
-    return float(modal.freq_hz.max()), complex(tr.order(1)[0, 0])
+    # large enough for the API to wake the core's threads before its checks (WAKE_FROM)
+    f = np.linspace(2.0, 300.0, 6000)
+    tests = [rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=1000.0, freq_hz=f, direction=d) for d in "xy"]
+    k = rotorid.identify_impact(rig.rotor, tests).k
+    return float(modal.freq_hz.max()), complex(tr.order(1)[0, 0]), float(k[100, 0, 0, 0])
 
 
 @pytest.mark.parametrize("method", ["fork", "forkserver", "spawn"])
@@ -28,3 +32,4 @@ def test_core_calls_in_child_processes_do_not_hang(method):
     for g in got:
         assert g[0] == pytest.approx(expected[0], rel=1e-12)
         assert abs(g[1] - expected[1]) < 1e-12 * abs(expected[1])
+        assert g[2] == expected[2]

@@ -1353,8 +1353,9 @@ fn wake_pool(max_wait_us: f64) -> PyResult<()> {
     if !(max_wait_us.is_finite() && (0.0..=1e6).contains(&max_wait_us)) {
         return Err(PyValueError::new_err(format!("max_wait_us must be within 0 and 1e6 (1 s), got {max_wait_us}")));
     }
-    rotorid_core::par::wake_helpers(std::time::Duration::from_secs_f64(max_wait_us * 1e-6));
-    Ok(())
+    // through the pool the next call will use: in a forked child (whose inherited global pool has
+    // no threads) that is the child's own pool, inside which waking is a no-op
+    guarded(|| rotorid_core::par::wake_helpers(std::time::Duration::from_secs_f64(max_wait_us * 1e-6)))
 }
 
 #[pymodule]
