@@ -545,15 +545,14 @@ fn substitute(a: &[[C64; 4]; 4], ins: &[f64; 4], piv: &[f64; 4], b: &mut [C64; 4
 /// `EXCHANGE` false: the factors come from exchange-free steps (`piv[K]` = K, nothing to swap).
 #[inline(always)]
 fn forward_step<const K: usize, const EXCHANGE: bool>(a: &[[C64; 4]; 4], piv: &[f64; 4], b: &mut [C64; 4]) {
-    let bk = b[K];
-    for i in (K + 1)..4 {
-        if !EXCHANGE {
-            break;
+    if EXCHANGE {
+        let bk = b[K];
+        for i in (K + 1)..4 {
+            let t = piv[K] == i as f64;
+            let bi = b[i];
+            b[K] = if t { bi } else { b[K] };
+            b[i] = if t { bk } else { bi };
         }
-        let t = piv[K] == i as f64;
-        let bi = b[i];
-        b[K] = if t { bi } else { b[K] };
-        b[i] = if t { bk } else { bi };
     }
     for i in (K + 1)..4 {
         let t = b[K];
@@ -634,42 +633,55 @@ fn factor_solve_sweep<const KEEP: bool, const W: usize, const EXCHANGE: bool>(
         let (mut e1, t1) = Elim::new(lane_h(b, gi, l1));
         let mut x0 = lane_get(f, l0);
         let mut x1 = lane_get(f, l1);
-        if !EXCHANGE {
-            // rows (Fx, Mx, Fy, My): the order in which the pivots of a rotor on bearings
-            // usually fall on the diagonal
-            e0.a.swap(1, 2);
-            e1.a.swap(1, 2);
-            x0.swap(1, 2);
-            x1.swap(1, 2);
-        }
-        elim_step::<0, EXCHANGE>(&mut e0);
-        elim_step::<0, EXCHANGE>(&mut e1);
-        elim_step::<1, EXCHANGE>(&mut e0);
-        elim_step::<1, EXCHANGE>(&mut e1);
-        elim_step::<2, EXCHANGE>(&mut e0);
-        elim_step::<2, EXCHANGE>(&mut e1);
-        elim_step::<3, EXCHANGE>(&mut e0);
-        elim_step::<3, EXCHANGE>(&mut e1);
+        eliminate_pair::<EXCHANGE>(&mut e0, &mut e1, &mut x0, &mut x1);
         if !EXCHANGE {
             exchange[l0 - lo] = e0.exchange | e1.exchange;
         }
-        forward_step::<0, EXCHANGE>(&e0.a, &e0.piv, &mut x0);
-        forward_step::<0, EXCHANGE>(&e1.a, &e1.piv, &mut x1);
-        forward_step::<1, EXCHANGE>(&e0.a, &e0.piv, &mut x0);
-        forward_step::<1, EXCHANGE>(&e1.a, &e1.piv, &mut x1);
-        forward_step::<2, EXCHANGE>(&e0.a, &e0.piv, &mut x0);
-        forward_step::<2, EXCHANGE>(&e1.a, &e1.piv, &mut x1);
-        back_step::<3>(&e0.a, &e0.ins, &mut x0);
-        back_step::<3>(&e1.a, &e1.ins, &mut x1);
-        back_step::<2>(&e0.a, &e0.ins, &mut x0);
-        back_step::<2>(&e1.a, &e1.ins, &mut x1);
-        back_step::<1>(&e0.a, &e0.ins, &mut x0);
-        back_step::<1>(&e1.a, &e1.ins, &mut x1);
-        back_step::<0>(&e0.a, &e0.ins, &mut x0);
-        back_step::<0>(&e1.a, &e1.ins, &mut x1);
+        solve_pair::<EXCHANGE>(&e0, &e1, &mut x0, &mut x1);
         keep_lane::<KEEP>(lu, q, l0, &e0, t0, &x0);
         keep_lane::<KEEP>(lu, q, l1, &e1, t1, &x1);
     }
+}
+
+/// Two matrices (`e0`, `e1` as [`Elim::new`] leaves them) eliminated step by step in alternation
+/// (one matrix's dependency chain overlaps the other's), their right-hand sides `x0`, `x1`
+/// reordered with them. `EXCHANGE` false: on rows (Fx, Mx, Fy, My), the order in which the pivots
+/// of a rotor on bearings usually fall on the diagonal, without exchanges (see [`elim_step`]).
+#[inline(always)]
+fn eliminate_pair<const EXCHANGE: bool>(e0: &mut Elim, e1: &mut Elim, x0: &mut [C64; 4], x1: &mut [C64; 4]) {
+    if !EXCHANGE {
+    e0.a.swap(1, 2);
+    e1.a.swap(1, 2);
+    x0.swap(1, 2);
+    x1.swap(1, 2);
+    }
+    elim_step::<0, EXCHANGE>(e0);
+    elim_step::<0, EXCHANGE>(e1);
+    elim_step::<1, EXCHANGE>(e0);
+    elim_step::<1, EXCHANGE>(e1);
+    elim_step::<2, EXCHANGE>(e0);
+    elim_step::<2, EXCHANGE>(e1);
+    elim_step::<3, EXCHANGE>(e0);
+    elim_step::<3, EXCHANGE>(e1);
+}
+
+/// The right-hand sides of [`eliminate_pair`]'s two matrices solved, in alternation.
+#[inline(always)]
+fn solve_pair<const EXCHANGE: bool>(e0: &Elim, e1: &Elim, x0: &mut [C64; 4], x1: &mut [C64; 4]) {
+    forward_step::<0, EXCHANGE>(&e0.a, &e0.piv, x0);
+    forward_step::<0, EXCHANGE>(&e1.a, &e1.piv, x1);
+    forward_step::<1, EXCHANGE>(&e0.a, &e0.piv, x0);
+    forward_step::<1, EXCHANGE>(&e1.a, &e1.piv, x1);
+    forward_step::<2, EXCHANGE>(&e0.a, &e0.piv, x0);
+    forward_step::<2, EXCHANGE>(&e1.a, &e1.piv, x1);
+    back_step::<3>(&e0.a, &e0.ins, x0);
+    back_step::<3>(&e1.a, &e1.ins, x1);
+    back_step::<2>(&e0.a, &e0.ins, x0);
+    back_step::<2>(&e1.a, &e1.ins, x1);
+    back_step::<1>(&e0.a, &e0.ins, x0);
+    back_step::<1>(&e1.a, &e1.ins, x1);
+    back_step::<0>(&e0.a, &e0.ins, x0);
+    back_step::<0>(&e1.a, &e1.ins, x1);
 }
 
 /// H of lane `l` (`dynamic_stiffness`).
@@ -1138,25 +1150,14 @@ mod tests {
 
     /// H q = b by the steps of the lane loop: with exchanges on H as it is, or exchange-free on
     /// H with rows 1 and 2 swapped (None when a step found its diagonal not the unique largest).
+    /// (the kernel's own sequence, `eliminate_pair` + `solve_pair`, with H as both matrices)
     fn solve_by_steps<const EXCHANGE: bool>(h: [[C64; 4]; 4], b: [C64; 4]) -> Option<[C64; 4]> {
-        let (mut e, _) = Elim::new(h);
-        let mut x = b;
-        if !EXCHANGE {
-            e.a.swap(1, 2);
-            x.swap(1, 2);
-        }
-        elim_step::<0, EXCHANGE>(&mut e);
-        elim_step::<1, EXCHANGE>(&mut e);
-        elim_step::<2, EXCHANGE>(&mut e);
-        elim_step::<3, EXCHANGE>(&mut e);
-        forward_step::<0, EXCHANGE>(&e.a, &e.piv, &mut x);
-        forward_step::<1, EXCHANGE>(&e.a, &e.piv, &mut x);
-        forward_step::<2, EXCHANGE>(&e.a, &e.piv, &mut x);
-        back_step::<3>(&e.a, &e.ins, &mut x);
-        back_step::<2>(&e.a, &e.ins, &mut x);
-        back_step::<1>(&e.a, &e.ins, &mut x);
-        back_step::<0>(&e.a, &e.ins, &mut x);
-        (EXCHANGE || !e.exchange).then_some(x)
+        let ((mut e0, _), (mut e1, _)) = (Elim::new(h), Elim::new(h));
+        let (mut x0, mut x1) = (b, b);
+        eliminate_pair::<EXCHANGE>(&mut e0, &mut e1, &mut x0, &mut x1);
+        solve_pair::<EXCHANGE>(&e0, &e1, &mut x0, &mut x1);
+        assert_eq!(x0.map(|z| (z.re.to_bits(), z.im.to_bits())), x1.map(|z| (z.re.to_bits(), z.im.to_bits())));
+        (EXCHANGE || !e0.exchange).then_some(x0)
     }
 
     proptest! {
