@@ -692,18 +692,10 @@ def _run_dofs(runs):
     return np.stack([check_dof("dof", r.dof, n) if r.dof is not None else np.full(n, np.inf) for r in runs])
 
 
-_NAN_BYTES = np.array(np.nan).tobytes()
-
-
-def _nan_view(shape):
-    """A read-only float array of NaN of any shape on 8 bytes (``np.broadcast_to(np.nan, shape)``
-    without its 3 µs of argument handling)."""
-    return np.ndarray(shape, float, buffer=_NAN_BYTES, strides=(0,) * len(shape))
-
-
 def _constant_view(value, shape):
-    """As :func:`_nan_view`, for any float ``value`` (``np.broadcast_to`` took ~30 µs inside real
-    calls, right after the core's threads had used the caches)."""
+    """A read-only float array of ``value`` of any shape on 8 bytes: ``np.broadcast_to(value,
+    shape)`` without its argument handling (3 µs warm, ~30 µs inside real calls, right after the
+    core's threads had used the caches)."""
     return np.ndarray(shape, float, buffer=np.float64(value).tobytes(), strides=(0,) * len(shape))
 
 
@@ -751,8 +743,8 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
     residual_std = redundant and ks is not None
     if ks is None:
         # unknown: read-only NaN views (no memory, no pass over it)
-        ks = cs = _nan_view(k.shape)
-        rel_std = _nan_view(k.shape[:2])
+        ks = cs = _constant_view(np.nan, k.shape)
+        rel_std = _constant_view(np.nan, k.shape[:2])
     # no finite condition number: the first point nearly always has one (then no pass over cond)
     if not (math.isfinite(cond.item(0)) or np.fmin.reduce(cond, axis=None) < np.inf):
         raise IdentifiabilityError(_diagnose_singular(np.stack(qs), labels))
