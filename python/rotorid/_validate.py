@@ -75,14 +75,14 @@ def _check(name, a, ndim, shape, positive, nonneg, nonzero, finite=True):
         if len(shape) != a.ndim or any(s is not None and s != t for s, t in zip(shape, a.shape)):
             want = tuple("n" if s is None else s for s in shape)
             raise RotoridError(f"{name} has shape {a.shape}, expected {want}")
-    # bounds by reductions, not element-wise comparisons: no temporary array and one pass each
-    # (min and max propagate NaN, so a NaN or an inf makes one of them non-finite)
-    # (complex arrays, from complex_array: only the finiteness check, element-wise)
+    # real arrays: bounds by reductions, not element-wise comparisons (no temporary array, one pass
+    # each; min and max propagate NaN, so a NaN or an inf makes one of them non-finite); complex
+    # arrays (complex_array) only have the finiteness check, element-wise
+    real = a.dtype.kind == "f"
     lo = hi = math.nan
-    if a.size and (finite or positive or nonneg) and a.dtype.kind == "f":
+    if a.size and real and (finite or positive or nonneg):
         lo, hi = float(a.min()), float(a.max())
-    if finite and a.size and not (math.isfinite(lo) and math.isfinite(hi) if a.dtype.kind == "f"
-                                  else np.all(np.isfinite(a))):
+    if finite and a.size and not (math.isfinite(lo) and math.isfinite(hi) if real else np.all(np.isfinite(a))):
         bad = np.argwhere(~np.isfinite(a))[0]
         raise RotoridError(f"{name} contains NaN or inf (first at index {tuple(int(i) for i in bad)})")
     # NaN (finite=False) passes every bound; the minimum is then NaN, which no comparison fails

@@ -835,7 +835,8 @@ the bearing forces C_b, K_b over [x1, x2, y1, y2])
                            f"fast or unstable for fs_hz = {fs:g} Hz (stiff, light pedestals?); raise fs_hz or check "
                            "the coefficients")
     q, p, acc = (ys[0], None, None) if pedestals is None else ys
-    # i dt (np.arange(n) * dt's bits) in memory the core reuses: no page faults per call
+    # i dt (np.arange(n) * dt's bits) from the core, in memory its allocator reuses (np.arange took
+    # ~2.4 ms per call at 2 million samples inside this function, the core 0.5 ms)
     t = _core.sample_times(u.size, dt)
     return TimeResponse(t, q, u, fs, speed, float(plane), direction, at, p, acc)
 

@@ -16,8 +16,8 @@ pub struct Output<'a> {
 
 /// The sample times t_i = i dt of `out.len()` samples (`np.arange(n, dtype=float) * dt`, the same
 /// bits), written in parallel chunks: the time axis of a time response, in memory the core's
-/// allocator reuses from call to call (a fresh NumPy array of 2 million samples cost ~2.4 ms of
-/// page faults per call).
+/// allocator reuses from call to call (`np.arange` took ~2.4 ms per call for 2 million samples
+/// inside `impact_time_response`, 1.3 ms alone; this 0.5 ms).
 ///
 /// ```
 /// let mut t = [0.0; 4];
