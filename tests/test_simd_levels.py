@@ -18,7 +18,7 @@ from rotorid import _core
 # equations), forward response (SIMD-lane LU), synchronous
 # identification at the probes with redundant runs (forces kernel, eq. 19 on load, standard
 # errors, flags), impact identification with an exponential window, modal analysis, the run-out
-# filter, a Monte Carlo study (counter-based normals, rotations, histograms), and the pedestal fit
+# filter, the order vectors of signals.track (fused resampling and order sums), a Monte Carlo study (counter-based normals, rotations, histograms), and the pedestal fit
 # (streamed QR and HC3 passes over 2500 speeds: three tasks of points)
 _WORK = r"""
 import sys
@@ -46,6 +46,9 @@ modal = rotorid.modal_analysis(rig.rotor, rig.bearings, speed_rpm=rpm[:37])
 x = rng.standard_normal((3, 20011))
 kp = np.arange(0.001, 2.0, 0.0173)
 filt = signals.runout_filter(x, 10000.0, kp, rng.standard_normal((3, 64)), 100, 19900)
+xo = 1e-3 + 1e-6 * x + 1e-5 * np.cos(2 * np.pi * np.arange(20011) / 173.0)   # an offset, vibration, noise
+xo[1, 7000:7010] = np.nan
+orders_v = signals.order._order_vectors(list(xo), 10000.0, 0.0, kp, 0, kp.size - 1, 100, [1, 2, 7])
 study = studies.synchronous_study(rig.rotor, rig.bearings, [rig.imbalances[s] for s in "ABC"], rpm[::20],
                                   studies.SyncErrors(amplitude_rel=0.01, phase_deg=0.5), trials=64, seed=3)
 pulse = rotorid.half_sine_pulse(200.0, 1e-3, 10000.0, 3000, t0_s=1e-3)
@@ -59,7 +62,7 @@ pruns = [rotorid.SyncResponse(r.speed_rpm, r.q * (1 + 0.01 * rng.standard_normal
                               pedestal=r.pedestal * (1 + 0.01 * rng.standard_normal(r.q.shape))) for r in pruns]
 pfit = rotorid.identify_pedestals(rig.rotor, pruns, cross_coupled=True)
 out = dict(pk=pfit.k, pm=pfit.mass_kg, pks=pfit.k_std, pcs=pfit.c_std, tq=tr.q, tpq=trp.q, tpp=trp.pedestal, tpa=trp.pedestal_accel, resp=runs[0].q, k=ident.k, c=ident.c, k_std=ident.k_std, cond=ident.cond, code=ident.flag_code,
-           kk=kw.k, kc=kw.c, kstd=kw.k_std, eig=modal.eigenvalues, filt=filt,
+           kk=kw.k, kc=kw.c, kstd=kw.k_std, eig=modal.eigenvalues, filt=filt, orders_v=orders_v,
            study=study.pct, study_rms=study.rms)
 np.savez(sys.argv[1], level=_core.SIMD, **out)
 """

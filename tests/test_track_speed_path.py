@@ -6,7 +6,7 @@ the whole detrended revolution with ``np.fft.rfft``. These tests compute the ref
 way (one resampling call over all revolutions, mean, ``np.gradient``, ramp subtraction, full
 ``rfft``, bins kept, 2/P) and require the same numbers to 1e-12 of the largest vector (and to the
 rounding of a large offset), across
-grids (odd and even P, small and large), orders, channel counts, chunkings, drifting speeds,
+grids (odd and even P, small and large), orders, channel counts, drifting speeds,
 slow non-synchronous drifts and offsets; and the same NaN where the samples are NaN.
 """
 
@@ -68,10 +68,9 @@ def test_order_vectors_match_the_full_rfft(p, orders, n_ch):
     x, kpt = _signals(n_ch, fs, 1.5, 3000.0, 3400.0, dc=1e-4, drift=3e-6, noise=2e-7, seed=p + n_ch)
     k0, k1 = 1, kpt.size - 2
     ref = _reference_per_rev(x, fs, 0.0, kpt, k0, k1, p, orders)
-    for chunk in (1, 2, 7, 1024):
-        new = order._order_vectors(np.ascontiguousarray(x), fs, 0.0, kpt, k0, k1, p, orders, chunk)
-        assert new.shape == ref.shape == (k1 - k0, len(orders), n_ch)
-        _close(new, ref)
+    new = order._order_vectors(np.ascontiguousarray(x), fs, 0.0, kpt, k0, k1, p, orders)
+    assert new.shape == ref.shape == (k1 - k0, len(orders), n_ch)
+    _close(new, ref)
 
 
 @pytest.mark.parametrize("dc", [0.0, 3e-5, 1e-3, 5e-2])
@@ -83,7 +82,7 @@ def test_large_offsets_keep_the_accuracy_of_the_fft(dc, p):
     x, kpt = _signals(4, fs, 0.6, 3000.0, 3300.0, dc=dc, drift=1e-6, noise=1e-7, seed=int(1e6 * dc) + p)
     k0, k1 = 1, kpt.size - 2
     ref = _reference_per_rev(x, fs, 0.0, kpt, k0, k1, p, (1, 2, 3))
-    new = order._order_vectors(np.ascontiguousarray(x), fs, 0.0, kpt, k0, k1, p, (1, 2, 3), 5)
+    new = order._order_vectors(np.ascontiguousarray(x), fs, 0.0, kpt, k0, k1, p, (1, 2, 3))
     for c in range(4):                     # each channel to 1e-12 of its own largest vector
         _close(new[:, :, c], ref[:, :, c], offset=dc * (c + 1))
 
@@ -95,8 +94,7 @@ def test_one_or_few_revolutions_and_record_ends(k0, k1):
     kpt = kpt - 0.001                      # the first pulse inside the record
     for p in (16, 33, 64):
         ref = _reference_per_rev(x, fs, 0.0, kpt, k0, k1, p, (1, 2))
-        for chunk in (1, 2, 3):
-            _close(order._order_vectors(np.ascontiguousarray(x), fs, 0.0, kpt, k0, k1, p, (1, 2), chunk), ref)
+        _close(order._order_vectors(np.ascontiguousarray(x), fs, 0.0, kpt, k0, k1, p, (1, 2)), ref)
 
 
 def test_nan_samples_give_nan_where_the_full_rfft_does():
@@ -108,9 +106,8 @@ def test_nan_samples_give_nan_where_the_full_rfft_does():
     for p in (64, 65):
         ref = _reference_per_rev(x, fs, 0.0, kpt, k0, k1, p, (1, 2, 3))
         assert np.isnan(ref).any() and not np.isnan(ref).all()
-        for chunk in (1, 5, 1024):
-            new = order._order_vectors(np.ascontiguousarray(x), fs, 0.0, kpt, k0, k1, p, (1, 2, 3), chunk)
-            _close(new, ref)
+        new = order._order_vectors(np.ascontiguousarray(x), fs, 0.0, kpt, k0, k1, p, (1, 2, 3))
+        _close(new, ref)
 
 
 def _recording(x, fs, kpt, *, rows=True, t0=0.0, pedestal=None):
@@ -188,9 +185,9 @@ def test_separate_channel_arrays_go_to_the_core_as_they_are(t0):
     kpt = kpt + t0
     k0, k1 = 0, kpt.size - 1
     sources = [row.copy() for row in x]
-    for p, chunk in ((64, 1), (64, 4), (129, 7), (256, 1024)):
-        stacked = order._order_vectors(np.ascontiguousarray(x), fs, t0, kpt, k0, k1, p, (1, 2), chunk)
-        apart = order._order_vectors(sources, fs, t0, kpt, k0, k1, p, (1, 2), chunk)
+    for p in (64, 129, 256):
+        stacked = order._order_vectors(np.ascontiguousarray(x), fs, t0, kpt, k0, k1, p, (1, 2))
+        apart = order._order_vectors(sources, fs, t0, kpt, k0, k1, p, (1, 2))
         np.testing.assert_array_equal(apart, stacked)
         _close(apart, _reference_per_rev(x, fs, t0, kpt, k0, k1, p, (1, 2)), offset=4e-4)
 
@@ -254,3 +251,55 @@ def test_bad_input_still_raises_the_same_errors():
         signals.track(rec, kp=signals.Keyphasor.from_times([1.5, 1.52]))
     with pytest.raises(RotoridError, match="NaN"):
         Recording(fs, {"x1": np.r_[np.nan, x[0, 1:]], "x2": x[1], "y1": x[2], "y2": x[3]})
+
+
+def test_the_core_order_vectors_refuse_bad_arguments_by_name():
+    kp = np.linspace(0.0, 1.0, 11)
+    x = [np.zeros(100), np.zeros(100)]
+    assert _core.order_vectors(x, 100.0, 0.0, kp, 0, 5, 8, [1, 3]).shape == (5, 2, 2)
+    with pytest.raises(ValueError, match=r"orders must be from 1 to below p/2 = 4 \(p = 8 points per revolution\), got 4"):
+        _core.order_vectors(x, 100.0, 0.0, kp, 0, 5, 8, [1, 4])
+    with pytest.raises(ValueError, match="orders must be from 1 to below p/2.*got 0"):
+        _core.order_vectors(x, 100.0, 0.0, kp, 0, 5, 8, [0])
+    with pytest.raises(ValueError, match="orders needs at least one order"):
+        _core.order_vectors(x, 100.0, 0.0, kp, 0, 5, 8, [])
+    with pytest.raises(ValueError, match=r"x has 99 elements, expected 100 samples in every channel \(channel 1 differs\)"):
+        _core.order_vectors([np.zeros(100), np.zeros(99)], 100.0, 0.0, kp, 0, 5, 8, [1])
+    with pytest.raises(ValueError, match=r"x has shape \[100\], expected \(channels, samples\)"):
+        _core.order_vectors(np.zeros(100), 100.0, 0.0, kp, 0, 5, 8, [1])
+    with pytest.raises(ValueError, match=r"k0, k1 need k0 < k1 < len\(kp\) = 11, got k0 = 5, k1 = 5"):
+        _core.order_vectors(x, 100.0, 0.0, kp, 5, 5, 8, [1])
+    with pytest.raises(ValueError, match="kp"):
+        _core.order_vectors(x, 100.0, 0.0, kp[::-1].copy(), 0, 5, 8, [1])
+    with pytest.raises(ValueError, match="fs"):
+        _core.order_vectors(x, np.nan, 0.0, kp, 0, 5, 8, [1])
+    with pytest.raises(ValueError, match="p .points per revolution. must be at least 4"):
+        _core.order_vectors(x, 100.0, 0.0, kp, 0, 5, 3, [1])
+    with pytest.raises(OverflowError):
+        _core.order_vectors(x, 100.0, 0.0, kp, 0, 5, 8, [-1])
+
+
+def test_order_vectors_do_not_depend_on_the_thread_count():
+    """Revolutions are summed in tasks of a few revolutions each; the drift slopes join them after
+    the tasks. One thread (RAYON_NUM_THREADS=1) gives the same bits as the pool."""
+    import subprocess
+    import sys
+
+    code = ("import numpy as np, sys; sys.path.insert(0, 'tests'); from test_track_speed_path import _signals; "
+            "from rotorid.signals import order; x, kpt = _signals(4, 20000.0, 2.0, 3000.0, 3600.0, dc=1e-3, "
+            "drift=1e-6, noise=1e-7, seed=4); v = order._order_vectors(list(x), 20000.0, 0.0, kpt, 0, kpt.size - 2, "
+            "256, (1, 2, 3)); np.save(sys.argv[1], v)")
+    import os
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as d:
+        outs = []
+        for threads in ("1", "2"):
+            path = os.path.join(d, f"{threads}.npy")
+            env = {**os.environ, "RAYON_NUM_THREADS": threads}
+            r = subprocess.run([sys.executable, "-c", code, path], env=env, capture_output=True, text=True, timeout=120,
+                               cwd=os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+            assert r.returncode == 0, r.stderr[-2000:]
+            outs.append(np.load(path))
+    assert outs[0].shape[0] > 64          # more revolutions than two tasks hold
+    np.testing.assert_array_equal(outs[0], outs[1])

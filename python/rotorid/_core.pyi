@@ -79,6 +79,20 @@ def wake_pool(max_wait_us: float = 2000.0) -> None:
     at most max_wait_us microseconds (0 to 1e6)."""
     ...
 
+def angle_resample(
+    x: npt.NDArray[np.float64] | list[npt.NDArray[np.float64]],  # (C, N), or C arrays (N,) used where they are
+    fs: float, t0: float, kp: npt.NDArray[np.float64], k0: int, k1: int, p: int,
+) -> npt.NDArray[np.float64]: ...  # (C, k1 - k0, p): p uniform angles per revolution k0..k1
+
+def order_vectors(
+    x: npt.NDArray[np.float64] | list[npt.NDArray[np.float64]],  # as angle_resample
+    fs: float, t0: float, kp: npt.NDArray[np.float64], k0: int, k1: int, p: int,
+    orders: list[int],  # each from 1 to below p / 2
+) -> npt.NDArray[np.complex128]:
+    """Per-revolution order vectors (k1 - k0, len(orders), C), 0-pk, each revolution's drift ramp
+    removed: resampling and order sums fused (order.rs::order_vectors)."""
+    ...
+
 def modal(
     rotor: npt.NDArray[np.float64],
     k: npt.NDArray[np.float64],  # (n, 8)

@@ -253,112 +253,19 @@ def _first_off_speed(rpm, i: int, ref, tolerance: float) -> int:
 
 #: largest resampling grid per revolution a user may ask for
 MAX_POINTS_PER_REV = 1 << 16
-#: resampled doubles held at once while tracking (revolutions are processed in chunks of this size)
-CHUNK_DOUBLES = 1 << 23
-#: a channel's orders are summed about each revolution's mean when its offset exceeds this many
-#: times its largest order component (the direct sum's rounding grows with the offset)
-OFFSET_RATIO = 16.0
 
 
-def _dft_table(p: int, orders) -> np.ndarray:
-    """(p, 1 + 2 n_orders) real table: a column of ones (the sum of a revolution), then cos and
-    -sin of 2 pi n j / p for each order n (the real and imaginary parts of DFT bin n, the sign of
-    ``np.fft.rfft``). The angle is reduced exactly (n j mod p) before the cosine."""
-    j = np.arange(p, dtype=np.int64)
-    ph = (2.0 * np.pi / p) * ((np.asarray(orders, dtype=np.int64)[None, :] * j[:, None]) % p)
-    return np.concatenate([np.ones((p, 1)), np.cos(ph), -np.sin(ph)], axis=1)
-
-
-def _rows_times(x, table):
-    """x (rows, p) @ table (p, k), as a stack of small products of about 32768 elements of x each:
-    BLAS runs each on the calling thread at full speed (one large product with a narrow table is
-    slower, and a threaded BLAS leaves worker threads spinning that then slow the core's threads)."""
-    rows, p = x.shape
-    out = np.empty((rows, table.shape[1]))
-    batch = max(1, 32768 // p)
-    nb = rows // batch * batch
-    if nb:
-        np.matmul(x[:nb].reshape(-1, batch, p), table, out=out[:nb].reshape(-1, batch, table.shape[1]))
-    if nb < rows:
-        np.matmul(x[nb:], table, out=out[nb:])
-    return out
-
-
-def _order_vectors(x, fs_hz, t0_s, kpt, k0: int, k1: int, p: int, orders, chunk: int) -> np.ndarray:
+def _order_vectors(x, fs_hz, t0_s, kpt, k0: int, k1: int, p: int, orders) -> np.ndarray:
     """Per-revolution order vectors (k1 - k0, n_orders, C), complex 0-pk, of the channels x (a
     (C, N) array, or a list of C contiguous (N,) arrays, used where they are) resampled at p
     angles per revolution (revolutions k0..k1 of the pulse times ``kpt``), each revolution's drift
-    ramp removed; ``chunk`` revolutions resampled at a time, the next chunk in the core (its
-    threads, on a helper thread here) while this one is summed (two chunks held).
+    ramp removed: ``rfft(res[r] - step[r] * ramp)[orders] * 2 / p`` with ramp = j/p - 0.5 and step
+    the change of the revolution means per revolution (``np.gradient``).
 
-    Each revolution r: ``rfft(res[r] - step[r] * ramp)[orders] * 2 / p`` with ramp = j/p - 0.5 and
-    step the change of the revolution means per revolution (``np.gradient``). Only the orders
-    are taken, by one matrix product with a (p, 1 + 2 n_orders) table of ones, cosines and sines,
-    and the ramp's part is subtracted from the bins (the DFT is linear): step * DFT(ramp)[n].
-    Channels with a large offset (``OFFSET_RATIO``) have it removed before the sum, so the bins
-    keep the FFT's accuracy."""
-    nord = len(orders)
-    table = _dft_table(p, orders)
-    rb = (np.arange(p) / p - 0.5) @ table
-    ramp_bins = rb[1:1 + nord] + 1j * rb[1 + nord:]
-    # one revolution more on each side where there is one, for the drift estimate
-    spans = [(a, min(a + chunk, k1), max(a - 1, k0), min(a + chunk + 1, k1)) for a in range(k0, k1, chunk)]
-
-    def resample(span):
-        return _core.angle_resample(x, fs_hz, t0_s, kpt, span[2], span[3], int(p))
-
-    if len(spans) == 1:
-        return _chunk_vectors(resample(spans[0]), spans[0], p, table, ramp_bins)
-    from concurrent.futures import ThreadPoolExecutor
-
-    parts = []
-    with ThreadPoolExecutor(1, thread_name_prefix="rotorid-track") as pool:
-        ahead = pool.submit(resample, spans[0])
-        for i, span in enumerate(spans):
-            res = ahead.result()
-            if i + 1 < len(spans):
-                ahead = pool.submit(resample, spans[i + 1])
-            parts.append(_chunk_vectors(res, span, p, table, ramp_bins))
-            del res
-    return np.concatenate(parts)
-
-
-def _chunk_vectors(res, span, p: int, table, ramp_bins) -> np.ndarray:
-    """Order vectors (b - a, n_orders, C) of one chunk resampled over revolutions a_ext..b_ext
-    (``span`` = (a, b, a_ext, b_ext); ``res`` (C, b_ext - a_ext, p), changed in place)."""
-    a, b, a_ext, _ = span
-    nch, nrev = res.shape[0], res.shape[1]
-    nord = ramp_bins.size
-    # a direct sum carries rounding of the order of the offset's partial sums (~ offset p^1.5 eps),
-    # the FFT and the pairwise mean do not: a channel whose offset dwarfs its vibration (seen on a
-    # sparse sample of the chunk) is summed about a level near its offset (the same bins: the
-    # cosines and sines sum to zero over a revolution), then about its revolution means if the
-    # offset still dwarfs its orders
-    probe = res[:, ::max(1, nrev // 64), ::max(1, p // 8)]
-    lo, hi = probe.min(axis=(1, 2)), probe.max(axis=(1, 2))
-    with np.errstate(invalid="ignore"):
-        level = np.where(np.abs(0.5 * (lo + hi)) > OFFSET_RATIO * 0.5 * (hi - lo), 0.5 * (lo + hi), 0.0)
-    for c in np.flatnonzero(level):
-        res[c] -= level[c]
-    prod = _rows_times(res.reshape(nch * nrev, p), table).reshape(nch, nrev, 1 + 2 * nord)
-    with np.errstate(invalid="ignore"):
-        heavy = np.flatnonzero(np.abs(prod[:, :, 0]).max(axis=1) > OFFSET_RATIO * 2.0 *
-                               np.abs(prod[:, :, 1:]).max(axis=(1, 2)))
-    for c in heavy:
-        mc = prod[c, :, 0] / p
-        res[c] -= mc[:, None]
-        prod[c] = _rows_times(res[c], table)
-        prod[c, :, 0] += mc * p
-    # a slow drift that is not synchronous (thermal growth, a settling probe) does not close on
-    # itself over a revolution; its ramp would leak into every order and, changing slowly, pass
-    # for a steady 1X. Its slope comes from the revolution means (which no order affects, and
-    # which average every sample's noise away): the change of the mean per revolution
-    m = prod[:, :, 0] / p + level[:, None]
-    step = np.gradient(m, axis=1) if nrev > 1 else np.zeros_like(m)
-    spec = prod[:, :, 1:1 + nord] + 1j * prod[:, :, 1 + nord:]
-    spec -= step[:, :, None] * ramp_bins[None, None, :]
-    spec = spec[:, a - a_ext: a - a_ext + (b - a)] * (2.0 / p)
-    return spec.transpose(1, 2, 0)
+    One core call (``order_vectors``): the resampling and the order sums are fused, each
+    revolution summed about its mean so a large offset keeps the FFT's accuracy; the resampled
+    revolutions are never stored."""
+    return _core.order_vectors(x, fs_hz, t0_s, kpt, k0, k1, int(p), [int(o) for o in orders])
 
 
 def detect_keyphasor(rec: Recording, keyphasor=None) -> Keyphasor:
@@ -515,12 +422,10 @@ def track(rec, *, orders=(1, 2, 3), revs_per_block: int | None = None, steady: b
                            "(at least 8, better 30+ samples per revolution)")
     # the channels as they are stored (the core takes them as a list: no (C, N) copy)
     x = [np.ascontiguousarray(rec.channels[c], dtype=float) for c in channels]
-    # per-revolution order vectors (revs, orders, 4), resampled and transformed a chunk of revolutions
-    # at a time (two chunks held, at most CHUNK_DOUBLES doubles, 64 MB) so long records and fine
-    # grids stay bounded
-    chunk = max(1, min(1024, CHUNK_DOUBLES // (2 * len(channels) * points_per_rev)))
+    # per-revolution order vectors (revs, orders, C): resampled and summed in the core, revolution by
+    # revolution, so long records and fine grids need no more memory than the vectors
     per_rev = _order_vectors(x, rec.fs_hz, rec.t0_s, np.ascontiguousarray(kp.times), k0, k1, points_per_rev,
-                             orders, chunk)
+                             orders)
     rpm = kp.speed_rpm[k0:k1]
     tmid = kp.mid_times[k0:k1]
     delays = rec.meta.get("channel_delays_s", {}) or {}

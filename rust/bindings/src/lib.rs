@@ -994,6 +994,69 @@ fn check_kp(kp: &[f64]) -> PyResult<()> {
     order::check_keyphasor(kp).map_err(core_err)
 }
 
+/// The channels of `x`: one (C, N) array, or a list of C arrays (N,) used where they are (no
+/// (C, N) copy).
+fn channel_arrays<'py>(x: &Bound<'py, PyAny>) -> PyResult<Vec<PyReadonlyArrayDyn<'py, f64>>> {
+    if x.is_instance_of::<PyList>() {
+        return x.extract();
+    }
+    let a: PyReadonlyArrayDyn<'py, f64> = x.extract()?;
+    if a.shape().len() != 2 {
+        return Err(PyValueError::new_err(format!("x has shape {:?}, expected (channels, samples)", a.shape())));
+    }
+    Ok(vec![a])
+}
+
+/// One slice per channel of the arrays [`channel_arrays`] returned for `x`.
+fn channel_slices<'a>(x: &Bound<'_, PyAny>, arrays: &'a [PyReadonlyArrayDyn<'_, f64>]) -> PyResult<Vec<&'a [f64]>> {
+    let mut channels: Vec<&[f64]> = Vec::new();
+    for a in arrays {
+        let sl = slice(a, "x")?;
+        if x.is_instance_of::<PyList>() {
+            if a.shape().len() != 1 {
+                return Err(PyValueError::new_err(format!("a channel of x has shape {:?}, expected (samples,)", a.shape())));
+            }
+            channels.push(sl);
+        } else {
+            let (nch, n) = (a.shape()[0], a.shape()[1]);
+            channels.extend((0..nch).map(|c| &sl[c * n..(c + 1) * n]));
+        }
+    }
+    Ok(channels)
+}
+
+/// Per-revolution order vectors of channels x (as for angle_resample) resampled at p uniform
+/// angles per revolution for revolutions k0..k1, each revolution's drift ramp removed
+/// (`order::order_vectors`). Returns complex (k1 - k0, len(orders), C), 0-pk.
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+fn order_vectors<'py>(
+    py: Python<'py>,
+    x: &Bound<'py, PyAny>,
+    fs: f64,
+    t0: f64,
+    kp: PyReadonlyArrayDyn<'py, f64>,
+    k0: usize,
+    k1: usize,
+    p: usize,
+    orders: Vec<usize>,
+) -> PyResult<Bound<'py, PyArrayDyn<C64>>> {
+    let arrays = channel_arrays(x)?;
+    let channels = channel_slices(x, &arrays)?;
+    let kps = slice(&kp, "kp")?;
+    let nch = channels.len();
+    let revs = k1.saturating_sub(k0);
+    check_alloc("order_vectors", nch.checked_mul(revs).and_then(|v| v.checked_mul(orders.len())), 16)?;
+    let out = py.detach(|| {
+        guarded(|| {
+            let mut out = out_buf(revs * orders.len() * nch);
+            order::order_vectors(&channels, fs, t0, kps, k0, k1, p, &orders, &mut out).map(|_| out)
+        })
+    })?
+    .map_err(core_err)?;
+    to_py(py, out, &[revs, orders.len(), nch])
+}
+
 /// Resample channels x (C, N), or a list of C channels (N,) used where they are, at p uniform
 /// angles per revolution for revolutions k0..k1.
 /// Returns (C, k1 - k0, p).
@@ -1009,29 +1072,8 @@ fn angle_resample<'py>(
     k1: usize,
     p: usize,
 ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
-    // x: one (C, N) array, or a list of C arrays (N,) used where they are (no (C, N) copy)
-    let arrays: Vec<PyReadonlyArrayDyn<'py, f64>> = if x.is_instance_of::<PyList>() {
-        x.extract()?
-    } else {
-        let a: PyReadonlyArrayDyn<'py, f64> = x.extract()?;
-        if a.shape().len() != 2 {
-            return Err(PyValueError::new_err(format!("x has shape {:?}, expected (channels, samples)", a.shape())));
-        }
-        vec![a]
-    };
-    let mut channels: Vec<&[f64]> = Vec::new();
-    for a in &arrays {
-        let sl = slice(a, "x")?;
-        if x.is_instance_of::<PyList>() {
-            if a.shape().len() != 1 {
-                return Err(PyValueError::new_err(format!("a channel of x has shape {:?}, expected (samples,)", a.shape())));
-            }
-            channels.push(sl);
-        } else {
-            let (nch, n) = (a.shape()[0], a.shape()[1]);
-            channels.extend((0..nch).map(|c| &sl[c * n..(c + 1) * n]));
-        }
-    }
+    let arrays = channel_arrays(x)?;
+    let channels = channel_slices(x, &arrays)?;
     let kps = slice(&kp, "kp")?;
     check_kp(kps)?;
     if !(k0 < k1 && k1 < kps.len()) || p < 4 || !(fs > 0.0) {
@@ -1382,6 +1424,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(apply_planes, m)?)?;
     m.add_function(wrap_pyfunction!(lti_run, m)?)?;
     m.add_function(wrap_pyfunction!(angle_resample, m)?)?;
+    m.add_function(wrap_pyfunction!(order_vectors, m)?)?;
     m.add_function(wrap_pyfunction!(runout_subtract, m)?)?;
     m.add_function(wrap_pyfunction!(study_accumulate, m)?)?;
     m.add_function(wrap_pyfunction!(study_realize, m)?)?;

@@ -6,6 +6,7 @@
 //! each revolution separately follows small speed drift, so a signature does not smear.
 
 use crate::error::{expect_len, product, CoreError};
+use crate::model::C64;
 
 /// Keyphasor times must bound at least one revolution and increase strictly.
 pub fn check_keyphasor(kp: &[f64]) -> Result<(), CoreError> {
@@ -107,6 +108,229 @@ fn resample_kernel(x: &[&[f64]], fs: f64, t0: f64, kp: &[f64], k0: usize, k1: us
             }
         }
     });
+}
+
+/// Per-revolution order vectors of channels resampled at `p` uniform angles per revolution
+/// (revolutions k0..k1 between pulses `kp[k]`, `kp[k+1]`; each channel of the same length, sample
+/// i at t0 + i / fs), each revolution's drift ramp removed. `out`: complex (k1 - k0, n_orders, C),
+/// 0-pk amplitudes.
+///
+/// For revolution r with resampled values x_j (j = 0..p, angle 2 pi j / p from the pulse) and
+/// mean m_r, order n's vector is
+///
+/// ```text
+/// X_r(n) = (2 / p) [ sum_j (x_j - m_r) e^{-2 pi i n j / p} - s_r sum_j (j / p - 1/2) e^{-2 pi i n j / p} ]
+/// ```
+///
+/// (the bin n of `rfft(x - s_r ramp) * 2 / p`), where s_r, the change of the revolution means per
+/// revolution (central differences, one-sided at the first and last revolution, 0 for a single
+/// revolution), is the slope of a slow drift that does not close on itself over a revolution
+/// and would otherwise leak into every order. Only the requested orders are summed, against a
+/// table of cosines and sines whose angles are reduced exactly (n j mod p). Each revolution is
+/// summed about its mean, so an offset that dwarfs the vibration (a probe's gap voltage) does not
+/// enter the bins' rounding (the cosines and sines sum to zero over a revolution; their rounded
+/// values do not, and a direct sum would carry offset x p^1.5 eps); the means themselves carry
+/// the offset's rounding, ~1e-16 of it, as the FFT's do. Resampling and sums are fused: a revolution's stencil weights are computed
+/// once for every channel and the resampled values never leave the cache. NaN or inf samples
+/// give NaN for the revolutions they touch (and, through s_r, their neighbours).
+#[allow(clippy::too_many_arguments)]
+pub fn order_vectors(x: &[&[f64]], fs: f64, t0: f64, kp: &[f64], k0: usize, k1: usize, p: usize, orders: &[usize], out: &mut [C64]) -> Result<(), CoreError> {
+    check_keyphasor(kp)?;
+    check_sampling(fs, t0)?;
+    let nch = x.len();
+    if nch == 0 {
+        return Err(CoreError::value("x", "needs at least one channel"));
+    }
+    if let Some(c) = x.iter().position(|ch| ch.len() != x[0].len()) {
+        return Err(CoreError::length("x", x[c].len(), format!("{} samples in every channel (channel {c} differs)", x[0].len())));
+    }
+    if x[0].is_empty() {
+        return Err(CoreError::value("x", "has no samples"));
+    }
+    if !(k0 < k1 && k1 < kp.len()) {
+        return Err(CoreError::value("k0, k1", format!("need k0 < k1 < len(kp) = {}, got k0 = {k0}, k1 = {k1}", kp.len())));
+    }
+    if p < 4 {
+        return Err(CoreError::value("p", format!("(points per revolution) must be at least 4, got {p}")));
+    }
+    if orders.is_empty() {
+        return Err(CoreError::value("orders", "needs at least one order"));
+    }
+    if let Some(&n) = orders.iter().find(|&&n| n == 0 || n.saturating_mul(2) >= p) {
+        return Err(CoreError::value("orders", format!("must be from 1 to below p/2 = {} (p = {p} points per revolution), got {n}", p as f64 / 2.0)));
+    }
+    let revs = k1 - k0;
+    let nord = orders.len();
+    expect_len("out", out, product("out", &[revs, nord, nch])?)?;
+    let table = OrderTable::new(p, orders);
+    let nk = 2 * nord;
+    // per channel and revolution: the mean, then the 2 n_orders sums (cos rows, then -sin rows)
+    let stride = 1 + nk;
+    let mut sums = vec![0.0; nch * revs * stride];
+    let nblocks = revs.div_ceil(REV_BLOCK);
+    {
+        let ctx = OrderCtx { x, fs, t0, kp, k0, table: &table };
+        let blocks = crate::par::Disjoint::new(&mut sums);
+        crate::par::for_each_task(nblocks, |b| {
+            // SAFETY: for_each_task hands each block b to one task
+            let s = unsafe { blocks.chunk(b, REV_BLOCK * nch * stride) };
+            order_block_dispatch(&ctx, b * REV_BLOCK, s);
+        });
+    }
+    // sums are laid out (revolution, channel, 1 + 2 n_orders)
+    let at = |r: usize, c: usize| (r * nch + c) * stride;
+    let scale = 2.0 / p as f64;
+    for r in 0..revs {
+        for c in 0..nch {
+            let slope = if revs == 1 {
+                0.0
+            } else if r == 0 {
+                sums[at(1, c)] - sums[at(0, c)]
+            } else if r == revs - 1 {
+                sums[at(r, c)] - sums[at(r - 1, c)]
+            } else {
+                (sums[at(r + 1, c)] - sums[at(r - 1, c)]) * 0.5
+            };
+            let s = &sums[at(r, c) + 1..at(r, c) + stride];
+            for i in 0..nord {
+                let re = s[i] - slope * table.ramp[i];
+                let im = s[nord + i] - slope * table.ramp[nord + i];
+                out[(r * nord + i) * nch + c] = C64::new(re * scale, im * scale);
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Revolutions per task of [`order_vectors`].
+const REV_BLOCK: usize = 32;
+
+/// The rows the order sums are taken against: for each order n its cosines cos(2 pi n j / p),
+/// then for each order its sines -sin(2 pi n j / p) (the sign of a forward DFT), each row padded
+/// with zeros to a multiple of 8 points; and each row's sum against the ramp j / p - 1/2.
+struct OrderTable {
+    p: usize,
+    /// row length: p rounded up to a multiple of 8
+    row: usize,
+    rows: Vec<f64>,
+    ramp: Vec<f64>,
+}
+
+impl OrderTable {
+    fn new(p: usize, orders: &[usize]) -> Self {
+        let row = p.div_ceil(8) * 8;
+        let nord = orders.len();
+        let mut rows = vec![0.0; 2 * nord * row];
+        let w = 2.0 * std::f64::consts::PI / p as f64;
+        for (i, &n) in orders.iter().enumerate() {
+            for j in 0..p {
+                // n j mod p without overflow (n < p / 2, j < p)
+                let ph = w * ((n as u128 * j as u128) % p as u128) as f64;
+                rows[i * row + j] = ph.cos();
+                rows[(nord + i) * row + j] = -ph.sin();
+            }
+        }
+        let ramp = (0..2 * nord)
+            .map(|k| (0..p).map(|j| (j as f64 / p as f64 - 0.5) * rows[k * row + j]).sum())
+            .collect();
+        OrderTable { p, row, rows, ramp }
+    }
+}
+
+/// What every block of revolutions of [`order_vectors`] reads.
+struct OrderCtx<'a> {
+    x: &'a [&'a [f64]],
+    fs: f64,
+    t0: f64,
+    kp: &'a [f64],
+    k0: usize,
+    table: &'a OrderTable,
+}
+
+/// Sum of `a` in 8 lanes combined pairwise (the same order at every SIMD level).
+#[inline(always)]
+fn lane_sum(a: &[f64]) -> f64 {
+    let mut acc = [0.0f64; 8];
+    for ch in a.chunks_exact(8) {
+        for l in 0..8 {
+            acc[l] += ch[l];
+        }
+    }
+    ((acc[0] + acc[4]) + (acc[2] + acc[6])) + ((acc[1] + acc[5]) + (acc[3] + acc[7]))
+}
+
+/// Dot product of `a` and `b` (lengths multiples of 8) in 8 lanes, as [`lane_sum`].
+#[inline(always)]
+fn lane_dot(a: &[f64], b: &[f64]) -> f64 {
+    let mut acc = [0.0f64; 8];
+    for (ca, cb) in a.chunks_exact(8).zip(b.chunks_exact(8)) {
+        for l in 0..8 {
+            acc[l] += ca[l] * cb[l];
+        }
+    }
+    ((acc[0] + acc[4]) + (acc[2] + acc[6])) + ((acc[1] + acc[5]) + (acc[3] + acc[7]))
+}
+
+/// Revolutions first..first + REV_BLOCK (fewer at the end) of [`order_vectors`]: `sums` gets, per
+/// revolution and channel, the mean and the order sums of the values about it.
+#[inline(always)]
+fn order_block(ctx: &OrderCtx, first: usize, sums: &mut [f64]) {
+    let tab = ctx.table;
+    let (p, row) = (tab.p, tab.row);
+    let nk = tab.rows.len() / row;
+    let nch = ctx.x.len();
+    let n = ctx.x[0].len();
+    let stride = 1 + nk;
+    let nrev = sums.len() / (nch * stride);
+    let pf = p as f64;
+    let mut w = vec![[0.0f64; 4]; p];
+    let mut mi = vec![0isize; p];
+    let mut buf = vec![0.0f64; row];
+    for r in 0..nrev {
+        let k = ctx.k0 + first + r;
+        let (ta, tb) = (ctx.kp[k], ctx.kp[k + 1]);
+        // the stencil of each angle (as cubic_at computes it), shared by every channel
+        for j in 0..p {
+            let t = ta + (tb - ta) * (j as f64) / pf;
+            let u = (t - ctx.t0) * ctx.fs;
+            let m = u.floor();
+            w[j] = lagrange4(u - m);
+            mi[j] = m as isize;
+        }
+        // u increases with j: the whole revolution needs no clamping when its ends need none
+        let inside = mi[0] >= 1 && mi[p - 1] <= n as isize - 3;
+        for c in 0..nch {
+            let xc = ctx.x[c];
+            if inside {
+                for j in 0..p {
+                    let b = (mi[j] - 1) as usize;
+                    let s = &xc[b..b + 4];
+                    let wj = &w[j];
+                    buf[j] = wj[0] * s[0] + wj[1] * s[1] + wj[2] * s[2] + wj[3] * s[3];
+                }
+            } else {
+                let at = |i: isize| -> f64 { xc[i.clamp(0, n as isize - 1) as usize] };
+                for j in 0..p {
+                    let (m, wj) = (mi[j], &w[j]);
+                    buf[j] = wj[0] * at(m - 1) + wj[1] * at(m) + wj[2] * at(m + 1) + wj[3] * at(m + 2);
+                }
+            }
+            let m0 = lane_sum(&buf) / pf;
+            for v in &mut buf[..p] {
+                *v -= m0;
+            }
+            let s = &mut sums[(r * nch + c) * stride..(r * nch + c + 1) * stride];
+            s[0] = m0;
+            for q in 0..nk {
+                s[1 + q] = lane_dot(&buf, &tab.rows[q * row..(q + 1) * row]);
+            }
+        }
+    }
+}
+
+crate::lanes::simd_dispatch! {
+    /// [`order_block`] at the widest SIMD level of this CPU.
+    fn order_block_dispatch(ctx: &OrderCtx, first: usize, sums: &mut [f64]) -> () => order_block
 }
 
 /// Subtract a revolution signature from samples i0..i1 of every channel.

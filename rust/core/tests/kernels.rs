@@ -614,6 +614,68 @@ proptest! {
         }
     }
 
+    /// The fused order vectors equal the plain computation: angle_resample of every revolution,
+    /// revolution means, their central differences (one-sided at the ends), the drift ramp
+    /// removed, a DFT bin by its definition, 2 / p. With offsets up to 1e4 times the vibration,
+    /// revolutions at both record ends (clamped stencils) and more revolutions than a task holds.
+    #[test]
+    fn order_vectors_match_resampling_and_a_plain_dft(p in 8usize..80, nch in 1usize..4, nrev in 1usize..70,
+                                                      offset in prop_oneof![Just(0.0), -1e-2f64..1e-2],
+                                                      drift in -0.2f64..0.2, seed in 0u64..1000,
+                                                      at_ends in any::<bool>()) {
+        let fs = 4000.0;
+        let rev_samples = 37.3;
+        let t_start = if at_ends { 0.0 } else { 0.01 };
+        let mut kp = vec![t_start];
+        for r in 0..nrev {
+            kp.push(kp[r] + rev_samples / fs * (1.0 + drift * r as f64 / nrev as f64));
+        }
+        let n = ((kp[nrev] * fs) as usize + if at_ends { 1 } else { 8 }).max(1);
+        let mut state = seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1;
+        let mut rnd = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let chans: Vec<Vec<f64>> = (0..nch).map(|c| {
+            let (a1, a2, ph) = (1e-6 * rnd(), 1e-6 * rnd(), 6.0 * rnd());
+            (0..n).map(|i| {
+                let th = 2.0 * std::f64::consts::PI * i as f64 / rev_samples;
+                offset * (c + 1) as f64 + a1 * (th + ph).cos() + a2 * (2.0 * th).sin() + 1e-8 * rnd() + 1e-7 * i as f64 / n as f64
+            }).collect()
+        }).collect();
+        let x: Vec<&[f64]> = chans.iter().map(|v| v.as_slice()).collect();
+        let orders = [1usize, 2, (p - 1) / 2];
+        let (k0, k1) = (0, nrev);
+        let mut out = vec![C64::new(0.0, 0.0); nrev * orders.len() * nch];
+        order::order_vectors(&x, fs, 0.0, &kp, k0, k1, p, &orders, &mut out).unwrap();
+        let mut res = vec![0.0; nch * nrev * p];
+        order::angle_resample_channels(&x, fs, 0.0, &kp, k0, k1, p, &mut res).unwrap();
+        for c in 0..nch {
+            let row = |r: usize| &res[(c * nrev + r) * p..(c * nrev + r + 1) * p];
+            let mean: Vec<f64> = (0..nrev).map(|r| row(r).iter().sum::<f64>() / p as f64).collect();
+            // 1e-10 of the vibration (~1e-6) and 1e-14 of the offset (the means' rounding)
+            let tol = 1e-16 + 1e-14 * offset.abs() * (c + 1) as f64;
+            for r in 0..nrev {
+                let slope = if nrev == 1 { 0.0 } else if r == 0 { mean[1] - mean[0] } else if r == nrev - 1 {
+                    mean[r] - mean[r - 1] } else { 0.5 * (mean[r + 1] - mean[r - 1]) };
+                for (i, &ord) in orders.iter().enumerate() {
+                    let (mut re, mut im) = (0.0, 0.0);
+                    for (j, &v) in row(r).iter().enumerate() {
+                        let th = 2.0 * std::f64::consts::PI * ((ord * j) % p) as f64 / p as f64;
+                        let d = v - mean[r] - slope * (j as f64 / p as f64 - 0.5);
+                        re += d * th.cos();
+                        im -= d * th.sin();
+                    }
+                    let got = out[(r * orders.len() + i) * nch + c];
+                    let want = C64::new(re * 2.0 / p as f64, im * 2.0 / p as f64);
+                    prop_assert!((got - want).norm() <= tol, "channel {c} rev {r} order {ord}: {got} vs {want}");
+                }
+            }
+        }
+    }
+
     /// Time stepping equals the recursion written out in full.
     #[test]
     fn lti_run_matches_the_recursion(n in 1usize..6, m in 1usize..3, steps in 1usize..30,
@@ -802,6 +864,24 @@ fn order_argument_errors_name_the_argument() {
     assert_eq!(err(order::angle_resample(&x, 1, 1000.0, 0.0, &kp, 0, 2, 3, &mut out)), "p");
     assert_eq!(err(order::angle_resample(&x, 3, 1000.0, 0.0, &kp, 0, 2, 8, &mut out)), "x");
     assert_eq!(err(order::angle_resample(&x, 1, 1000.0, 0.0, &kp, 0, 2, 8, &mut out[..3])), "out");
+    let chans: [&[f64]; 1] = [&x];
+    let mut ov = vec![C64::new(0.0, 0.0); 2 * 2];
+    let ok = |r: Result<(), CoreError>| r.is_ok();
+    assert!(ok(order::order_vectors(&chans, 1000.0, 0.0, &kp, 0, 2, 8, &[1, 3], &mut ov)));
+    let err = |r: Result<(), CoreError>| r.unwrap_err().name();
+    assert_eq!(err(order::order_vectors(&chans, 1000.0, 0.0, &[0.02, 0.01], 0, 1, 8, &[1, 3], &mut ov)), "kp");
+    assert_eq!(err(order::order_vectors(&chans, -1.0, 0.0, &kp, 0, 2, 8, &[1, 3], &mut ov)), "fs");
+    assert_eq!(err(order::order_vectors(&chans, 1000.0, f64::INFINITY, &kp, 0, 2, 8, &[1, 3], &mut ov)), "t0");
+    assert_eq!(err(order::order_vectors(&[], 1000.0, 0.0, &kp, 0, 2, 8, &[1, 3], &mut ov)), "x");
+    assert_eq!(err(order::order_vectors(&[&x[..], &x[1..]], 1000.0, 0.0, &kp, 0, 2, 8, &[1, 3], &mut ov)), "x");
+    assert_eq!(err(order::order_vectors(&[&x[..0]], 1000.0, 0.0, &kp, 0, 2, 8, &[1, 3], &mut ov)), "x");
+    assert_eq!(err(order::order_vectors(&chans, 1000.0, 0.0, &kp, 1, 1, 8, &[1, 3], &mut ov)), "k0, k1");
+    assert_eq!(err(order::order_vectors(&chans, 1000.0, 0.0, &kp, 0, 3, 8, &[1, 3], &mut ov)), "k0, k1");
+    assert_eq!(err(order::order_vectors(&chans, 1000.0, 0.0, &kp, 0, 2, 3, &[1], &mut ov[..2])), "p");
+    assert_eq!(err(order::order_vectors(&chans, 1000.0, 0.0, &kp, 0, 2, 8, &[], &mut ov[..0])), "orders");
+    assert_eq!(err(order::order_vectors(&chans, 1000.0, 0.0, &kp, 0, 2, 8, &[0, 1], &mut ov)), "orders");
+    assert_eq!(err(order::order_vectors(&chans, 1000.0, 0.0, &kp, 0, 2, 8, &[1, 4], &mut ov)), "orders");
+    assert_eq!(err(order::order_vectors(&chans, 1000.0, 0.0, &kp, 0, 2, 8, &[1, 3], &mut ov[..3])), "out");
     let tpl = vec![0.0; 8];
     let mut o2 = vec![0.0; 50];
     assert!(order::runout_subtract(&x, 1, 1000.0, 0.0, &kp, &tpl, 8, 10, 60, &mut o2).is_ok());
