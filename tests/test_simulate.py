@@ -4,7 +4,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 import rotorid
-from rotorid import RotoridError, SyncResponse
+from rotorid import RotoridError, SyncResponse, simulate
 
 import oracle
 from strategies import bearing_pair, imbalance_sets, rotors
@@ -100,6 +100,36 @@ def test_probe_transform_of_arrays_matches_eq19(rotor, n, layout):
     np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12 * 1e-5)
 
 
+@given(rotors())
+def test_plane_matrices_are_computed_once_per_rotor_and_handed_out_as_copies(rotor):
+    """The batch transforms use the rotor's own read-only copy of each matrix; the public functions
+    return writable copies, so a caller's edit cannot reach the transforms."""
+    import copy
+    import pickle
+
+    T = oracle.eq19(rotor.l1, rotor.l2, rotor.s1, rotor.s2)
+    pb = simulate.probes_to_bearings_matrix(rotor)
+    np.testing.assert_allclose(pb, T, rtol=1e-13, atol=1e-15)
+    np.testing.assert_allclose(simulate.bearings_to_probes_matrix(rotor) @ pb, np.eye(2), atol=1e-9 * np.abs(pb).max())
+    pb[:] = 7.0                                     # the caller's copy
+    assert simulate.probes_to_bearings_matrix(rotor)[0, 0] != 7.0
+    q = np.array([[1.0, 2.0, 3.0, 4.0]], dtype=complex)
+    np.testing.assert_allclose(rotorid.probes_to_bearings(rotor, q)[0, :2], T @ q[0, :2], rtol=1e-12)
+    with pytest.raises(ValueError):
+        rotor._plane_matrix("bearings")[0, 0] = 1.0
+    assert rotor._plane_matrix("probes") is rotor._plane_matrix("probes")
+    # the cache is not a field: equality, replace, copies and pickles are the rotor's
+    import dataclasses
+
+    moved = dataclasses.replace(rotor, s=(rotor.s1 * 0.5, rotor.s2 * 0.5 + 0.01))
+    assert not np.allclose(moved._plane_matrix("bearings"), rotor._plane_matrix("bearings"))
+    for other in (copy.deepcopy(rotor), pickle.loads(pickle.dumps(rotor))):
+        assert other == rotor
+        np.testing.assert_array_equal(other._plane_matrix("bearings"), rotor._plane_matrix("bearings"))
+    with pytest.raises(RotoridError, match="rotor must be a rotorid.RigidRotor"):
+        rotorid.probes_to_bearings("rotor", q)
+
+
 def test_a_validated_run_moved_to_the_bearings_is_the_transform_and_stays_checked():
     rig = rotorid.nsf_rig()
     rpm = np.linspace(1000, 5000, 9)
@@ -148,6 +178,28 @@ def test_nan_passes_the_bounds_where_nan_is_allowed():
     a = real_array("x", [np.nan, 1.0, 2.0], positive=True, nonneg=True, finite=False)
     assert np.isnan(a[0]) and a[2] == 2.0
     assert np.isnan(real_array("x", [np.nan, np.nan], positive=True, finite=False)).all()
+
+
+@given(st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.sampled_from([0.0, -0.0, 1.0, -1.0])),
+       st.booleans(), st.booleans(), st.booleans(), st.booleans(), st.sampled_from([None, 0, 1]),
+       st.sampled_from([None, (), (1,)]))
+def test_a_plain_float_takes_the_short_path_with_the_same_result_or_message(v, positive, nonneg, nonzero, finite, ndim,
+                                                                            shape):
+    """real_array's shortcut for Python floats (speeds, planes) gives what the full checks give: the
+    same 0-d array, or the same error message."""
+    from rotorid import _validate
+
+    kw = dict(positive=positive, nonneg=nonneg, nonzero=nonzero, finite=finite, ndim=ndim, shape=shape)
+
+    def outcome(value):
+        try:
+            a = _validate.real_array("x", value, **kw)
+        except RotoridError as exc:
+            return "error", str(exc)
+        return "ok", (a.dtype, a.shape, a.tobytes())
+
+    # the full checks see the same number as a NumPy scalar (not a plain float)
+    assert outcome(v) == outcome(np.float64(v))
 
 
 @pytest.mark.parametrize("bad", [complex(1.0, np.nan), complex(np.inf, 0.0), complex(0.0, -np.inf)])

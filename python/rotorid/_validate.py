@@ -11,6 +11,11 @@ from .errors import RotoridError
 
 def real_array(name, value, *, ndim=None, shape=None, positive=False, nonneg=False, nonzero=False, finite=True):
     """A real float array; ``finite=False`` lets NaN and inf through (arrays where NaN means unknown)."""
+    if type(value) is float and ndim in (None, 0) and shape in (None, ()) and math.isfinite(value) and \
+            (value > 0.0 or not positive and (value == 0.0 or not nonneg) and (value != 0.0 or not nonzero)):
+        # a plain Python number within its bounds (speeds, planes): the array the checks below would
+        # give, without their microseconds; anything else takes them for its message
+        return np.asarray(value)
     if isinstance(value, (str, bytes)):
         raise RotoridError(f"{name} must be numeric real values, got the string {value!r}")
     if np.iscomplexobj(value):

@@ -68,6 +68,23 @@ class RigidRotor:
     def span(self) -> float:
         return self.l1 + self.l2
 
+    def _plane_matrix(self, to: str) -> np.ndarray:
+        """The (2, 2) plane transform of (x1, x2) and of (y1, y2): to ``"bearings"`` from the probe
+        planes (report eq. 19) or to ``"probes"`` from the bearings (its inverse). Computed once per
+        rotor (a frozen dataclass: its geometry cannot change) and read-only, since the batch
+        transforms use it on every call; the public ``*_matrix`` functions hand out copies."""
+        cache = self.__dict__.get("_planes")
+        if cache is None:
+            l1, l2, s1, s2 = self.l1, self.l2, self.s1, self.s2
+            # x(z) = x_c + z a with a = (x2 - x1)/L, x_c = (l2 x1 + l1 x2)/L; probes at z = -s1, +s2
+            to_probes = np.array([[l2 + s1, l1 - s1], [l2 - s2, l1 + s2]]) / (l1 + l2)
+            to_bearings = np.array([[l1 + s2, s1 - l1], [s2 - l2, l2 + s1]]) / (s1 + s2)
+            for m in (to_probes, to_bearings):
+                m.setflags(write=False)
+            cache = {"probes": to_probes, "bearings": to_bearings}
+            object.__setattr__(self, "_planes", cache)
+        return cache[to]
+
     def core_params(self) -> np.ndarray:
         return np.array([self.mass_kg, self.it_kgm2, self.ip_kgm2, self.l1, self.l2])
 

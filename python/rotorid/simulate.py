@@ -20,24 +20,25 @@ DOFS = ("x1", "x2", "y1", "y2")
 
 def bearings_to_probes_matrix(rotor: RigidRotor) -> np.ndarray:
     """2x2 matrix T with [x_p1, x_p2] = T [x_1, x_2] (rigid body; same for y)."""
-    instance("rotor", rotor, RigidRotor, what="rotorid.RigidRotor")
-    l1, l2, s1, s2 = rotor.l1, rotor.l2, rotor.s1, rotor.s2
-    L = l1 + l2
-    # x(z) = x_c + z a with a = (x2 - x1)/L, x_c = (l2 x1 + l1 x2)/L; probes at z = -s1, +s2
-    return np.array([[l2 + s1, l1 - s1], [l2 - s2, l1 + s2]]) / L
+    return _plane_matrix(rotor, "probes").copy()
 
 
 def probes_to_bearings_matrix(rotor: RigidRotor) -> np.ndarray:
     """2x2 matrix of report eq. 19: [x_1, x_2] = T [x_p1, x_p2]."""
+    return _plane_matrix(rotor, "bearings").copy()
+
+
+def _plane_matrix(rotor, to: str) -> np.ndarray:
+    """The rotor's plane transform to ``"bearings"`` (eq. 19) or ``"probes"``, read-only, from the
+    rotor's own copy (``RigidRotor._plane_matrix``: computed once per rotor)."""
     instance("rotor", rotor, RigidRotor, what="rotorid.RigidRotor")
-    l1, l2, s1, s2 = rotor.l1, rotor.l2, rotor.s1, rotor.s2
-    return np.array([[l1 + s2, s1 - l1], [s2 - l2, l2 + s1]]) / (s1 + s2)
+    return rotor._plane_matrix(to)
 
 
 def _planes_to(rotor, at):
     """The transform a forward model's core call applies to its responses at the bearings to
     report them at ``at``: None at the bearings, the (2, 2) bearings-to-probes matrix at the probes."""
-    return bearings_to_probes_matrix(rotor) if at == "probes" else None
+    return _plane_matrix(rotor, "probes") if at == "probes" else None
 
 
 def _apply_planes(T, q, checked=False):
@@ -151,12 +152,12 @@ def check_dof(name, dof, n):
 
 def probes_to_bearings(rotor: RigidRotor, q_probes):
     """Report eq. 19 applied to [x_p1, x_p2, y_p1, y_p2] (last axis)."""
-    return _apply_planes(probes_to_bearings_matrix(rotor), q_probes)
+    return _apply_planes(_plane_matrix(rotor, "bearings"), q_probes)
 
 
 def bearings_to_probes(rotor: RigidRotor, q_bearings):
     """Inverse of eq. 19: responses at the probe planes from responses at the bearings."""
-    return _apply_planes(bearings_to_probes_matrix(rotor), q_bearings)
+    return _apply_planes(_plane_matrix(rotor, "probes"), q_bearings)
 
 
 def _pedestal_transform(T):
@@ -325,7 +326,7 @@ class SyncResponse:
             q, cov, cross = _with_pedestal_at(self, rotor, where)
             return SyncResponse(self.speed_rpm, q, self.imbalance, where, self.name, cov, self.dof, self.pedestal,
                                 self.pedestal_cov, cross)
-        T = probes_to_bearings_matrix(rotor) if where == "bearings" else bearings_to_probes_matrix(rotor)
+        T = _plane_matrix(rotor, where)
         if self.cov is None and self.dof is None and _q_as_checked(self):
             # this response was validated: its move is not checked again (0.4 ms per 100,000 speeds)
             return SyncResponse._unchecked(speed_rpm=self.speed_rpm, q=_apply_planes(T, self.q, checked=True),
@@ -598,7 +599,7 @@ class ImpactResponse:
             q, cov, cross = _with_pedestal_at(self, rotor, where)
             return ImpactResponse(self.speed_rpm, self.freq_hz, q, None, self.plane, self.direction, where,
                                   self.name, self.sigma, cov, self.dof, self.pedestal, self.pedestal_cov, cross)
-        T = probes_to_bearings_matrix(rotor) if where == "bearings" else bearings_to_probes_matrix(rotor)
+        T = _plane_matrix(rotor, where)
         if self.cov is None and self.dof is None and _q_as_checked(self):
             # this test was validated: its move is not checked again (as SyncResponse._moved)
             return ImpactResponse._unchecked(speed_rpm=self.speed_rpm, freq_hz=self.freq_hz,
@@ -664,8 +665,9 @@ def impact_frf(rotor: RigidRotor, bearings: BearingCoefficients, *, speed_rpm: f
     pedestals = _check_pedestals(pedestals)
     choice("at", at, {"bearings", "probes"})
     speed = float(real_array("speed_rpm", speed_rpm, ndim=0, nonneg=True))
-    f = np.atleast_1d(real_array("freq_hz", freq_hz))
-    if f.ndim != 1 or f.size == 0 or not f.min() > 0:  # (finite: checked above)
+    f = np.atleast_1d(real_array("freq_hz", freq_hz, finite=False))
+    if not (f.ndim == 1 and f.size and f.min() > 0 and f.max() < np.inf):  # two passes (NaN fails them)
+        real_array("freq_hz", freq_hz)  # NaN or inf, named with its index
         raise RotoridError("freq_hz must be a non-empty 1-D array of frequencies > 0")
     e = impact_vector(real_array("plane", plane, ndim=0), direction)
     k, c = _impact_coeffs(bearings, speed, f)
@@ -700,7 +702,7 @@ def _with_pedestals(rotor, k, c, pedestals, spin, w, force, at, *, singular, imb
     qa, qp = qa[:, 0, :], qp[:, 0, :]
     if at == "bearings":
         return qa, qp
-    q = _apply_planes(bearings_to_probes_matrix(rotor), qa, checked=True)
+    q = _apply_planes(_plane_matrix(rotor, "probes"), qa, checked=True)
     q -= qp
     return q, qp
 
