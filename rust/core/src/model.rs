@@ -111,6 +111,8 @@ pub fn apply_planes(t: &[f64; 4], q: &[C64], out: &mut [C64]) -> Result<Option<u
     }
     crate::error::expect_len("out", out, q.len())?;
     // (chunk offset, values) -> first non-finite index in it
+    // (x - x is the finiteness test below, on purpose: clippy's eq_op does not apply)
+    #[allow(clippy::eq_op)]
     let pass = |at: usize, q: &[C64], out: &mut [C64]| -> Option<usize> {
         let mut all_finite = true;
         for (p, o) in q.chunks_exact(4).zip(out.chunks_exact_mut(4)) {
