@@ -163,39 +163,37 @@ pub fn order_vectors(x: &[&[f64]], fs: f64, t0: f64, kp: &[f64], k0: usize, k1: 
     let nord = orders.len();
     expect_len("out", out, product("out", &[revs, nord, nch])?)?;
     let table = OrderTable::new(p, orders);
-    let nk = 2 * nord;
-    // per channel and revolution: the mean, then the 2 n_orders sums (cos rows, then -sin rows)
-    let stride = 1 + nk;
-    let mut sums = vec![0.0; nch * revs * stride];
+    // the order sums go to `out` as they are taken (revolution, order, channel); the revolution
+    // means (revolution, channel) are all the memory the drift slopes need besides
+    let mut means = vec![0.0; revs * nch];
     let nblocks = revs.div_ceil(REV_BLOCK);
     {
         let ctx = OrderCtx { x, fs, t0, kp, k0, table: &table };
-        let blocks = crate::par::Disjoint::new(&mut sums);
+        let (mb, ob) = (crate::par::Disjoint::new(&mut means), crate::par::Disjoint::new(out));
         crate::par::for_each_task(nblocks, |b| {
             // SAFETY: for_each_task hands each block b to one task
-            let s = unsafe { blocks.chunk(b, REV_BLOCK * nch * stride) };
-            order_block_dispatch(&ctx, b * REV_BLOCK, s);
+            let (m, o) = unsafe { (mb.chunk(b, REV_BLOCK * nch), ob.chunk(b, REV_BLOCK * nord * nch)) };
+            order_block_dispatch(&ctx, b * REV_BLOCK, m, o);
         });
     }
-    // sums are laid out (revolution, channel, 1 + 2 n_orders)
-    let at = |r: usize, c: usize| (r * nch + c) * stride;
     let scale = 2.0 / p as f64;
     for r in 0..revs {
         for c in 0..nch {
+            let m = |r: usize| means[r * nch + c];
             let slope = if revs == 1 {
                 0.0
             } else if r == 0 {
-                sums[at(1, c)] - sums[at(0, c)]
+                m(1) - m(0)
             } else if r == revs - 1 {
-                sums[at(r, c)] - sums[at(r - 1, c)]
+                m(r) - m(r - 1)
             } else {
-                (sums[at(r + 1, c)] - sums[at(r - 1, c)]) * 0.5
+                (m(r + 1) - m(r - 1)) * 0.5
             };
-            let s = &sums[at(r, c) + 1..at(r, c) + stride];
             for i in 0..nord {
-                let re = s[i] - slope * table.ramp[i];
-                let im = s[nord + i] - slope * table.ramp[nord + i];
-                out[(r * nord + i) * nch + c] = C64::new(re * scale, im * scale);
+                let o = &mut out[(r * nord + i) * nch + c];
+                let re = o.re - slope * table.ramp[i];
+                let im = o.im - slope * table.ramp[nord + i];
+                *o = C64::new(re * scale, im * scale);
             }
         }
     }
@@ -271,17 +269,18 @@ fn lane_dot(a: &[f64], b: &[f64]) -> f64 {
     ((acc[0] + acc[4]) + (acc[2] + acc[6])) + ((acc[1] + acc[5]) + (acc[3] + acc[7]))
 }
 
-/// Revolutions first..first + REV_BLOCK (fewer at the end) of [`order_vectors`]: `sums` gets, per
-/// revolution and channel, the mean and the order sums of the values about it.
+/// Revolutions first..first + REV_BLOCK (fewer at the end) of [`order_vectors`]: `means` gets
+/// each revolution's mean per channel (revolution, channel), `sums` the order sums of the values
+/// about it as complex numbers [sum x cos, sum x (-sin)] (revolution, order, channel).
 #[inline(always)]
-fn order_block(ctx: &OrderCtx, first: usize, sums: &mut [f64]) {
+fn order_block(ctx: &OrderCtx, first: usize, means: &mut [f64], sums: &mut [C64]) {
     let tab = ctx.table;
     let (p, row) = (tab.p, tab.row);
     let nk = tab.rows.len() / row;
     let nch = ctx.x.len();
     let n = ctx.x[0].len();
-    let stride = 1 + nk;
-    let nrev = sums.len() / (nch * stride);
+    let nord = nk / 2;
+    let nrev = means.len() / nch;
     let pf = p as f64;
     let mut w = vec![[0.0f64; 4]; p];
     let mut mi = vec![0isize; p];
@@ -319,10 +318,11 @@ fn order_block(ctx: &OrderCtx, first: usize, sums: &mut [f64]) {
             for v in &mut buf[..p] {
                 *v -= m0;
             }
-            let s = &mut sums[(r * nch + c) * stride..(r * nch + c + 1) * stride];
-            s[0] = m0;
-            for q in 0..nk {
-                s[1 + q] = lane_dot(&buf, &tab.rows[q * row..(q + 1) * row]);
+            means[r * nch + c] = m0;
+            for i in 0..nord {
+                let re = lane_dot(&buf, &tab.rows[i * row..(i + 1) * row]);
+                let im = lane_dot(&buf, &tab.rows[(nord + i) * row..(nord + i + 1) * row]);
+                sums[(r * nord + i) * nch + c] = C64::new(re, im);
             }
         }
     }
@@ -330,7 +330,7 @@ fn order_block(ctx: &OrderCtx, first: usize, sums: &mut [f64]) {
 
 crate::lanes::simd_dispatch! {
     /// [`order_block`] at the widest SIMD level of this CPU.
-    fn order_block_dispatch(ctx: &OrderCtx, first: usize, sums: &mut [f64]) -> () => order_block
+    fn order_block_dispatch(ctx: &OrderCtx, first: usize, means: &mut [f64], sums: &mut [C64]) -> () => order_block
 }
 
 /// Subtract a revolution signature from samples i0..i1 of every channel.
