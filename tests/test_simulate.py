@@ -202,6 +202,28 @@ def test_a_plain_float_takes_the_short_path_with_the_same_result_or_message(v, p
     assert outcome(v) == outcome(np.float64(v))
 
 
+@given(st.lists(st.one_of(st.floats(1e-3, 1e6), st.sampled_from([0.0, -1.0, np.nan, np.inf, -np.inf])), max_size=200),
+       st.integers(0, 300), st.sampled_from([1, 2, 3]))
+def test_the_core_bounds_check_finds_the_first_value_outside(vals, prefix, step):
+    """``_core.first_outside`` (the one-pass check of frequencies and speeds) against a scan, on
+    contiguous and strided arrays."""
+    from rotorid import _core
+
+    a = np.concatenate([np.ones(prefix), np.repeat(np.asarray(vals, dtype=float), step)])[::step]
+    bad = np.flatnonzero(~((a > 0.0) & (a < np.inf)))
+    assert _core.first_outside(a, 0.0, np.inf) == (int(bad[0]) if bad.size else None)
+    with pytest.raises(ValueError, match=r"a has shape \[1, 2\], expected \(n,\)"):
+        _core.first_outside(np.ones((1, 2)), 0.0, 1.0)
+
+
+@pytest.mark.parametrize("freq", [[1.0, np.inf], [np.nan, 1.0], [2.0, -1.0], [0.0], [], [[1.0, 2.0]]])
+def test_impact_frf_names_what_is_wrong_with_the_frequencies(freq):
+    rig = rotorid.nsf_rig()
+    with pytest.raises(RotoridError, match="freq_hz (contains NaN or inf \\(first at index|must be a non-empty 1-D array "
+                                           "of frequencies > 0)"):
+        rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=2000.0, freq_hz=freq)
+
+
 @pytest.mark.parametrize("bad", [complex(1.0, np.nan), complex(np.inf, 0.0), complex(0.0, -np.inf)])
 def test_complex_arrays_refuse_non_finite_parts_either_way(bad):
     from rotorid._validate import complex_array

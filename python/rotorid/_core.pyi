@@ -79,6 +79,10 @@ def wake_pool(max_wait_us: float = 2000.0) -> None:
     at most max_wait_us microseconds (0 to 1e6)."""
     ...
 
+def first_outside(a: npt.NDArray[np.float64], lo: float, hi: float) -> int | None:
+    """Index of the first value of the 1-D array a outside (lo, hi), NaN included; None if none."""
+    ...
+
 def angle_resample(
     x: npt.NDArray[np.float64] | list[npt.NDArray[np.float64]],  # (C, N), or C arrays (N,) used where they are
     fs: float, t0: float, kp: npt.NDArray[np.float64], k0: int, k1: int, p: int,

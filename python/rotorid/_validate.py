@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 
+from ._corecall import core as _core
 from .errors import RotoridError
 
 
@@ -113,9 +114,7 @@ def finite_scalar(name, value):
 
 def speeds_rpm(name, value):
     a = np.atleast_1d(real_array(name, value, finite=False))
-    if a.size and a.min() > 0 and a.max() < np.inf:  # two passes (NaN fails the comparisons)
-        if a.ndim != 1:
-            raise RotoridError(f"{name} must be a scalar or a 1-D array, got shape {a.shape}")
+    if a.ndim == 1 and a.size and _core.first_outside(a, 0.0, math.inf) is None:  # one pass (NaN is outside)
         return a
     a = _check(name, a, None, None, False, False, False)  # the error naming what is wrong
     if a.ndim != 1:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -666,7 +667,7 @@ def impact_frf(rotor: RigidRotor, bearings: BearingCoefficients, *, speed_rpm: f
     choice("at", at, {"bearings", "probes"})
     speed = float(real_array("speed_rpm", speed_rpm, ndim=0, nonneg=True))
     f = np.atleast_1d(real_array("freq_hz", freq_hz, finite=False))
-    if not (f.ndim == 1 and f.size and f.min() > 0 and f.max() < np.inf):  # two passes (NaN fails them)
+    if not (f.ndim == 1 and f.size and _core.first_outside(f, 0.0, math.inf) is None):  # one pass
         real_array("freq_hz", freq_hz)  # NaN or inf, named with its index
         raise RotoridError("freq_hz must be a non-empty 1-D array of frequencies > 0")
     e = impact_vector(real_array("plane", plane, ndim=0), direction)

@@ -1025,6 +1025,20 @@ fn channel_slices<'a>(x: &Bound<'_, PyAny>, arrays: &'a [PyReadonlyArrayDyn<'_, 
     Ok(channels)
 }
 
+/// Index of the first value of the 1-D array `a` outside the open interval (lo, hi), NaN included,
+/// or None (`bounds::first_outside`): one pass where NumPy's min and max take two.
+#[pyfunction]
+fn first_outside(py: Python<'_>, a: PyReadonlyArrayDyn<'_, f64>, lo: f64, hi: f64) -> PyResult<Option<usize>> {
+    if a.shape().len() != 1 {
+        return Err(PyValueError::new_err(format!("a has shape {:?}, expected (n,)", a.shape())));
+    }
+    match a.as_slice() {
+        Ok(v) => Ok(py.detach(|| rotorid_core::bounds::first_outside(v, lo, hi))),
+        // a strided view: its values in order
+        Err(_) => Ok(a.as_array().iter().position(|&v| !(v > lo && v < hi))),
+    }
+}
+
 /// Per-revolution order vectors of channels x (as for angle_resample) resampled at p uniform
 /// angles per revolution for revolutions k0..k1, each revolution's drift ramp removed
 /// (`order::order_vectors`). Returns complex (k1 - k0, len(orders), C), 0-pk.
@@ -1425,6 +1439,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(lti_run, m)?)?;
     m.add_function(wrap_pyfunction!(angle_resample, m)?)?;
     m.add_function(wrap_pyfunction!(order_vectors, m)?)?;
+    m.add_function(wrap_pyfunction!(first_outside, m)?)?;
     m.add_function(wrap_pyfunction!(runout_subtract, m)?)?;
     m.add_function(wrap_pyfunction!(study_accumulate, m)?)?;
     m.add_function(wrap_pyfunction!(study_realize, m)?)?;

@@ -24,6 +24,7 @@
 //! assert!(q[0].norm() > 0.0);
 //! ```
 
+pub mod bounds;
 pub mod eig8;
 pub mod error;
 pub mod forced;

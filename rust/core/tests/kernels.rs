@@ -850,6 +850,19 @@ fn identification_argument_errors_name_the_argument() {
     }
 }
 
+proptest! {
+    /// The one-pass bounds check finds the first value a plain scan finds.
+    #[test]
+    fn first_outside_is_the_first_value_a_scan_finds(vals in proptest::collection::vec(
+            prop_oneof![8 => 1e-3f64..1e6, 1 => Just(0.0), 1 => Just(-1.0), 1 => Just(f64::NAN),
+                        1 => Just(f64::INFINITY), 1 => Just(1e6)], 0..100), prefix in 0usize..400) {
+        // a run of inside values, then a mix: the first outside value falls in any block, or none
+        let a: Vec<f64> = std::iter::repeat(1.0).take(prefix).chain(vals.iter().copied()).collect();
+        let want = a.iter().position(|&v| !(v > 0.0 && v < 1e6));
+        prop_assert_eq!(rotorid_core::bounds::first_outside(&a, 0.0, 1e6), want);
+    }
+}
+
 #[test]
 fn order_argument_errors_name_the_argument() {
     let x = vec![0.0; 100];
