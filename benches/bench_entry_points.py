@@ -8,8 +8,8 @@ For each entry point the core calls it makes are recorded while it runs once (ev
 exactly those core calls with the same argument objects are timed in interleaved rounds of two back-to-back
 calls each (best of ``--rounds``, ``common.best_of_each``). API / core = core time / API time,
 target >= 90 % (issue 10). Large inputs: 100,000 speeds or frequencies, 2 M samples for time stepping, 10 M samples x 4 channels for
-order tracking (whose core calls, resampling chunks, the API runs on a helper thread while it
-sums the previous chunk; the replay runs them one after the other).
+order tracking (one core call for the per-revolution order vectors; then the block statistics:
+one steady segment, or a coast-down's ~6,000 blocks of 4 revolutions).
 """
 
 import argparse
@@ -106,6 +106,8 @@ def entries(n, n_time):
         "SyncResponse (constructor, user data)": lambda: SyncResponse(rpm, run.q, imb, "probes"),
         f"signals.track ({ns // 1_000_000} M samples x 4 channels)": lambda: signals.track(rec, kp=kp,
                                                                                           points_per_rev=512),
+        "signals.track, coast-down blocks of 4 revs": lambda: signals.track(rec, kp=kp, points_per_rev=512,
+                                                                           steady=False),
     }
 
 

@@ -303,3 +303,54 @@ def test_order_vectors_do_not_depend_on_the_thread_count():
             outs.append(np.load(path))
     assert outs[0].shape[0] > 64          # more revolutions than two tasks hold
     np.testing.assert_array_equal(outs[0], outs[1])
+
+
+@pytest.mark.parametrize("n_ch, i1", [(4, 0), (8, 1), (4, None)])
+def test_block_statistics_equal_the_block_by_block_loop(n_ch, i1):
+    """Blocks of one length are reduced together; each block's numbers are those of the plain loop
+    (mean, mean_covariance of the 1X vectors, speed, mid time, scatter of the first order), for
+    blocks of mixed lengths (1 revolution: no covariance), steady segments and coast-down blocks."""
+    rng = np.random.default_rng(n_ch + (i1 or 7))
+    revs, nord = 400, 3
+    per_rev = (rng.standard_normal((revs, nord, n_ch)) + 1j * rng.standard_normal((revs, nord, n_ch))) * 1e-6
+    per_rev += 3e-5 * np.exp(1j * np.arange(n_ch))        # a common vector, as a real 1X
+    rpm = 3000.0 + rng.standard_normal(revs)
+    tmid = np.cumsum(60.0 / rpm)
+    # lengths 4 and 40 apart (gathered), 7 back to back (views), 1 (no covariance), 37, 250
+    blocks = [(0, 1), (1, 41), (41, 45), (45, 49), (60, 60 + 37), (100, 140), (150, 400), (300, 304), (310, 314)] + \
+        [(a, a + 7) for a in range(200, 221, 7)]
+    starts, lengths = np.array([a for a, _ in blocks]), np.array([b - a for a, b in blocks])
+    mean, cov, dof, sp, scat, tm = order._block_statistics(per_rev, rpm, tmid, starts, lengths, i1)
+    m = 2 * n_ch
+    for j, (a, b) in enumerate(blocks):
+        v = per_rev[a:b]
+        np.testing.assert_allclose(mean[j], v.mean(axis=0), rtol=1e-14, atol=0)
+        if i1 is None:
+            assert np.isnan(cov[j]).all() and np.isnan(dof[j])
+        else:
+            c, d = order.mean_covariance(v[:, i1, :])
+            assert c.shape == (m, m) and (np.isnan(dof[j]) and np.isnan(d) or dof[j] == d)
+            if np.isfinite(c).all():
+                np.testing.assert_allclose(cov[j], c, rtol=1e-10, atol=1e-12 * np.abs(c).max())
+            else:
+                assert np.isnan(cov[j]).all() and b - a == 1
+        assert sp[j] == pytest.approx(rpm[a:b].mean(), rel=1e-15) and tm[j] == pytest.approx(tmid[a:b].mean(), rel=1e-15)
+        want = np.sqrt(np.mean(np.abs(v[:, 0, :4] - v[:, 0, :4].mean(axis=0)) ** 2, axis=0))
+        np.testing.assert_allclose(scat[j], want, rtol=1e-12)
+
+
+def test_a_coast_down_tracks_every_block_of_revolutions():
+    """steady=False: thousands of equal blocks, reduced together, against the per-revolution
+    reference averaged block by block."""
+    fs = 10000.0
+    x, kpt = _signals(4, fs, 6.0, 6000.0, 1500.0, dc=2e-5, drift=1e-6, noise=2e-7, seed=21)
+    rec, kp = _recording(x, fs, kpt)
+    for rb in (1, 3):
+        tr = signals.track(rec, kp=kp, steady=False, revs_per_block=rb, orders=(1, 2), points_per_rev=128)
+        k0, k1 = _track_range(rec, kp)
+        per = _reference_per_rev(x, fs, 0.0, kp.times, k0, k1, 128, (1, 2))
+        nb = (k1 - k0) // rb
+        assert tr.vectors.shape == (nb, 2, 4) and nb > 100
+        _close(tr.vectors, per[: nb * rb].reshape(nb, rb, 2, 4).mean(axis=1))
+        np.testing.assert_allclose(tr.speed_rpm, kp.speed_rpm[k0:k0 + nb * rb].reshape(nb, rb).mean(axis=1), rtol=1e-14)
+        assert (np.isnan(tr.cov).all() if rb == 1 else np.isfinite(tr.cov).all())
