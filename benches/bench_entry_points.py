@@ -67,6 +67,13 @@ def entries(n, n_time):
     ident = rotorid.identify_synchronous(rig.rotor, [rotorid.imbalance_response(rig.rotor, rig.bearings,
                                                                                 rig.imbalances[s], speed_rpm=rpm)
                                                      for s in "ABC"])
+    # the same runs with measurement covariances (the imbalance chain's), at a tenth of the speeds:
+    # their uncertainty propagation is mostly NumPy
+    m = n // 10
+    runs_cov = [rotorid.SyncResponse(rpm[:m], r.q[:m], r.imbalance, cov=np.broadcast_to(np.eye(8) * 1e-14, (m, 8, 8)).copy(),
+                                     dof=np.full(m, 30.0))
+                for r in (rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=rpm)
+                          for s in "ABCD")]
     from rotorid import signals, uncertainty
     from rotorid.recording import Recording
 
@@ -102,6 +109,8 @@ def entries(n, n_time):
         "identify_pedestals (2 runs)": lambda: rotorid.identify_pedestals(rig.rotor, runs_ped),
         "identify_pedestals (2 runs, cross-coupled)": lambda: rotorid.identify_pedestals(rig.rotor, runs_ped,
                                                                                          cross_coupled=True),
+        f"identify_synchronous, 4 runs with cov ({m:,} speeds)": lambda: rotorid.identify_synchronous(rig.rotor,
+                                                                                                      runs_cov),
         "uncertainty.relative_std": lambda: uncertainty.relative_std(ident.k, ident.c, ident.k_std, ident.c_std),
         "SyncResponse (constructor, user data)": lambda: SyncResponse(rpm, run.q, imb, "probes"),
         f"signals.track ({ns // 1_000_000} M samples x 4 channels)": lambda: signals.track(rec, kp=kp,
