@@ -50,6 +50,18 @@ def _signals(n_ch, fs, duration_s, rpm0, rpm1, *, dc=0.0, drift=0.0, noise=0.0, 
     return x, kpt
 
 
+def _mean_covariance_reference(v, max_batches=16):
+    """The covariance of the mean of the per-revolution vectors v (revs, k) by batch means, with
+    np.cov: (cov (2k, 2k) of [Re, Im] per group of 4 channels, dof)."""
+    n, k = v.shape
+    nb = min(n, max_batches)
+    if nb < 2:
+        return np.full((2 * k, 2 * k), np.nan), np.nan
+    b = v[: nb * (n // nb)].reshape(nb, n // nb, k).mean(axis=1)
+    r = np.concatenate([part for g in range(0, k, 4) for part in (b[:, g:g + 4].real, b[:, g:g + 4].imag)], axis=1)
+    return np.cov(r, rowvar=False, ddof=1) / nb, float(nb - 1)
+
+
 def _close(new, ref, offset=0.0):
     """Equal to TOL of the largest vector (and, for a channel with an ``offset``, to the rounding
     of the offset in its revolution means: 1e-15 of it); NaN at the same places."""
@@ -154,7 +166,7 @@ def test_track_steady_blocks_cov_scatter_and_pedestal_match_the_reference():
     v = per[a:b]
     _close(tr.vectors[0], v.mean(axis=0)[:, :4])
     _close(tr.pedestal[0], v.mean(axis=0)[:, 4:])
-    cov, dof = order.mean_covariance(v[:, 0, :])
+    cov, dof = _mean_covariance_reference(v[:, 0, :])
     # the covariance of batch means is a difference of nearly equal vectors: it carries the
     # vectors' rounding (1e-16 of the offsets) magnified by |vector| / spread of the batch means:
     # 5e-13 measured here
@@ -308,7 +320,7 @@ def test_order_vectors_do_not_depend_on_the_thread_count():
 @pytest.mark.parametrize("n_ch, i1", [(4, 0), (8, 1), (4, None)])
 def test_block_statistics_equal_the_block_by_block_loop(n_ch, i1):
     """Blocks of one length are reduced together; each block's numbers are those of the plain loop
-    (mean, mean_covariance of the 1X vectors, speed, mid time, scatter of the first order), for
+    (mean, np.cov of the 1X vectors' batch means, speed, mid time, scatter of the first order), for
     blocks of mixed lengths (1 revolution: no covariance), steady segments and coast-down blocks."""
     rng = np.random.default_rng(n_ch + (i1 or 7))
     revs, nord = 400, 3
@@ -328,7 +340,7 @@ def test_block_statistics_equal_the_block_by_block_loop(n_ch, i1):
         if i1 is None:
             assert np.isnan(cov[j]).all() and np.isnan(dof[j])
         else:
-            c, d = order.mean_covariance(v[:, i1, :])
+            c, d = _mean_covariance_reference(v[:, i1, :])
             assert c.shape == (m, m) and (np.isnan(dof[j]) and np.isnan(d) or dof[j] == d)
             if np.isfinite(c).all():
                 np.testing.assert_allclose(cov[j], c, rtol=1e-10, atol=1e-12 * np.abs(c).max())
@@ -354,3 +366,13 @@ def test_a_coast_down_tracks_every_block_of_revolutions():
         _close(tr.vectors, per[: nb * rb].reshape(nb, rb, 2, 4).mean(axis=1))
         np.testing.assert_allclose(tr.speed_rpm, kp.speed_rpm[k0:k0 + nb * rb].reshape(nb, rb).mean(axis=1), rtol=1e-14)
         assert (np.isnan(tr.cov).all() if rb == 1 else np.isfinite(tr.cov).all())
+
+
+@pytest.mark.parametrize("revs, k", [(1, 4), (2, 4), (5, 8), (16, 4), (17, 4), (100, 8)])
+def test_mean_covariance_is_the_batch_means_covariance(revs, k):
+    rng = np.random.default_rng(revs + k)
+    v = rng.standard_normal((revs, k)) + 1j * rng.standard_normal((revs, k)) + 5.0
+    cov, dof = order.mean_covariance(v)
+    want, wdof = _mean_covariance_reference(v)
+    assert cov.shape == (2 * k, 2 * k) and (np.isnan(dof) and np.isnan(wdof) or dof == wdof)
+    np.testing.assert_allclose(cov, want, rtol=1e-12, atol=1e-14 * np.nanmax(np.abs(want)) if revs > 1 else 0)

@@ -193,15 +193,8 @@ def mean_covariance(v, *, max_batches: int = 16):
     Re p, Im p]), from batch means: the revolutions are cut into up to ``max_batches``
     consecutive batches, so noise correlated over fewer revolutions than a batch is accounted
     for. Returns (cov (8, 8), dof)."""
-    n, k = v.shape
-    nb = min(n, max_batches)
-    if nb < 2:
-        return np.full((2 * k, 2 * k), np.nan), np.nan
-    size = n // nb
-    b = v[: nb * size].reshape(nb, size, k).mean(axis=1)
-    # [Re, Im] per group of 4 channels: probes then accelerometers, as the joint covariances
-    r = np.concatenate([part for g in range(0, k, 4) for part in (b[:, g:g + 4].real, b[:, g:g + 4].imag)], axis=1)
-    return np.cov(r, rowvar=False, ddof=1) / nb, float(nb - 1)
+    cov, dof = _batch_mean_covariance(np.asarray(v)[None], max_batches=max_batches)
+    return cov[0], float(dof[0])
 
 
 def _block_statistics(per_rev, rpm, tmid, starts, lengths, i1):
@@ -241,7 +234,8 @@ def _block_statistics(per_rev, rpm, tmid, starts, lengths, i1):
 
 def _batch_mean_covariance(v, *, max_batches: int = 16):
     """:func:`mean_covariance` of a stack of blocks of equal length, ``v`` (blocks, revs, k):
-    (cov (blocks, 2k, 2k), dof (blocks,))."""
+    (cov (blocks, 2k, 2k), dof (blocks,)): for each block the sample covariance (ddof 1) of its
+    batch means' [Re, Im] parts, divided by the number of batches."""
     nbl, n, k = v.shape
     nb = min(n, max_batches)
     if nb < 2:
