@@ -9,33 +9,11 @@ from rotorid.uncertainty import _H_REL, _eval
 
 
 def propagate_dense(rotor, w, spin, qs, e, gain, sigma, covs, *, identical, method, bias=False, shared=None, q_ped=None):
-    """Covariance (n, 16, 16) of the report vector from run covariances ``covs`` (R, n, 8, 8) of
-    the responses ``qs`` (R, n, 4) at the bearings. NaN at points where a run's covariance is
-    unknown or the estimator is singular.
-
-    With pedestal motion ``q_ped`` (R, n, 4), ``qs`` is the relative motion and ``covs`` is
-    (R, n, 16, 16), the joint covariance of [Re q, Im q, Re q_ped, Im q_ped] of each run: the
-    accelerometers' errors reach the coefficients through the inertia term.
-
-    With ``bias=True`` also the estimator's second-order bias (n, 16): the noise turns a nonlinear
-    estimator's mean away from the truth (least squares with noisy regressors shrinks toward zero,
-    the classic errors-in-variables attenuation), by b = ½ Σ_k [p(q + l_k) + p(q - l_k) - 2 p(q)]
-    over the sigma points l_k (the columns of Σ^½, one run at a time). Returns (cov, bias).
-
-    ``shared`` (n, 8, 8), or (n, 16, 16) with pedestal motion: a covariance common to every pair
-    of runs (all runs less the same baseline run): the off-diagonal blocks of Σ."""
-    from rotorid._validate import complex_array, flag, real_array
-
-    qs = complex_array("qs", qs, shape=(None, None, 4))
+    """uncertainty.propagate as first written (its docstring says what it computes)."""
+    # (the inputs come validated from the public identification)
     R, n, _ = qs.shape
     ped = q_ped is not None
-    if ped:
-        q_ped = complex_array("q_ped", q_ped, shape=(R, n, 4))
     m = 16 if ped else 8                                                 # real inputs per run and point
-    covs = real_array("covs", covs, shape=(R, n, m, m), finite=False)
-    if shared is not None:
-        shared = real_array("shared", shared, shape=(n, m, m), finite=False)
-    bias = flag("bias", bias)
     scale = np.sqrt(np.mean(np.abs(qs) ** 2, axis=(0, 2)))
     h = _H_REL * np.where(scale > 0, scale, 1.0)
     nb = 2 * m * R

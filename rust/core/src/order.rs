@@ -67,10 +67,10 @@ pub fn angle_resample(x: &[f64], nch: usize, fs: f64, t0: f64, kp: &[f64], k0: u
     angle_resample_channels(&channels, fs, t0, kp, k0, k1, p, out)
 }
 
-/// [`angle_resample`] of channels stored apart (as a recording's loaders give them: no (C, N)
-/// array is built to resample them), each of the same length.
-#[allow(clippy::too_many_arguments)]
-pub fn angle_resample_channels(x: &[&[f64]], fs: f64, t0: f64, kp: &[f64], k0: usize, k1: usize, p: usize, out: &mut [f64]) -> Result<(), CoreError> {
+/// The checks shared by the per-revolution functions: keyphasor times, sampling, at least one
+/// channel and all of one length, revolutions k0..k1 inside the pulses, at least 4 points per
+/// revolution.
+fn check_revolutions(x: &[&[f64]], fs: f64, t0: f64, kp: &[f64], k0: usize, k1: usize, p: usize) -> Result<(), CoreError> {
     check_keyphasor(kp)?;
     check_sampling(fs, t0)?;
     let nch = x.len();
@@ -86,7 +86,15 @@ pub fn angle_resample_channels(x: &[&[f64]], fs: f64, t0: f64, kp: &[f64], k0: u
     if p < 4 {
         return Err(CoreError::value("p", format!("(points per revolution) must be at least 4, got {p}")));
     }
-    expect_len("out", out, product("out", &[nch, k1 - k0, p])?)?;
+    Ok(())
+}
+
+/// [`angle_resample`] of channels stored apart (as a recording's loaders give them: no (C, N)
+/// array is built to resample them), each of the same length.
+#[allow(clippy::too_many_arguments)]
+pub fn angle_resample_channels(x: &[&[f64]], fs: f64, t0: f64, kp: &[f64], k0: usize, k1: usize, p: usize, out: &mut [f64]) -> Result<(), CoreError> {
+    check_revolutions(x, fs, t0, kp, k0, k1, p)?;
+    expect_len("out", out, product("out", &[x.len(), k1 - k0, p])?)?;
     resample_kernel(x, fs, t0, kp, k0, k1, p, out);
     Ok(())
 }
@@ -135,23 +143,10 @@ fn resample_kernel(x: &[&[f64]], fs: f64, t0: f64, kp: &[f64], k0: usize, k1: us
 /// give NaN for the revolutions they touch (and, through s_r, their neighbours).
 #[allow(clippy::too_many_arguments)]
 pub fn order_vectors(x: &[&[f64]], fs: f64, t0: f64, kp: &[f64], k0: usize, k1: usize, p: usize, orders: &[usize], out: &mut [C64]) -> Result<(), CoreError> {
-    check_keyphasor(kp)?;
-    check_sampling(fs, t0)?;
+    check_revolutions(x, fs, t0, kp, k0, k1, p)?;
     let nch = x.len();
-    if nch == 0 {
-        return Err(CoreError::value("x", "needs at least one channel"));
-    }
-    if let Some(c) = x.iter().position(|ch| ch.len() != x[0].len()) {
-        return Err(CoreError::length("x", x[c].len(), format!("{} samples in every channel (channel {c} differs)", x[0].len())));
-    }
     if x[0].is_empty() {
         return Err(CoreError::value("x", "has no samples"));
-    }
-    if !(k0 < k1 && k1 < kp.len()) {
-        return Err(CoreError::value("k0, k1", format!("need k0 < k1 < len(kp) = {}, got k0 = {k0}, k1 = {k1}", kp.len())));
-    }
-    if p < 4 {
-        return Err(CoreError::value("p", format!("(points per revolution) must be at least 4, got {p}")));
     }
     if orders.is_empty() {
         return Err(CoreError::value("orders", "needs at least one order"));
