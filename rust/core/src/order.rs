@@ -52,7 +52,8 @@ pub fn cubic_at(x: &[f64], u: f64) -> f64 {
     let m = m as isize;
     let at = |i: isize| -> f64 { x[i.clamp(0, n as isize - 1) as usize] };
     let w = lagrange4(f);
-    w[0] * at(m - 1) + w[1] * at(m) + w[2] * at(m + 1) + w[3] * at(m + 2)
+    // (saturating: a point far outside the samples puts m near the ends of isize)
+    w[0] * at(m.saturating_sub(1)) + w[1] * at(m) + w[2] * at(m.saturating_add(1)) + w[3] * at(m.saturating_add(2))
 }
 
 /// Resample channels at P uniform angles per revolution for revolutions k0..k1 (between pulses
@@ -138,9 +139,10 @@ fn resample_kernel(x: &[&[f64]], fs: f64, t0: f64, kp: &[f64], k0: usize, k1: us
 /// summed about its mean, so an offset that dwarfs the vibration (a probe's gap voltage) does not
 /// enter the bins' rounding (the cosines and sines sum to zero over a revolution; their rounded
 /// values do not, and a direct sum would carry offset x p^1.5 eps); the means themselves carry
-/// the offset's rounding, ~1e-16 of it, as the FFT's do. Resampling and sums are fused: a revolution's stencil weights are computed
-/// once for every channel and the resampled values never leave the cache. NaN or inf samples
-/// give NaN for the revolutions they touch (and, through s_r, their neighbours).
+/// the offset's rounding, ~1e-16 of it, as the FFT's do. Resampling and sums are fused: a
+/// revolution's stencil weights are computed once for every channel and the resampled values
+/// never leave the cache. NaN or inf samples give NaN for the revolutions they touch (and,
+/// through s_r, their neighbours).
 #[allow(clippy::too_many_arguments)]
 pub fn order_vectors(x: &[&[f64]], fs: f64, t0: f64, kp: &[f64], k0: usize, k1: usize, p: usize, orders: &[usize], out: &mut [C64]) -> Result<(), CoreError> {
     check_revolutions(x, fs, t0, kp, k0, k1, p)?;
@@ -303,10 +305,12 @@ fn order_block(ctx: &OrderCtx, first: usize, means: &mut [f64], sums: &mut [C64]
                     buf[j] = wj[0] * s[0] + wj[1] * s[1] + wj[2] * s[2] + wj[3] * s[3];
                 }
             } else {
+                // (saturating: pulses far from the record put m near the ends of isize)
                 let at = |i: isize| -> f64 { xc[i.clamp(0, n as isize - 1) as usize] };
                 for j in 0..p {
                     let (m, wj) = (mi[j], &w[j]);
-                    buf[j] = wj[0] * at(m - 1) + wj[1] * at(m) + wj[2] * at(m + 1) + wj[3] * at(m + 2);
+                    buf[j] = wj[0] * at(m.saturating_sub(1)) + wj[1] * at(m) + wj[2] * at(m.saturating_add(1))
+                        + wj[3] * at(m.saturating_add(2));
                 }
             }
             let m0 = lane_sum(&buf) / pf;

@@ -895,6 +895,12 @@ fn order_argument_errors_name_the_argument() {
     assert_eq!(err(order::order_vectors(&chans, 1000.0, 0.0, &kp, 0, 2, 8, &[0, 1], &mut ov)), "orders");
     assert_eq!(err(order::order_vectors(&chans, 1000.0, 0.0, &kp, 0, 2, 8, &[1, 4], &mut ov)), "orders");
     assert_eq!(err(order::order_vectors(&chans, 1000.0, 0.0, &kp, 0, 2, 8, &[1, 3], &mut ov[..3])), "out");
+    // pulses far outside the record: the stencils clamp to its ends, nothing overflows
+    for far in [[-1e300, -0.9e300, -0.8e300], [1e300, 1.1e300, 1.2e300], [-1e300, 0.5, 1e300]] {
+        assert!(order::order_vectors(&chans, 1000.0, 0.0, &far, 0, 2, 8, &[1, 3], &mut ov).is_ok());
+        let mut res = vec![0.0; 2 * 8];
+        assert!(order::angle_resample(&x, 1, 1000.0, 0.0, &far, 0, 2, 8, &mut res).is_ok());
+    }
     let tpl = vec![0.0; 8];
     let mut o2 = vec![0.0; 50];
     assert!(order::runout_subtract(&x, 1, 1000.0, 0.0, &kp, &tpl, 8, 10, 60, &mut o2).is_ok());
