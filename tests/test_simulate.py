@@ -123,9 +123,10 @@ def test_plane_matrices_are_computed_once_per_rotor_and_handed_out_as_copies(rot
 
     moved = dataclasses.replace(rotor, s=(rotor.s1 * 0.5, rotor.s2 * 0.5 + 0.01))
     assert not np.allclose(moved._plane_matrix("bearings"), rotor._plane_matrix("bearings"))
-    for other in (copy.deepcopy(rotor), pickle.loads(pickle.dumps(rotor))):
+    for other in (copy.deepcopy(rotor), pickle.loads(pickle.dumps(rotor)), copy.copy(rotor)):
         assert other == rotor
         np.testing.assert_array_equal(other._plane_matrix("bearings"), rotor._plane_matrix("bearings"))
+        assert not other._plane_matrix("probes").flags.writeable
     with pytest.raises(RotoridError, match="rotor must be a rotorid.RigidRotor"):
         rotorid.probes_to_bearings("rotor", q)
 

@@ -85,6 +85,10 @@ class RigidRotor:
             object.__setattr__(self, "_planes", cache)
         return cache[to]
 
+    def __getstate__(self):
+        # the plane matrices are recomputed where the rotor is unpickled (read-only there too)
+        return {k: v for k, v in self.__dict__.items() if k != "_planes"}
+
     def core_params(self) -> np.ndarray:
         return np.array([self.mass_kg, self.it_kgm2, self.ip_kgm2, self.l1, self.l2])
 
