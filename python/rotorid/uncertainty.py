@@ -121,13 +121,13 @@ def propagate(rotor, w, spin, qs, e, gain, sigma, covs, *, identical, method, bi
     bias = flag("bias", bias)
     cov = np.empty((n, 16, 16))
     b = np.empty((n, 16)) if bias else None
-    size = min(n, PROPAGATE_CHUNK)
+    size = max(1, min(n, PROPAGATE_CHUNK))
     qb = np.empty((2 * m * R, R, size, 4), dtype=complex)
     pb = np.empty_like(qb) if ped else None
 
     def at(a, sl):
         """A per-point argument of the core (n,) for the points ``sl``; broadcast ones as they are."""
-        return a if a is None or a.shape[0] != n or n == 1 else a[sl]
+        return a if a is None or np.ndim(a) == 0 or a.shape[0] != n or n == 1 else a[sl]
 
     for s0 in range(0, n, size):
         sl = slice(s0, min(n, s0 + size))
