@@ -655,7 +655,7 @@ _SHARED_WITHOUT_COV = ("shared_cov is given but not every run carries its own me
 def _shared(rotor, runs, shared_cov, size: int = 8):
     """The shared covariance at the bearings (checked), or None. With pedestal motion (``size``
     16) it is the joint covariance of [Re q, Im q, Re p, Im p] common to the runs."""
-    from .simulate import _cov_transform, _joint_moved, check_cov, probes_to_bearings_matrix
+    from .simulate import _cov_transform, _joint_moved, _plane_matrix, check_cov
 
     if shared_cov is None:
         return None
@@ -664,7 +664,7 @@ def _shared(rotor, runs, shared_cov, size: int = 8):
         raise RotoridError("shared_cov needs all runs measured at the same place (probes or bearings)")
     if runs[0].at != "probes":
         return c
-    return _joint_moved(rotor, c, "bearings") if size == 16 else _cov_transform(probes_to_bearings_matrix(rotor), c)
+    return _joint_moved(rotor, c, "bearings") if size == 16 else _cov_transform(_plane_matrix(rotor, "bearings"), c)
 
 
 def _run_covs(runs, labels=None):
@@ -882,10 +882,10 @@ def _for_the_core(rotor, runs, may_use_planes=True):
     planes as they are, with the eq. 19 transform for the core to apply as it loads each point
     (no moved copy of every run), when none carries a covariance (moved with its run in Python);
     else the runs moved to the bearings and None."""
-    from .simulate import _q_as_checked, probes_to_bearings_matrix
+    from .simulate import _plane_matrix, _q_as_checked
 
     if may_use_planes and all(r.at == "probes" and r.cov is None and _q_as_checked(r) for r in runs):
-        return runs, probes_to_bearings_matrix(rotor)
+        return runs, _plane_matrix(rotor, "bearings")
     return [r.at_bearings(rotor) for r in runs], None
 
 

@@ -209,9 +209,7 @@ def _check_pedestal(obj, n, *, finite=True):
 def _with_pedestal_at(resp, rotor, where):
     """(q, cov, pedestal_cross) of a pedestal-carrying response moved to ``where``; the pedestal
     motion itself is measured at the bearings and does not move."""
-    to_b = where == "bearings"
-    T = probes_to_bearings_matrix(rotor) if to_b else bearings_to_probes_matrix(rotor)
-    A, B = _pedestal_transform(T)
+    A, B = _pedestal_transform(_plane_matrix(rotor, where))
     p = resp.pedestal
     q = _apply_planes(A, resp.q) + _apply_planes(B, p)
     if resp.cov is None or resp.pedestal_cov is None:
@@ -223,8 +221,7 @@ def _with_pedestal_at(resp, rotor, where):
 def _joint_moved(rotor, joint, where):
     """A joint covariance (n, 16, 16) of [Re q, Im q, Re p, Im p], q relative to the pedestals,
     moved to ``where`` (from the other place; p stays at the bearings)."""
-    T = probes_to_bearings_matrix(rotor) if where == "bearings" else bearings_to_probes_matrix(rotor)
-    A, B = _pedestal_transform(T)
+    A, B = _pedestal_transform(_plane_matrix(rotor, where))
     M = np.zeros((16, 16))
     M[:8, :8] = _plane_matrix8(A)
     M[:8, 8:] = _plane_matrix8(B)
@@ -821,7 +818,7 @@ the bearing forces C_b, K_b over [x1, x2, y1, y2])
     # q at the bearings or the probes (relative to the pedestals), and with pedestals p and the
     # pedestals' acceleration from the equations of motion (rows 4..7 of x'' = A x + B u: exact,
     # no differencing); no array of states is read back
-    plane4 = _plane_matrix4(bearings_to_probes_matrix(rotor) if at == "probes" else np.eye(2))
+    plane4 = _plane_matrix4(_plane_matrix(rotor, "probes") if at == "probes" else np.eye(2))
     Z4 = np.zeros((4, 4))
     if pedestals is None:
         outputs = [(np.hstack([plane4, Z4]), np.zeros((4, 1)))]
