@@ -220,14 +220,13 @@ def _block_statistics(per_rev, rpm, tmid, starts, lengths, i1):
         else:
             idx = starts[sel, None] + np.arange(n)      # (blocks, n) revolution indices
             v, r, t = per_rev[idx], rpm[idx], tmid[idx]
-        if count == nb:
-            sel = slice(None)                           # every block (a coast-down): rows as views
-        mean[sel] = v.mean(axis=1)                      # (blocks, n_orders, C)
+        bm = v.mean(axis=1)                             # (blocks, n_orders, C)
+        mean[sel] = bm
         if i1 is not None:
             cov[sel], dof[sel] = _batch_mean_covariance(v[:, :, i1, :])
         sp[sel] = r.mean(axis=1)
         tm[sel] = t.mean(axis=1)
-        dev = v[:, :, 0, :4] - mean[sel][:, None, 0, :4]
+        dev = v[:, :, 0, :4] - bm[:, None, 0, :4]
         scat[sel] = np.sqrt(np.mean(dev.real ** 2 + dev.imag ** 2, axis=1))
     return mean, cov, dof, sp, scat, tm
 
