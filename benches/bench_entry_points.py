@@ -67,13 +67,17 @@ def entries(n, n_time):
     ident = rotorid.identify_synchronous(rig.rotor, [rotorid.imbalance_response(rig.rotor, rig.bearings,
                                                                                 rig.imbalances[s], speed_rpm=rpm)
                                                      for s in "ABC"])
-    # the same runs with measurement covariances (the imbalance chain's), at a tenth of the speeds:
-    # their uncertainty propagation is mostly NumPy
+    # the same runs with measurement covariances (the imbalance chain's), at a tenth of the speeds
+    # (the propagation identifies 129 perturbed copies of every point)
     m = n // 10
     runs_cov = [rotorid.SyncResponse(rpm[:m], r.q[:m], r.imbalance, cov=np.broadcast_to(np.eye(8) * 1e-14, (m, 8, 8)).copy(),
                                      dof=np.full(m, 30.0))
                 for r in (rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=rpm)
                           for s in "ABCD")]
+    tests_cov = [rotorid.ImpactResponse(2000.0, f[:m], t.q[:m], None, 0.0, d,
+                                        cov=np.broadcast_to(np.eye(8) * 1e-16, (m, 8, 8)).copy(), dof=np.full(m, 10.0))
+                 for d, t in ((d, rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=2000.0, freq_hz=f[:m],
+                                                     direction=d)) for d in "xy")]
     from rotorid import signals, uncertainty
     from rotorid.recording import Recording
 
@@ -111,6 +115,7 @@ def entries(n, n_time):
                                                                                          cross_coupled=True),
         f"identify_synchronous, 4 runs with cov ({m:,} speeds)": lambda: rotorid.identify_synchronous(rig.rotor,
                                                                                                       runs_cov),
+        f"identify_impact, 2 tests with cov ({m:,} freqs)": lambda: rotorid.identify_impact(rig.rotor, tests_cov),
         "uncertainty.relative_std": lambda: uncertainty.relative_std(ident.k, ident.c, ident.k_std, ident.c_std),
         "SyncResponse (constructor, user data)": lambda: SyncResponse(rpm, run.q, imb, "probes"),
         f"signals.track ({ns // 1_000_000} M samples x 4 channels)": lambda: signals.track(rec, kp=kp,

@@ -1,15 +1,52 @@
-"""The uncertainty propagation as it was written first (rotorid 2026-11-27, before the points were
-taken in chunks): every point's 2 m R perturbed copies in one array, one core call, the dense
-block covariance S and J S Jᵀ. Used only by the tests, as the oracle of ``uncertainty.propagate``.
+"""The uncertainty propagation as it was written first in NumPy: every point's 2 m R perturbed
+copies in one array, one core identification, the dense block covariance S and J S Jᵀ. Used only by
+the tests, as the oracle of ``uncertainty.propagate`` (since 2026-11-27 one call of the core's
+``identify::propagate``).
+
+The sigma points of the bias are the columns of each run's semi-definite Cholesky factor
+(:func:`psd_cholesky`, the core's definition). Until the core took the propagation over they were
+the scaled eigenvectors of ``np.linalg.eigh``; any L with L Lᵀ = Σ gives the same bias to second
+order, but eigenvectors are not unique (a repeated eigenvalue, e.g. Σ = s² I, leaves LAPACK a free
+basis), while the Cholesky factor is, and it costs a fraction of an 8 x 8 eigen-decomposition per
+run and point.
 """
 
 import numpy as np
 
-from rotorid.uncertainty import _H_REL, _eval
+from rotorid.uncertainty import _eval
+
+#: relative step of the central differences (the core's ``identify::propagate::H_REL``)
+_H_REL = 1e-6
+#: a Cholesky pivot at most this times its diagonal entry is zero (``PSD_PIVOT_TOL``)
+_PIVOT_TOL = 1e-12
 
 
-def propagate_dense(rotor, w, spin, qs, e, gain, sigma, covs, *, identical, method, bias=False, shared=None, q_ped=None):
-    """uncertainty.propagate as first written (its docstring says what it computes)."""
+def psd_cholesky(a):
+    """Lower-triangular L (n, m, m) with L Lᵀ = a for symmetric positive semi-definite a (n, m, m),
+    column by column from the lower triangle, a pivot <= _PIVOT_TOL a_jj leaving its column zero
+    (the operations in the core's order, so the same bits)."""
+    m = a.shape[1]
+    L = np.zeros_like(a)
+    for j in range(m):
+        d = a[:, j, j].copy()
+        for k in range(j):
+            d = d - L[:, j, k] * L[:, j, k]
+        ok = d > _PIVOT_TOL * a[:, j, j]
+        ljj = np.sqrt(np.where(ok, d, 1.0))
+        L[:, j, j] = np.where(ok, ljj, 0.0)
+        for i in range(j + 1, m):
+            v = a[:, i, j].copy()
+            for k in range(j):
+                v = v - L[:, i, k] * L[:, j, k]
+            L[:, i, j] = np.where(ok, v / ljj, 0.0)
+    return L
+
+
+def propagate_dense(rotor, w, spin, qs, e, gain, sigma, covs, *, identical, method, bias=False, shared=None, q_ped=None,
+                    sigma_points="cholesky"):
+    """uncertainty.propagate as first written (its docstring says what it computes); with
+    ``sigma_points="eigh"`` the bias from the scaled eigenvectors of each run's covariance, as
+    before 2026-11-27."""
     # (the inputs come validated from the public identification)
     R, n, _ = qs.shape
     ped = q_ped is not None
@@ -49,15 +86,18 @@ def propagate_dense(rotor, w, spin, qs, e, gain, sigma, covs, *, identical, meth
     cov[unknown] = np.nan
     if not bias:
         return cov
-    # sigma points: +-l_k with l_k the scaled eigenvectors of each run's covariance
+    # sigma points: +-l_k with l_k the columns of each run's Cholesky factor
     p0 = _eval(rotor, w, spin, qs[None], e, gain, sigma, identical, method, None if pb is None else q_ped[None])[0]
     qb[:] = qs[None]
     if ped:
         pb[:] = q_ped[None]
     col = 0
     for r in range(R):
-        ev, V = np.linalg.eigh(np.nan_to_num(covs[r], nan=0.0))
-        L = V * np.sqrt(np.clip(ev, 0.0, None))[:, None, :]              # (n, m, m): columns l_k
+        if sigma_points == "eigh":
+            ev, V = np.linalg.eigh(np.nan_to_num(covs[r], nan=0.0))
+            L = V * np.sqrt(np.clip(ev, 0.0, None))[:, None, :]
+        else:
+            L = psd_cholesky(np.nan_to_num(covs[r], nan=0.0))            # (n, m, m): columns l_k
         for kk in range(m):
             lk = L[:, :4, kk] + 1j * L[:, 4:8, kk]                       # (n, 4) complex
             qb[2 * col, r] += lk

@@ -670,7 +670,7 @@ def _shared(rotor, runs, shared_cov, size: int = 8):
 def _run_covs(runs, labels=None):
     """The runs' covariances, checked again (``run.cov = ...`` after construction skips the check);
     None unless every run has one (a warning says so when only some do)."""
-    from .simulate import check_cov
+    from .simulate import check_covs
 
     n = runs[0].q.shape[0]
     have = [r.cov is not None for r in runs]
@@ -682,7 +682,7 @@ def _run_covs(runs, labels=None):
                           "errors fall back to the residual of redundant runs (or are unknown)")
         return None
     labels = labels or [f"run {i}" for i in range(len(runs))]
-    return np.stack([check_cov(f"cov of {lab}", r.cov, n) for r, lab in zip(runs, labels)])
+    return check_covs([f"cov of {lab}" for lab in labels], [r.cov for r in runs], n)
 
 
 def _run_dofs(runs):
@@ -706,10 +706,10 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
     ``gain`` None: spin^2 (an imbalance), formed by the core. ``planes``: the (2, 2) eq. 19
     transform when ``qs`` are at the probe planes (no covariances then), else None.
     ``w_scale``: ``w`` is given in the axis' unit and is w_scale times that in rad/s (formed by
-    the core: no (n,) temporary unless the uncertainty propagation needs it). ``spin`` None: the
+    the core: no (n,) temporary unless the calibration's derivatives need it). ``spin`` None: the
     spin speed is w (synchronous runs)."""
     assert planes is None or (covs is None and calibration is None and q_ped is None)
-    from .uncertainty import propagate, std_from_cov
+    from .uncertainty import _propagate, std_from_cov
 
     cond_max = _check_threshold("cond_max", cond_max, 1.0)
     min_rel_amplitude = _check_threshold("min_rel_amplitude", min_rel_amplitude, -1e-300, 1.0)
@@ -724,9 +724,11 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
         gain, identical=identical, method=method, with_std=redundant, sigma=sigma, q_ped=q_ped, planes=planes,
         w_scale=w_scale, flag_limits=None if covs is not None or calibration is not None else
         (cond_max, min_rel_amplitude, max_rel_std))
-    if w_scale is not None and (covs is not None or calibration is not None):
-        w = w_scale * w  # rad/s for the propagation below
-    if spin is None and (covs is not None or calibration is not None):
+    # the propagation takes the axis, spin and gain as the core's identification does
+    w_core, spin_core, gain_core = w, spin, gain
+    if w_scale is not None and calibration is not None:
+        w = w_scale * w  # rad/s for the calibration's derivatives below
+    if spin is None and calibration is not None:
         spin = w  # synchronous runs: the spin speed is the vibration frequency
     if nbad:
         qs = np.stack(qs)
@@ -763,13 +765,14 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
         raise RotoridError("estimator='bias-corrected' needs the measurement covariance of every run or test (cov=)")
     if shared_cov is not None and covs is None:
         raise RotoridError(_SHARED_WITHOUT_COV)
-    if gain is None and (covs is not None or calibration is not None):
-        gain = spin ** 2  # the uncertainty propagation needs the array
+    if gain is None and calibration is not None:
+        gain = spin ** 2  # the calibration's derivatives need the array
     if covs is not None:
         from .model import _REPORT_TO_BIJ
 
-        cov, b = propagate(rotor, w, spin, np.stack(qs), e, gain, sigma, covs, identical=identical, method=method,
-                           bias=True, shared=shared_cov, q_ped=None if q_ped is None else np.stack(q_ped))
+        cov, b, unknown, ks, cs = _propagate(rotor, w_core, spin_core, list(qs), e, gain_core, sigma, covs, identical=identical,
+                                     method=method, bias=True, shared=shared_cov,
+                                     q_ped=None if q_ped is None else list(q_ped), w_scale=w_scale)
         rel_std = None  # the standard errors change: recomputed in _finish
         n = axis.size
         bk = np.zeros((n, 8))
@@ -780,15 +783,11 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
         if estimator == "bias-corrected":
             k = k - bias_k[None]
             c = c - bias_c[None]
-        ks, cs = std_from_cov(cov)
-        ks[np.isnan(cov).any(axis=(1, 2))] = np.nan
-        cs[np.isnan(cov).any(axis=(1, 2))] = np.nan
-        unknown = np.isnan(cov).any(axis=(1, 2))
         if unknown.any():
             extra_flags = _flag_list(extra_flags) + [(unknown, "uncertainty unknown")]
         source = "measurement covariance"
         dof = np.min(dofs, axis=0) if dofs is not None else np.full(axis.size, np.inf)
-        dof = np.where(np.isnan(cov).any(axis=(1, 2)), np.nan, dof)
+        dof = np.where(unknown, np.nan, dof)
     if identical and redundant:
         # (before the calibration is added: it is common to both bearings' equations)
         # the identical-bearing hypothesis is testable: the two bearings' equations must agree within

@@ -96,32 +96,45 @@ def _cov_transform(T, cov):
 
 def check_cov(name, cov, n, size: int = 8):
     """A measurement covariance (n, size, size), by default (n, 8, 8): real, finite (NaN where
-    unknown), symmetric, positive semi-definite."""
+    unknown), symmetric, positive semi-definite (see :func:`check_covs`). Returns a checked copy,
+    every entry of an unknown point NaN; None for None."""
     if cov is None:
         return None
+    return check_covs([name], [cov], n, size)[0]
+
+
+def check_covs(names, covs, n, size: int = 8):
+    """The covariances ``covs`` (each (n, size, size), named ``names`` in messages), checked in one
+    core call (``rotorid_core::covariance``) and stacked into a new (len(covs), n, size, size) array:
+    real and finite where known (a point with a NaN is unknown: all of it NaN in the result),
+    symmetric to 1e-9 of the largest entry, and positive semi-definite to 1e-9 of each matrix's
+    scale (S + 1e-9 ‖S‖_F I has a Cholesky factor, S the symmetric part)."""
     what = "one 8 x 8 covariance of [Re q, Im q] per point" if size == 8 else \
         f"one {size} x {size} covariance of [Re q, Im q, Re p, Im p] per point"
-    if isinstance(cov, (str, bytes)) or np.iscomplexobj(cov):
-        raise RotoridError(f"{name} must be a real array (n, {size}, {size}) of covariances, got {type(cov).__name__}")
-    try:
-        raw = np.array(cov, dtype=float)
-    except (TypeError, ValueError):
-        raise RotoridError(f"{name} must be a real array (n, {size}, {size}) of covariances") from None
-    if raw.shape != (n, size, size):
-        raise RotoridError(f"{name} has shape {raw.shape}, expected ({n}, {size}, {size}): {what}")
-    if np.isinf(raw).any():
-        raise RotoridError(f"{name} contains inf (use NaN for a point whose covariance is unknown)")
-    unknown = np.isnan(raw).any(axis=(1, 2))
-    c = np.where(unknown[:, None, None], 0.0, raw)
-    if np.any(np.abs(c - np.swapaxes(c, 1, 2)) > 1e-9 * (np.abs(c).max() + 1e-300)):
-        raise RotoridError(f"{name} must be symmetric (a covariance matrix per point)")
-    ev = np.linalg.eigvalsh(0.5 * (c + np.swapaxes(c, 1, 2)))
-    tol = 1e-9 * np.maximum(np.abs(ev).max(axis=1), 1e-300)
-    bad = np.nonzero(ev.min(axis=1) < -tol)[0]
-    if bad.size:
-        raise RotoridError(f"{name} is not positive semi-definite at point {int(bad[0])} (smallest eigenvalue "
-                           f"{ev[bad[0]].min():.3g}): not a covariance")
-    return np.where(unknown[:, None, None], np.nan, c)
+    arrays = []
+    for name, cov in zip(names, covs):
+        if isinstance(cov, (str, bytes)) or np.iscomplexobj(cov):
+            raise RotoridError(f"{name} must be a real array (n, {size}, {size}) of covariances, got {type(cov).__name__}")
+        try:
+            raw = np.asarray(cov, dtype=float)
+        except (TypeError, ValueError):
+            raise RotoridError(f"{name} must be a real array (n, {size}, {size}) of covariances") from None
+        if raw.shape != (n, size, size):
+            raise RotoridError(f"{name} has shape {raw.shape}, expected ({n}, {size}, {size}): {what}")
+        arrays.append(np.ascontiguousarray(raw))
+    out, fault = _core.check_covariances(arrays, size)
+    if fault is not None:
+        kind, r, point = fault
+        name = names[r]
+        if kind == "inf":
+            raise RotoridError(f"{name} contains inf (use NaN for a point whose covariance is unknown)")
+        if kind == "asymmetric":
+            raise RotoridError(f"{name} must be symmetric (a covariance matrix per point)")
+        c = arrays[r][point]
+        ev = np.linalg.eigvalsh(0.5 * (c + c.T))
+        raise RotoridError(f"{name} is not positive semi-definite at point {point} (smallest eigenvalue "
+                           f"{ev.min():.3g}): not a covariance")
+    return out
 
 
 def polar_std(x, cov, j):

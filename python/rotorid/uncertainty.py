@@ -9,10 +9,11 @@ covariance is
 
 with Σ_r the 8 x 8 covariance of run r's [Re q, Im q] at that point (from the data: order tracking
 batch means, single-impact scatter, a DAQ's stated accuracy). J is taken by central differences
-of the estimator itself, all 16R perturbed copies of every point in one batched core call, so it
-is exact for whichever solver ("forces" or "report", two runs or many) produced p. The
-linearization holds while the relative response errors times the condition number stay small;
-beyond that the points are flagged (relative standard error above ``max_rel_std``).
+of the estimator itself, all 16R perturbed copies of every point identified in one core call
+(``rotorid_core::identify::propagate``, whose documentation has the formulas), so it is exact for
+whichever solver ("forces" or "report", two runs or many) produced p. The linearization holds
+while the relative response errors times the condition number stay small; beyond that the points
+are flagged (relative standard error above ``max_rel_std``).
 
 Intervals use Student's t with the degrees of freedom of the covariance estimates (the smallest
 over the runs at that point; a covariance known exactly has infinite dof).
@@ -27,10 +28,6 @@ import numpy as np
 from ._corecall import core as _core
 from .errors import RotoridError
 from .model import _REPORT_TO_BIJ
-
-#: relative perturbation of the responses for the finite-difference Jacobian
-_H_REL = 1e-6
-
 
 class Interval(NamedTuple):
     """Lower and upper bounds of k and c (each (n, 2, 2, 2)) at a confidence level."""
@@ -82,12 +79,6 @@ def _eval(rotor, w, spin, qb, e, gain, sigma, identical, method, pb=None):
     return _report_order(k, c)
 
 
-#: points per pass of :func:`propagate`: its 2 m R perturbed copies of the runs (17 MB at 4 runs
-#: without pedestals) are reused from pass to pass instead of one array for every point (164 MB at
-#: 10,000 points, most of its time in page faults)
-PROPAGATE_CHUNK = 2048
-
-
 def propagate(rotor, w, spin, qs, e, gain, sigma, covs, *, identical, method, bias=False, shared=None, q_ped=None):
     """Covariance (n, 16, 16) of the report vector from run covariances ``covs`` (R, n, 8, 8) of
     the responses ``qs`` (R, n, 4) at the bearings. NaN at points where a run's covariance is
@@ -100,13 +91,14 @@ def propagate(rotor, w, spin, qs, e, gain, sigma, covs, *, identical, method, bi
     With ``bias=True`` also the estimator's second-order bias (n, 16): the noise turns a nonlinear
     estimator's mean away from the truth (least squares with noisy regressors shrinks toward zero,
     the classic errors-in-variables attenuation), by b = ½ Σ_k [p(q + l_k) + p(q - l_k) - 2 p(q)]
-    over the sigma points l_k (the columns of Σ^½, one run at a time). Returns (cov, bias).
+    over the sigma points l_k (the columns of a Cholesky factor L of each run's covariance, L Lᵀ =
+    Σ_r, one run at a time; semi-definite covariances allowed). Returns (cov, bias).
 
     ``shared`` (n, 8, 8), or (n, 16, 16) with pedestal motion: a covariance common to every pair
     of runs (all runs less the same baseline run): the off-diagonal blocks of Σ.
 
-    The points are independent: they are taken ``PROPAGATE_CHUNK`` at a time, with the same
-    buffers for every pass."""
+    One core call (``rotorid_core::identify::propagate``): every point's perturbed copies are
+    identified a few points at a time on the core's threads."""
     from ._validate import complex_array, flag, real_array
 
     qs = complex_array("qs", qs, shape=(None, None, 4))
@@ -119,94 +111,27 @@ def propagate(rotor, w, spin, qs, e, gain, sigma, covs, *, identical, method, bi
     if shared is not None:
         shared = real_array("shared", shared, shape=(n, m, m), finite=False)
     bias = flag("bias", bias)
-    cov = np.empty((n, 16, 16))
-    b = np.empty((n, 16)) if bias else None
-    size = max(1, min(n, PROPAGATE_CHUNK))
-    qb = np.empty((2 * m * R, R, size, 4), dtype=complex)
-    pb = np.empty_like(qb) if ped else None
-
-    def at(a, sl):
-        """A per-point argument of the core (n,) for the points ``sl``; broadcast ones as they are."""
-        return a if a is None or np.ndim(a) == 0 or a.shape[0] != n or n == 1 else a[sl]
-
-    for s0 in range(0, n, size):
-        sl = slice(s0, min(n, s0 + size))
-        c = sl.stop - sl.start
-        out = _propagate_points(rotor, at(w, sl), at(spin, sl), qs[:, sl], e, at(gain, sl), at(sigma, sl), covs[:, sl],
-                                identical, method, bias, None if shared is None else shared[sl],
-                                None if q_ped is None else q_ped[:, sl], qb[:, :, :c], None if pb is None else pb[:, :, :c])
-        if bias:
-            cov[sl], b[sl] = out
-        else:
-            cov[sl] = out
+    cov, b, *_ = _propagate(rotor, w, spin, list(qs), e, gain, sigma, covs, identical=identical, method=method,
+                           bias=bias, shared=shared, q_ped=None if q_ped is None else list(q_ped))
     return (cov, b) if bias else cov
 
 
-def _propagate_points(rotor, w, spin, qs, e, gain, sigma, covs, identical, method, bias, shared, q_ped, qb, pb):
-    """:func:`propagate` for a few points, in the buffers ``qb`` (and ``pb`` with pedestal motion),
-    (2 m R, R, points, 4)."""
-    R, n, _ = qs.shape
-    ped = q_ped is not None
-    m = 16 if ped else 8
-    scale = np.sqrt(np.mean(np.abs(qs) ** 2, axis=(0, 2)))
-    h = _H_REL * np.where(scale > 0, scale, 1.0)
-    qb[:] = qs[None]
-    if ped:
-        pb[:] = q_ped[None]
+def _propagate(rotor, w, spin, qs, e, gain, sigma, covs, *, identical, method, bias, shared=None, q_ped=None,
+               w_scale=None):
+    """:func:`propagate` of arguments rotorid made itself: ``qs`` (and ``q_ped``) lists of the runs'
+    (n, 4) arrays, used where they are; ``w`` in the axis' unit times ``w_scale``, ``spin`` None
+    for synchronous runs (spin = w), ``gain`` None for an imbalance (spin²), as the core's
+    identification takes them. Returns (cov, bias or None, unknown (n,) bool, k_std, c_std), the
+    standard errors (n, 2, 2, 2) NaN where unknown."""
+    def arr(a):
+        return None if a is None else np.ascontiguousarray(a, dtype=float).reshape(np.shape(a) or (1,))
 
-    def target(comp):
-        return qb if comp < 8 else pb
-
-    col = 0
-    for r in range(R):
-        for comp in range(m):
-            d = h * (1j if comp % 8 >= 4 else 1.0)
-            target(comp)[2 * col, r, :, comp % 4] += d
-            target(comp)[2 * col + 1, r, :, comp % 4] -= d
-            col += 1
-    rv = _eval(rotor, w, spin, qb, e, gain, sigma, identical, method, pb)   # (2 m R, n, 16)
-    J = (rv[0::2] - rv[1::2]) / (2.0 * h[None, :, None])                # (mR, n, 16)
-    J = np.transpose(J, (1, 2, 0))                                       # (n, 16, mR)
-    known = [np.nan_to_num(covs[r], nan=0.0) for r in range(R)]
-    if shared is None:
-        # the runs are independent: Σ is block diagonal, J Σ Jᵀ = Σ_r J_r Σ_r J_rᵀ
-        cov = np.zeros((n, 16, 16))
-        for r in range(R):
-            Jr = J[:, :, m * r:m * r + m]
-            cov += Jr @ known[r] @ np.transpose(Jr, (0, 2, 1))
-    else:
-        S = np.zeros((n, m * R, m * R))
-        common = np.nan_to_num(shared, nan=0.0)
-        for r in range(R):
-            for t in range(R):
-                S[:, m * r:m * r + m, m * t:m * t + m] = known[r] if t == r else common
-        cov = J @ S @ np.transpose(J, (0, 2, 1))
-    unknown = np.any(np.isnan(covs), axis=(0, 2, 3)) | ~np.all(np.isfinite(J), axis=(1, 2))
-    cov[unknown] = np.nan
-    if not bias:
-        return cov
-    # sigma points: +-l_k with l_k the scaled eigenvectors of each run's covariance
-    p0 = _eval(rotor, w, spin, qs[None], e, gain, sigma, identical, method, None if pb is None else q_ped[None])[0]
-    qb[:] = qs[None]
-    if ped:
-        pb[:] = q_ped[None]
-    col = 0
-    for r in range(R):
-        ev, V = np.linalg.eigh(known[r])
-        L = V * np.sqrt(np.clip(ev, 0.0, None))[:, None, :]              # (n, m, m): columns l_k
-        for kk in range(m):
-            lk = L[:, :4, kk] + 1j * L[:, 4:8, kk]                       # (n, 4) complex
-            qb[2 * col, r] += lk
-            qb[2 * col + 1, r] -= lk
-            if ped:
-                lp = L[:, 8:12, kk] + 1j * L[:, 12:16, kk]
-                pb[2 * col, r] += lp
-                pb[2 * col + 1, r] -= lp
-            col += 1
-    rs = _eval(rotor, w, spin, qb, e, gain, sigma, identical, method, pb)
-    b = 0.5 * np.sum(rs[0::2] + rs[1::2] - 2.0 * p0[None], axis=0)
-    b[unknown] = np.nan
-    return cov, b
+    cov, b, unknown, k_std, c_std = _core.propagate(rotor.core_params(), arr(w), arr(spin), qs, np.ascontiguousarray(e[None],
+                                      dtype=complex), arr(gain), np.ascontiguousarray(covs, dtype=float),
+                                      identical=identical, method=method, sigma=arr(sigma), q_ped=q_ped,
+                                      w_scale=w_scale, shared=None if shared is None else np.ascontiguousarray(
+                                          shared, dtype=float), bias=bias)
+    return cov, b, unknown.view(bool), k_std, c_std
 
 
 def t_quantile(level: float, dof):

@@ -488,6 +488,135 @@ fn py_identify<'py>(
     Ok((to_py(py, k, &sh)?, to_py(py, c, &sh)?, to_py(py, cond, &[batch, n, 2])?, to_py(py, resid, &[batch, n])?, to_py(py, amp, &[batch, n])?, kst, cst, relp, code, rel_amp, nbad))
 }
 
+/// Check measurement covariances and stack them (see rotorid_core::covariance): `covs` a list of
+/// R float64 arrays (n, m, m). Returns (the stacked copy (R, n, m, m), every entry of an unknown
+/// matrix NaN; None or the first fault as (kind, array, point), kind "inf", "asymmetric" or
+/// "indefinite").
+#[pyfunction]
+#[allow(clippy::type_complexity)]
+fn check_covariances<'py>(
+    py: Python<'py>,
+    covs: &Bound<'py, PyList>,
+    m: usize,
+) -> PyResult<(Bound<'py, PyArrayDyn<f64>>, Option<(&'static str, usize, usize)>)> {
+    use rotorid_core::covariance::{self, CovFault};
+    let arrays: Vec<PyReadonlyArrayDyn<'py, f64>> = covs
+        .iter()
+        .enumerate()
+        .map(|(r, a)| a.extract().map_err(|_| PyTypeError::new_err(format!("covs[{r}] must be a float64 array"))))
+        .collect::<PyResult<_>>()?;
+    let n = arrays.first().map(|a| a.shape().first().copied().unwrap_or(0)).unwrap_or(0);
+    for (r, a) in arrays.iter().enumerate() {
+        check_shape(&format!("covs[{r}]"), a.shape(), &[n, m, m])?;
+    }
+    let each = n * m * m;
+    check_alloc("check_covariances", each.checked_mul(arrays.len()), 8)?;
+    let slices = arrays.iter().enumerate().map(|(r, a)| slice(a, &format!("covs[{r}]"))).collect::<PyResult<Vec<_>>>()?;
+    let (out, fault) = py
+        .detach(|| {
+            guarded(|| {
+                let mut out = out_buf(each * slices.len());
+                for (r, (src, dst)) in slices.iter().zip(out.chunks_mut(each.max(1))).enumerate() {
+                    if let Some(f) = covariance::check_covariances(src, m, dst)? {
+                        return Ok((out, Some((r, f))));
+                    }
+                }
+                Ok::<_, CoreError>((out, None))
+            })
+        })?
+        .map_err(core_err)?;
+    let fault = fault.map(|(r, f)| match f {
+        CovFault::Infinite(p) => ("inf", r, p),
+        CovFault::Asymmetric(p) => ("asymmetric", r, p),
+        CovFault::Indefinite(p) => ("indefinite", r, p),
+    });
+    Ok((to_py(py, out, &[arrays.len(), n, m, m])?, fault))
+}
+
+/// Measurement covariance propagated through the identification (see
+/// identify::propagate): arguments as `identify` for one problem (`q` and `q_ped` lists of R
+/// arrays (n, 4) at the bearings), with `covs` (R, n, m, m) the runs' covariances of [Re q, Im q]
+/// (m = 8) or, with `q_ped`, of [Re q, Im q, Re q_ped, Im q_ped] (m = 16), NaN where unknown;
+/// `shared` (n, m, m) a covariance common to every pair of runs, or None. Returns (cov (n, 16,
+/// 16), bias (n, 16) or None, unknown (n,) uint8, k_std (n, 2, 2, 2), c_std (n, 2, 2, 2)), cov
+/// and bias in eq. 9 order, the standard errors in the identification's [bearing, i, j] order.
+#[pyfunction]
+#[pyo3(signature = (rotor, w, spin, q, e, gain, covs, identical=false, method="forces", sigma=None, q_ped=None, w_scale=None, shared=None, bias=true))]
+#[allow(clippy::too_many_arguments, clippy::type_complexity)]
+fn propagate<'py>(
+    py: Python<'py>,
+    rotor: PyReadonlyArrayDyn<'py, f64>,
+    w: PyReadonlyArrayDyn<'py, f64>,
+    spin: Option<PyReadonlyArrayDyn<'py, f64>>,
+    q: &Bound<'py, PyAny>,
+    e: PyReadonlyArrayDyn<'py, C64>,
+    gain: Option<PyReadonlyArrayDyn<'py, f64>>,
+    covs: PyReadonlyArrayDyn<'py, f64>,
+    identical: bool,
+    method: &str,
+    sigma: Option<PyReadonlyArrayDyn<'py, f64>>,
+    q_ped: Option<&Bound<'py, PyAny>>,
+    w_scale: Option<f64>,
+    shared: Option<PyReadonlyArrayDyn<'py, f64>>,
+    bias: bool,
+) -> PyResult<(Bound<'py, PyArrayDyn<f64>>, Option<Bound<'py, PyArrayDyn<f64>>>, Bound<'py, PyArrayDyn<u8>>, Bound<'py, PyArrayDyn<f64>>, Bound<'py, PyArrayDyn<f64>>)> {
+    let rot = rotor_of(&rotor)?;
+    let resp = responses(q)?;
+    if resp.batch != 1 {
+        return Err(PyValueError::new_err(format!("q: the propagation takes one problem, got a batch of {}", resp.batch)));
+    }
+    let (runs, n) = (resp.runs, resp.n);
+    let axes = AxisValues::new(&w, &sigma, n, w_scale)?;
+    let report = match method {
+        "forces" => false,
+        "report" => true,
+        other => return Err(PyValueError::new_err(format!("method must be 'forces' or 'report', got {other:?}"))),
+    };
+    let blocks = resp.blocks()?;
+    let ped = pedestal_responses(q_ped, &resp)?;
+    let ped_blocks = match &ped {
+        Some(pr) => pr.blocks()?,
+        None => Vec::new(),
+    };
+    let m = if ped.is_some() { 16 } else { 8 };
+    check_shape("covs", covs.shape(), &[runs, n, m, m])?;
+    if let Some(sh) = &shared {
+        check_shape("shared", sh.shape(), &[n, m, m])?;
+    }
+    let ident = ident_problem(rot, &resp, &axes, spin.as_ref(), &e, &gain, &blocks, &ped_blocks, None, identical)?;
+    let prob = identify::propagate::CovProblem {
+        ident,
+        report,
+        covs: slice(&covs, "covs")?,
+        shared: match &shared {
+            Some(sh) => slice(sh, "shared")?,
+            None => &[],
+        },
+    };
+    check_alloc("propagate", n.checked_mul(289), 8)?;
+    let (cov, b, unknown, ks, cs) = py
+        .detach(|| {
+            guarded(|| {
+                let mut cov = out_buf(n * 256);
+                let mut b = if bias { out_buf(n * 16) } else { Vec::new() };
+                let mut unknown = vec![0u8; n];
+                let (mut ks, mut cs) = (out_buf(n * 8), out_buf(n * 8));
+                let out = identify::propagate::CovOut {
+                    cov: &mut cov,
+                    bias: if bias { Some(&mut b[..]) } else { None },
+                    unknown: &mut unknown,
+                    k_std: &mut ks,
+                    c_std: &mut cs,
+                };
+                identify::propagate::propagate(&prob, out).map(|_| (cov, b, unknown, ks, cs))
+            })
+        })?
+        .map_err(core_err)?;
+    let bp = if bias { Some(to_py(py, b, &[n, 16])?) } else { None };
+    let sh = [n, 2, 2, 2];
+    Ok((to_py(py, cov, &[n, 16, 16])?, bp, to_py(py, unknown, &[n])?, to_py(py, ks, &sh)?, to_py(py, cs, &sh)?))
+}
+
 /// Largest standard error relative to the bearing's direct coefficients per point (see
 /// identify::relative_std). k, c, k_std, c_std: (n, 8) -> (n,).
 #[pyfunction]
@@ -1431,6 +1560,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(pedestal_fit, m)?)?;
     m.add_function(wrap_pyfunction!(series_impedance, m)?)?;
     m.add_function(wrap_pyfunction!(relative_std, m)?)?;
+    m.add_function(wrap_pyfunction!(propagate, m)?)?;
+    m.add_function(wrap_pyfunction!(check_covariances, m)?)?;
     m.add_function(wrap_pyfunction!(flag_codes, m)?)?;
     m.add_function(wrap_pyfunction!(wake_pool, m)?)?;
     m.add_function(wrap_pyfunction!(sample_times, m)?)?;

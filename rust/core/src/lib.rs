@@ -25,6 +25,7 @@
 //! ```
 
 pub mod bounds;
+pub mod covariance;
 pub mod eig8;
 pub mod error;
 pub mod forced;

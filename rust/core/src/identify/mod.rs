@@ -23,6 +23,7 @@ use rayon::prelude::*;
 
 #[cfg(target_arch = "x86_64")]
 mod avx2;
+pub mod propagate;
 
 const SINGULAR_COND: f64 = 1e14;
 
@@ -259,6 +260,7 @@ fn givens_lane<const N: usize>(rows: &[[Z<N>; 4]], l: usize, sol: &mut LaneSol<N
 }
 
 /// Inputs shared by both solvers.
+#[derive(Clone, Copy)]
 pub struct IdentProblem<'a> {
     pub rotor: Rotor,
     /// vibration frequency w at each point (= spin speed for synchronous identification), rad/s
@@ -835,99 +837,120 @@ pub fn identify_report(p: &IdentProblem, out: IdentOut) -> Result<usize, CoreErr
 }
 
 fn report_all(p: &IdentProblem, out: IdentOut) -> usize {
-    let n = p.w.len();
     let IdentOut { k, c, cond, resid, amp, .. } = out;
-    let (l1, l2) = (p.rotor.l1, p.rotor.l2);
     let kc = Consts::new(&p.rotor);
-    let nu = if p.identical { 8 } else { 16 };
     (k.par_chunks_mut(8), c.par_chunks_mut(8), cond.par_chunks_mut(2), resid.par_iter_mut(), amp.par_iter_mut())
         .into_par_iter()
         .with_min_len(64)
         .enumerate()
-        .map(|(idx, (k, c, cond, resid, amp))| {
-            let (b, i) = (idx / n, idx % n);
-            let rows = 8 * p.runs;
-            let mut bm = Mat::<f64>::zeros(rows, nu);
-            let mut fv = Mat::<f64>::zeros(rows, 1);
-            let mut bad = false;
-            let mut qq = 0.0;
-            for r in 0..p.runs {
-                let q = load_q(p, b, r, i);
-                for v in q.iter() {
-                    bad |= !(v.re.is_finite() && v.im.is_finite());
-                    qq += v.norm_sqr();
-                }
-                let si = if p.spin.len() == 1 { 0 } else { i };
-                let qa = load_abs(p, b, r, i);
-                bad |= !qa.iter().all(|v| v.re.is_finite() && v.im.is_finite());
-                let rv = rhs_point(&kc, excitation(p, b, r), gain_at(p, i), p.w[i], sigma_at(p, i), p.spin[si], &qa);
-                // Q of eq. 8 (4 x 16 complex), columns in eq. 9 order
-                let lq = [-l1 * q[0], l2 * q[1], -l1 * q[2], l2 * q[3]];
-                let mut qm = [[C64::new(0.0, 0.0); 16]; 4];
-                let jj = C64::new(0.0, 1.0);
-                for t in 0..4 {
-                    qm[0][t] = q[t];
-                    qm[0][8 + t] = jj * q[t];
-                    qm[1][4 + t] = q[t];
-                    qm[1][12 + t] = jj * q[t];
-                    qm[2][t] = lq[t];
-                    qm[2][8 + t] = jj * lq[t];
-                    qm[3][4 + t] = -lq[t];
-                    qm[3][12 + t] = -jj * lq[t];
-                }
-                for row in 0..4 {
-                    for col in 0..16 {
-                        // identical bearings: Kxx1 = Kxx2 etc., i.e. columns 2m and 2m+1 merge
-                        let cc = if p.identical { col / 2 } else { col };
-                        bm[(8 * r + row, cc)] += qm[row][col].re;
-                        bm[(8 * r + 4 + row, cc)] += qm[row][col].im;
-                    }
-                    fv[(8 * r + row, 0)] = rv[row].re;
-                    fv[(8 * r + 4 + row, 0)] = rv[row].im;
-                }
-            }
-            *amp = (qq / (4.0 * p.runs as f64)).sqrt();
-            if bad {
-                for v in k.iter_mut().chain(c.iter_mut()) {
-                    *v = f64::NAN;
-                }
-                cond[0] = f64::NAN;
-                cond[1] = f64::NAN;
-                *resid = f64::NAN;
-                return 1usize;
-            }
-            let cn = real_cond(&bm);
-            cond[0] = cn;
-            cond[1] = cn;
-            let w = p.w[i];
-            if !(cn < SINGULAR_COND) {
-                for v in k.iter_mut().chain(c.iter_mut()) {
-                    *v = f64::NAN;
-                }
-                *resid = f64::NAN;
-                return 0usize;
-            }
-            let sol = bm.qr().solve_lstsq(&fv);
-            let pv: Vec<f64> = if p.identical {
-                (0..16).map(|t| sol[(t / 2, 0)]).collect()
-            } else {
-                (0..16).map(|t| sol[(t, 0)]).collect()
-            };
-            for t in 0..8 {
-                c[REPORT_TO_BIJ[t]] = pv[8 + t] / w;
-                k[REPORT_TO_BIJ[t]] = pv[t] - sigma_at(p, i) * pv[8 + t] / w;
-            }
-            let fit = &bm * &sol;
-            let mut rr = 0.0;
-            let mut ff = 0.0;
-            for row in 0..rows {
-                rr += (fit[(row, 0)] - fv[(row, 0)]).powi(2);
-                ff += fv[(row, 0)].powi(2);
-            }
-            *resid = if ff > 0.0 { (rr / ff).sqrt() } else { f64::NAN };
-            0usize
-        })
+        .map(|(idx, (k, c, cond, resid, amp))| report_point(p, &kc, idx, k, c, cond, resid, amp))
         .sum()
+}
+
+/// Both solvers on one thread, for callers that are tasks of a parallel loop themselves (the
+/// perturbed copies of [`propagate`]); the same values as [`identify_forces`] and
+/// [`identify_report`] (each point is solved alone). Standard errors are not computed. Returns
+/// the number of NaN/inf points. `p` must have passed [`IdentProblem::check`].
+pub(crate) fn identify_serial(p: &IdentProblem, report: bool, out: IdentOut) -> usize {
+    let kc = Consts::new(&p.rotor);
+    let IdentOut { k, c, cond, resid, amp, .. } = out;
+    if !report {
+        return forces_chunk_dispatch(p, &kc, 0, Outs { k, c, cond, resid, amp, ks: None, cs: None, rel: None });
+    }
+    let mut nbad = 0;
+    for (idx, (((k, c), cond), (resid, amp))) in k.chunks_mut(8).zip(c.chunks_mut(8)).zip(cond.chunks_mut(2)).zip(resid.iter_mut().zip(amp.iter_mut())).enumerate() {
+        nbad += report_point(p, &kc, idx, k, c, cond, resid, amp);
+    }
+    nbad
+}
+
+/// [`identify_report`] at flat point `idx` (= b n + i) into its outputs (8, 8, 2, 1, 1 values).
+#[allow(clippy::too_many_arguments)]
+fn report_point(p: &IdentProblem, kc: &Consts, idx: usize, k: &mut [f64], c: &mut [f64], cond: &mut [f64], resid: &mut f64, amp: &mut f64) -> usize {
+    let n = p.w.len();
+    let (l1, l2) = (p.rotor.l1, p.rotor.l2);
+    let nu = if p.identical { 8 } else { 16 };
+    let (b, i) = (idx / n, idx % n);
+    let rows = 8 * p.runs;
+    let mut bm = Mat::<f64>::zeros(rows, nu);
+    let mut fv = Mat::<f64>::zeros(rows, 1);
+    let mut bad = false;
+    let mut qq = 0.0;
+    for r in 0..p.runs {
+        let q = load_q(p, b, r, i);
+        for v in q.iter() {
+            bad |= !(v.re.is_finite() && v.im.is_finite());
+            qq += v.norm_sqr();
+        }
+        let si = if p.spin.len() == 1 { 0 } else { i };
+        let qa = load_abs(p, b, r, i);
+        bad |= !qa.iter().all(|v| v.re.is_finite() && v.im.is_finite());
+        let rv = rhs_point(kc, excitation(p, b, r), gain_at(p, i), p.w[i], sigma_at(p, i), p.spin[si], &qa);
+        // Q of eq. 8 (4 x 16 complex), columns in eq. 9 order
+        let lq = [-l1 * q[0], l2 * q[1], -l1 * q[2], l2 * q[3]];
+        let mut qm = [[C64::new(0.0, 0.0); 16]; 4];
+        let jj = C64::new(0.0, 1.0);
+        for t in 0..4 {
+            qm[0][t] = q[t];
+            qm[0][8 + t] = jj * q[t];
+            qm[1][4 + t] = q[t];
+            qm[1][12 + t] = jj * q[t];
+            qm[2][t] = lq[t];
+            qm[2][8 + t] = jj * lq[t];
+            qm[3][4 + t] = -lq[t];
+            qm[3][12 + t] = -jj * lq[t];
+        }
+        for row in 0..4 {
+            for col in 0..16 {
+                // identical bearings: Kxx1 = Kxx2 etc., i.e. columns 2m and 2m+1 merge
+                let cc = if p.identical { col / 2 } else { col };
+                bm[(8 * r + row, cc)] += qm[row][col].re;
+                bm[(8 * r + 4 + row, cc)] += qm[row][col].im;
+            }
+            fv[(8 * r + row, 0)] = rv[row].re;
+            fv[(8 * r + 4 + row, 0)] = rv[row].im;
+        }
+    }
+    *amp = (qq / (4.0 * p.runs as f64)).sqrt();
+    if bad {
+        for v in k.iter_mut().chain(c.iter_mut()) {
+            *v = f64::NAN;
+        }
+        cond[0] = f64::NAN;
+        cond[1] = f64::NAN;
+        *resid = f64::NAN;
+        return 1usize;
+    }
+    let cn = real_cond(&bm);
+    cond[0] = cn;
+    cond[1] = cn;
+    let w = p.w[i];
+    if !(cn < SINGULAR_COND) {
+        for v in k.iter_mut().chain(c.iter_mut()) {
+            *v = f64::NAN;
+        }
+        *resid = f64::NAN;
+        return 0usize;
+    }
+    let sol = bm.qr().solve_lstsq(&fv);
+    let pv: Vec<f64> = if p.identical {
+        (0..16).map(|t| sol[(t / 2, 0)]).collect()
+    } else {
+        (0..16).map(|t| sol[(t, 0)]).collect()
+    };
+    for t in 0..8 {
+        c[REPORT_TO_BIJ[t]] = pv[8 + t] / w;
+        k[REPORT_TO_BIJ[t]] = pv[t] - sigma_at(p, i) * pv[8 + t] / w;
+    }
+    let fit = &bm * &sol;
+    let mut rr = 0.0;
+    let mut ff = 0.0;
+    for row in 0..rows {
+        rr += (fit[(row, 0)] - fv[(row, 0)]).powi(2);
+        ff += fv[(row, 0)].powi(2);
+    }
+    *resid = if ff > 0.0 { (rr / ff).sqrt() } else { f64::NAN };
+    0usize
 }
 
 /// Bearing reaction forces from the rotor equations, per (batch, run, point):

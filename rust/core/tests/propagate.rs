@@ -1,0 +1,308 @@
+//! The covariance propagation (`identify::propagate`) against a plain reference: every perturbed
+//! copy identified on its own through the public identification, the dense Σ, J Σ Jᵀ in full.
+
+mod common;
+
+use common::*;
+use proptest::prelude::*;
+use rotorid_core::identify::propagate::{propagate, psd_cholesky, CovOut, CovProblem, H_REL};
+use rotorid_core::identify::{identify_forces, identify_report, IdentOut, IdentProblem, REPORT_TO_BIJ};
+use rotorid_core::{CoreError, C64};
+
+fn cfg(cases: u32) -> ProptestConfig {
+    ProptestConfig { cases, failure_persistence: None, ..ProptestConfig::default() }
+}
+
+/// The report vector (eq. 9 order) of every point of one problem, by the public identification.
+fn report_vectors(p: &IdentProblem, report: bool) -> Vec<[f64; 16]> {
+    let n = p.batch * p.w.len();
+    let (mut k, mut cc, mut cond, mut resid, mut amp) = (vec![0.0; 8 * n], vec![0.0; 8 * n], vec![0.0; 2 * n], vec![0.0; n], vec![0.0; n]);
+    let out = IdentOut { k: &mut k, c: &mut cc, cond: &mut cond, resid: &mut resid, amp: &mut amp, k_std: None, c_std: None, rel_std: None };
+    if report { identify_report(p, out) } else { identify_forces(p, out) }.unwrap();
+    (0..n)
+        .map(|i| {
+            let mut v = [0.0; 16];
+            for t in 0..8 {
+                v[t] = k[8 * i + REPORT_TO_BIJ[t]];
+                v[8 + t] = cc[8 * i + REPORT_TO_BIJ[t]];
+            }
+            v
+        })
+        .collect()
+}
+
+/// p at point i with run r's response (and pedestal motion) replaced by `q` (`qp`).
+fn p_moved(p: &IdentProblem, report: bool, i: usize, r: usize, q: [C64; 4], qp: Option<[C64; 4]>) -> [f64; 16] {
+    let own: Vec<Vec<C64>> = p.q.iter().map(|b| b[4 * i..4 * i + 4].to_vec()).collect();
+    let own_p: Vec<Vec<C64>> = p.q_ped.iter().map(|b| b[4 * i..4 * i + 4].to_vec()).collect();
+    let mut qs = own.clone();
+    qs[r] = q.to_vec();
+    let mut ps = own_p.clone();
+    if let Some(v) = qp {
+        ps[r] = v.to_vec();
+    }
+    let qb: Vec<&[C64]> = qs.iter().map(|v| &v[..]).collect();
+    let pb: Vec<&[C64]> = ps.iter().map(|v| &v[..]).collect();
+    let one = |a: &[f64]| if a.len() > 1 { vec![a[i]] } else { a.to_vec() };
+    let (w, spin, gain, sigma) = (one(p.w), one(p.spin), one(p.gain), one(p.sigma));
+    let sub = IdentProblem { w: &w, spin: &spin, gain: &gain, sigma: &sigma, q: &qb, q_ped: &pb, ..*p };
+    report_vectors(&sub, report)[0]
+}
+
+/// The reference propagation: (cov (n, 16, 16), bias (n, 16)).
+fn reference(p: &IdentProblem, report: bool, covs: &[f64], shared: &[f64]) -> (Vec<f64>, Vec<f64>) {
+    let (n, runs) = (p.w.len(), p.runs);
+    let ped = !p.q_ped.is_empty();
+    let m = if ped { 16 } else { 8 };
+    let mr = m * runs;
+    let (mut cov, mut bias) = (vec![0.0; n * 256], vec![0.0; n * 16]);
+    for i in 0..n {
+        let q_of = |r: usize| -> [C64; 4] { p.q[r][4 * i..4 * i + 4].try_into().unwrap() };
+        let p_of = |r: usize| -> Option<[C64; 4]> { if ped { Some(p.q_ped[r][4 * i..4 * i + 4].try_into().unwrap()) } else { None } };
+        // x_r moved by a real vector dx (m values: Re q, Im q, Re q_ped, Im q_ped)
+        let moved = |r: usize, dx: &[f64]| -> [f64; 16] {
+            let (mut q, mut qp) = (q_of(r), p_of(r));
+            for d in 0..4 {
+                q[d] += C64::new(dx[d], dx[4 + d]);
+                if let Some(v) = qp.as_mut() {
+                    v[d] += C64::new(dx[8 + d], dx[12 + d]);
+                }
+            }
+            p_moved(p, report, i, r, q, qp)
+        };
+        let scale = ((0..runs).flat_map(|r| q_of(r)).map(|v| v.norm_sqr()).sum::<f64>() / (4 * runs) as f64).sqrt();
+        let h = H_REL * if scale > 0.0 { scale } else { 1.0 };
+        let mut jac = vec![0.0; 16 * mr];
+        for r in 0..runs {
+            for j in 0..m {
+                let mut dx = vec![0.0; m];
+                dx[j] = h;
+                let plus = moved(r, &dx);
+                dx[j] = -h;
+                let minus = moved(r, &dx);
+                for o in 0..16 {
+                    jac[o * mr + r * m + j] = (plus[o] - minus[o]) / (2.0 * h);
+                }
+            }
+        }
+        // dense Σ
+        let mut big = vec![0.0; mr * mr];
+        for r in 0..runs {
+            for t in 0..runs {
+                let blk: &[f64] = if r == t { &covs[(r * n + i) * m * m..(r * n + i + 1) * m * m] } else if shared.is_empty() { continue } else { &shared[i * m * m..(i + 1) * m * m] };
+                for u in 0..m {
+                    for v in 0..m {
+                        big[(r * m + u) * mr + t * m + v] = blk[u * m + v];
+                    }
+                }
+            }
+        }
+        for a in 0..16 {
+            for b in 0..16 {
+                let mut s = 0.0;
+                for u in 0..mr {
+                    for v in 0..mr {
+                        s += jac[a * mr + u] * big[u * mr + v] * jac[b * mr + v];
+                    }
+                }
+                cov[256 * i + 16 * a + b] = s;
+            }
+        }
+        // bias: sigma points from each run's factor
+        let p0 = p_moved(p, report, i, 0, q_of(0), p_of(0));
+        let mut l = vec![0.0; m * m];
+        for r in 0..runs {
+            psd_cholesky(&covs[(r * n + i) * m * m..(r * n + i + 1) * m * m], m, &mut l);
+            for k in 0..m {
+                let col: Vec<f64> = (0..m).map(|u| l[u * m + k]).collect();
+                let neg: Vec<f64> = col.iter().map(|v| -v).collect();
+                let (a, b) = (moved(r, &col), moved(r, &neg));
+                for o in 0..16 {
+                    bias[16 * i + o] += 0.5 * (a[o] + b[o] - 2.0 * p0[o]);
+                }
+            }
+        }
+    }
+    (cov, bias)
+}
+
+/// Random covariances (runs, n, m, m): A Aᵀ with A (m, rank), so semi-definite below full rank.
+fn covariances(seed: &[f64], runs: usize, n: usize, m: usize, rank: usize, size: f64) -> Vec<f64> {
+    let mut out = vec![0.0; runs * n * m * m];
+    let mut s = 0usize;
+    let mut next = || {
+        s += 1;
+        seed[s % seed.len()] * (1.0 + 0.37 * (s as f64).sin())
+    };
+    for blk in out.chunks_mut(m * m) {
+        let a: Vec<f64> = (0..m * rank).map(|_| next() * size).collect();
+        for u in 0..m {
+            for v in 0..m {
+                blk[u * m + v] = (0..rank).map(|k| a[u * rank + k] * a[v * rank + k]).sum();
+            }
+        }
+    }
+    out
+}
+
+fn run(p: &CovProblem) -> Result<(Vec<f64>, Vec<f64>, Vec<u8>), CoreError> {
+    let n = p.ident.w.len();
+    let (mut cov, mut bias, mut unknown) = (vec![0.0; n * 256], vec![0.0; n * 16], vec![9u8; n]);
+    let (mut ks, mut cs) = (vec![-1.0; n * 8], vec![-1.0; n * 8]);
+    propagate(p, CovOut { cov: &mut cov, bias: Some(&mut bias), unknown: &mut unknown, k_std: &mut ks, c_std: &mut cs })?;
+    // the standard errors are the diagonal's square roots, in [bearing][i][j] order
+    for i in 0..n {
+        for t in 0..8 {
+            for (std, o) in [(&ks, t), (&cs, 8 + t)] {
+                let d = cov[256 * i + 17 * o];
+                let want = if d.is_nan() { f64::NAN } else { d.max(0.0).sqrt() };
+                let got = std[8 * i + REPORT_TO_BIJ[t]];
+                assert!(got.to_bits() == want.to_bits() || (got.is_nan() && want.is_nan()), "point {i}, {o}: {got} vs {want}");
+            }
+        }
+    }
+    Ok((cov, bias, unknown))
+}
+
+/// Close to the reference: 1e-9 of each value or 1e-12 of the largest (the reference sums J Σ Jᵀ
+/// in another order, and entries that cancel keep only the largest's rounding).
+fn assert_close(name: &str, got: &[f64], want: &[f64]) -> Result<(), TestCaseError> {
+    let big = want.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    for (j, (g, w)) in got.iter().zip(want).enumerate() {
+        prop_assert!((g - w).abs() <= 1e-9 * w.abs() + 1e-12 * big, "{name}[{j}]: {g:e} vs {w:e}");
+    }
+    Ok(())
+}
+
+proptest! {
+    #![proptest_config(cfg(12))]
+
+    /// Cov(p) and the bias of both solvers equal the reference for independent runs, a shared
+    /// baseline covariance and pedestal motion, with full-rank and semi-definite covariances, over
+    /// more points than one task holds.
+    #[test]
+    fn propagation_matches_the_reference(r in common::rotors(), (k, cc) in common::bearings(), runs in 2usize..5,
+                                         e in proptest::collection::vec(-1.0f64..1.0, 32),
+                                         seed in proptest::collection::vec(-1.0f64..1.0, 7),
+                                         rank in 1usize..17, shared_on in any::<bool>(), ped_on in any::<bool>(),
+                                         report in any::<bool>()) {
+        let n = 21;
+        let w = {
+            let kmean = (k[0] + k[3] + k[4] + k[7]) / 4.0;
+            let wn = (2.0 * kmean / r.m).sqrt();
+            (0..n).map(|i| wn * (0.3 + 0.1 * i as f64)).collect::<Vec<_>>()
+        };
+        let e = (0..4 * runs).map(|j| C64::new(e[2 * j], e[2 * j + 1])).collect::<Vec<_>>();
+        let q = imbalance_responses(&r, &k, &cc, &w, &e);
+        let qb: Vec<&[C64]> = q.chunks(4 * n).collect();
+        let qp: Vec<C64> = q.iter().map(|v| v * C64::new(0.1, 0.05)).collect();
+        let pb: Vec<&[C64]> = if ped_on { qp.chunks(4 * n).collect() } else { Vec::new() };
+        let m = if ped_on { 16 } else { 8 };
+        let size = q.iter().map(|v| v.norm()).fold(0.0, f64::max) * 1e-3;
+        let mut covs = covariances(&seed, runs, n, m, rank.min(m), size);
+        // a shared baseline run's covariance is in every run's own block too (runs less the
+        // baseline: Cov(x_r, x_t) = Σ_0 for r != t, Σ_r' + Σ_0 for r = t), so Σ is a covariance
+        let shared = if shared_on { covariances(&seed[1..], 1, n, m, m, 0.5 * size) } else { Vec::new() };
+        if shared_on {
+            for (j, v) in covs.iter_mut().enumerate() {
+                *v += shared[j % (n * m * m)];
+            }
+        }
+        let gain: Vec<f64> = w.iter().map(|v| v * v).collect();
+        let ident = IdentProblem { rotor: r, w: &w, spin: &w, q: &qb, e: &e, gain: &gain, sigma: &[], q_ped: &pb, planes: None, batch: 1, runs, identical: false };
+        let prob = CovProblem { ident, report, covs: &covs, shared: &shared };
+        let (cov, bias, unknown) = run(&prob).unwrap();
+        let (cov_ref, bias_ref) = reference(&prob.ident, report, &covs, &shared);
+        prop_assert!(unknown.iter().all(|&u| u == 0));
+        assert_close("cov", &cov, &cov_ref)?;
+        assert_close("bias", &bias, &bias_ref)?;
+        for i in 0..n {
+            for a in 0..16 {
+                prop_assert!(cov[256 * i + 17 * a] >= 0.0);
+                for b in 0..16 {
+                    prop_assert_eq!(cov[256 * i + 16 * a + b].to_bits(), cov[256 * i + 16 * b + a].to_bits());
+                }
+            }
+        }
+    }
+
+    /// L Lᵀ = A for positive semi-definite A of every rank, L lower triangular.
+    #[test]
+    fn psd_cholesky_factors_semi_definite_matrices(seed in proptest::collection::vec(-1.0f64..1.0, 11),
+                                                   m in 1usize..17, rank in 0usize..17, size in -20.0f64..5.0) {
+        let rank = rank.min(m);
+        let a = covariances(&seed, 1, 1, m, rank, 10f64.powf(size));
+        let mut l = vec![f64::NAN; m * m];
+        psd_cholesky(&a, m, &mut l);
+        let big = (0..m).map(|j| a[j * m + j]).fold(0.0, f64::max);
+        for u in 0..m {
+            for v in 0..m {
+                if v > u {
+                    prop_assert_eq!(l[u * m + v], 0.0);
+                }
+                let s: f64 = (0..m).map(|k| l[u * m + k] * l[v * m + k]).sum();
+                prop_assert!((s - a[u * m + v]).abs() <= 1e-10 * big, "({u}, {v}): {s:e} vs {:e}", a[u * m + v]);
+            }
+        }
+    }
+}
+
+/// A NaN anywhere in a run's covariance, or a singular estimator, makes the point unknown: all
+/// of its outputs NaN, the others untouched.
+#[test]
+fn unknown_points_are_whole_points() {
+    let r = nsf_rotor();
+    let (k, cc) = ([3e6, 1e5, -1e5, 4e6, 3e6, 0.0, 0.0, 4e6], [2e3, 0.0, 0.0, 2e3, 2e3, 0.0, 0.0, 2e3]);
+    let w: Vec<f64> = (1..=9).map(|i| 100.0 * i as f64).collect();
+    let e = [c(1e-4, 0.0), c(0.0, 0.0), c(0.0, 1e-4), c(0.0, 0.0), c(0.0, 0.0), c(1e-4, 0.0), c(0.0, 0.0), c(0.0, 1e-4)];
+    let mut q = imbalance_responses(&r, &k, &cc, &w, &e);
+    // point 6: both runs the same response, a singular estimator
+    let (a, b) = q.split_at_mut(4 * w.len());
+    b[24..28].copy_from_slice(&a[24..28]);
+    let qb: Vec<&[C64]> = q.chunks(4 * w.len()).collect();
+    let mut covs = covariances(&[0.3, -0.7, 0.2], 2, w.len(), 8, 8, 1e-9);
+    covs[(w.len() + 2) * 64 + 5] = f64::NAN; // run 1, point 2
+    let gain: Vec<f64> = w.iter().map(|v| v * v).collect();
+    let ident = IdentProblem { rotor: r, w: &w, spin: &w, q: &qb, e: &e, gain: &gain, sigma: &[], q_ped: &[], planes: None, batch: 1, runs: 2, identical: false };
+    let (cov, bias, unknown) = run(&CovProblem { ident, report: false, covs: &covs, shared: &[] }).unwrap();
+    for i in 0..w.len() {
+        let unk = i == 2 || i == 6;
+        assert_eq!(unknown[i], u8::from(unk), "point {i}");
+        assert!(cov[256 * i..256 * i + 256].iter().all(|v| v.is_nan() == unk), "point {i}");
+        assert!(bias[16 * i..16 * i + 16].iter().all(|v| v.is_nan() == unk), "point {i}");
+    }
+}
+
+#[test]
+fn propagation_argument_errors_name_the_argument() {
+    let r = nsf_rotor();
+    let w = [100.0, 200.0];
+    let q = vec![c(1e-6, 0.0); 2 * 2 * 4];
+    let qb: Vec<&[C64]> = q.chunks(8).collect();
+    let e = vec![c(1e-4, 0.0); 2 * 4];
+    let covs = vec![0.0; 2 * 2 * 64];
+    let ident = IdentProblem { rotor: r, w: &w, spin: &w, q: &qb, e: &e, gain: &[], sigma: &[], q_ped: &[], planes: None, batch: 1, runs: 2, identical: false };
+    let one_run = IdentProblem { q: &qb[..1], e: &e[..4], runs: 1, ..ident };
+    let twice: Vec<&[C64]> = [&qb[..], &qb[..]].concat();
+    let cases: Vec<(CovProblem, &str)> = vec![
+        (CovProblem { ident: IdentProblem { w: &[100.0, 0.0], ..ident }, report: false, covs: &covs, shared: &[] }, "w"),
+        (CovProblem { ident: IdentProblem { batch: 2, q: &twice, ..ident }, report: false, covs: &covs, shared: &[] }, "batch"),
+        (CovProblem { ident: IdentProblem { planes: Some([1.0, 0.0, 0.0, 1.0]), ..ident }, report: false, covs: &covs, shared: &[] }, "planes"),
+        (CovProblem { ident: one_run, report: true, covs: &covs[..128], shared: &[] }, "runs"),
+        (CovProblem { ident, report: false, covs: &covs[..200], shared: &[] }, "covs"),
+        (CovProblem { ident, report: false, covs: &covs, shared: &covs[..64] }, "shared"),
+    ];
+    for (p, name) in cases {
+        match run(&p) {
+            Err(err) => assert_eq!(err.name(), name, "{err}"),
+            Ok(_) => panic!("expected an error about {name}"),
+        }
+    }
+    let mut short = vec![0.0; 100];
+    let (mut ks, mut cs) = (vec![0.0; 16], vec![0.0; 16]);
+    let err = propagate(&CovProblem { ident, report: false, covs: &covs, shared: &[] }, CovOut { cov: &mut short, bias: None, unknown: &mut [0; 2], k_std: &mut ks, c_std: &mut cs }).unwrap_err();
+    assert_eq!(err.name(), "cov");
+    let mut cov = vec![0.0; 512];
+    let err = propagate(&CovProblem { ident, report: false, covs: &covs, shared: &[] }, CovOut { cov: &mut cov, bias: None, unknown: &mut [0; 2], k_std: &mut ks[..8], c_std: &mut cs }).unwrap_err();
+    assert_eq!(err.name(), "k_std");
+}
