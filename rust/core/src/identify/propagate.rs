@@ -97,7 +97,8 @@ pub fn propagate(p: &CovProblem, out: CovOut) -> Result<(), CoreError> {
     expect_len("k_std", out.k_std, n * 8)?;
     expect_len("c_std", out.c_std, n * 8)?;
     let copies = 2 * m * runs * if out.bias.is_some() { 2 } else { 1 } + usize::from(out.bias.is_some());
-    let per_task = (TASK_LANES / copies).max(4);
+    // a multiple of the identification's lanes (4), so that a lane group holds one copy's points
+    let per_task = (TASK_LANES / copies / 4 * 4).max(4);
     let (cov, unknown) = (Disjoint::new(out.cov), Disjoint::new(out.unknown));
     let (k_std, c_std) = (Disjoint::new(out.k_std), Disjoint::new(out.c_std));
     let bias = out.bias.map(Disjoint::new);
@@ -106,7 +107,7 @@ pub fn propagate(p: &CovProblem, out: CovOut) -> Result<(), CoreError> {
         let (cov, unknown) = unsafe { (cov.chunk(j, 256 * per_task), unknown.chunk(j, per_task)) };
         let std = unsafe { [k_std.chunk(j, 8 * per_task), c_std.chunk(j, 8 * per_task)] };
         let bias = bias.as_ref().map(|b| unsafe { b.chunk(j, 16 * per_task) });
-        task(p, m, j * per_task, cov, bias, unknown, std);
+        SCRATCH.with(|sc| task(p, m, j * per_task, cov, bias, unknown, std, &mut sc.borrow_mut()));
     });
     Ok(())
 }
@@ -120,7 +121,8 @@ fn column(copy: usize, m: usize) -> (usize, usize) {
 }
 
 /// The points s.. of one task (as many as `unknown` holds).
-fn task(p: &CovProblem, m: usize, s: usize, cov: &mut [f64], mut bias: Option<&mut [f64]>, unknown: &mut [u8], std: [&mut [f64]; 2]) {
+#[allow(clippy::too_many_arguments)]
+fn task(p: &CovProblem, m: usize, s: usize, cov: &mut [f64], mut bias: Option<&mut [f64]>, unknown: &mut [u8], std: [&mut [f64]; 2], scratch: &mut Scratch) {
     let ip = &p.ident;
     let (n, runs, tn) = (ip.points(), ip.runs, unknown.len());
     let e = s + tn;
@@ -244,35 +246,43 @@ fn task(p: &CovProblem, m: usize, s: usize, cov: &mut [f64], mut bias: Option<&m
         identical: ip.identical,
     };
     let pts = nb * tn;
-    let (mut k, mut c) = (vec![0.0; pts * 8], vec![0.0; pts * 8]);
-    let (mut cond, mut resid, mut amp) = (vec![0.0; pts * 2], vec![0.0; pts], vec![0.0; pts]);
+    let Scratch { k, c, cond, resid, amp } = scratch;
+    for (v, len) in [(&mut *k, pts * 8), (&mut *c, pts * 8), (&mut *cond, pts * 2), (&mut *resid, pts), (&mut *amp, pts)] {
+        v.resize(len, 0.0);
+    }
     identify_serial(
         &local,
         p.report,
-        IdentOut { k: &mut k, c: &mut c, cond: &mut cond, resid: &mut resid, amp: &mut amp, k_std: None, c_std: None, rel_std: None },
+        IdentOut { k: &mut k[..pts * 8], c: &mut c[..pts * 8], cond: &mut cond[..pts * 2], resid: &mut resid[..pts], amp: &mut amp[..pts], k_std: None, c_std: None, rel_std: None },
     );
-    // the report vector of copy `copy` at point i
-    let pv = |copy: usize, i: usize| -> [f64; 16] {
+    // copy `copy` at point i: its k and c, 8 each in [bearing][i][j] order. The work below keeps
+    // that order ("bij": u < 8 K, u >= 8 C) and writes eq. 9 order at the end through `perm`.
+    let kc_of = |copy: usize, i: usize| -> (&[f64], &[f64]) {
         let o = (copy * tn + i) * 8;
-        let mut v = [0.0; 16];
-        for t in 0..8 {
-            v[t] = k[o + REPORT_TO_BIJ[t]];
-            v[8 + t] = c[o + REPORT_TO_BIJ[t]];
-        }
-        v
+        (&k[o..o + 8], &c[o..o + 8])
     };
+    let mut perm = [0usize; 16];
+    for t in 0..8 {
+        perm[t] = REPORT_TO_BIJ[t];
+        perm[8 + t] = 8 + REPORT_TO_BIJ[t];
+    }
 
-    let mut jac = vec![0.0; 16 * mr]; // J, row-major (16, mR)
-    let mut a = vec![0.0; 16 * mr]; // J Σ (16, mR)
+    // Jᵀ and (J Σ)ᵀ, (mR, 16) row-major: the loops below run over the 16 outputs, contiguous
+    let mut jt = vec![0.0; mr * 16];
+    let mut bt = vec![0.0; mr * 16];
+    let mut common = vec![0.0; m * m];
+    let mut cb = [0.0; 256]; // Cov(p) in bij order
     for i in 0..tn {
         let two_h = 2.0 * h[i];
         let mut finite = true;
         for col in 0..mr {
-            let (plus, minus) = (pv(2 * col, i), pv(2 * col + 1, i));
-            for o in 0..16 {
-                let d = (plus[o] - minus[o]) / two_h;
-                finite &= d.is_finite();
-                jac[o * mr + col] = d;
+            let ((kp, cp), (km, cm)) = (kc_of(2 * col, i), kc_of(2 * col + 1, i));
+            let row = &mut jt[16 * col..16 * col + 16];
+            for o in 0..8 {
+                let (dk, dc) = ((kp[o] - km[o]) / two_h, (cp[o] - cm[o]) / two_h);
+                finite &= dk.is_finite() && dc.is_finite();
+                row[o] = dk;
+                row[8 + o] = dc;
             }
         }
         let known = (0..runs).all(|r| !covs_at(r, i).iter().any(|v| v.is_nan()));
@@ -284,44 +294,58 @@ fn task(p: &CovProblem, m: usize, s: usize, cov: &mut [f64], mut bias: Option<&m
             std[0][8 * i..8 * i + 8].fill(f64::NAN);
             std[1][8 * i..8 * i + 8].fill(f64::NAN);
         } else {
-            // A = J Σ, Σ's block (r, t) the run's own covariance (t = r) or the shared one
-            let shared = if p.shared.is_empty() { None } else { Some(&p.shared[(s + i) * m * m..(s + i + 1) * m * m]) };
-            a.fill(0.0);
+            // (J Σ)ᵀ = Σ Jᵀ (Σ symmetric) block by block: Σ's block (r, t) is run r's own
+            // covariance (t = r) or the shared one, whose NaN entries count as zero
+            let with_shared = !p.shared.is_empty();
+            if with_shared {
+                for (c, &v) in common.iter_mut().zip(&p.shared[(s + i) * m * m..(s + i + 1) * m * m]) {
+                    *c = if v.is_nan() { 0.0 } else { v };
+                }
+            }
+            bt.fill(0.0);
             for r in 0..runs {
                 for t in 0..runs {
                     let blk = if t == r {
                         covs_at(r, i)
-                    } else if let Some(sh) = shared {
-                        sh
+                    } else if with_shared {
+                        &common[..]
                     } else {
                         continue;
                     };
-                    for o in 0..16 {
-                        let jrow = &jac[o * mr + r * m..o * mr + r * m + m];
-                        let arow = &mut a[o * mr + t * m..o * mr + t * m + m];
-                        for (u, &ju) in jrow.iter().enumerate() {
-                            let srow = &blk[u * m..u * m + m];
-                            for (av, &sv) in arow.iter_mut().zip(srow) {
-                                // NaN entries of the shared covariance count as zero
-                                *av += ju * if sv.is_nan() { 0.0 } else { sv };
+                    for u in 0..m {
+                        let jrow: &[f64; 16] = jt[16 * (r * m + u)..16 * (r * m + u) + 16].try_into().unwrap();
+                        for v in 0..m {
+                            let suv = blk[u * m + v];
+                            let brow: &mut [f64; 16] = (&mut bt[16 * (t * m + v)..16 * (t * m + v) + 16]).try_into().unwrap();
+                            for o in 0..16 {
+                                brow[o] += suv * jrow[o];
                             }
                         }
                     }
                 }
             }
-            // Cov = A Jᵀ, symmetric: the upper triangle, mirrored
-            for o in 0..16 {
-                let arow = &a[o * mr..(o + 1) * mr];
-                for q in o..16 {
-                    let jrow = &jac[q * mr..(q + 1) * mr];
-                    let v: f64 = arow.iter().zip(jrow).map(|(x, y)| x * y).sum();
-                    ci[16 * o + q] = v;
-                    ci[16 * q + o] = v;
+            // Cov = (J Σ) Jᵀ as rank-one updates over the mR columns; eq. 9 order from the upper
+            // triangle (so exactly symmetric)
+            cb.fill(0.0);
+            for col in 0..mr {
+                let jrow: &[f64; 16] = jt[16 * col..16 * col + 16].try_into().unwrap();
+                let brow: &[f64; 16] = bt[16 * col..16 * col + 16].try_into().unwrap();
+                for a in 0..16 {
+                    let crow: &mut [f64; 16] = (&mut cb[16 * a..16 * a + 16]).try_into().unwrap();
+                    for b in 0..16 {
+                        crow[b] += brow[a] * jrow[b];
+                    }
                 }
             }
-            for t in 0..8 {
-                std[0][8 * i + REPORT_TO_BIJ[t]] = ci[17 * t].max(0.0).sqrt();
-                std[1][8 * i + REPORT_TO_BIJ[t]] = ci[17 * (8 + t)].max(0.0).sqrt();
+            for a in 0..16 {
+                for b in 0..16 {
+                    let (x, y) = (perm[a].min(perm[b]), perm[a].max(perm[b]));
+                    ci[16 * a + b] = cb[16 * x + y];
+                }
+            }
+            for u in 0..8 {
+                std[0][8 * i + u] = cb[17 * u].max(0.0).sqrt();
+                std[1][8 * i + u] = cb[17 * (8 + u)].max(0.0).sqrt();
             }
         }
         if let Some(b) = bias.as_deref_mut() {
@@ -330,19 +354,35 @@ fn task(p: &CovProblem, m: usize, s: usize, cov: &mut [f64], mut bias: Option<&m
                 bi.fill(f64::NAN);
                 continue;
             }
-            let p0 = pv(2 * nd, i);
+            let (k0, c0) = kc_of(2 * nd, i);
             let mut acc = [0.0; 16];
             for col in 0..mr {
-                let (plus, minus) = (pv(nd + 2 * col, i), pv(nd + 2 * col + 1, i));
-                for o in 0..16 {
-                    acc[o] += (plus[o] + minus[o]) - 2.0 * p0[o];
+                let ((kp, cp), (km, cm)) = (kc_of(nd + 2 * col, i), kc_of(nd + 2 * col + 1, i));
+                for o in 0..8 {
+                    acc[o] += (kp[o] + km[o]) - 2.0 * k0[o];
+                    acc[8 + o] += (cp[o] + cm[o]) - 2.0 * c0[o];
                 }
             }
-            for o in 0..16 {
-                bi[o] = 0.5 * acc[o];
+            for (o, &u) in perm.iter().enumerate() {
+                bi[o] = 0.5 * acc[u];
             }
         }
     }
+}
+
+/// A task's buffers for the identification of its copies, kept by each thread from call to call
+/// (fresh ones were a tenth of the time: allocation and page faults).
+#[derive(Default)]
+struct Scratch {
+    k: Vec<f64>,
+    c: Vec<f64>,
+    cond: Vec<f64>,
+    resid: Vec<f64>,
+    amp: Vec<f64>,
+}
+
+thread_local! {
+    static SCRATCH: std::cell::RefCell<Scratch> = std::cell::RefCell::new(Scratch::default());
 }
 
 /// A lower-triangular L (m x m, row-major) with L Lᵀ = A for a symmetric positive semi-definite A,
