@@ -17,7 +17,7 @@ from rotorid.uncertainty import _eval
 
 #: relative step of the central differences (the core's ``identify::propagate::H_REL``)
 _H_REL = 1e-6
-#: a Cholesky pivot at most this times its diagonal entry is zero (``PSD_PIVOT_TOL``)
+#: a Cholesky pivot at most this times its diagonal entry is zero (``covariance::PSD_PIVOT_TOL``)
 _PIVOT_TOL = 1e-12
 
 

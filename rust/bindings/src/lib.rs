@@ -381,6 +381,23 @@ fn pedestal_responses<'py>(q_ped: Option<&Bound<'py, PyAny>>, resp: &Responses<'
     Ok(Some(pr))
 }
 
+/// The blocks of the pedestal motion, or none for rigid pedestals.
+fn pedestal_blocks<'a>(ped: &'a Option<Responses<'_>>) -> PyResult<Vec<&'a [C64]>> {
+    match ped {
+        Some(pr) => pr.blocks(),
+        None => Ok(Vec::new()),
+    }
+}
+
+/// `method` "report" (the report's 16-unknown formulation: true) or "forces" (false).
+fn report_method(method: &str) -> PyResult<bool> {
+    match method {
+        "forces" => Ok(false),
+        "report" => Ok(true),
+        other => Err(PyValueError::new_err(format!("method must be 'forces' or 'report', got {other:?}"))),
+    }
+}
+
 /// Batched identification (see rotorid_core::identify).
 /// q: (B, R, n, 4) complex, or a list of R arrays (n, 4) for B = 1; e: (1 or B, R, 4) complex;
 /// w, spin: (n,) (spin also (1,)); spin None: spin = w (synchronous runs, after `w_scale`);
@@ -421,17 +438,10 @@ fn py_identify<'py>(
     let resp = responses(q)?;
     let (batch, n) = (resp.batch, resp.n);
     let axes = AxisValues::new(&w, &sigma, n, w_scale)?;
-    let report = match method {
-        "forces" => false,
-        "report" => true,
-        other => return Err(PyValueError::new_err(format!("method must be 'forces' or 'report', got {other:?}"))),
-    };
+    let report = report_method(method)?;
     let blocks = resp.blocks()?;
     let ped = pedestal_responses(q_ped, &resp)?;
-    let ped_blocks = match &ped {
-        Some(pr) => pr.blocks()?,
-        None => Vec::new(),
-    };
+    let ped_blocks = pedestal_blocks(&ped)?;
     let prob = ident_problem(rot, &resp, &axes, spin.as_ref(), &e, &gain, &blocks, &ped_blocks, planes.as_ref(), identical)?;
     let npts = batch.checked_mul(n).ok_or_else(|| PyMemoryError::new_err("identify: batch x points overflows"))?;
     let want_std = with_std && !report;
@@ -567,17 +577,10 @@ fn propagate<'py>(
     }
     let (runs, n) = (resp.runs, resp.n);
     let axes = AxisValues::new(&w, &sigma, n, w_scale)?;
-    let report = match method {
-        "forces" => false,
-        "report" => true,
-        other => return Err(PyValueError::new_err(format!("method must be 'forces' or 'report', got {other:?}"))),
-    };
+    let report = report_method(method)?;
     let blocks = resp.blocks()?;
     let ped = pedestal_responses(q_ped, &resp)?;
-    let ped_blocks = match &ped {
-        Some(pr) => pr.blocks()?,
-        None => Vec::new(),
-    };
+    let ped_blocks = pedestal_blocks(&ped)?;
     let m = if ped.is_some() { 16 } else { 8 };
     check_shape("covs", covs.shape(), &[runs, n, m, m])?;
     if let Some(sh) = &shared {
@@ -957,10 +960,7 @@ fn bearing_forces<'py>(
     let axes = AxisValues::new(&w, &sigma, n, None)?;
     let blocks = resp.blocks()?;
     let ped = pedestal_responses(q_ped, &resp)?;
-    let ped_blocks = match &ped {
-        Some(pr) => pr.blocks()?,
-        None => Vec::new(),
-    };
+    let ped_blocks = pedestal_blocks(&ped)?;
     let prob = ident_problem(rot, &resp, &axes, Some(&spin), &e, &gain, &blocks, &ped_blocks, planes.as_ref(), false)?;
     let total = batch.checked_mul(runs).and_then(|v| v.checked_mul(n)).and_then(|v| v.checked_mul(4));
     check_alloc("bearing_forces", total, 16)?;

@@ -15,6 +15,11 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 /// Relative tolerance of both checks.
 pub const COV_TOL: f64 = 1e-9;
 
+/// A pivot of [`psd_cholesky`] at most this times its diagonal entry is a direction without
+/// variance (a semi-definite covariance, e.g. from fewer blocks than it has entries): the rounding
+/// of the subtraction leaves ~1e-16 of the diagonal there, a genuine pivot is far larger.
+pub const PSD_PIVOT_TOL: f64 = 1e-12;
+
 /// Matrices per task.
 const CHUNK: usize = 512;
 
@@ -70,7 +75,7 @@ pub fn check_covariances(c: &[f64], m: usize, out: &mut [f64]) -> Result<Option<
     for_each_task(tasks, |j| {
         // SAFETY: for_each_task hands each task index j to one task
         let o = unsafe { dst.chunk(j, CHUNK * mm) };
-        let mut s = vec![0.0; mm];
+        let (mut s, mut l) = (vec![0.0; mm], vec![0.0; mm]);
         for (t, op) in o.chunks_exact_mut(mm).enumerate() {
             let p = j * CHUNK + t;
             let a = &c[p * mm..(p + 1) * mm];
@@ -94,7 +99,8 @@ pub fn check_covariances(c: &[f64], m: usize, out: &mut [f64]) -> Result<Option<
                 continue;
             }
             let tau = COV_TOL * fro.sqrt().max(1e-300);
-            if !positive_definite_shifted(&mut s, m, tau) {
+            // S + τ I positive definite: every pivot positive
+            if cholesky_lower(&s, m, tau, 0.0, &mut l) > 0 {
                 first_indef.fetch_min(p, Ordering::Relaxed);
             }
         }
@@ -109,26 +115,40 @@ pub fn check_covariances(c: &[f64], m: usize, out: &mut [f64]) -> Result<Option<
     })
 }
 
-/// Whether S + τ I (symmetric, m x m, overwritten by its Cholesky factor) is positive definite:
-/// every pivot d_j = S_jj + τ - Σ_{k<j} L_jk² positive.
-fn positive_definite_shifted(s: &mut [f64], m: usize, tau: f64) -> bool {
+/// A lower-triangular L (m x m, row-major) with L Lᵀ = A for a symmetric positive semi-definite A,
+/// of which only the lower triangle is read (Cholesky, column by column):
+///     d_j = A_jj - Σ_{k<j} L_jk²,   L_jj = √d_j,   L_ij = (A_ij - Σ_{k<j} L_ik L_jk) / L_jj  (i > j).
+/// A pivot d_j <= [`PSD_PIVOT_TOL`] A_jj (a direction without variance, up to rounding; negative
+/// only for an indefinite A) leaves column j zero, so a semi-definite A has a factor too.
+pub fn psd_cholesky(a: &[f64], m: usize, l: &mut [f64]) {
+    cholesky_lower(a, m, 0.0, PSD_PIVOT_TOL, l);
+}
+
+/// The Cholesky factor of A + shift I into `l`, from A's lower triangle:
+///     d_j = A_jj + shift - Σ_{k<j} L_jk²,   L_jj = √d_j,   L_ij = (A_ij - Σ_{k<j} L_ik L_jk) / L_jj.
+/// A pivot d_j <= floor A_jj (or NaN) leaves column j zero. Returns the number of such pivots
+/// (0: A + shift I is positive definite).
+fn cholesky_lower(a: &[f64], m: usize, shift: f64, floor: f64, l: &mut [f64]) -> usize {
+    l.fill(0.0);
+    let mut dropped = 0;
     for j in 0..m {
-        let mut d = s[j * m + j] + tau;
+        let mut d = a[j * m + j] + shift;
         for k in 0..j {
-            d -= s[j * m + k] * s[j * m + k];
+            d -= l[j * m + k] * l[j * m + k];
         }
-        if !(d > 0.0) {
-            return false;
+        if !(d > floor * a[j * m + j]) {
+            dropped += 1;
+            continue;
         }
         let ljj = d.sqrt();
-        s[j * m + j] = ljj;
+        l[j * m + j] = ljj;
         for i in j + 1..m {
-            let mut v = s[i * m + j];
+            let mut v = a[i * m + j];
             for k in 0..j {
-                v -= s[i * m + k] * s[j * m + k];
+                v -= l[i * m + k] * l[j * m + k];
             }
-            s[i * m + j] = v / ljj;
+            l[i * m + j] = v / ljj;
         }
     }
-    true
+    dropped
 }

@@ -5,7 +5,8 @@ mod common;
 
 use common::*;
 use proptest::prelude::*;
-use rotorid_core::identify::propagate::{propagate, psd_cholesky, CovOut, CovProblem, H_REL};
+use rotorid_core::covariance::psd_cholesky;
+use rotorid_core::identify::propagate::{propagate, CovOut, CovProblem, H_REL};
 use rotorid_core::identify::{identify_forces, identify_report, IdentOut, IdentProblem, REPORT_TO_BIJ};
 use rotorid_core::{CoreError, C64};
 

@@ -17,7 +17,7 @@
 //! p; it is taken from sigma points, run by run:
 //!     b = ½ Σ_r Σ_k [p(x + l_rk) + p(x - l_rk) - 2 p(x)],
 //! with l_rk the columns of L_r, L_r L_rᵀ = Σ_r (a Cholesky factor that allows a positive
-//! semi-definite Σ_r, [`psd_cholesky`]): by Taylor, p(x + l) + p(x - l) - 2 p(x) = lᵀ H l + O(|l|⁴),
+//! semi-definite Σ_r, [`crate::covariance::psd_cholesky`]): by Taylor, p(x + l) + p(x - l) - 2 p(x) = lᵀ H l + O(|l|⁴),
 //! and Σ_k l_kᵀ H l_k = tr(H L Lᵀ) = tr(H Σ_r) for any such L.
 //!
 //! Every perturbed copy of a point (2 m R for J, 2 m R + 1 for the bias) is one member of a batch
@@ -25,17 +25,13 @@
 //! they are: nothing of size (copies x points) is ever formed.
 
 use super::{identify_serial, IdentOut, IdentProblem, REPORT_TO_BIJ};
+use crate::covariance::psd_cholesky;
 use crate::error::{expect_len, product, CoreError};
 use crate::model::C64;
 use crate::par::{for_each_task, Disjoint};
 
 /// Relative step of the central differences: h = H_REL rms(q) at each point (H_REL where q = 0).
 pub const H_REL: f64 = 1e-6;
-
-/// A pivot of [`psd_cholesky`] at most this times its diagonal entry is a direction without
-/// variance (a semi-definite covariance, e.g. from fewer blocks than it has entries): the rounding
-/// of the subtraction leaves ~1e-16 of the diagonal there, a genuine pivot is far larger.
-pub const PSD_PIVOT_TOL: f64 = 1e-12;
 
 /// Perturbed copies per point and task: a task takes `TASK_LANES / copies` points (at least 4), so
 /// its buffers (~70 bytes of inputs and outputs per copy and point) stay in the core's L2 cache.
@@ -371,7 +367,7 @@ fn task(p: &CovProblem, m: usize, s: usize, cov: &mut [f64], mut bias: Option<&m
 }
 
 /// A task's buffers for the identification of its copies, kept by each thread from call to call
-/// (fresh ones were a tenth of the time: allocation and page faults).
+/// (fresh ones per task: 7 % of the samples in memset and page faults).
 #[derive(Default)]
 struct Scratch {
     k: Vec<f64>,
@@ -383,31 +379,4 @@ struct Scratch {
 
 thread_local! {
     static SCRATCH: std::cell::RefCell<Scratch> = std::cell::RefCell::new(Scratch::default());
-}
-
-/// A lower-triangular L (m x m, row-major) with L Lᵀ = A for a symmetric positive semi-definite A,
-/// of which only the lower triangle is read (Cholesky, column by column):
-///     d_j = A_jj - Σ_{k<j} L_jk²,   L_jj = √d_j,   L_ij = (A_ij - Σ_{k<j} L_ik L_jk) / L_jj  (i > j).
-/// A pivot d_j <= [`PSD_PIVOT_TOL`] A_jj (a direction without variance, up to rounding; negative
-/// only for an indefinite A) leaves column j zero, so a semi-definite A has a factor too.
-pub fn psd_cholesky(a: &[f64], m: usize, l: &mut [f64]) {
-    l.fill(0.0);
-    for j in 0..m {
-        let mut d = a[j * m + j];
-        for k in 0..j {
-            d -= l[j * m + k] * l[j * m + k];
-        }
-        if !(d > PSD_PIVOT_TOL * a[j * m + j]) {
-            continue;
-        }
-        let ljj = d.sqrt();
-        l[j * m + j] = ljj;
-        for i in j + 1..m {
-            let mut v = a[i * m + j];
-            for k in 0..j {
-                v -= l[i * m + k] * l[j * m + k];
-            }
-            l[i * m + j] = v / ljj;
-        }
-    }
 }
