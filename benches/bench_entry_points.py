@@ -74,6 +74,12 @@ def entries(n, n_time):
                                      dof=np.full(m, 30.0))
                 for r in (rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=rpm)
                           for s in "ABCD")]
+    # pedestal runs with the covariances of probes and accelerometers (weighted fit: dof >= GLS_MIN_DOF)
+    runs_ped_cov = [rotorid.SyncResponse(rpm[:m], r.q[:m], r.imbalance, pedestal=r.pedestal[:m],
+                                         cov=np.broadcast_to(np.eye(8) * 1e-14, (m, 8, 8)).copy(),
+                                         pedestal_cov=np.broadcast_to(np.eye(8) * 1e-15, (m, 8, 8)).copy(),
+                                         dof=np.full(m, 30.0))
+                    for r in runs_ped]
     tests_cov = [rotorid.ImpactResponse(2000.0, f[:m], t.q[:m], None, 0.0, d,
                                         cov=np.broadcast_to(np.eye(8) * 1e-16, (m, 8, 8)).copy(), dof=np.full(m, 10.0))
                  for d, t in ((d, rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=2000.0, freq_hz=f[:m],
@@ -113,6 +119,8 @@ def entries(n, n_time):
         "identify_pedestals (2 runs)": lambda: rotorid.identify_pedestals(rig.rotor, runs_ped),
         "identify_pedestals (2 runs, cross-coupled)": lambda: rotorid.identify_pedestals(rig.rotor, runs_ped,
                                                                                          cross_coupled=True),
+        f"identify_pedestals (2 runs with cov, {m:,} speeds)": lambda: rotorid.identify_pedestals(rig.rotor,
+                                                                                                  runs_ped_cov),
         f"identify_synchronous, 4 runs with cov ({m:,} speeds)": lambda: rotorid.identify_synchronous(rig.rotor,
                                                                                                       runs_cov),
         f"identify_impact, 2 tests with cov ({m:,} freqs)": lambda: rotorid.identify_impact(rig.rotor, tests_cov),

@@ -72,6 +72,37 @@ def identify(
     int,  # number of points with NaN/inf input
 ]: ...
 
+def propagate(
+    rotor: npt.NDArray[np.float64],
+    w: npt.NDArray[np.float64],  # (n,), times w_scale if given
+    spin: npt.NDArray[np.float64] | None,  # (n,) or (1,); None: spin = w (synchronous runs)
+    q: list[npt.NDArray[np.complex128]],  # R arrays (n, 4) at the bearings (one problem)
+    e: npt.NDArray[np.complex128],  # (1, R, 4)
+    gain: npt.NDArray[np.float64] | None,  # (n,) or (1,); None: spin^2
+    covs: npt.NDArray[np.float64],  # (R, n, m, m): [Re q, Im q] (m = 8) or with q_ped [.., Re q_ped, Im q_ped] (16)
+    identical: bool = False,
+    method: str = "forces",  # or "report"
+    sigma: npt.NDArray[np.float64] | None = None,
+    q_ped: list[npt.NDArray[np.complex128]] | None = None,
+    w_scale: float | None = None,
+    shared: npt.NDArray[np.float64] | None = None,  # (n, m, m) common to every pair of runs
+    bias: bool = True,
+) -> tuple[
+    npt.NDArray[np.float64],  # Cov(p) (n, 16, 16), eq. 9 order, NaN where unknown
+    npt.NDArray[np.float64] | None,  # second-order bias (n, 16), with bias
+    npt.NDArray[np.uint8],  # unknown (n,): a run's covariance unknown or the estimator singular
+    npt.NDArray[np.float64],  # k standard error (n, 2, 2, 2)
+    npt.NDArray[np.float64],  # c standard error (n, 2, 2, 2)
+]: ...
+
+def check_covariances(
+    covs: list[npt.NDArray[np.float64]],  # R arrays (n, m, m)
+    m: int,
+) -> tuple[
+    npt.NDArray[np.float64],  # (R, n, m, m) copy, unknown matrices all NaN
+    tuple[str, int, int] | None,  # first fault: ("inf" | "asymmetric" | "indefinite", array, point)
+]: ...
+
 def sample_times(n: int, dt: float) -> npt.NDArray[np.float64]: ...  # i * dt for i in 0..n
 
 def wake_pool(max_wait_us: float = 2000.0) -> None:
