@@ -770,9 +770,9 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
     if covs is not None:
         from .model import _REPORT_TO_BIJ
 
-        cov, b, unknown, ks, cs = _propagate(rotor, w_core, spin_core, list(qs), e, gain_core, sigma, covs, identical=identical,
-                                     method=method, bias=True, shared=shared_cov,
-                                     q_ped=None if q_ped is None else list(q_ped), w_scale=w_scale)
+        cov, b, unknown, ks, cs = _propagate(
+            rotor, w_core, spin_core, list(qs), e, gain_core, sigma, covs, identical=identical, method=method,
+            bias=True, shared=shared_cov, q_ped=None if q_ped is None else list(q_ped), w_scale=w_scale)
         rel_std = None  # the standard errors change: recomputed in _finish
         n = axis.size
         bk = np.zeros((n, 8))

@@ -124,13 +124,13 @@ def _propagate(rotor, w, spin, qs, e, gain, sigma, covs, *, identical, method, b
     identification takes them. Returns (cov, bias or None, unknown (n,) bool, k_std, c_std), the
     standard errors (n, 2, 2, 2) NaN where unknown."""
     def arr(a):
+        """A float64 array of at least one dimension (a 0-d value as (1,)), or None."""
         return None if a is None else np.ascontiguousarray(a, dtype=float).reshape(np.shape(a) or (1,))
 
-    cov, b, unknown, k_std, c_std = _core.propagate(rotor.core_params(), arr(w), arr(spin), qs, np.ascontiguousarray(e[None],
-                                      dtype=complex), arr(gain), np.ascontiguousarray(covs, dtype=float),
-                                      identical=identical, method=method, sigma=arr(sigma), q_ped=q_ped,
-                                      w_scale=w_scale, shared=None if shared is None else np.ascontiguousarray(
-                                          shared, dtype=float), bias=bias)
+    cov, b, unknown, k_std, c_std = _core.propagate(
+        rotor.core_params(), arr(w), arr(spin), qs, np.ascontiguousarray(e[None], dtype=complex), arr(gain),
+        np.ascontiguousarray(covs, dtype=float), identical=identical, method=method, sigma=arr(sigma), q_ped=q_ped,
+        w_scale=w_scale, shared=None if shared is None else np.ascontiguousarray(shared, dtype=float), bias=bias)
     return cov, b, unknown.view(bool), k_std, c_std
 
 
