@@ -103,6 +103,11 @@ def check_covariances(
     tuple[str, int, int] | None,  # first fault: ("inf" | "asymmetric" | "indefinite", array, point)
 ]: ...
 
+def unknown_points(
+    blocks: list[npt.NDArray[np.float64]],  # arrays of n points each (first axis)
+    n: int,
+) -> npt.NDArray[np.bool_]: ...  # (n,): a NaN at that point in any of them
+
 def sample_times(n: int, dt: float) -> npt.NDArray[np.float64]: ...  # i * dt for i in 0..n
 
 def wake_pool(max_wait_us: float = 2000.0) -> None:
@@ -203,10 +208,18 @@ def pedestal_fit(
     select: npt.NDArray[np.bool_] | None = None,  # (n,) points used; None: all
     cross: bool = False,
     w_scale: float | None = None,
-) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.int64], npt.NDArray[np.float64], int]:
+    covs: list[tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64] | None]] | None = None,
+    shared: npt.NDArray[np.float64] | None = None,  # (n, 16, 16) common to every pair of runs
+    weighted: bool = True,
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.int64], npt.NDArray[np.float64], int,
+           tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]] | None]:
     """Unweighted pedestal fits with HC3 covariances: (theta (4, u), cov (4, u, u), rank (4,),
-    relative residual (4,), equations per fit), fits (pedestal, direction) = (1, x), (1, y),
-    (2, x), (2, y); u = 3 [k, m, c] or 5 with the cross-coupled [k_ij, c_ij]."""
+    relative residual (4,), equations per fit, cov_fit), fits (pedestal, direction) = (1, x),
+    (1, y), (2, x), (2, y); u = 3 [k, m, c] or 5 with the cross-coupled [k_ij, c_ij]. With
+    ``covs`` (per run the (n, 8, 8) blocks cov, pedestal_cov, cross of [Re q, Im q, Re q_ped,
+    Im q_ped]): cov_fit = (theta (4, u), cov (4, u, u), resid (4,)) of the weighted fits or (not
+    ``weighted``) the sandwich covariances at the unweighted theta; None when a fit is rank
+    deficient."""
 
 STUDY_BINS: int  # bins of each study histogram
 STUDY_E0: float  # errors below E0 are binned linearly

@@ -500,11 +500,13 @@ def _has_pedestal(runs, labels):
     return all(have)
 
 
-def _pedestal_frame(rotor, run, label="", *, finite=True):
+def _pedestal_frame(rotor, run, label="", *, finite=True, blocks=False):
     """(q_rel, p, joint_cov) of a run at the bearings: relative motion, pedestal motion, and the
-    (n, 16, 16) covariance of [Re q_rel, Im q_rel, Re p, Im p] (None without covariances).
-    ``finite=False`` leaves NaN and inf in the pedestal motion of a run at the bearings to the
-    caller (a run at the probes is moved with its pedestal motion, which is checked first)."""
+    (n, 16, 16) covariance of [Re q_rel, Im q_rel, Re p, Im p] (None without covariances), or with
+    ``blocks`` its blocks (cov, pedestal_cov, pedestal_cross or None), (n, 8, 8) each, as the core's
+    pedestal fit takes them. ``finite=False`` leaves NaN and inf in the pedestal motion of a run at
+    the bearings to the caller (a run at the probes is moved with its pedestal motion, which is
+    checked first)."""
     from .simulate import joint_cov
 
     from .simulate import _check_pedestal
@@ -518,7 +520,13 @@ def _pedestal_frame(rotor, run, label="", *, finite=True):
     except RotoridError as exc:
         raise RotoridError(f"{label or 'the run'}: {exc}") from None
     q = rb.frf() if hasattr(rb, "frf") else rb.q
-    jc = joint_cov(rb)
+    if not blocks:
+        jc = joint_cov(rb)
+    elif rb.pedestal is None or rb.cov is None or rb.pedestal_cov is None:
+        jc = None
+    else:
+        jc = tuple(None if c is None else np.ascontiguousarray(c, dtype=float)
+                   for c in (rb.cov, rb.pedestal_cov, rb.pedestal_cross))
     if (run.cov is None) != (run.pedestal_cov is None):
         import warnings
 

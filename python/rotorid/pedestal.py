@@ -302,57 +302,6 @@ class PedestalIdentification:
 GLS_MIN_DOF = 10
 
 
-def _gram(A, weight=None):
-    """A.T @ A, or A.T @ diag(weight) @ A, (u, u) and exactly symmetric, of a tall matrix with a
-    few columns (contiguous, Fortran order, is best): one ``einsum`` sum per pair of columns. For
-    this shape that is faster than the matrix product, as accurate, and starts no BLAS threads
-    (whose wake-up costs milliseconds on a busy machine)."""
-    u = A.shape[1]
-    G = np.empty((u, u))
-    for j in range(u):
-        aj = A[:, j] if weight is None else weight * A[:, j]
-        for k in range(j, u):
-            G[j, k] = G[k, j] = np.einsum("i,i->", aj, A[:, k])
-    return G
-
-
-def _matvec(A, x):
-    """A @ x of a tall matrix, one pass over A without BLAS (see :func:`_gram`)."""
-    return np.einsum("ij,j->i", A, x)
-
-
-def _split(z):
-    """[Re; Im] of a complex array, raveled (C order): the right-hand side of a real least-squares
-    problem, rows as :func:`_design`'s."""
-    half = z.size
-    out = np.empty(2 * half)
-    out[:half] = z.real.reshape(half)
-    out[half:] = z.imag.reshape(half)
-    return out
-
-
-def _design(s, s2, p, b, i, cross):
-    """Real design matrix of pedestal b, direction i, (2 R n, u) in Fortran order (its columns
-    contiguous, as the column sums of :func:`_gram` want them): unknowns [k_ii,
-    m_i, c_ii (, k_ij, c_ij)]; rows [Re of each (run, point) (run-major), then Im]. ``s`` (R n,) =
-    sigma + j w of each row, ``s2`` = s ** 2, ``p`` (R, n, 4) pedestal motion: f = (k + s² m + s c)
-    p_own (+ (k_ij + s c_ij) p_other)."""
-    half = s.size
-    own = p[..., 2 * i + b].reshape(half)
-    cols = [(own, None), (own, s2), (own, s)]
-    if cross:
-        other = p[..., 2 * (1 - i) + b].reshape(half)
-        cols += [(other, None), (other, s)]
-    X = np.empty((2 * half, len(cols)), order="F")
-    t = np.empty(half, complex)
-    for j, (v, factor) in enumerate(cols):
-        if factor is not None:
-            v = np.multiply(factor, v, out=t)
-        X[:half, j] = v.real
-        X[half:, j] = v.imag
-    return X
-
-
 def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_hz=None, accel_gain_std: float = 0.0,
                        accel_phase_std_deg: float = 0.0, shared_cov=None) -> PedestalIdentification:
     """Each pedestal's mass, stiffness and damping from imbalance runs (or impact tests) that carry
@@ -453,7 +402,7 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
     from .identify import _shared
 
     # NaN and inf are found by the core's fit and named then (_name_nonfinite): no scan here
-    frames = [_pedestal_frame(rotor, r, lab, finite=False) for r, lab in zip(runs, labels)]
+    frames = [_pedestal_frame(rotor, r, lab, finite=False, blocks=True) for r, lab in zip(runs, labels)]
     shared = _shared(rotor, runs, shared_cov, size=16)
     qs = [fr[0] for fr in frames]
     ps = [fr[1] for fr in frames]
@@ -483,29 +432,8 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
     R, n = len(runs), axis.size
     nu = 5 if cross else 3
     if have_cov:
-        q, p = np.stack(qs), np.stack(ps)
-        w = w_scale * axis
-        s_lap = sigma + 1j * w
-        if spin is None:
-            spin = w
-
-        def forces(qq, pp):
-            return _core.bearing_forces(params, w, spin, np.ascontiguousarray(qq[None]), e, gain, sigma=sig_arr,
-                                        q_ped=np.ascontiguousarray(pp[None]))[0]
-
-        F = forces(q, p)                                          # (R, n, 4) [f1x, f2x, f1y, f2y]
-        # d(residual)/d(measurement): the forces are affine in (q, p), so unit perturbations of the
-        # 16 real inputs per run less the excitation's part give the Jacobian exactly; the pedestal
-        # term D p is added per fit below
-        zero_q, zero_p = np.zeros_like(q), np.zeros_like(p)
-        F0 = forces(zero_q, zero_p)
-        J = np.empty((R, n, 16, 4), complex)
-        for comp in range(16):
-            dq, dp = zero_q.copy(), zero_p.copy()
-            (dq if comp < 8 else dp)[..., comp % 4] = 1j if comp % 8 >= 4 else 1.0
-            J[:, :, comp] = forces(dq, dp) - F0
-        S = np.stack(covs)                                        # (R, n, 16, 16)
-        unknown = np.isnan(S).any(axis=(0, 2, 3))                 # a point whose covariance a run lacks
+        # a point whose covariance some run lacks: NaN in one of its blocks
+        unknown = _core.unknown_points([c for blocks in covs for c in blocks if c is not None], n)
         used = np.ones(n, bool) if sel is None else sel
         if unknown[used].all():
             import warnings
@@ -514,28 +442,31 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
                           "fit is unweighted with residual (HC3) errors" + ("; shared_cov is not used" if shared is not None
                                                                            else ""))
             have_cov = False
-        else:
-            if unknown[used].any():
-                import warnings
+        elif unknown[used].any():
+            import warnings
 
-                warnings.warn(f"{int(unknown[used].sum())} of {int(used.sum())} points have no measurement "
-                              "covariance (NaN) in some run: the weighted pedestal fit leaves them out")
-                sel = used & ~unknown
-            S = np.nan_to_num(S)
-            Sh = None if shared is None else np.nan_to_num(shared)
+            warnings.warn(f"{int(unknown[used].sum())} of {int(used.sum())} points have no measurement "
+                          "covariance (NaN) in some run: the weighted pedestal fit leaves them out")
+            sel = used & ~unknown
     ns = n if sel is None else int(sel.sum())
     if 2 * R * ns <= nu:
         raise IdentifiabilityError(f"{R} run(s) x {ns} point(s) give too few equations for {nu} unknowns")
     # the unweighted fits of all four (pedestal, direction) pairs with HC3 covariances, in the
-    # core: equations formed point by point and folded into a QR factor, no design matrix
+    # core: equations formed point by point and folded into a QR factor, no design matrix; with
+    # covariances, in the same call, the weighted fits or the sandwich covariances
+    # (rotorid_core::pedestal_cov)
     try:
-        th_all, c3_all, ranks, resid_all, m_rows = _core.pedestal_fit(params, np.ascontiguousarray(axis), spin, qs, e,
-                                                                      gain, ps, sigma=sig_arr, select=sel, cross=cross,
-                                                                      w_scale=w_scale)
+        th_all, c3_all, ranks, resid_all, m_rows, cov_fit = _core.pedestal_fit(
+            params, np.ascontiguousarray(axis), spin, qs, e, gain, ps, sigma=sig_arr, select=sel, cross=cross,
+            w_scale=w_scale, covs=covs if have_cov else None, shared=shared if have_cov else None, weighted=weighted)
     except RotoridError as exc:
         if "NaN or inf" not in str(exc):
             raise
         _name_nonfinite(labels, runs)
+    for fi in range(4):
+        if ranks[fi] < nu:
+            raise IdentifiabilityError(f"pedestal {fi // 2 + 1} {'xy'[fi % 2]}: the equations are rank deficient (too "
+                                       "few distinct frequencies, or no pedestal motion in that direction)")
     mass = np.zeros((2, 2))
     kk = np.zeros((2, 2, 2))
     cc = np.zeros((2, 2, 2))
@@ -548,15 +479,21 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
     for b in range(2):
         for i in range(2):
             fi = 2 * b + i
-            if ranks[fi] < nu:
-                raise IdentifiabilityError(f"pedestal {b + 1} {'xy'[i]}: the equations are rank deficient (too few "
-                                           "distinct frequencies, or no pedestal motion in that direction)")
             th, covt = th_all[fi], c3_all[fi]
-            if have_cov:
-                th, covt, r_w, src = _covariance_fit(th, covt, b, i, cross, R, sel, s_lap, w, F, p, J, S, Sh,
-                                                     weighted)
-                if r_w is not None:
-                    resid[b, i] = r_w
+            if have_cov and weighted:
+                # weighted least squares, the errors widened by a misfit beyond the measurement errors
+                th, covt, resid[b, i] = cov_fit[0][fi], cov_fit[1][fi], cov_fit[2][fi]
+                src = "measurement covariance"
+            elif have_cov:
+                # covariances from a few repeats (impacts: dof = impacts - 1) are too noisy to weigh
+                # with (the inverse of a poorly estimated covariance overweights the rows whose
+                # variance happens to come out small): unweighted least squares with the sandwich of
+                # the propagated covariances, or the residual (HC3) covariance, which also sees errors
+                # the measurement covariance misses (run-out filter leftovers, low-coherence bins):
+                # the larger variance of the two counts
+                big = np.diag(covt) > np.diag(cov_fit[1][fi])
+                covt = np.where(big[:, None] & big[None, :], covt, cov_fit[1][fi])
+                src = "residual or measurement covariance, the larger (unweighted fit)"
             sd = np.sqrt(np.clip(np.diag(covt), 0, None))
             kk[b, i, i], mass[b, i], cc[b, i, i] = th[0], th[1], th[2]
             ks[b, i, i], ms[b, i], cs[b, i, i] = sd[0], sd[1], sd[2]
@@ -581,85 +518,6 @@ def _name_nonfinite(labels, runs):
                 idx = tuple(int(v) for v in np.argwhere(bad)[0])
                 raise RotoridError(f"{lab}: {name} contains NaN or inf (first at index {idx})")
     raise RotoridError("runs contain NaN or inf")
-
-
-def _covariance_fit(theta, c3, b, i, cross, R, sel, s_lap, w, F, p, J, S, Sh, weighted):
-    """Pedestal b, direction i with the runs' measurement covariances, from the core's unweighted
-    estimate ``theta`` (physical units) and its HC3 covariance ``c3``: weighted least squares
-    (``weighted``) or the larger of the sandwich and HC3 variances. Returns (theta, covariance,
-    relative residual of the weighted fit or None, std_source)."""
-    nu = theta.size
-    col = 2 * i + b                                               # index of (b, i) in [x1, x2, y1, y2]
-    pick = slice(None) if sel is None else sel
-    Fs, ps = F[:, pick], p[:, pick]
-    s_rows = np.tile(s_lap[pick], R)                              # s of each (run, point), run-major
-    Xs = _design(s_rows, s_rows ** 2, ps, b, i, cross)
-    y = _split(Fs[..., col])
-    scale = np.maximum(np.maximum(Xs.max(axis=0), -Xs.min(axis=0)), 1e-300)
-    Xs /= scale                                                   # the core's scaling: the same fit
-    theta = theta * scale
-    c3 = c3 * np.outer(scale, scale)
-    m_rows = y.size
-    ns = m_rows // (2 * R)
-    # the equations of one point, all runs together: (ns, 2R, u) and (ns, 2R), rows [Re, Im] of
-    # run 0, run 1, ... (the runs' errors may be correlated: shared_cov)
-    Xp = np.stack([Xs[:m_rows // 2], Xs[m_rows // 2:]], 1).reshape(R, ns, 2, nu)
-    Xp = Xp.transpose(1, 0, 2, 3).reshape(ns, 2 * R, nu)
-    yp = np.stack([y[:m_rows // 2], y[m_rows // 2:]], 1).reshape(R, ns, 2)
-    yp = yp.transpose(1, 0, 2).reshape(ns, 2 * R)
-
-    def point_cov(theta):
-        """(ns, 2R, 2R) covariance of each point's residuals r = F_col - D_own p_own - D_oth p_oth
-        (Re, Im per run) at the estimate ``theta``."""
-        th = theta / scale
-        D_own = th[0] + s_lap ** 2 * th[1] + s_lap * th[2]
-        D_oth = (th[3] + s_lap * th[4]) if cross else 0.0 * w
-        g = J[:, :, :, col].copy()                                # (R, n, 16)
-        g[:, :, 8 + col] -= D_own[None]
-        g[:, :, 12 + col] -= 1j * D_own[None]
-        if cross:
-            oc = 2 * (1 - i) + b
-            g[:, :, 8 + oc] -= D_oth[None]
-            g[:, :, 12 + oc] -= 1j * D_oth[None]
-        G2 = np.stack([g.real, g.imag], -2)[:, pick]              # (R, ns, 2, 16)
-        V = np.zeros((ns, 2 * R, 2 * R))
-        for r in range(R):
-            for t in range(R):
-                if r != t and Sh is None:
-                    continue
-                M = S[r][pick] if r == t else Sh[pick]
-                V[:, 2 * r:2 * r + 2, 2 * t:2 * t + 2] = G2[r] @ M @ np.swapaxes(G2[t], -1, -2)
-        return V
-
-    resid = None
-    if weighted:
-        for _ in range(2):  # weights depend on the estimate (D p carries the pedestal noise)
-            Lc = np.linalg.cholesky(point_cov(theta) + 1e-300 * np.eye(2 * R))
-            Xw = np.linalg.solve(Lc, Xp).reshape(-1, nu)                          # whitened
-            yw = np.linalg.solve(Lc, yp[..., None])[..., 0].ravel()
-            theta, *_ = np.linalg.lstsq(Xw, yw, rcond=None)
-        covt = np.linalg.inv(Xw.T @ Xw)
-        rw = yw - Xw @ theta
-        chi2 = float(rw @ rw) / max(Xw.shape[0] - nu, 1)
-        # a misfit beyond the measurement errors (a wrong pedestal model) widens the errors
-        covt = covt * max(chi2, 1.0)
-        src = "measurement covariance"
-        r = y - _matvec(Xs, theta)                                # at the weighted estimate
-        resid = float(np.sqrt(np.sum(r ** 2) / max(np.sum(y ** 2), 1e-300)))
-    else:
-        # covariances from a few repeats (impacts: dof = impacts - 1) are too noisy to weigh with
-        # (the inverse of a poorly estimated covariance overweights the rows whose variance happens
-        # to come out small): unweighted least squares with the sandwich of the propagated
-        # covariances, and the residual (HC3) covariance as well: it also sees errors the
-        # measurement covariance misses (run-out filter leftovers, low-coherence bins); the larger
-        # variance of the two counts
-        XtXi = np.linalg.inv(_gram(Xs))
-        meat = np.einsum("kau,kab,kbv->uv", Xp, point_cov(theta), Xp)
-        covt = XtXi @ meat @ XtXi
-        big = np.diag(c3) > np.diag(covt)
-        covt = np.where(big[:, None] & big[None, :], c3, covt)
-        src = "residual or measurement covariance, the larger (unweighted fit)"
-    return theta / scale, covt / np.outer(scale, scale), resid, src
 
 
 def _add_calibration(fit, rotor, runs, gain_std, phase_std_rad, **kw):

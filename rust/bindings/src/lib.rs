@@ -4,7 +4,7 @@
 //! become a `RuntimeError` (a panic never crosses into Python).
 
 use rotorid_core::study::{self, Excitation, ImpactErrors, Method, Study, SyncErrors};
-use rotorid_core::{forced, identify, modal, model, order, pedestal, series, timesim, CoreError, Rotor, C64};
+use rotorid_core::{forced, identify, modal, model, order, pedestal, pedestal_cov, series, timesim, CoreError, Rotor, C64};
 use numpy::{PyArray1, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyMemoryError, PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -543,6 +543,33 @@ fn check_covariances<'py>(
     Ok((to_py(py, out, &[arrays.len(), n, m, m])?, fault))
 }
 
+/// Points whose covariance is unknown (see rotorid_core::covariance::unknown_points): `blocks` a
+/// list of float64 arrays with n points each (first axis). Returns (n,) bool.
+#[pyfunction]
+fn unknown_points<'py>(py: Python<'py>, blocks: &Bound<'py, PyList>, n: usize) -> PyResult<Bound<'py, PyArrayDyn<bool>>> {
+    let arrays: Vec<PyReadonlyArrayDyn<'py, f64>> = blocks
+        .iter()
+        .enumerate()
+        .map(|(r, a)| a.extract().map_err(|_| PyTypeError::new_err(format!("blocks[{r}] must be a float64 array"))))
+        .collect::<PyResult<_>>()?;
+    for (r, a) in arrays.iter().enumerate() {
+        if a.shape().first() != Some(&n) {
+            return Err(PyValueError::new_err(format!("blocks[{r}] has shape {:?}, expected ({n}, ...)", a.shape())));
+        }
+    }
+    let slices = arrays.iter().enumerate().map(|(r, a)| slice(a, &format!("blocks[{r}]"))).collect::<PyResult<Vec<_>>>()?;
+    check_alloc("unknown_points", Some(n), 1)?;
+    let out = py
+        .detach(|| {
+            guarded(|| {
+                let mut out = vec![false; n];
+                rotorid_core::covariance::unknown_points(&slices, &mut out).map(|_| out)
+            })
+        })?
+        .map_err(core_err)?;
+    to_py(py, out, &[n])
+}
+
 /// Measurement covariance propagated through the identification (see
 /// identify::propagate): arguments as `identify` for one problem (`q` and `q_ped` lists of R
 /// arrays (n, 4) at the bearings), with `covs` (R, n, m, m) the runs' covariances of [Re q, Im q]
@@ -976,14 +1003,23 @@ fn bearing_forces<'py>(
     to_py(py, out, &[batch, runs, n, 4])
 }
 
+/// The covariance fit's (theta (4, u), cov (4, u, u), resid (4,)).
+type CovFitArrays<'py> = (Bound<'py, PyArrayDyn<f64>>, Bound<'py, PyArrayDyn<f64>>, Bound<'py, PyArrayDyn<f64>>);
+
 /// Pedestal identification (see pedestal_fit::fit): the bearing forces' arguments as
 /// `bearing_forces` (one batch member; `q` and `q_ped` lists of runs or (1, R, n, 4) arrays),
 /// `select` (n,) bool or None for every point, `cross` for the cross-coupled terms; `w_scale`: w is
 /// `w_scale` times the given axis; `spin` None: spin = w (synchronous runs). Returns
-/// (theta (4, u), cov (4, u, u), rank (4,) int, resid (4,), rows) with fits in the order
+/// (theta (4, u), cov (4, u, u), rank (4,) int, resid (4,), rows, cov_fit) with fits in the order
 /// (pedestal, direction) = (1, x), (1, y), (2, x), (2, y); theta and cov NaN where rank < u.
+/// With `covs` (per run (cov, pedestal_cov, cross or None), (n, 8, 8) each: the blocks of the
+/// covariance of [Re q, Im q, Re q_ped, Im q_ped], known at the selected points) and optionally
+/// `shared` (n, 16, 16): `cov_fit` = (theta, cov,
+/// resid) of the weighted fit (`weighted`) or, unweighted, the sandwich covariance at the
+/// unweighted theta (see pedestal_cov::cov_fit); None without `covs` or when a fit is rank
+/// deficient.
 #[pyfunction]
-#[pyo3(signature = (rotor, w, spin, q, e, gain, q_ped, sigma=None, select=None, cross=false, w_scale=None))]
+#[pyo3(signature = (rotor, w, spin, q, e, gain, q_ped, sigma=None, select=None, cross=false, w_scale=None, covs=None, shared=None, weighted=true))]
 #[allow(clippy::too_many_arguments, clippy::type_complexity)]
 fn pedestal_fit<'py>(
     py: Python<'py>,
@@ -998,12 +1034,16 @@ fn pedestal_fit<'py>(
     select: Option<&Bound<'py, PyAny>>,
     cross: bool,
     w_scale: Option<f64>,
+    covs: Option<&Bound<'py, PyAny>>,
+    shared: Option<PyReadonlyArrayDyn<'py, f64>>,
+    weighted: bool,
 ) -> PyResult<(
     Bound<'py, PyArrayDyn<f64>>,
     Bound<'py, PyArrayDyn<f64>>,
     Bound<'py, PyArrayDyn<i64>>,
     Bound<'py, PyArrayDyn<f64>>,
     usize,
+    Option<CovFitArrays<'py>>,
 )> {
     let rot = rotor_of(&rotor)?;
     let resp = responses(q)?;
@@ -1024,14 +1064,79 @@ fn pedestal_fit<'py>(
         }
         None => &[],
     };
+    // the runs' covariances as (q, pedestal, cross or None) blocks of (n, 8, 8), and the shared
+    // (n, 16, 16) one, for the covariance fit
+    type Blocks<'py> = (PyReadonlyArrayDyn<'py, f64>, PyReadonlyArrayDyn<'py, f64>, Option<PyReadonlyArrayDyn<'py, f64>>);
+    let cov_arrays: Vec<Blocks<'py>> = match covs {
+        Some(c) if !c.is_none() => c
+            .cast::<PyList>()
+            .map_err(|_| PyTypeError::new_err("covs must be a list of (cov, pedestal_cov, cross or None), one per run"))?
+            .iter()
+            .enumerate()
+            .map(|(r, a)| a.extract().map_err(|_| PyTypeError::new_err(format!("covs[{r}] must be (cov, pedestal_cov, cross or None) of float64 arrays"))))
+            .collect::<PyResult<_>>()?,
+        _ => Vec::new(),
+    };
+    if !cov_arrays.is_empty() && cov_arrays.len() != resp.runs {
+        return Err(PyValueError::new_err(format!("covs has {} entries, expected one per run ({})", cov_arrays.len(), resp.runs)));
+    }
+    let mut cov_slices = Vec::with_capacity(cov_arrays.len());
+    for (r, (cq, cp, cx)) in cov_arrays.iter().enumerate() {
+        check_shape(&format!("covs[{r}][0]"), cq.shape(), &[n, 8, 8])?;
+        check_shape(&format!("covs[{r}][1]"), cp.shape(), &[n, 8, 8])?;
+        if let Some(x) = cx {
+            check_shape(&format!("covs[{r}][2]"), x.shape(), &[n, 8, 8])?;
+        }
+        cov_slices.push(pedestal_cov::RunCov {
+            q: slice(cq, &format!("covs[{r}][0]"))?,
+            ped: slice(cp, &format!("covs[{r}][1]"))?,
+            cross: match cx {
+                Some(x) => slice(x, &format!("covs[{r}][2]"))?,
+                None => &[],
+            },
+        });
+    }
+    if let Some(sh) = &shared {
+        check_shape("shared", sh.shape(), &[n, 16, 16])?;
+    }
+    let shared_slice: &[f64] = match &shared {
+        Some(sh) => slice(sh, "shared")?,
+        None => &[],
+    };
     let problem = rotorid_core::pedestal_fit::PedestalFitProblem { forces, select, cross };
-    let fits = py.detach(|| guarded(|| rotorid_core::pedestal_fit::fit(&problem)))?.map_err(core_err)?;
+    let (fits, cfits) = py
+        .detach(|| {
+            guarded(|| {
+                let fits = rotorid_core::pedestal_fit::fit(&problem)?;
+                let u = if cross { 5 } else { 3 };
+                // the covariance fit needs every unweighted fit of full rank (the caller names a
+                // rank-deficient one)
+                let cfits = if cov_slices.is_empty() || fits.iter().any(|f| f.rank < u) {
+                    None
+                } else {
+                    let cp = pedestal_cov::CovFitProblem { fit: problem, covs: &cov_slices, shared: shared_slice };
+                    let thetas: Vec<Vec<f64>> = fits.iter().map(|f| f.theta.clone()).collect();
+                    Some(pedestal_cov::cov_fit(&cp, &thetas, weighted)?)
+                };
+                Ok::<_, CoreError>((fits, cfits))
+            })
+        })?
+        .map_err(core_err)?;
     let u = if cross { 5 } else { 3 };
     let theta: Vec<f64> = fits.iter().flat_map(|f| f.theta.iter().copied()).collect();
     let cov: Vec<f64> = fits.iter().flat_map(|f| f.cov.iter().copied()).collect();
     let rank: Vec<i64> = fits.iter().map(|f| f.rank as i64).collect();
     let resid: Vec<f64> = fits.iter().map(|f| f.resid).collect();
-    Ok((to_py(py, theta, &[4, u])?, to_py(py, cov, &[4, u, u])?, to_py(py, rank, &[4])?, to_py(py, resid, &[4])?, fits[0].rows))
+    let cov_fit = match cfits {
+        Some(cf) => {
+            let th: Vec<f64> = cf.iter().flat_map(|f| f.theta.iter().copied()).collect();
+            let cv: Vec<f64> = cf.iter().flat_map(|f| f.cov.iter().copied()).collect();
+            let rs: Vec<f64> = cf.iter().map(|f| f.resid).collect();
+            Some((to_py(py, th, &[4, u])?, to_py(py, cv, &[4, u, u])?, to_py(py, rs, &[4])?))
+        }
+        None => None,
+    };
+    Ok((to_py(py, theta, &[4, u])?, to_py(py, cov, &[4, u, u])?, to_py(py, rank, &[4])?, to_py(py, resid, &[4])?, fits[0].rows, cov_fit))
 }
 
 /// Sample times i dt of n samples (timesim::sample_times): (n,).
@@ -1562,6 +1667,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(relative_std, m)?)?;
     m.add_function(wrap_pyfunction!(propagate, m)?)?;
     m.add_function(wrap_pyfunction!(check_covariances, m)?)?;
+    m.add_function(wrap_pyfunction!(unknown_points, m)?)?;
     m.add_function(wrap_pyfunction!(flag_codes, m)?)?;
     m.add_function(wrap_pyfunction!(wake_pool, m)?)?;
     m.add_function(wrap_pyfunction!(sample_times, m)?)?;

@@ -115,6 +115,34 @@ pub fn check_covariances(c: &[f64], m: usize, out: &mut [f64]) -> Result<Option<
     })
 }
 
+/// The points whose covariance is unknown: `out[k]` set where any of the arrays `blocks` (each
+/// `out.len()` points of equal size, e.g. the (n, 8, 8) blocks of several runs) has a NaN at point
+/// k (left as it is elsewhere, so calls accumulate).
+pub fn unknown_points(blocks: &[&[f64]], out: &mut [bool]) -> Result<(), CoreError> {
+    let n = out.len();
+    for b in blocks {
+        if n == 0 || b.len() % n != 0 {
+            if n == 0 && b.is_empty() {
+                continue;
+            }
+            return Err(CoreError::length("blocks", b.len(), format!("a multiple of {n} (the points)")));
+        }
+    }
+    let dst = Disjoint::new(out);
+    for_each_task(n.div_ceil(CHUNK), |j| {
+        // SAFETY: for_each_task hands each task index j to one task
+        let o = unsafe { dst.chunk(j, CHUNK) };
+        for b in blocks {
+            let per = b.len() / n;
+            for (t, u) in o.iter_mut().enumerate() {
+                let k = j * CHUNK + t;
+                *u |= b[k * per..(k + 1) * per].iter().any(|v| v.is_nan());
+            }
+        }
+    });
+    Ok(())
+}
+
 /// A lower-triangular L (m x m, row-major) with L Lᵀ = A for a symmetric positive semi-definite A,
 /// of which only the lower triangle is read (Cholesky, column by column):
 ///     d_j = A_jj - Σ_{k<j} L_jk²,   L_jj = √d_j,   L_ij = (A_ij - Σ_{k<j} L_ik L_jk) / L_jj  (i > j).

@@ -36,6 +36,7 @@ pub mod modal;
 pub mod model;
 pub mod order;
 pub mod pedestal;
+pub mod pedestal_cov;
 pub mod par;
 pub mod pedestal_fit;
 pub mod series;

@@ -92,3 +92,27 @@ fn faults_and_unknown_points() {
     assert_eq!(check_covariances(&good, m, &mut out[..8]).unwrap_err().name(), "out");
     assert_eq!(check_covariances(&good, 0, &mut out).unwrap_err().name(), "m");
 }
+
+/// Unknown points: a NaN anywhere in a point's entries of any block, over more points than a
+/// task holds; calls accumulate; a block whose size is not a multiple of the points is refused.
+#[test]
+fn unknown_points_are_found_in_every_block() {
+    use rotorid_core::covariance::unknown_points;
+    let n = 1500;
+    let mut a = vec![1.0; n * 64];
+    let mut b = vec![2.0; n * 64];
+    a[64 * 7 + 63] = f64::NAN;
+    b[64 * 1200] = f64::NAN;
+    b[64 * 1499 + 5] = f64::NAN;
+    let mut out = vec![false; n];
+    unknown_points(&[&a, &b], &mut out).unwrap();
+    let want: Vec<usize> = out.iter().enumerate().filter(|(_, &u)| u).map(|(k, _)| k).collect();
+    assert_eq!(want, vec![7, 1200, 1499]);
+    let mut c = vec![0.0; n * 3];
+    c[3 * 10 + 2] = f64::NAN;
+    unknown_points(&[&c], &mut out).unwrap();
+    assert!(out[10] && out[7] && out.iter().filter(|&&u| u).count() == 4);
+    assert_eq!(unknown_points(&[&c[..10]], &mut out).unwrap_err().name(), "blocks");
+    let mut none: Vec<bool> = Vec::new();
+    assert!(unknown_points(&[], &mut none).is_ok());
+}

@@ -991,6 +991,19 @@ pub(crate) fn force_point(p: &IdentProblem, kc: &Consts, b: usize, r: usize, i: 
     ]
 }
 
+/// The part of the bearing forces [f1x, f2x, f1y, f2y] that moves with the absolute motion q_abs
+/// of a point (as [`force_point`] forms them, the excitation left out):
+/// R = -s^2 M q_abs - s Omega G q_abs mapped to the bearings, complex-linear in q_abs.
+pub(crate) fn motion_forces(kc: &Consts, w: f64, sigma: f64, spin: f64, qa: &[C64; 4]) -> [C64; 4] {
+    let rv = rhs_point(kc, &[C64::new(0.0, 0.0); 4], 0.0, w, sigma, spin, qa);
+    [
+        (rv[0] * kc.l2 - rv[2]) * kc.il,
+        (rv[2] + rv[0] * kc.l1) * kc.il,
+        (rv[1] * kc.l2 + rv[3]) * kc.il,
+        (rv[1] * kc.l1 - rv[3]) * kc.il,
+    ]
+}
+
 /// NaN-propagating maximum (as NumPy's `maximum`): a NaN anywhere makes the result NaN.
 #[inline(always)]
 fn max_nan(a: f64, b: f64) -> f64 {
