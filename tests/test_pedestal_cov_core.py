@@ -144,3 +144,33 @@ def test_the_core_refuses_bad_covariance_blocks():
         core.pedestal_fit(*args, w_scale=np.pi / 30, covs=[np.zeros((6, 16, 16))] * 3)
     with pytest.raises(RotoridError, match="shared has shape"):
         core.pedestal_fit(*args, w_scale=np.pi / 30, covs=[good] * 3, shared=np.zeros((6, 8, 8)))
+
+
+def test_the_covariance_fits_and_the_propagation_do_not_depend_on_the_thread_count():
+    """Tasks of fixed points merged in order: one thread (RAYON_NUM_THREADS=1) gives the bits of
+    the pool, for the pedestal fit with covariances (more points than a task holds) and for the
+    synchronous identification's propagation (``identify::propagate``)."""
+    import os
+    import subprocess
+    import sys
+    import tempfile
+
+    code = ("import numpy as np, sys, rotorid; sys.path.insert(0, 'tests'); "
+            "from test_pedestal_cov_core import _runs, RIG; "
+            "runs = _runs(30.0, rpm=np.linspace(1500.0, 7000.0, 1500), cross_cov=True); "
+            "f = rotorid.identify_pedestals(RIG.rotor, runs); "
+            "i = rotorid.identify_synchronous(RIG.rotor, [r.at_bearings(RIG.rotor) for r in runs], "
+            "estimator='bias-corrected'); "
+            "np.save(sys.argv[1], np.concatenate([f.k.ravel(), f.k_std.ravel(), f.mass_std.ravel(), i.k.ravel(), "
+            "i.cov.ravel(), i.k_bias.ravel()]))")
+    with tempfile.TemporaryDirectory() as d:
+        outs = []
+        for threads in ("1", "2"):
+            path = os.path.join(d, f"{threads}.npy")
+            env = {**os.environ, "RAYON_NUM_THREADS": threads}
+            r = subprocess.run([sys.executable, "-c", code, path], env=env, capture_output=True, text=True, timeout=300,
+                               cwd=os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+            assert r.returncode == 0, r.stderr[-2000:]
+            outs.append(np.load(path))
+    assert np.isfinite(outs[0]).mean() > 0.5
+    np.testing.assert_array_equal(outs[0], outs[1])
