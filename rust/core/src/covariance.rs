@@ -156,7 +156,7 @@ pub fn psd_cholesky(a: &[f64], m: usize, l: &mut [f64]) {
 ///     d_j = A_jj + shift - Σ_{k<j} L_jk²,   L_jj = √d_j,   L_ij = (A_ij - Σ_{k<j} L_ik L_jk) / L_jj.
 /// A pivot d_j <= floor A_jj (or NaN) leaves column j zero. Returns the number of such pivots
 /// (0: A + shift I is positive definite).
-fn cholesky_lower(a: &[f64], m: usize, shift: f64, floor: f64, l: &mut [f64]) -> usize {
+pub(crate) fn cholesky_lower(a: &[f64], m: usize, shift: f64, floor: f64, l: &mut [f64]) -> usize {
     l.fill(0.0);
     let mut dropped = 0;
     for j in 0..m {

@@ -24,6 +24,7 @@
 //! [`crate::pedestal_fit`]. Points go in fixed tasks merged in order: the same bits on any number of
 //! threads.
 
+use crate::covariance::cholesky_lower;
 use crate::error::{expect_len, CoreError};
 use crate::identify::{force_point, motion_forces, Consts};
 use crate::lsq::{Solution, TallQr};
@@ -363,25 +364,9 @@ fn over_points(p: &CovFitProblem, thetas: &[Vec<f64>], u: usize, pass: Pass) -> 
 /// Rows [X y] (nr x (u + 1)) replaced by L⁻¹ [X y], L Lᵀ = V + 1e-300 I (Cholesky from V's lower
 /// triangle, as LAPACK reads it); `Err` when V is not positive definite.
 fn whiten(v: &[f64], nr: usize, u: usize, l: &mut Vec<f64>, xy: &mut [f64]) -> Result<(), ()> {
-    l.clear();
     l.resize(nr * nr, 0.0);
-    for j in 0..nr {
-        let mut d = v[j * nr + j] + 1e-300;
-        for q in 0..j {
-            d -= l[j * nr + q] * l[j * nr + q];
-        }
-        if !(d > 0.0) {
-            return Err(());
-        }
-        let ljj = d.sqrt();
-        l[j * nr + j] = ljj;
-        for i2 in j + 1..nr {
-            let mut s = v[i2 * nr + j];
-            for q in 0..j {
-                s -= l[i2 * nr + q] * l[j * nr + q];
-            }
-            l[i2 * nr + j] = s / ljj;
-        }
+    if cholesky_lower(v, nr, 1e-300, 0.0, l) > 0 {
+        return Err(());
     }
     for c in 0..=u {
         for r1 in 0..nr {
