@@ -124,6 +124,8 @@ def entries(n, n_time):
         f"identify_synchronous, 4 runs with cov ({m:,} speeds)": lambda: rotorid.identify_synchronous(rig.rotor,
                                                                                                       runs_cov),
         f"identify_impact, 2 tests with cov ({m:,} freqs)": lambda: rotorid.identify_impact(rig.rotor, tests_cov),
+        f"identify_synchronous, 2 pedestal runs with cov + accel calibration ({m:,} speeds)":
+            lambda: rotorid.identify_synchronous(rig.rotor, runs_ped_cov, accel_gain_std=0.02, accel_phase_std_deg=1.0),
         "uncertainty.relative_std": lambda: uncertainty.relative_std(ident.k, ident.c, ident.k_std, ident.c_std),
         "SyncResponse (constructor, user data)": lambda: SyncResponse(rpm, run.q, imb, "probes"),
         f"signals.track ({ns // 1_000_000} M samples x 4 channels)": lambda: signals.track(rec, kp=kp,
