@@ -319,6 +319,20 @@ type IdentTuple<'py> = (
     usize,
 );
 
+/// The arrays of a Python list, each of element type `T` (`dtype` names it in the message),
+/// refused by position: "`name`[r] must be a `dtype` array".
+fn list_arrays<'py, T: numpy::Element>(list: &Bound<'py, PyList>, name: &str, dtype: &str) -> PyResult<Vec<PyReadonlyArrayDyn<'py, T>>> {
+    list.iter()
+        .enumerate()
+        .map(|(r, a)| a.extract().map_err(|_| PyTypeError::new_err(format!("{name}[{r}] must be a {dtype} array"))))
+        .collect()
+}
+
+/// One slice per array of [`list_arrays`], named `name`[r] in a contiguity error.
+fn list_slices<'a, T: numpy::Element>(arrays: &'a [PyReadonlyArrayDyn<'_, T>], name: &str) -> PyResult<Vec<&'a [T]>> {
+    arrays.iter().enumerate().map(|(r, a)| slice(a, &format!("{name}[{r}]"))).collect()
+}
+
 /// The responses of an identification as (batch, runs) blocks of (n, 4): either one array
 /// (batch, runs, n, 4) or a list of `runs` arrays (n, 4) of one problem, used where they are.
 struct Responses<'py> {
@@ -332,11 +346,7 @@ struct Responses<'py> {
 
 fn responses<'py>(q: &Bound<'py, PyAny>) -> PyResult<Responses<'py>> {
     if let Ok(list) = q.cast::<PyList>() {
-        let arrays: Vec<PyReadonlyArrayDyn<'py, C64>> = list
-            .iter()
-            .enumerate()
-            .map(|(r, a)| a.extract().map_err(|_| PyTypeError::new_err(format!("q[{r}] must be a complex128 array"))))
-            .collect::<PyResult<_>>()?;
+        let arrays: Vec<PyReadonlyArrayDyn<'py, C64>> = list_arrays(list, "q", "complex128")?;
         let n = arrays.first().map(|a| a.shape()[0]).unwrap_or(0);
         for (r, a) in arrays.iter().enumerate() {
             if a.shape() != [n, 4] {
@@ -510,18 +520,14 @@ fn check_covariances<'py>(
     m: usize,
 ) -> PyResult<(Bound<'py, PyArrayDyn<f64>>, Option<(&'static str, usize, usize)>)> {
     use rotorid_core::covariance::{self, CovFault};
-    let arrays: Vec<PyReadonlyArrayDyn<'py, f64>> = covs
-        .iter()
-        .enumerate()
-        .map(|(r, a)| a.extract().map_err(|_| PyTypeError::new_err(format!("covs[{r}] must be a float64 array"))))
-        .collect::<PyResult<_>>()?;
+    let arrays: Vec<PyReadonlyArrayDyn<'py, f64>> = list_arrays(covs, "covs", "float64")?;
     let n = arrays.first().map(|a| a.shape().first().copied().unwrap_or(0)).unwrap_or(0);
     for (r, a) in arrays.iter().enumerate() {
         check_shape(&format!("covs[{r}]"), a.shape(), &[n, m, m])?;
     }
     let each = n * m * m;
     check_alloc("check_covariances", each.checked_mul(arrays.len()), 8)?;
-    let slices = arrays.iter().enumerate().map(|(r, a)| slice(a, &format!("covs[{r}]"))).collect::<PyResult<Vec<_>>>()?;
+    let slices = list_slices(&arrays, "covs")?;
     let (out, fault) = py
         .detach(|| {
             guarded(|| {
@@ -547,17 +553,13 @@ fn check_covariances<'py>(
 /// list of float64 arrays with n points each (first axis). Returns (n,) bool.
 #[pyfunction]
 fn unknown_points<'py>(py: Python<'py>, blocks: &Bound<'py, PyList>, n: usize) -> PyResult<Bound<'py, PyArrayDyn<bool>>> {
-    let arrays: Vec<PyReadonlyArrayDyn<'py, f64>> = blocks
-        .iter()
-        .enumerate()
-        .map(|(r, a)| a.extract().map_err(|_| PyTypeError::new_err(format!("blocks[{r}] must be a float64 array"))))
-        .collect::<PyResult<_>>()?;
+    let arrays: Vec<PyReadonlyArrayDyn<'py, f64>> = list_arrays(blocks, "blocks", "float64")?;
     for (r, a) in arrays.iter().enumerate() {
         if a.shape().first() != Some(&n) {
             return Err(PyValueError::new_err(format!("blocks[{r}] has shape {:?}, expected ({n}, ...)", a.shape())));
         }
     }
-    let slices = arrays.iter().enumerate().map(|(r, a)| slice(a, &format!("blocks[{r}]"))).collect::<PyResult<Vec<_>>>()?;
+    let slices = list_slices(&arrays, "blocks")?;
     check_alloc("unknown_points", Some(n), 1)?;
     let out = py
         .detach(|| {
