@@ -150,10 +150,7 @@ def test_the_covariance_fits_and_the_propagation_do_not_depend_on_the_thread_cou
     """Tasks of fixed points merged in order: one thread (RAYON_NUM_THREADS=1) gives the bits of
     the pool, for the pedestal fit with covariances (more points than a task holds) and for the
     synchronous identification's propagation (``identify::propagate``)."""
-    import os
-    import subprocess
-    import sys
-    import tempfile
+    from thread_runs import outputs_on_threads
 
     code = ("import numpy as np, sys, rotorid; sys.path.insert(0, 'tests'); "
             "from test_pedestal_cov_core import _runs, RIG; "
@@ -163,14 +160,6 @@ def test_the_covariance_fits_and_the_propagation_do_not_depend_on_the_thread_cou
             "estimator='bias-corrected'); "
             "np.save(sys.argv[1], np.concatenate([f.k.ravel(), f.k_std.ravel(), f.mass_std.ravel(), i.k.ravel(), "
             "i.cov.ravel(), i.k_bias.ravel()]))")
-    with tempfile.TemporaryDirectory() as d:
-        outs = []
-        for threads in ("1", "2"):
-            path = os.path.join(d, f"{threads}.npy")
-            env = {**os.environ, "RAYON_NUM_THREADS": threads}
-            r = subprocess.run([sys.executable, "-c", code, path], env=env, capture_output=True, text=True, timeout=300,
-                               cwd=os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-            assert r.returncode == 0, r.stderr[-2000:]
-            outs.append(np.load(path))
+    outs = outputs_on_threads(code)
     assert np.isfinite(outs[0]).mean() > 0.5
     np.testing.assert_array_equal(outs[0], outs[1])

@@ -294,25 +294,13 @@ def test_the_core_order_vectors_refuse_bad_arguments_by_name():
 def test_order_vectors_do_not_depend_on_the_thread_count():
     """Revolutions are summed in tasks of a few revolutions each; the drift slopes join them after
     the tasks. One thread (RAYON_NUM_THREADS=1) gives the same bits as the pool."""
-    import subprocess
-    import sys
+    from thread_runs import outputs_on_threads
 
     code = ("import numpy as np, sys; sys.path.insert(0, 'tests'); from test_track_speed_path import _signals; "
             "from rotorid.signals import order; x, kpt = _signals(4, 20000.0, 2.0, 3000.0, 3600.0, dc=1e-3, "
             "drift=1e-6, noise=1e-7, seed=4); v = order._order_vectors(list(x), 20000.0, 0.0, kpt, 0, kpt.size - 2, "
             "256, (1, 2, 3)); np.save(sys.argv[1], v)")
-    import os
-    import tempfile
-
-    with tempfile.TemporaryDirectory() as d:
-        outs = []
-        for threads in ("1", "2"):
-            path = os.path.join(d, f"{threads}.npy")
-            env = {**os.environ, "RAYON_NUM_THREADS": threads}
-            r = subprocess.run([sys.executable, "-c", code, path], env=env, capture_output=True, text=True, timeout=120,
-                               cwd=os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-            assert r.returncode == 0, r.stderr[-2000:]
-            outs.append(np.load(path))
+    outs = outputs_on_threads(code, timeout=120)
     assert outs[0].shape[0] > 64          # more revolutions than two tasks hold
     np.testing.assert_array_equal(outs[0], outs[1])
 
