@@ -20,8 +20,10 @@ RIG = rotorid.nsf_rig()
 
 
 def _dense(rotor, w, spin, qs, e, gain, sigma, covs, *, identical, method, bias, shared=None, q_ped=None,
-           w_scale=None):
-    """The oracle with the arguments of ``uncertainty._propagate`` (as the core takes them)."""
+           w_scale=None, calibration=None, meas_std=False):
+    """The oracle with the arguments of ``uncertainty._propagate`` (as the core takes them; the
+    accelerometers' calibration is tested in test_calibration_core.py)."""
+    assert calibration is None
     w = w if w_scale is None else w_scale * w
     spin = w if spin is None else spin
     gain = spin ** 2 if gain is None else gain
@@ -31,7 +33,7 @@ def _dense(rotor, w, spin, qs, e, gain, sigma, covs, *, identical, method, bias,
     k_std, c_std = uncertainty.std_from_cov(cov)
     k_std[unknown] = np.nan
     c_std[unknown] = np.nan
-    return cov, (b if bias else None), unknown, k_std, c_std
+    return cov, (b if bias else None), unknown, k_std, c_std, None
 
 
 def _both(monkeypatch, call):

@@ -466,7 +466,7 @@ def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", ide
     e = np.array([r.imbalance._generalized(rotor) for r in runs])  # (R, 4), scaled by Omega^2 below
     if _has_pedestal(runs, labels):
         qs, qps, covs, dofs, flags = _pedestal_inputs(rotor, runs, labels, "speed_rpm", rpm)
-        cal = _calibration_inputs(rotor, runs, labels, accel_gain_std, accel_phase_std_deg)
+        cal = _calibration_inputs(rotor, runs, accel_gain_std, accel_phase_std_deg)
         om = rpm * RPM
         return _solve(rotor, "speed_rpm", rpm, om, om, qs, e, None, None, identical=identical, method=method,
                       labels=labels, cond_max=cond_max, min_rel_amplitude=min_rel_amplitude, what="responses",
@@ -593,35 +593,29 @@ def _no_calibration(accel_gain_std, accel_phase_std_deg):
                            "the runs carry no pedestal motion (no accelerometer data)")
 
 
-def _calibration_inputs(rotor, runs, labels, accel_gain_std, accel_phase_std_deg):
-    """For each accelerometer (xp1, xp2, yp1, yp2) and each of gain and phase with a nonzero
-    uncertainty: (std, [(q_rel, p) at the bearings per run] for +step, the same for -step).
-    The step acts on the measured pedestal motion before the probe transform (the relative motion
-    at the bearings depends on it when the probes are away from the bearings). None when both
-    uncertainties are zero."""
+def _calibration_inputs(rotor, runs, accel_gain_std, accel_phase_std_deg):
+    """The accelerometers' calibration uncertainty as the core's propagation takes it: (gain std,
+    phase std in radians, probe maps (R, 4, 4)), or None when both are zero. A run's map B moves
+    its measured pedestal motion into the relative motion at the bearings (q = A q_probes + B p
+    for a run at the probes, the probes riding on the pedestals; zeros for a run at the bearings):
+    a calibration error of accelerometer j moves both p_j and, through B[:, j], q."""
+    from .simulate import _pedestal_transform, _plane_matrix, _plane_matrix4
+
     g, ph = _calibration_std(accel_gain_std, accel_phase_std_deg)
-    out = []
-    # only the motions are used (the estimate's derivatives at fixed weights): the copies carry no
-    # covariances, so constructing them checks none (34 checks of (n, 16, 16) joint covariances
-    # took 0.4 s at 10,000 speeds)
-    for std, plus, minus in calibration_perturbations(runs, g, ph, keep_cov=False):
-        sides = []
-        for moved in (plus, minus):
-            frames = [_pedestal_frame(rotor, r, lab) for r, lab in zip(moved, labels)]
-            sides.append(([fr[0] for fr in frames], [fr[1] for fr in frames]))
-        out.append((std, sides[0], sides[1]))
-    return out or None
+    if not (g or ph):
+        return None
+    maps = np.zeros((len(runs), 4, 4))
+    for i, r in enumerate(runs):
+        if r.at == "probes":
+            maps[i] = _plane_matrix4(_pedestal_transform(_plane_matrix(rotor, "bearings"))[1])
+    return g, ph, maps
 
 
-def calibration_perturbations(runs, gain_std, phase_std_rad, *, keep_cov=True):
+def calibration_perturbations(runs, gain_std, phase_std_rad):
     """For each accelerometer j (xp1, xp2, yp1, yp2) and each of gain and phase with a nonzero
     uncertainty: (std, runs with accelerometer j's gain or phase stepped by +_CAL_STEP, the same
-    by -_CAL_STEP) — the central differences of any estimate with respect to the calibration.
-    ``keep_cov=False``: the stepped runs carry no measurement covariances (for a caller that
-    reads only their motions)."""
+    by -_CAL_STEP) — the central differences of any estimate with respect to the calibration."""
     import dataclasses
-
-    drop = {} if keep_cov else dict(cov=None, dof=None, pedestal_cov=None, pedestal_cross=None)
 
     for std, kind in ((gain_std, "gain"), (phase_std_rad, "phase")):
         if not std:
@@ -631,21 +625,8 @@ def calibration_perturbations(runs, gain_std, phase_std_rad, *, keep_cov=True):
             for sign in (1.0, -1.0):
                 f = np.ones(4, complex)
                 f[j] = 1.0 + sign * _CAL_STEP if kind == "gain" else np.exp(1j * sign * _CAL_STEP)
-                sides.append([dataclasses.replace(r, pedestal=r.pedestal * f[None, :], **drop) for r in runs])
+                sides.append([dataclasses.replace(r, pedestal=r.pedestal * f[None, :]) for r in runs])
             yield std, sides[0], sides[1]
-
-
-def _calibration_cov(rotor, w, spin, e, gain, sigma, identical, method, calibration):
-    """Covariance (n, 16, 16) of the report vector from the accelerometers' calibration."""
-    from .uncertainty import _eval
-
-    qb = np.stack([np.stack(side[0]) for _, plus, minus in calibration for side in (plus, minus)])
-    pb = np.stack([np.stack(side[1]) for _, plus, minus in calibration for side in (plus, minus)])
-    rv = _eval(rotor, w, spin, qb, e, gain, sigma, identical, method, pb)       # (2P, n, 16)
-    d = (rv[0::2] - rv[1::2]) / (2.0 * _CAL_STEP)                               # (P, n, 16)
-    std = np.array([c[0] for c in calibration])
-    d = d * std[:, None, None]
-    return np.einsum("pni,pnj->nij", d, d)
 
 
 def _check_same_axis(name, axes, labels, what, unit, advice):
@@ -724,7 +705,7 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
     the core: no (n,) temporary unless the calibration's derivatives need it). ``spin`` None: the
     spin speed is w (synchronous runs)."""
     assert planes is None or (covs is None and calibration is None and q_ped is None)
-    from .uncertainty import _propagate, std_from_cov
+    from .uncertainty import _propagate
 
     cond_max = _check_threshold("cond_max", cond_max, 1.0)
     min_rel_amplitude = _check_threshold("min_rel_amplitude", min_rel_amplitude, -1e-300, 1.0)
@@ -739,12 +720,6 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
         gain, identical=identical, method=method, with_std=redundant, sigma=sigma, q_ped=q_ped, planes=planes,
         w_scale=w_scale, flag_limits=None if covs is not None or calibration is not None else
         (cond_max, min_rel_amplitude, max_rel_std))
-    # the propagation takes the axis, spin and gain as the core's identification does
-    w_core, spin_core, gain_core = w, spin, gain
-    if w_scale is not None and calibration is not None:
-        w = w_scale * w  # rad/s for the calibration's derivatives below
-    if spin is None and calibration is not None:
-        spin = w  # synchronous runs: the spin speed is the vibration frequency
     if nbad:
         qs = np.stack(qs)
         if q_ped is not None and not np.isfinite(np.stack(q_ped)).all():
@@ -780,14 +755,17 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
         raise RotoridError("estimator='bias-corrected' needs the measurement covariance of every run or test (cov=)")
     if shared_cov is not None and covs is None:
         raise RotoridError(_SHARED_WITHOUT_COV)
-    if gain is None and calibration is not None:
-        gain = spin ** 2  # the calibration's derivatives need the array
+    ks_meas, cs_meas = ks, cs  # the measurement's standard errors (without the calibration's)
     if covs is not None:
         from .model import _REPORT_TO_BIJ
 
-        cov, b, unknown, ks, cs = _propagate(
-            rotor, w_core, spin_core, list(qs), e, gain_core, sigma, covs, identical=identical, method=method,
-            bias=True, shared=shared_cov, q_ped=None if q_ped is None else list(q_ped), w_scale=w_scale)
+        # the accelerometers' calibration (a systematic error common to all runs) is added to the
+        # covariance by the same core call, through the same Jacobian
+        cov, b, unknown, ks, cs, meas = _propagate(
+            rotor, w, spin, list(qs), e, gain, sigma, covs, identical=identical, method=method,
+            bias=True, shared=shared_cov, q_ped=None if q_ped is None else list(q_ped), w_scale=w_scale,
+            calibration=calibration, meas_std=identical and redundant)
+        ks_meas, cs_meas = meas if meas is not None else (ks, cs)
         rel_std = None  # the standard errors change: recomputed in _finish
         n = axis.size
         bk = np.zeros((n, 8))
@@ -810,30 +788,23 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
         # a covariance, within 1 % of the forces
         if cov is not None:
             with np.errstate(divide="ignore", invalid="ignore"):
-                ratio = np.nanmedian(np.concatenate([(ks_res / ks).reshape(axis.size, -1),
-                                                     (cs_res / cs).reshape(axis.size, -1)], 1), axis=1)
+                ratio = np.nanmedian(np.concatenate([(ks_res / ks_meas).reshape(axis.size, -1),
+                                                     (cs_res / cs_meas).reshape(axis.size, -1)], 1), axis=1)
             rejected = ratio > 3.0
         else:
             rejected = resid[0] > 0.01
         if rejected.any():
             extra_flags = _flag_list(extra_flags) + [(rejected, "identical bearings rejected by the data")]
-    if calibration is not None:
-        # accelerometer calibration: a systematic error common to all runs, added to the covariance
-        ccal = _calibration_cov(rotor, w, spin, e, gain, sigma, identical, method, calibration)
-        if cov is not None:
-            cov = cov + ccal
-            ks, cs = std_from_cov(cov)
-            bad = np.isnan(cov).any(axis=(1, 2))
-            ks[bad] = np.nan
-            cs[bad] = np.nan
-        elif source != "none":
-            # residual-based errors (redundant runs) plus the calibration's
-            kc, cc = std_from_cov(ccal)
-            ks, cs = np.sqrt(ks ** 2 + kc ** 2), np.sqrt(cs ** 2 + cc ** 2)
-        if source != "none":
-            # (without any estimate of the random errors the standard errors stay unknown)
-            rel_std = None
-            source = f"{source} + accelerometer calibration"
+    if calibration is not None and covs is None and source != "none":
+        # residual-based errors (redundant runs) plus the calibration's (without any estimate of
+        # the random errors the standard errors stay unknown)
+        _, _, _, kc, cc, _ = _propagate(rotor, w, spin, list(qs), e, gain, sigma, None, identical=identical,
+                                        method=method, bias=False, q_ped=list(q_ped), w_scale=w_scale,
+                                        calibration=calibration)
+        ks, cs = np.sqrt(ks ** 2 + kc ** 2), np.sqrt(cs ** 2 + cc ** 2)
+    if calibration is not None and source != "none":
+        rel_std = None
+        source = f"{source} + accelerometer calibration"
     return _finish(axis_name, axis, amp[0], k[0], c[0], cond[0], resid[0], ks, cs, cond_max, min_rel_amplitude,
                    method, labels, source, dof, cov, max_rel_std, extra_flags, ks_res, cs_res, bias_k, bias_c,
                    estimator, rel_std, std_known, flags=None if code is None else (code[0], rel_amp[0]))
@@ -997,7 +968,7 @@ def identify_impact(rotor: RigidRotor, tests, *, method: str = "forces", identic
     if _has_pedestal(tests, labels):
         qs, q_ped, covs, dofs, pflags = _pedestal_inputs(rotor, tests, labels, "freq_hz", f)
         extra_flags = _flag_list(extra_flags) + pflags
-        cal = _calibration_inputs(rotor, tests, labels, accel_gain_std, accel_phase_std_deg)
+        cal = _calibration_inputs(rotor, tests, accel_gain_std, accel_phase_std_deg)
     else:
         _no_calibration(accel_gain_std, accel_phase_std_deg)
         at_b, planes = _for_the_core(rotor, tests)

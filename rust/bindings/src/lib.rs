@@ -576,11 +576,16 @@ fn unknown_points<'py>(py: Python<'py>, blocks: &Bound<'py, PyList>, n: usize) -
 /// identify::propagate): arguments as `identify` for one problem (`q` and `q_ped` lists of R
 /// arrays (n, 4) at the bearings), with `covs` (R, n, m, m) the runs' covariances of [Re q, Im q]
 /// (m = 8) or, with `q_ped`, of [Re q, Im q, Re q_ped, Im q_ped] (m = 16), NaN where unknown;
-/// `shared` (n, m, m) a covariance common to every pair of runs, or None. Returns (cov (n, 16,
-/// 16), bias (n, 16) or None, unknown (n,) uint8, k_std (n, 2, 2, 2), c_std (n, 2, 2, 2)), cov
-/// and bias in eq. 9 order, the standard errors in the identification's [bearing, i, j] order.
+/// `shared` (n, m, m) a covariance common to every pair of runs, or None. `calibration`: the
+/// accelerometers' calibration uncertainty (gain_std, phase_std_rad, probe_maps (R, 4, 4): each
+/// run's map from measured pedestal motion to relative motion at the bearings, zeros for a run
+/// measured there), with `q_ped`; then `covs` may be None (the calibration's covariance alone).
+/// Returns (cov (n, 16, 16), bias (n, 16) or None, unknown (n,) uint8, k_std (n, 2, 2, 2), c_std
+/// (n, 2, 2, 2), meas_k_std, meas_c_std), cov and bias in eq. 9 order, the standard errors in the
+/// identification's [bearing, i, j] order; the last two (those of the measurement covariance
+/// alone) with `meas_std` and a calibration, else None.
 #[pyfunction]
-#[pyo3(signature = (rotor, w, spin, q, e, gain, covs, identical=false, method="forces", sigma=None, q_ped=None, w_scale=None, shared=None, bias=true))]
+#[pyo3(signature = (rotor, w, spin, q, e, gain, covs, identical=false, method="forces", sigma=None, q_ped=None, w_scale=None, shared=None, bias=true, calibration=None, meas_std=false))]
 #[allow(clippy::too_many_arguments, clippy::type_complexity)]
 fn propagate<'py>(
     py: Python<'py>,
@@ -590,7 +595,7 @@ fn propagate<'py>(
     q: &Bound<'py, PyAny>,
     e: PyReadonlyArrayDyn<'py, C64>,
     gain: Option<PyReadonlyArrayDyn<'py, f64>>,
-    covs: PyReadonlyArrayDyn<'py, f64>,
+    covs: Option<PyReadonlyArrayDyn<'py, f64>>,
     identical: bool,
     method: &str,
     sigma: Option<PyReadonlyArrayDyn<'py, f64>>,
@@ -598,7 +603,9 @@ fn propagate<'py>(
     w_scale: Option<f64>,
     shared: Option<PyReadonlyArrayDyn<'py, f64>>,
     bias: bool,
-) -> PyResult<(Bound<'py, PyArrayDyn<f64>>, Option<Bound<'py, PyArrayDyn<f64>>>, Bound<'py, PyArrayDyn<u8>>, Bound<'py, PyArrayDyn<f64>>, Bound<'py, PyArrayDyn<f64>>)> {
+    calibration: Option<(f64, f64, PyReadonlyArrayDyn<'py, f64>)>,
+    meas_std: bool,
+) -> PyResult<PropagateOut<'py>> {
     let rot = rotor_of(&rotor)?;
     let resp = responses(q)?;
     if resp.batch != 1 {
@@ -611,43 +618,73 @@ fn propagate<'py>(
     let ped = pedestal_responses(q_ped, &resp)?;
     let ped_blocks = pedestal_blocks(&ped)?;
     let m = if ped.is_some() { 16 } else { 8 };
-    check_shape("covs", covs.shape(), &[runs, n, m, m])?;
+    match &covs {
+        Some(cv) => check_shape("covs", cv.shape(), &[runs, n, m, m])?,
+        None if calibration.is_none() => return Err(PyValueError::new_err("covs: None needs a calibration")),
+        None => {}
+    }
     if let Some(sh) = &shared {
         check_shape("shared", sh.shape(), &[n, m, m])?;
     }
+    let maps: Vec<[f64; 16]> = match &calibration {
+        Some((_, _, mp)) => {
+            check_shape("calibration probe_maps", mp.shape(), &[runs, 4, 4])?;
+            slice(mp, "calibration probe_maps")?.chunks(16).map(|c| c.try_into().unwrap()).collect()
+        }
+        None => Vec::new(),
+    };
     let ident = ident_problem(rot, &resp, &axes, spin.as_ref(), &e, &gain, &blocks, &ped_blocks, None, identical)?;
     let prob = identify::propagate::CovProblem {
         ident,
         report,
-        covs: slice(&covs, "covs")?,
+        covs: match &covs {
+            Some(cv) => slice(cv, "covs")?,
+            None => &[],
+        },
         shared: match &shared {
             Some(sh) => slice(sh, "shared")?,
             None => &[],
         },
+        calibration: calibration.as_ref().map(|&(gain_std, phase_std, _)| identify::propagate::Calibration { gain_std, phase_std, probe_maps: &maps }),
     };
-    check_alloc("propagate", n.checked_mul(289), 8)?;
-    let (cov, b, unknown, ks, cs) = py
+    let meas_std = meas_std && calibration.is_some();
+    check_alloc("propagate", n.checked_mul(289 + if meas_std { 16 } else { 0 }), 8)?;
+    let (cov, b, unknown, ks, cs, mk, mc) = py
         .detach(|| {
             guarded(|| {
                 let mut cov = out_buf(n * 256);
                 let mut b = if bias { out_buf(n * 16) } else { Vec::new() };
                 let mut unknown = vec![0u8; n];
                 let (mut ks, mut cs) = (out_buf(n * 8), out_buf(n * 8));
+                let (mut mk, mut mc) = if meas_std { (out_buf(n * 8), out_buf(n * 8)) } else { (Vec::new(), Vec::new()) };
                 let out = identify::propagate::CovOut {
                     cov: &mut cov,
                     bias: if bias { Some(&mut b[..]) } else { None },
                     unknown: &mut unknown,
                     k_std: &mut ks,
                     c_std: &mut cs,
+                    meas_std: if meas_std { Some([&mut mk[..], &mut mc[..]]) } else { None },
                 };
-                identify::propagate::propagate(&prob, out).map(|_| (cov, b, unknown, ks, cs))
+                identify::propagate::propagate(&prob, out).map(|_| (cov, b, unknown, ks, cs, mk, mc))
             })
         })?
         .map_err(core_err)?;
     let bp = if bias { Some(to_py(py, b, &[n, 16])?) } else { None };
     let sh = [n, 2, 2, 2];
-    Ok((to_py(py, cov, &[n, 16, 16])?, bp, to_py(py, unknown, &[n])?, to_py(py, ks, &sh)?, to_py(py, cs, &sh)?))
+    let (mk, mc) = if meas_std { (Some(to_py(py, mk, &sh)?), Some(to_py(py, mc, &sh)?)) } else { (None, None) };
+    Ok((to_py(py, cov, &[n, 16, 16])?, bp, to_py(py, unknown, &[n])?, to_py(py, ks, &sh)?, to_py(py, cs, &sh)?, mk, mc))
 }
+
+/// What `propagate` returns: (cov, bias, unknown, k_std, c_std, meas_k_std, meas_c_std).
+type PropagateOut<'py> = (
+    Bound<'py, PyArrayDyn<f64>>,
+    Option<Bound<'py, PyArrayDyn<f64>>>,
+    Bound<'py, PyArrayDyn<u8>>,
+    Bound<'py, PyArrayDyn<f64>>,
+    Bound<'py, PyArrayDyn<f64>>,
+    Option<Bound<'py, PyArrayDyn<f64>>>,
+    Option<Bound<'py, PyArrayDyn<f64>>>,
+);
 
 /// Largest standard error relative to the bearing's direct coefficients per point (see
 /// identify::relative_std). k, c, k_std, c_std: (n, 8) -> (n,).

@@ -6,7 +6,7 @@ mod common;
 use common::*;
 use proptest::prelude::*;
 use rotorid_core::covariance::psd_cholesky;
-use rotorid_core::identify::propagate::{propagate, CovOut, CovProblem, H_REL};
+use rotorid_core::identify::propagate::{propagate, Calibration, CovOut, CovProblem, H_REL};
 use rotorid_core::identify::{identify_forces, identify_report, IdentOut, IdentProblem, REPORT_TO_BIJ};
 use rotorid_core::{CoreError, C64};
 
@@ -150,7 +150,7 @@ fn run(p: &CovProblem) -> Result<(Vec<f64>, Vec<f64>, Vec<u8>), CoreError> {
     let n = p.ident.w.len();
     let (mut cov, mut bias, mut unknown) = (vec![0.0; n * 256], vec![0.0; n * 16], vec![9u8; n]);
     let (mut ks, mut cs) = (vec![-1.0; n * 8], vec![-1.0; n * 8]);
-    propagate(p, CovOut { cov: &mut cov, bias: Some(&mut bias), unknown: &mut unknown, k_std: &mut ks, c_std: &mut cs })?;
+    propagate(p, CovOut { cov: &mut cov, bias: Some(&mut bias), unknown: &mut unknown, k_std: &mut ks, c_std: &mut cs, meas_std: None })?;
     // the standard errors are the diagonal's square roots, in [bearing][i][j] order
     for i in 0..n {
         for t in 0..8 {
@@ -211,7 +211,7 @@ proptest! {
         }
         let gain: Vec<f64> = w.iter().map(|v| v * v).collect();
         let ident = IdentProblem { rotor: r, w: &w, spin: &w, q: &qb, e: &e, gain: &gain, sigma: &[], q_ped: &pb, planes: None, batch: 1, runs, identical: false };
-        let prob = CovProblem { ident, report, covs: &covs, shared: &shared };
+        let prob = CovProblem { ident, report, covs: &covs, shared: &shared, calibration: None };
         let (cov, bias, unknown) = run(&prob).unwrap();
         let (cov_ref, bias_ref) = reference(&prob.ident, report, &covs, &shared);
         prop_assert!(unknown.iter().all(|&u| u == 0));
@@ -265,7 +265,7 @@ fn unknown_points_are_whole_points() {
     covs[(w.len() + 2) * 64 + 5] = f64::NAN; // run 1, point 2
     let gain: Vec<f64> = w.iter().map(|v| v * v).collect();
     let ident = IdentProblem { rotor: r, w: &w, spin: &w, q: &qb, e: &e, gain: &gain, sigma: &[], q_ped: &[], planes: None, batch: 1, runs: 2, identical: false };
-    let (cov, bias, unknown) = run(&CovProblem { ident, report: false, covs: &covs, shared: &[] }).unwrap();
+    let (cov, bias, unknown) = run(&CovProblem { ident, report: false, covs: &covs, shared: &[], calibration: None }).unwrap();
     for i in 0..w.len() {
         let unk = i == 2 || i == 6;
         assert_eq!(unknown[i], u8::from(unk), "point {i}");
@@ -286,12 +286,12 @@ fn propagation_argument_errors_name_the_argument() {
     let one_run = IdentProblem { q: &qb[..1], e: &e[..4], runs: 1, ..ident };
     let twice: Vec<&[C64]> = [&qb[..], &qb[..]].concat();
     let cases: Vec<(CovProblem, &str)> = vec![
-        (CovProblem { ident: IdentProblem { w: &[100.0, 0.0], ..ident }, report: false, covs: &covs, shared: &[] }, "w"),
-        (CovProblem { ident: IdentProblem { batch: 2, q: &twice, ..ident }, report: false, covs: &covs, shared: &[] }, "batch"),
-        (CovProblem { ident: IdentProblem { planes: Some([1.0, 0.0, 0.0, 1.0]), ..ident }, report: false, covs: &covs, shared: &[] }, "planes"),
-        (CovProblem { ident: one_run, report: true, covs: &covs[..128], shared: &[] }, "runs"),
-        (CovProblem { ident, report: false, covs: &covs[..200], shared: &[] }, "covs"),
-        (CovProblem { ident, report: false, covs: &covs, shared: &covs[..64] }, "shared"),
+        (CovProblem { ident: IdentProblem { w: &[100.0, 0.0], ..ident }, report: false, covs: &covs, shared: &[], calibration: None }, "w"),
+        (CovProblem { ident: IdentProblem { batch: 2, q: &twice, ..ident }, report: false, covs: &covs, shared: &[], calibration: None }, "batch"),
+        (CovProblem { ident: IdentProblem { planes: Some([1.0, 0.0, 0.0, 1.0]), ..ident }, report: false, covs: &covs, shared: &[], calibration: None }, "planes"),
+        (CovProblem { ident: one_run, report: true, covs: &covs[..128], shared: &[], calibration: None }, "runs"),
+        (CovProblem { ident, report: false, covs: &covs[..200], shared: &[], calibration: None }, "covs"),
+        (CovProblem { ident, report: false, covs: &covs, shared: &covs[..64], calibration: None }, "shared"),
     ];
     for (p, name) in cases {
         match run(&p) {
@@ -301,9 +301,156 @@ fn propagation_argument_errors_name_the_argument() {
     }
     let mut short = vec![0.0; 100];
     let (mut ks, mut cs) = (vec![0.0; 16], vec![0.0; 16]);
-    let err = propagate(&CovProblem { ident, report: false, covs: &covs, shared: &[] }, CovOut { cov: &mut short, bias: None, unknown: &mut [0; 2], k_std: &mut ks, c_std: &mut cs }).unwrap_err();
+    let err = propagate(&CovProblem { ident, report: false, covs: &covs, shared: &[], calibration: None }, CovOut { cov: &mut short, bias: None, unknown: &mut [0; 2], k_std: &mut ks, c_std: &mut cs, meas_std: None }).unwrap_err();
     assert_eq!(err.name(), "cov");
     let mut cov = vec![0.0; 512];
-    let err = propagate(&CovProblem { ident, report: false, covs: &covs, shared: &[] }, CovOut { cov: &mut cov, bias: None, unknown: &mut [0; 2], k_std: &mut ks[..8], c_std: &mut cs }).unwrap_err();
+    let err = propagate(&CovProblem { ident, report: false, covs: &covs, shared: &[], calibration: None }, CovOut { cov: &mut cov, bias: None, unknown: &mut [0; 2], k_std: &mut ks[..8], c_std: &mut cs, meas_std: None }).unwrap_err();
     assert_eq!(err.name(), "k_std");
+}
+
+/// The calibration's covariance against central differences of the estimator along each
+/// calibration direction itself: every run's pedestal channel j (and, through B, its relative
+/// motion) scaled by 1 ± h (gain) or e^{± i h} (phase), all runs at once.
+fn calibration_reference(p: &IdentProblem, report: bool, cal: &Calibration) -> Vec<f64> {
+    let n = p.w.len();
+    let h = 1e-5;
+    let mut cov = vec![0.0; n * 256];
+    for i in 0..n {
+        let one = |a: &[f64]| if a.len() > 1 { vec![a[i]] } else { a.to_vec() };
+        let (w, spin, gain, sigma) = (one(p.w), one(p.spin), one(p.gain), one(p.sigma));
+        let stepped = |j: usize, f: C64| -> [f64; 16] {
+            let mut qs: Vec<Vec<C64>> = Vec::new();
+            let mut ps: Vec<Vec<C64>> = Vec::new();
+            for r in 0..p.runs {
+                let mut q = p.q[r][4 * i..4 * i + 4].to_vec();
+                let mut pp = p.q_ped[r][4 * i..4 * i + 4].to_vec();
+                let dp = pp[j] * (f - C64::new(1.0, 0.0));
+                pp[j] += dp;
+                for d in 0..4 {
+                    q[d] += dp * cal.probe_maps[r][4 * d + j];
+                }
+                qs.push(q);
+                ps.push(pp);
+            }
+            let qb: Vec<&[C64]> = qs.iter().map(|v| &v[..]).collect();
+            let pb: Vec<&[C64]> = ps.iter().map(|v| &v[..]).collect();
+            report_vectors(&IdentProblem { w: &w, spin: &spin, gain: &gain, sigma: &sigma, q: &qb, q_ped: &pb, ..*p }, report)[0]
+        };
+        for j in 0..4 {
+            for (std, plus, minus) in [
+                (cal.gain_std, C64::new(1.0 + h, 0.0), C64::new(1.0 - h, 0.0)),
+                (cal.phase_std, C64::from_polar(1.0, h), C64::from_polar(1.0, -h)),
+            ] {
+                let (a, b) = (stepped(j, plus), stepped(j, minus));
+                let d: Vec<f64> = (0..16).map(|o| std * (a[o] - b[o]) / (2.0 * h)).collect();
+                for u in 0..16 {
+                    for v in 0..16 {
+                        cov[256 * i + 16 * u + v] += d[u] * d[v];
+                    }
+                }
+            }
+        }
+    }
+    cov
+}
+
+proptest! {
+    #![proptest_config(cfg(8))]
+
+    /// The accelerometers' calibration: its covariance alone (no measurement covariance) equals
+    /// the directional central differences, runs at the probes (B != 0) and at the bearings
+    /// alike; with measurement covariances it adds to J Σ Jᵀ, whose standard errors `meas_std`
+    /// are those of the propagation without a calibration, bit for bit.
+    #[test]
+    fn calibration_matches_directional_differences(r in common::rotors(), (k, cc) in common::bearings(), runs in 2usize..4,
+                                                   e in proptest::collection::vec(-1.0f64..1.0, 24),
+                                                   maps in proptest::collection::vec(-1.5f64..1.5, 48),
+                                                   probes in proptest::collection::vec(any::<bool>(), 3),
+                                                   gain_std in 0.0f64..0.05, phase_std in 0.0f64..0.05,
+                                                   report in any::<bool>()) {
+        let n = 15;
+        let w = {
+            let kmean = (k[0] + k[3] + k[4] + k[7]) / 4.0;
+            let wn = (2.0 * kmean / r.m).sqrt();
+            (0..n).map(|i| wn * (0.3 + 0.13 * i as f64)).collect::<Vec<_>>()
+        };
+        let e = (0..4 * runs).map(|j| C64::new(e[2 * j], e[2 * j + 1])).collect::<Vec<_>>();
+        let q = imbalance_responses(&r, &k, &cc, &w, &e);
+        let qb: Vec<&[C64]> = q.chunks(4 * n).collect();
+        let qp: Vec<C64> = q.iter().enumerate().map(|(j, v)| v * C64::new(0.2 + 0.01 * (j % 7) as f64, 0.05)).collect();
+        let pb: Vec<&[C64]> = qp.chunks(4 * n).collect();
+        let probe_maps: Vec<[f64; 16]> = (0..runs)
+            .map(|r| if probes[r] { maps[16 * r..16 * r + 16].try_into().unwrap() } else { [0.0; 16] })
+            .collect();
+        let cal = Calibration { gain_std, phase_std, probe_maps: &probe_maps };
+        let gain: Vec<f64> = w.iter().map(|v| v * v).collect();
+        let ident = IdentProblem { rotor: r, w: &w, spin: &w, q: &qb, e: &e, gain: &gain, sigma: &[], q_ped: &pb, planes: None, batch: 1, runs, identical: false };
+
+        let mut cov = vec![0.0; n * 256];
+        let (mut ks, mut cs, mut unknown) = (vec![0.0; n * 8], vec![0.0; n * 8], vec![9u8; n]);
+        propagate(&CovProblem { ident, report, covs: &[], shared: &[], calibration: Some(cal) },
+                  CovOut { cov: &mut cov, bias: None, unknown: &mut unknown, k_std: &mut ks, c_std: &mut cs, meas_std: None }).unwrap();
+        prop_assert!(unknown.iter().all(|&u| u == 0));
+        let want = calibration_reference(&ident, report, &cal);
+        let big = want.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        for (j, (g, w)) in cov.iter().zip(&want).enumerate() {
+            // two central differences with different steps: each carries rounding amplified by
+            // the estimator's conditioning (2.4e-6 at worst in 8 cases)
+            prop_assert!((g - w).abs() <= 2e-5 * (w.abs() + 1e-3 * big), "cov[{j}]: {g:e} vs {w:e}");
+        }
+
+        // with measurement covariances: J Σ Jᵀ + the calibration's, and meas_std as without it
+        let size = q.iter().map(|v| v.norm()).fold(0.0, f64::max) * 1e-3;
+        let covs = covariances(&e.iter().map(|v| v.re).collect::<Vec<_>>(), runs, n, 16, 16, size);
+        let (mut cov_m, mut ks_m, mut cs_m) = (vec![0.0; n * 256], vec![0.0; n * 8], vec![0.0; n * 8]);
+        propagate(&CovProblem { ident, report, covs: &covs, shared: &[], calibration: None },
+                  CovOut { cov: &mut cov_m, bias: None, unknown: &mut unknown, k_std: &mut ks_m, c_std: &mut cs_m, meas_std: None }).unwrap();
+        let (mut cov_b, mut ks_b, mut cs_b, mut mk, mut mc) = (vec![0.0; n * 256], vec![0.0; n * 8], vec![0.0; n * 8], vec![0.0; n * 8], vec![0.0; n * 8]);
+        propagate(&CovProblem { ident, report, covs: &covs, shared: &[], calibration: Some(cal) },
+                  CovOut { cov: &mut cov_b, bias: None, unknown: &mut unknown, k_std: &mut ks_b, c_std: &mut cs_b, meas_std: Some([&mut mk, &mut mc]) }).unwrap();
+        prop_assert_eq!(mk.iter().map(|v| v.to_bits()).collect::<Vec<_>>(), ks_m.iter().map(|v| v.to_bits()).collect::<Vec<_>>());
+        prop_assert_eq!(mc.iter().map(|v| v.to_bits()).collect::<Vec<_>>(), cs_m.iter().map(|v| v.to_bits()).collect::<Vec<_>>());
+        let big = cov_b.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        for j in 0..n * 256 {
+            prop_assert!((cov_b[j] - cov_m[j] - cov[j]).abs() <= 1e-12 * big, "cov[{j}]");
+        }
+        for (t, s) in ks_b.iter().enumerate() {
+            let (i, u) = (t / 8, t % 8);
+            let o = (0..8).find(|&o| REPORT_TO_BIJ[o] == u).unwrap();
+            prop_assert_eq!(s.to_bits(), cov_b[256 * i + 17 * o].max(0.0).sqrt().to_bits());
+        }
+        let _ = cs_b;
+    }
+}
+
+#[test]
+fn calibration_argument_errors_name_the_argument() {
+    let r = nsf_rotor();
+    let w = [100.0, 200.0];
+    let q = vec![c(1e-6, 0.0); 2 * 2 * 4];
+    let qb: Vec<&[C64]> = q.chunks(8).collect();
+    let e = vec![c(1e-4, 0.0); 2 * 4];
+    let maps = [[0.0; 16]; 2];
+    let good = Calibration { gain_std: 0.01, phase_std: 0.01, probe_maps: &maps };
+    let ident = IdentProblem { rotor: r, w: &w, spin: &w, q: &qb, e: &e, gain: &[], sigma: &[], q_ped: &qb, planes: None, batch: 1, runs: 2, identical: false };
+    let no_ped = IdentProblem { q_ped: &[], ..ident };
+    let nan_maps = [[f64::NAN; 16]; 2];
+    let shared = vec![0.0; 2 * 256];
+    let cases: Vec<(CovProblem, bool, &str)> = vec![
+        (CovProblem { ident: no_ped, report: false, covs: &[], shared: &[], calibration: Some(good) }, false, "calibration"),
+        (CovProblem { ident, report: false, covs: &[], shared: &[], calibration: Some(Calibration { gain_std: -0.1, ..good }) }, false, "calibration"),
+        (CovProblem { ident, report: false, covs: &[], shared: &[], calibration: Some(Calibration { phase_std: f64::NAN, ..good }) }, false, "calibration"),
+        (CovProblem { ident, report: false, covs: &[], shared: &[], calibration: Some(Calibration { probe_maps: &maps[..1], ..good }) }, false, "probe_maps"),
+        (CovProblem { ident, report: false, covs: &[], shared: &[], calibration: Some(Calibration { probe_maps: &nan_maps, ..good }) }, false, "probe_maps"),
+        (CovProblem { ident, report: false, covs: &[], shared: &[], calibration: Some(good) }, true, "covs"),
+        (CovProblem { ident, report: false, covs: &[], shared: &shared, calibration: Some(good) }, false, "covs"),
+    ];
+    for (p, with_bias, name) in cases {
+        let (mut cov, mut b, mut ks, mut cs) = (vec![0.0; 512], vec![0.0; 32], vec![0.0; 16], vec![0.0; 16]);
+        let out = CovOut { cov: &mut cov, bias: if with_bias { Some(&mut b) } else { None }, unknown: &mut [0; 2], k_std: &mut ks, c_std: &mut cs, meas_std: None };
+        match propagate(&p, out) {
+            Err(err) => assert_eq!(err.name(), name, "{err}"),
+            Ok(_) => panic!("expected an error about {name}"),
+        }
+    }
 }

@@ -20,6 +20,15 @@
 //! semi-definite Σ_r, [`crate::covariance::psd_cholesky`]): by Taylor, p(x + l) + p(x - l) - 2 p(x) = lᵀ H l + O(|l|⁴),
 //! and Σ_k l_kᵀ H l_k = tr(H L Lᵀ) = tr(H Σ_r) for any such L.
 //!
+//! The accelerometers' calibration (with pedestal motion) is an error common to all runs: channel
+//! j (xp1, xp2, yp1, yp2) of every run's pedestal motion reads (1 + g_j) e^{i φ_j} times the truth,
+//! g_j and φ_j independent with standard deviations σ_g, σ_φ. To first order the inputs move
+//! along d_gj = ∂x/∂g_j: run r's pedestal component j by its motion p_rj, and, for a run measured
+//! at the probes (relative motion at the bearings q = A q_probes + B p, the probes riding on the
+//! pedestals), its q by B[:, j] p_rj; d_φj is the same with i p_rj. Then
+//!     Cov_cal(p) = Σ_j σ_g² (J d_gj)(J d_gj)ᵀ + σ_φ² (J d_φj)(J d_φj)ᵀ
+//! is added to J Σ Jᵀ, with the same J (a systematic error of the same estimator).
+//!
 //! Every perturbed copy of a point (2 m R for J, 2 m R + 1 for the bias) is one member of a batch
 //! identified on the task's thread, a few points at a time, with the unperturbed runs read where
 //! they are: nothing of size (copies x points) is ever formed.
@@ -50,6 +59,22 @@ pub struct CovProblem<'a> {
     /// covariance common to every pair of runs, (n, m, m), or empty for independent runs
     /// (NaN entries count as zero)
     pub shared: &'a [f64],
+    /// the accelerometers' calibration uncertainty (pedestal motion only), or None. With it,
+    /// `covs` may be empty (no measurement covariance: Cov(p) is the calibration's alone; no
+    /// bias, no shared covariance then).
+    pub calibration: Option<Calibration<'a>>,
+}
+
+/// The accelerometers' calibration uncertainty, common to all runs (see the module's documentation).
+#[derive(Clone, Copy)]
+pub struct Calibration<'a> {
+    /// σ_g, relative (0.02 = 2 %)
+    pub gain_std: f64,
+    /// σ_φ, radians
+    pub phase_std: f64,
+    /// per run, B (4 x 4, row-major over [x1, x2, y1, y2]): the relative motion at the bearings
+    /// moved by a unit of measured pedestal motion; zeros for a run measured at the bearings
+    pub probe_maps: &'a [[f64; 16]],
 }
 
 /// The propagation's outputs.
@@ -64,6 +89,9 @@ pub struct CovOut<'a> {
     /// in [bearing][i][j] order as the identification's k and c; NaN where `unknown`
     pub k_std: &'a mut [f64],
     pub c_std: &'a mut [f64],
+    /// with a calibration: the standard errors of the measurement covariance alone (J Σ Jᵀ), as
+    /// `k_std` and `c_std`, or None
+    pub meas_std: Option<[&'a mut [f64]; 2]>,
 }
 
 /// Cov(p) and, if asked for, the bias b at every point (see the module's documentation).
@@ -81,7 +109,24 @@ pub fn propagate(p: &CovProblem, out: CovOut) -> Result<(), CoreError> {
     }
     let (n, runs) = (ip.points(), ip.runs);
     let m = if ip.q_ped.is_empty() { 8 } else { 16 };
-    expect_len("covs", p.covs, product("covs", &[runs, n, m, m])?)?;
+    if let Some(cal) = &p.calibration {
+        if m != 16 {
+            return Err(CoreError::value("calibration", "the accelerometers' calibration needs pedestal motion (q_ped)"));
+        }
+        if !(cal.gain_std.is_finite() && cal.gain_std >= 0.0 && cal.phase_std.is_finite() && cal.phase_std >= 0.0) {
+            return Err(CoreError::value("calibration", format!("gain_std and phase_std must be finite and >= 0, got {} and {}", cal.gain_std, cal.phase_std)));
+        }
+        expect_len("probe_maps", cal.probe_maps, runs)?;
+        if cal.probe_maps.iter().flatten().any(|v| !v.is_finite()) {
+            return Err(CoreError::value("probe_maps", "must be finite"));
+        }
+    }
+    let meas = !p.covs.is_empty() || p.calibration.is_none();
+    if meas {
+        expect_len("covs", p.covs, product("covs", &[runs, n, m, m])?)?;
+    } else if out.bias.is_some() || !p.shared.is_empty() {
+        return Err(CoreError::value("covs", "the bias and a shared covariance need the runs' measurement covariances"));
+    }
     if !p.shared.is_empty() {
         expect_len("shared", p.shared, n * m * m)?;
     }
@@ -92,18 +137,25 @@ pub fn propagate(p: &CovProblem, out: CovOut) -> Result<(), CoreError> {
     expect_len("unknown", out.unknown, n)?;
     expect_len("k_std", out.k_std, n * 8)?;
     expect_len("c_std", out.c_std, n * 8)?;
+    if let Some([mk, mc]) = &out.meas_std {
+        expect_len("meas_std", mk, n * 8)?;
+        expect_len("meas_std", mc, n * 8)?;
+    }
     let copies = 2 * m * runs * if out.bias.is_some() { 2 } else { 1 } + usize::from(out.bias.is_some());
     // a multiple of the identification's lanes (4), so that a lane group holds one copy's points
     let per_task = (TASK_LANES / copies / 4 * 4).max(4);
     let (cov, unknown) = (Disjoint::new(out.cov), Disjoint::new(out.unknown));
     let (k_std, c_std) = (Disjoint::new(out.k_std), Disjoint::new(out.c_std));
     let bias = out.bias.map(Disjoint::new);
+    let meas_std = out.meas_std.map(|[a, b]| [Disjoint::new(a), Disjoint::new(b)]);
     for_each_task(n.div_ceil(per_task), |j| {
         // SAFETY: for_each_task hands each task index j to one task
         let (cov, unknown) = unsafe { (cov.chunk(j, 256 * per_task), unknown.chunk(j, per_task)) };
         let std = unsafe { [k_std.chunk(j, 8 * per_task), c_std.chunk(j, 8 * per_task)] };
         let bias = bias.as_ref().map(|b| unsafe { b.chunk(j, 16 * per_task) });
-        SCRATCH.with(|sc| task(p, m, j * per_task, cov, bias, unknown, std, &mut sc.borrow_mut()));
+        let meas_std = meas_std.as_ref().map(|[a, b]| unsafe { [a.chunk(j, 8 * per_task), b.chunk(j, 8 * per_task)] });
+        let outs = TaskOut { cov, bias, unknown, std, meas_std };
+        SCRATCH.with(|sc| task(p, m, j * per_task, outs, &mut sc.borrow_mut()));
     });
     Ok(())
 }
@@ -116,15 +168,25 @@ fn column(copy: usize, m: usize) -> (usize, usize) {
     (col / m, col % m)
 }
 
+/// One task's share of [`CovOut`].
+struct TaskOut<'a> {
+    cov: &'a mut [f64],
+    bias: Option<&'a mut [f64]>,
+    unknown: &'a mut [u8],
+    std: [&'a mut [f64]; 2],
+    meas_std: Option<[&'a mut [f64]; 2]>,
+}
+
 /// The points s.. of one task (as many as `unknown` holds).
-#[allow(clippy::too_many_arguments)]
-fn task(p: &CovProblem, m: usize, s: usize, cov: &mut [f64], mut bias: Option<&mut [f64]>, unknown: &mut [u8], std: [&mut [f64]; 2], scratch: &mut Scratch) {
+fn task(p: &CovProblem, m: usize, s: usize, out: TaskOut, scratch: &mut Scratch) {
+    let TaskOut { cov, mut bias, unknown, mut std, mut meas_std } = out;
     let ip = &p.ident;
     let (n, runs, tn) = (ip.points(), ip.runs, unknown.len());
     let e = s + tn;
     let ped = m == 16;
     let nd = 2 * m * runs; // copies for J
     let with_bias = bias.is_some();
+    let meas = !p.covs.is_empty(); // else the calibration's covariance alone
     let nb = if with_bias { 2 * nd + 1 } else { nd }; // + sigma points and the unperturbed point
     let mr = m * runs;
     let covs_at = |r: usize, i: usize| &p.covs[((r * n) + s + i) * m * m..((r * n) + s + i + 1) * m * m];
@@ -281,68 +343,71 @@ fn task(p: &CovProblem, m: usize, s: usize, cov: &mut [f64], mut bias: Option<&m
                 row[8 + o] = dc;
             }
         }
-        let known = (0..runs).all(|r| !covs_at(r, i).iter().any(|v| v.is_nan()));
+        let known = !meas || (0..runs).all(|r| !covs_at(r, i).iter().any(|v| v.is_nan()));
         let unk = !(known && finite);
         unknown[i] = u8::from(unk);
         let ci = &mut cov[256 * i..256 * i + 256];
         if unk {
             ci.fill(f64::NAN);
-            std[0][8 * i..8 * i + 8].fill(f64::NAN);
-            std[1][8 * i..8 * i + 8].fill(f64::NAN);
-        } else {
-            // (J Σ)ᵀ = Σ Jᵀ (Σ symmetric) block by block: Σ's block (r, t) is run r's own
-            // covariance (t = r) or the shared one, whose NaN entries count as zero
-            let with_shared = !p.shared.is_empty();
-            if with_shared {
-                for (c, &v) in common.iter_mut().zip(&p.shared[(s + i) * m * m..(s + i + 1) * m * m]) {
-                    *c = if v.is_nan() { 0.0 } else { v };
-                }
+            for sd in std.iter_mut().chain(meas_std.iter_mut().flatten()) {
+                sd[8 * i..8 * i + 8].fill(f64::NAN);
             }
-            bt.fill(0.0);
-            for r in 0..runs {
-                for t in 0..runs {
-                    let blk = if t == r {
-                        covs_at(r, i)
-                    } else if with_shared {
-                        &common[..]
-                    } else {
-                        continue;
-                    };
-                    for u in 0..m {
-                        let jrow: &[f64; 16] = jt[16 * (r * m + u)..16 * (r * m + u) + 16].try_into().unwrap();
-                        for v in 0..m {
-                            let suv = blk[u * m + v];
-                            let brow: &mut [f64; 16] = (&mut bt[16 * (t * m + v)..16 * (t * m + v) + 16]).try_into().unwrap();
-                            for o in 0..16 {
-                                brow[o] += suv * jrow[o];
+        } else {
+            cb.fill(0.0);
+            if meas {
+                // (J Σ)ᵀ = Σ Jᵀ (Σ symmetric) block by block: Σ's block (r, t) is run r's own
+                // covariance (t = r) or the shared one, whose NaN entries count as zero
+                let with_shared = !p.shared.is_empty();
+                if with_shared {
+                    for (c, &v) in common.iter_mut().zip(&p.shared[(s + i) * m * m..(s + i + 1) * m * m]) {
+                        *c = if v.is_nan() { 0.0 } else { v };
+                    }
+                }
+                bt.fill(0.0);
+                for r in 0..runs {
+                    for t in 0..runs {
+                        let blk = if t == r {
+                            covs_at(r, i)
+                        } else if with_shared {
+                            &common[..]
+                        } else {
+                            continue;
+                        };
+                        for u in 0..m {
+                            let jrow: &[f64; 16] = jt[16 * (r * m + u)..16 * (r * m + u) + 16].try_into().unwrap();
+                            for v in 0..m {
+                                let suv = blk[u * m + v];
+                                let brow: &mut [f64; 16] = (&mut bt[16 * (t * m + v)..16 * (t * m + v) + 16]).try_into().unwrap();
+                                for o in 0..16 {
+                                    brow[o] += suv * jrow[o];
+                                }
                             }
                         }
                     }
                 }
-            }
-            // Cov = (J Σ) Jᵀ as rank-one updates over the mR columns; eq. 9 order from the upper
-            // triangle (so exactly symmetric)
-            cb.fill(0.0);
-            for col in 0..mr {
-                let jrow: &[f64; 16] = jt[16 * col..16 * col + 16].try_into().unwrap();
-                let brow: &[f64; 16] = bt[16 * col..16 * col + 16].try_into().unwrap();
-                for a in 0..16 {
-                    let crow: &mut [f64; 16] = (&mut cb[16 * a..16 * a + 16]).try_into().unwrap();
-                    for b in 0..16 {
-                        crow[b] += brow[a] * jrow[b];
-                    }
+                // Cov = (J Σ) Jᵀ as rank-one updates over the mR columns
+                for col in 0..mr {
+                    let jrow: &[f64; 16] = jt[16 * col..16 * col + 16].try_into().unwrap();
+                    let brow: &[f64; 16] = bt[16 * col..16 * col + 16].try_into().unwrap();
+                    rank_one(&mut cb, 1.0, brow, jrow);
+                }
+                if let Some([mk, mc]) = meas_std.as_mut() {
+                    diagonal_std(&cb, &mut mk[8 * i..8 * i + 8], &mut mc[8 * i..8 * i + 8]);
                 }
             }
+            if let Some(cal) = &p.calibration {
+                let pts: Vec<&[C64]> = ip.q_ped.iter().map(|b| &b[4 * (s + i)..4 * (s + i) + 4]).collect();
+                add_calibration(cal, &jt, &pts, &mut cb);
+            }
+            // eq. 9 order from the upper triangle (so exactly symmetric)
             for a in 0..16 {
                 for b in 0..16 {
                     let (x, y) = (perm[a].min(perm[b]), perm[a].max(perm[b]));
                     ci[16 * a + b] = cb[16 * x + y];
                 }
             }
-            for u in 0..8 {
-                std[0][8 * i + u] = cb[17 * u].max(0.0).sqrt();
-                std[1][8 * i + u] = cb[17 * (8 + u)].max(0.0).sqrt();
-            }
+            let [sk, sc] = &mut std;
+            diagonal_std(&cb, &mut sk[8 * i..8 * i + 8], &mut sc[8 * i..8 * i + 8]);
         }
         if let Some(b) = bias.as_deref_mut() {
             let bi = &mut b[16 * i..16 * i + 16];
@@ -363,6 +428,64 @@ fn task(p: &CovProblem, m: usize, s: usize, cov: &mut [f64], mut bias: Option<&m
                 bi[o] = 0.5 * acc[u];
             }
         }
+    }
+}
+
+/// cb += f a bᵀ (16 x 16, row-major).
+#[inline(always)]
+fn rank_one(cb: &mut [f64; 256], f: f64, a: &[f64; 16], b: &[f64; 16]) {
+    for u in 0..16 {
+        let crow: &mut [f64; 16] = (&mut cb[16 * u..16 * u + 16]).try_into().unwrap();
+        let fa = f * a[u];
+        for v in 0..16 {
+            crow[v] += fa * b[v];
+        }
+    }
+}
+
+/// The standard errors of K and C (8 each, bij order) from the diagonal of a bij-order
+/// covariance (negative rounding as 0).
+fn diagonal_std(cb: &[f64; 256], k: &mut [f64], c: &mut [f64]) {
+    for u in 0..8 {
+        k[u] = cb[17 * u].max(0.0).sqrt();
+        c[u] = cb[17 * (8 + u)].max(0.0).sqrt();
+    }
+}
+
+/// cb += Cov_cal at one point: Σ_j σ_g² g_j g_jᵀ + σ_φ² f_j f_jᵀ with g_j = J d_gj and f_j = J d_φj
+/// (module documentation). `jt`: Jᵀ (16 R rows of 16, run r's rows r 16.. in the order
+/// [Re q, Im q, Re p, Im p]); `ped`: each run's pedestal motion at the point (4 values).
+/// With u_r = J's Re-direction for channel j (B[:, j] on Re q, 1 on Re p_j) and v_r its Im
+/// direction, a change δ p_rj moves p by u_r Re δ + v_r Im δ; δ = p_rj for the gain, i p_rj for
+/// the phase.
+fn add_calibration(cal: &Calibration, jt: &[f64], ped: &[&[C64]], cb: &mut [f64; 256]) {
+    for j in 0..4 {
+        let (mut g, mut f) = ([0.0; 16], [0.0; 16]);
+        for (r, (b, p)) in cal.probe_maps.iter().zip(ped).enumerate() {
+            let rows = &jt[256 * r..256 * (r + 1)];
+            let row = |c: usize| -> &[f64] { &rows[16 * c..16 * c + 16] };
+            let (mut u, mut v) = ([0.0; 16], [0.0; 16]);
+            for o in 0..16 {
+                u[o] = row(8 + j)[o];
+                v[o] = row(12 + j)[o];
+            }
+            for d in 0..4 {
+                let bdj = b[4 * d + j];
+                if bdj != 0.0 {
+                    for o in 0..16 {
+                        u[o] += bdj * row(d)[o];
+                        v[o] += bdj * row(4 + d)[o];
+                    }
+                }
+            }
+            let dp = p[j];
+            for o in 0..16 {
+                g[o] += u[o] * dp.re + v[o] * dp.im;
+                f[o] += v[o] * dp.re - u[o] * dp.im;
+            }
+        }
+        rank_one(cb, cal.gain_std * cal.gain_std, &g, &g);
+        rank_one(cb, cal.phase_std * cal.phase_std, &f, &f);
     }
 }
 
