@@ -24,6 +24,9 @@ def _dense(rotor, w, spin, qs, e, gain, sigma, covs, *, identical, method, bias,
     """The oracle with the arguments of ``uncertainty._propagate`` (as the core takes them; the
     accelerometers' calibration is tested in test_calibration_core.py)."""
     assert calibration is None
+    if isinstance(covs, list):  # pedestal runs: (cov, pedestal_cov, cross) blocks, as the joint covariance
+        covs = np.stack([np.block([[c, np.zeros_like(c) if x is None else x],
+                                   [np.zeros_like(c) if x is None else np.swapaxes(x, 1, 2), p]]) for c, p, x in covs])
     w = w if w_scale is None else w_scale * w
     spin = w if spin is None else spin
     gain = spin ** 2 if gain is None else gain

@@ -121,7 +121,8 @@ def _propagate(rotor, w, spin, qs, e, gain, sigma, covs, *, identical, method, b
     """:func:`propagate` of arguments rotorid made itself: ``qs`` (and ``q_ped``) lists of the runs'
     (n, 4) arrays, used where they are; ``w`` in the axis' unit times ``w_scale``, ``spin`` None
     for synchronous runs (spin = w), ``gain`` None for an imbalance (spin²), as the core's
-    identification takes them. ``calibration``: the accelerometers' calibration uncertainty (gain
+    identification takes them. ``covs``: (R, n, m, m), or with pedestal motion a list of each run's
+    (cov, pedestal_cov, cross or None) blocks (n, 8, 8). ``calibration``: the accelerometers' calibration uncertainty (gain
     std, phase std in radians, probe maps (R, 4, 4); ``identify._calibration_inputs``), added to
     the covariance; ``covs`` None then gives the calibration's alone. Returns (cov, bias or None,
     unknown (n,) bool, k_std, c_std, meas), the standard errors (n, 2, 2, 2) NaN where unknown,
@@ -133,7 +134,8 @@ def _propagate(rotor, w, spin, qs, e, gain, sigma, covs, *, identical, method, b
 
     cov, b, unknown, k_std, c_std, mk, mc = _core.propagate(
         rotor.core_params(), arr(w), arr(spin), qs, np.ascontiguousarray(e[None], dtype=complex), arr(gain),
-        None if covs is None else np.ascontiguousarray(covs, dtype=float), identical=identical, method=method,
+        covs if covs is None or isinstance(covs, list) else np.ascontiguousarray(covs, dtype=float),
+        identical=identical, method=method,
         sigma=arr(sigma), q_ped=q_ped, w_scale=w_scale,
         shared=None if shared is None else np.ascontiguousarray(shared, dtype=float), bias=bias,
         calibration=calibration, meas_std=meas_std)

@@ -572,10 +572,50 @@ fn unknown_points<'py>(py: Python<'py>, blocks: &Bound<'py, PyList>, n: usize) -
     to_py(py, out, &[n])
 }
 
+/// A run's covariance blocks as Python gives them: (cov, pedestal_cov, cross or None), (n, 8, 8) each.
+type CovBlocks<'py> = (PyReadonlyArrayDyn<'py, f64>, PyReadonlyArrayDyn<'py, f64>, Option<PyReadonlyArrayDyn<'py, f64>>);
+
+/// `covs`: a list of one (cov, pedestal_cov, cross or None) per run.
+fn cov_blocks<'py>(covs: &Bound<'py, PyAny>, runs: usize) -> PyResult<Vec<CovBlocks<'py>>> {
+    let out: Vec<CovBlocks<'py>> = covs
+        .cast::<PyList>()
+        .map_err(|_| PyTypeError::new_err("covs must be a list of (cov, pedestal_cov, cross or None), one per run"))?
+        .iter()
+        .enumerate()
+        .map(|(r, a)| a.extract().map_err(|_| PyTypeError::new_err(format!("covs[{r}] must be (cov, pedestal_cov, cross or None) of float64 arrays"))))
+        .collect::<PyResult<_>>()?;
+    if out.len() != runs {
+        return Err(PyValueError::new_err(format!("covs has {} entries, expected one per run ({runs})", out.len())));
+    }
+    Ok(out)
+}
+
+/// The blocks of [`cov_blocks`] as the core takes them, each checked to be (n, 8, 8).
+fn cov_block_slices<'a>(arrays: &'a [CovBlocks<'_>], n: usize) -> PyResult<Vec<rotorid_core::covariance::RunCov<'a>>> {
+    let mut out = Vec::with_capacity(arrays.len());
+    for (r, (cq, cp, cx)) in arrays.iter().enumerate() {
+        check_shape(&format!("covs[{r}][0]"), cq.shape(), &[n, 8, 8])?;
+        check_shape(&format!("covs[{r}][1]"), cp.shape(), &[n, 8, 8])?;
+        if let Some(x) = cx {
+            check_shape(&format!("covs[{r}][2]"), x.shape(), &[n, 8, 8])?;
+        }
+        out.push(rotorid_core::covariance::RunCov {
+            q: slice(cq, &format!("covs[{r}][0]"))?,
+            ped: slice(cp, &format!("covs[{r}][1]"))?,
+            cross: match cx {
+                Some(x) => slice(x, &format!("covs[{r}][2]"))?,
+                None => &[],
+            },
+        });
+    }
+    Ok(out)
+}
+
 /// Measurement covariance propagated through the identification (see
 /// identify::propagate): arguments as `identify` for one problem (`q` and `q_ped` lists of R
 /// arrays (n, 4) at the bearings), with `covs` (R, n, m, m) the runs' covariances of [Re q, Im q]
-/// (m = 8) or, with `q_ped`, of [Re q, Im q, Re q_ped, Im q_ped] (m = 16), NaN where unknown;
+/// (m = 8) or, with `q_ped`, of [Re q, Im q, Re q_ped, Im q_ped] (m = 16), or then a list of one
+/// (cov, pedestal_cov, cross or None) of (n, 8, 8) blocks per run; NaN where unknown;
 /// `shared` (n, m, m) a covariance common to every pair of runs, or None. `calibration`: the
 /// accelerometers' calibration uncertainty (gain_std, phase_std_rad, probe_maps (R, 4, 4): each
 /// run's map from measured pedestal motion to relative motion at the bearings, zeros for a run
@@ -595,7 +635,7 @@ fn propagate<'py>(
     q: &Bound<'py, PyAny>,
     e: PyReadonlyArrayDyn<'py, C64>,
     gain: Option<PyReadonlyArrayDyn<'py, f64>>,
-    covs: Option<PyReadonlyArrayDyn<'py, f64>>,
+    covs: Option<&Bound<'py, PyAny>>,
     identical: bool,
     method: &str,
     sigma: Option<PyReadonlyArrayDyn<'py, f64>>,
@@ -618,10 +658,27 @@ fn propagate<'py>(
     let ped = pedestal_responses(q_ped, &resp)?;
     let ped_blocks = pedestal_blocks(&ped)?;
     let m = if ped.is_some() { 16 } else { 8 };
-    match &covs {
-        Some(cv) => check_shape("covs", cv.shape(), &[runs, n, m, m])?,
-        None if calibration.is_none() => return Err(PyValueError::new_err("covs: None needs a calibration")),
-        None => {}
+    let covs = covs.filter(|c| !c.is_none());
+    let dense: Option<PyReadonlyArrayDyn<'py, f64>> = match covs {
+        Some(c) if !c.is_instance_of::<PyList>() => {
+            let a: PyReadonlyArrayDyn<'py, f64> = c.extract().map_err(|_| PyTypeError::new_err("covs must be a float64 array (R, n, m, m) or a list of blocks"))?;
+            check_shape("covs", a.shape(), &[runs, n, m, m])?;
+            Some(a)
+        }
+        _ => None,
+    };
+    let block_arrays = match covs {
+        Some(c) if c.is_instance_of::<PyList>() => {
+            if m != 16 {
+                return Err(PyValueError::new_err("covs: blocks (cov, pedestal_cov, cross) are for runs with pedestal motion (q_ped)"));
+            }
+            cov_blocks(c, runs)?
+        }
+        _ => Vec::new(),
+    };
+    let block_slices = cov_block_slices(&block_arrays, n)?;
+    if covs.is_none() && calibration.is_none() {
+        return Err(PyValueError::new_err("covs: None needs a calibration"));
     }
     if let Some(sh) = &shared {
         check_shape("shared", sh.shape(), &[n, m, m])?;
@@ -637,9 +694,10 @@ fn propagate<'py>(
     let prob = identify::propagate::CovProblem {
         ident,
         report,
-        covs: match &covs {
-            Some(cv) => slice(cv, "covs")?,
-            None => &[],
+        covs: match (&dense, covs) {
+            (Some(a), _) => identify::propagate::RunCovs::Dense(slice(a, "covs")?),
+            (None, Some(_)) => identify::propagate::RunCovs::Blocks(&block_slices),
+            (None, None) => identify::propagate::RunCovs::Absent,
         },
         shared: match &shared {
             Some(sh) => slice(sh, "shared")?,
@@ -1105,36 +1163,11 @@ fn pedestal_fit<'py>(
     };
     // the runs' covariances as (q, pedestal, cross or None) blocks of (n, 8, 8), and the shared
     // (n, 16, 16) one, for the covariance fit
-    type Blocks<'py> = (PyReadonlyArrayDyn<'py, f64>, PyReadonlyArrayDyn<'py, f64>, Option<PyReadonlyArrayDyn<'py, f64>>);
-    let cov_arrays: Vec<Blocks<'py>> = match covs {
-        Some(c) if !c.is_none() => c
-            .cast::<PyList>()
-            .map_err(|_| PyTypeError::new_err("covs must be a list of (cov, pedestal_cov, cross or None), one per run"))?
-            .iter()
-            .enumerate()
-            .map(|(r, a)| a.extract().map_err(|_| PyTypeError::new_err(format!("covs[{r}] must be (cov, pedestal_cov, cross or None) of float64 arrays"))))
-            .collect::<PyResult<_>>()?,
+    let cov_arrays = match covs {
+        Some(c) if !c.is_none() => cov_blocks(c, resp.runs)?,
         _ => Vec::new(),
     };
-    if !cov_arrays.is_empty() && cov_arrays.len() != resp.runs {
-        return Err(PyValueError::new_err(format!("covs has {} entries, expected one per run ({})", cov_arrays.len(), resp.runs)));
-    }
-    let mut cov_slices = Vec::with_capacity(cov_arrays.len());
-    for (r, (cq, cp, cx)) in cov_arrays.iter().enumerate() {
-        check_shape(&format!("covs[{r}][0]"), cq.shape(), &[n, 8, 8])?;
-        check_shape(&format!("covs[{r}][1]"), cp.shape(), &[n, 8, 8])?;
-        if let Some(x) = cx {
-            check_shape(&format!("covs[{r}][2]"), x.shape(), &[n, 8, 8])?;
-        }
-        cov_slices.push(pedestal_cov::RunCov {
-            q: slice(cq, &format!("covs[{r}][0]"))?,
-            ped: slice(cp, &format!("covs[{r}][1]"))?,
-            cross: match cx {
-                Some(x) => slice(x, &format!("covs[{r}][2]"))?,
-                None => &[],
-            },
-        });
-    }
+    let cov_slices = cov_block_slices(&cov_arrays, n)?;
     if let Some(sh) = &shared {
         check_shape("shared", sh.shape(), &[n, 16, 16])?;
     }

@@ -180,3 +180,44 @@ pub(crate) fn cholesky_lower(a: &[f64], m: usize, shift: f64, floor: f64, l: &mu
     }
     dropped
 }
+
+/// One run's measurement covariance in its three blocks, (n, 8, 8) each: the joint covariance of
+/// z = [Re q, Im q, Re q_ped, Im q_ped] is [[q, cross], [crossᵀ, ped]] (never formed as an
+/// (n, 16, 16) array).
+#[derive(Clone, Copy)]
+pub struct RunCov<'a> {
+    /// of [Re q, Im q] (the probes, moved to the bearings)
+    pub q: &'a [f64],
+    /// of [Re q_ped, Im q_ped] (the accelerometers)
+    pub ped: &'a [f64],
+    /// between the two (rows q, columns q_ped), or empty: uncorrelated
+    pub cross: &'a [f64],
+}
+
+impl RunCov<'_> {
+    /// One block per run, each of n points (`cross` empty or of n points too).
+    pub fn check_all(covs: &[RunCov], runs: usize, n: usize) -> Result<(), CoreError> {
+        expect_len("covs (runs)", covs, runs)?;
+        for c in covs {
+            expect_len("covs (q)", c.q, n * 64)?;
+            expect_len("covs (pedestal)", c.ped, n * 64)?;
+            if !c.cross.is_empty() {
+                expect_len("covs (cross)", c.cross, n * 64)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// The joint 16 x 16 matrix of point k, row-major.
+    pub fn joint(&self, k: usize, out: &mut [f64; 256]) {
+        for u in 0..8 {
+            for v in 0..8 {
+                out[16 * u + v] = self.q[64 * k + 8 * u + v];
+                out[16 * (8 + u) + 8 + v] = self.ped[64 * k + 8 * u + v];
+                let c = if self.cross.is_empty() { 0.0 } else { self.cross[64 * k + 8 * u + v] };
+                out[16 * u + 8 + v] = c;
+                out[16 * (8 + v) + u] = c;
+            }
+        }
+    }
+}

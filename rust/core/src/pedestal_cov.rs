@@ -27,6 +27,7 @@
 use crate::covariance::cholesky_lower;
 use crate::error::{expect_len, CoreError};
 use crate::identify::{force_point, motion_forces, Consts};
+pub use crate::covariance::RunCov;
 use crate::lsq::{Solution, TallQr};
 use crate::model::C64;
 use crate::par::{for_each_task, Disjoint};
@@ -34,34 +35,6 @@ use crate::pedestal_fit::PedestalFitProblem;
 
 /// Points per parallel task.
 const POINTS_PER_TASK: usize = 512;
-
-/// One run's measurement covariance in its three blocks, (n, 8, 8) each: the joint covariance of
-/// z = [Re q, Im q, Re q_ped, Im q_ped] is [[q, cross], [crossᵀ, ped]] (never formed as an
-/// (n, 16, 16) array).
-#[derive(Clone, Copy)]
-pub struct RunCov<'a> {
-    /// of [Re q, Im q] (the probes, moved to the bearings)
-    pub q: &'a [f64],
-    /// of [Re q_ped, Im q_ped] (the accelerometers)
-    pub ped: &'a [f64],
-    /// between the two (rows q, columns q_ped), or empty: uncorrelated
-    pub cross: &'a [f64],
-}
-
-impl RunCov<'_> {
-    /// The joint 16 x 16 matrix of point k, row-major.
-    fn joint(&self, k: usize, out: &mut [f64; 256]) {
-        for u in 0..8 {
-            for v in 0..8 {
-                out[16 * u + v] = self.q[64 * k + 8 * u + v];
-                out[16 * (8 + u) + 8 + v] = self.ped[64 * k + 8 * u + v];
-                let c = if self.cross.is_empty() { 0.0 } else { self.cross[64 * k + 8 * u + v] };
-                out[16 * u + 8 + v] = c;
-                out[16 * (8 + v) + u] = c;
-            }
-        }
-    }
-}
 
 /// The fit's problem and the runs' covariances.
 pub struct CovFitProblem<'a> {
@@ -102,14 +75,7 @@ impl CovFitProblem<'_> {
         if !self.fit.select.is_empty() && self.fit.select.len() != n {
             return Err(CoreError::length("select", self.fit.select.len(), format!("{n} (one per point) or 0 (all)")));
         }
-        expect_len("covs (runs)", self.covs, f.runs)?;
-        for c in self.covs {
-            expect_len("covs (q)", c.q, n * 64)?;
-            expect_len("covs (pedestal)", c.ped, n * 64)?;
-            if !c.cross.is_empty() {
-                expect_len("covs (cross)", c.cross, n * 64)?;
-            }
-        }
+        RunCov::check_all(self.covs, f.runs, n)?;
         if !self.shared.is_empty() {
             expect_len("shared", self.shared, n * 256)?;
         }

@@ -6,7 +6,8 @@ mod common;
 use common::*;
 use proptest::prelude::*;
 use rotorid_core::covariance::psd_cholesky;
-use rotorid_core::identify::propagate::{propagate, Calibration, CovOut, CovProblem, H_REL};
+use rotorid_core::covariance::RunCov;
+use rotorid_core::identify::propagate::{propagate, Calibration, CovOut, CovProblem, RunCovs, H_REL};
 use rotorid_core::identify::{identify_forces, identify_report, IdentOut, IdentProblem, REPORT_TO_BIJ};
 use rotorid_core::{CoreError, C64};
 
@@ -211,12 +212,23 @@ proptest! {
         }
         let gain: Vec<f64> = w.iter().map(|v| v * v).collect();
         let ident = IdentProblem { rotor: r, w: &w, spin: &w, q: &qb, e: &e, gain: &gain, sigma: &[], q_ped: &pb, planes: None, batch: 1, runs, identical: false };
-        let prob = CovProblem { ident, report, covs: &covs, shared: &shared, calibration: None };
+        let prob = CovProblem { ident, report, covs: RunCovs::Dense(&covs), shared: &shared, calibration: None };
         let (cov, bias, unknown) = run(&prob).unwrap();
         let (cov_ref, bias_ref) = reference(&prob.ident, report, &covs, &shared);
         prop_assert!(unknown.iter().all(|&u| u == 0));
         assert_close("cov", &cov, &cov_ref)?;
         assert_close("bias", &bias, &bias_ref)?;
+        if ped_on {
+            // the same covariances as each run's (q, pedestal, cross) blocks: the same bits
+            let split = |r: usize, rows: usize, cols: usize| -> Vec<f64> {
+                (0..n).flat_map(|i| (0..64).map(move |t| (i, t))).map(|(i, t)| covs[((r * n + i) * 16 + rows + t / 8) * 16 + cols + t % 8]).collect()
+            };
+            let blocks: Vec<[Vec<f64>; 3]> = (0..runs).map(|r| [split(r, 0, 0), split(r, 8, 8), split(r, 0, 8)]).collect();
+            let rc: Vec<RunCov> = blocks.iter().map(|[a, b, x]| RunCov { q: a, ped: b, cross: x }).collect();
+            let (cov_b, bias_b, _) = run(&CovProblem { covs: RunCovs::Blocks(&rc), ..prob }).unwrap();
+            prop_assert!(cov.iter().zip(&cov_b).all(|(a, b)| a.to_bits() == b.to_bits()));
+            prop_assert!(bias.iter().zip(&bias_b).all(|(a, b)| a.to_bits() == b.to_bits()));
+        }
         for i in 0..n {
             for a in 0..16 {
                 prop_assert!(cov[256 * i + 17 * a] >= 0.0);
@@ -265,7 +277,7 @@ fn unknown_points_are_whole_points() {
     covs[(w.len() + 2) * 64 + 5] = f64::NAN; // run 1, point 2
     let gain: Vec<f64> = w.iter().map(|v| v * v).collect();
     let ident = IdentProblem { rotor: r, w: &w, spin: &w, q: &qb, e: &e, gain: &gain, sigma: &[], q_ped: &[], planes: None, batch: 1, runs: 2, identical: false };
-    let (cov, bias, unknown) = run(&CovProblem { ident, report: false, covs: &covs, shared: &[], calibration: None }).unwrap();
+    let (cov, bias, unknown) = run(&CovProblem { ident, report: false, covs: RunCovs::Dense(&covs), shared: &[], calibration: None }).unwrap();
     for i in 0..w.len() {
         let unk = i == 2 || i == 6;
         assert_eq!(unknown[i], u8::from(unk), "point {i}");
@@ -285,13 +297,21 @@ fn propagation_argument_errors_name_the_argument() {
     let ident = IdentProblem { rotor: r, w: &w, spin: &w, q: &qb, e: &e, gain: &[], sigma: &[], q_ped: &[], planes: None, batch: 1, runs: 2, identical: false };
     let one_run = IdentProblem { q: &qb[..1], e: &e[..4], runs: 1, ..ident };
     let twice: Vec<&[C64]> = [&qb[..], &qb[..]].concat();
+    let with_ped = IdentProblem { q_ped: &qb, ..ident };
+    let blk = vec![0.0; 2 * 64];
+    let blocks = [RunCov { q: &blk, ped: &blk, cross: &[] }; 2];
+    let short_blocks = [RunCov { q: &blk, ped: &blk[..64], cross: &[] }; 2];
     let cases: Vec<(CovProblem, &str)> = vec![
-        (CovProblem { ident: IdentProblem { w: &[100.0, 0.0], ..ident }, report: false, covs: &covs, shared: &[], calibration: None }, "w"),
-        (CovProblem { ident: IdentProblem { batch: 2, q: &twice, ..ident }, report: false, covs: &covs, shared: &[], calibration: None }, "batch"),
-        (CovProblem { ident: IdentProblem { planes: Some([1.0, 0.0, 0.0, 1.0]), ..ident }, report: false, covs: &covs, shared: &[], calibration: None }, "planes"),
-        (CovProblem { ident: one_run, report: true, covs: &covs[..128], shared: &[], calibration: None }, "runs"),
-        (CovProblem { ident, report: false, covs: &covs[..200], shared: &[], calibration: None }, "covs"),
-        (CovProblem { ident, report: false, covs: &covs, shared: &covs[..64], calibration: None }, "shared"),
+        (CovProblem { ident: IdentProblem { w: &[100.0, 0.0], ..ident }, report: false, covs: RunCovs::Dense(&covs), shared: &[], calibration: None }, "w"),
+        (CovProblem { ident: IdentProblem { batch: 2, q: &twice, ..ident }, report: false, covs: RunCovs::Dense(&covs), shared: &[], calibration: None }, "batch"),
+        (CovProblem { ident: IdentProblem { planes: Some([1.0, 0.0, 0.0, 1.0]), ..ident }, report: false, covs: RunCovs::Dense(&covs), shared: &[], calibration: None }, "planes"),
+        (CovProblem { ident: one_run, report: true, covs: RunCovs::Dense(&covs[..128]), shared: &[], calibration: None }, "runs"),
+        (CovProblem { ident, report: false, covs: RunCovs::Dense(&covs[..200]), shared: &[], calibration: None }, "covs"),
+        (CovProblem { ident, report: false, covs: RunCovs::Dense(&covs), shared: &covs[..64], calibration: None }, "shared"),
+        (CovProblem { ident, report: false, covs: RunCovs::Blocks(&blocks), shared: &[], calibration: None }, "covs"),
+        (CovProblem { ident: with_ped, report: false, covs: RunCovs::Blocks(&blocks[..1]), shared: &[], calibration: None }, "covs (runs)"),
+        (CovProblem { ident: with_ped, report: false, covs: RunCovs::Blocks(&short_blocks), shared: &[], calibration: None }, "covs (pedestal)"),
+        (CovProblem { ident, report: false, covs: RunCovs::Absent, shared: &[], calibration: None }, "covs"),
     ];
     for (p, name) in cases {
         match run(&p) {
@@ -301,10 +321,10 @@ fn propagation_argument_errors_name_the_argument() {
     }
     let mut short = vec![0.0; 100];
     let (mut ks, mut cs) = (vec![0.0; 16], vec![0.0; 16]);
-    let err = propagate(&CovProblem { ident, report: false, covs: &covs, shared: &[], calibration: None }, CovOut { cov: &mut short, bias: None, unknown: &mut [0; 2], k_std: &mut ks, c_std: &mut cs, meas_std: None }).unwrap_err();
+    let err = propagate(&CovProblem { ident, report: false, covs: RunCovs::Dense(&covs), shared: &[], calibration: None }, CovOut { cov: &mut short, bias: None, unknown: &mut [0; 2], k_std: &mut ks, c_std: &mut cs, meas_std: None }).unwrap_err();
     assert_eq!(err.name(), "cov");
     let mut cov = vec![0.0; 512];
-    let err = propagate(&CovProblem { ident, report: false, covs: &covs, shared: &[], calibration: None }, CovOut { cov: &mut cov, bias: None, unknown: &mut [0; 2], k_std: &mut ks[..8], c_std: &mut cs, meas_std: None }).unwrap_err();
+    let err = propagate(&CovProblem { ident, report: false, covs: RunCovs::Dense(&covs), shared: &[], calibration: None }, CovOut { cov: &mut cov, bias: None, unknown: &mut [0; 2], k_std: &mut ks[..8], c_std: &mut cs, meas_std: None }).unwrap_err();
     assert_eq!(err.name(), "k_std");
 }
 
@@ -388,7 +408,7 @@ proptest! {
 
         let mut cov = vec![0.0; n * 256];
         let (mut ks, mut cs, mut unknown) = (vec![0.0; n * 8], vec![0.0; n * 8], vec![9u8; n]);
-        propagate(&CovProblem { ident, report, covs: &[], shared: &[], calibration: Some(cal) },
+        propagate(&CovProblem { ident, report, covs: RunCovs::Absent, shared: &[], calibration: Some(cal) },
                   CovOut { cov: &mut cov, bias: None, unknown: &mut unknown, k_std: &mut ks, c_std: &mut cs, meas_std: None }).unwrap();
         prop_assert!(unknown.iter().all(|&u| u == 0));
         let want = calibration_reference(&ident, report, &cal);
@@ -403,10 +423,10 @@ proptest! {
         let size = q.iter().map(|v| v.norm()).fold(0.0, f64::max) * 1e-3;
         let covs = covariances(&e.iter().map(|v| v.re).collect::<Vec<_>>(), runs, n, 16, 16, size);
         let (mut cov_m, mut ks_m, mut cs_m) = (vec![0.0; n * 256], vec![0.0; n * 8], vec![0.0; n * 8]);
-        propagate(&CovProblem { ident, report, covs: &covs, shared: &[], calibration: None },
+        propagate(&CovProblem { ident, report, covs: RunCovs::Dense(&covs), shared: &[], calibration: None },
                   CovOut { cov: &mut cov_m, bias: None, unknown: &mut unknown, k_std: &mut ks_m, c_std: &mut cs_m, meas_std: None }).unwrap();
         let (mut cov_b, mut ks_b, mut cs_b, mut mk, mut mc) = (vec![0.0; n * 256], vec![0.0; n * 8], vec![0.0; n * 8], vec![0.0; n * 8], vec![0.0; n * 8]);
-        propagate(&CovProblem { ident, report, covs: &covs, shared: &[], calibration: Some(cal) },
+        propagate(&CovProblem { ident, report, covs: RunCovs::Dense(&covs), shared: &[], calibration: Some(cal) },
                   CovOut { cov: &mut cov_b, bias: None, unknown: &mut unknown, k_std: &mut ks_b, c_std: &mut cs_b, meas_std: Some([&mut mk, &mut mc]) }).unwrap();
         prop_assert_eq!(mk.iter().map(|v| v.to_bits()).collect::<Vec<_>>(), ks_m.iter().map(|v| v.to_bits()).collect::<Vec<_>>());
         prop_assert_eq!(mc.iter().map(|v| v.to_bits()).collect::<Vec<_>>(), cs_m.iter().map(|v| v.to_bits()).collect::<Vec<_>>());
@@ -437,13 +457,13 @@ fn calibration_argument_errors_name_the_argument() {
     let nan_maps = [[f64::NAN; 16]; 2];
     let shared = vec![0.0; 2 * 256];
     let cases: Vec<(CovProblem, bool, &str)> = vec![
-        (CovProblem { ident: no_ped, report: false, covs: &[], shared: &[], calibration: Some(good) }, false, "calibration"),
-        (CovProblem { ident, report: false, covs: &[], shared: &[], calibration: Some(Calibration { gain_std: -0.1, ..good }) }, false, "calibration"),
-        (CovProblem { ident, report: false, covs: &[], shared: &[], calibration: Some(Calibration { phase_std: f64::NAN, ..good }) }, false, "calibration"),
-        (CovProblem { ident, report: false, covs: &[], shared: &[], calibration: Some(Calibration { probe_maps: &maps[..1], ..good }) }, false, "probe_maps"),
-        (CovProblem { ident, report: false, covs: &[], shared: &[], calibration: Some(Calibration { probe_maps: &nan_maps, ..good }) }, false, "probe_maps"),
-        (CovProblem { ident, report: false, covs: &[], shared: &[], calibration: Some(good) }, true, "covs"),
-        (CovProblem { ident, report: false, covs: &[], shared: &shared, calibration: Some(good) }, false, "covs"),
+        (CovProblem { ident: no_ped, report: false, covs: RunCovs::Absent, shared: &[], calibration: Some(good) }, false, "calibration"),
+        (CovProblem { ident, report: false, covs: RunCovs::Absent, shared: &[], calibration: Some(Calibration { gain_std: -0.1, ..good }) }, false, "calibration"),
+        (CovProblem { ident, report: false, covs: RunCovs::Absent, shared: &[], calibration: Some(Calibration { phase_std: f64::NAN, ..good }) }, false, "calibration"),
+        (CovProblem { ident, report: false, covs: RunCovs::Absent, shared: &[], calibration: Some(Calibration { probe_maps: &maps[..1], ..good }) }, false, "probe_maps"),
+        (CovProblem { ident, report: false, covs: RunCovs::Absent, shared: &[], calibration: Some(Calibration { probe_maps: &nan_maps, ..good }) }, false, "probe_maps"),
+        (CovProblem { ident, report: false, covs: RunCovs::Absent, shared: &[], calibration: Some(good) }, true, "covs"),
+        (CovProblem { ident, report: false, covs: RunCovs::Absent, shared: &shared, calibration: Some(good) }, false, "covs"),
     ];
     for (p, with_bias, name) in cases {
         let (mut cov, mut b, mut ks, mut cs) = (vec![0.0; 512], vec![0.0; 32], vec![0.0; 16], vec![0.0; 16]);

@@ -34,7 +34,7 @@
 //! they are: nothing of size (copies x points) is ever formed.
 
 use super::{identify_serial, IdentOut, IdentProblem, REPORT_TO_BIJ};
-use crate::covariance::psd_cholesky;
+use crate::covariance::{psd_cholesky, RunCov};
 use crate::error::{expect_len, product, CoreError};
 use crate::model::C64;
 use crate::par::{for_each_task, Disjoint};
@@ -53,16 +53,27 @@ pub struct CovProblem<'a> {
     pub ident: IdentProblem<'a>,
     /// the report's 16-unknown formulation (`identify_report`) rather than the bearing-force solver
     pub report: bool,
-    /// covariance of each run's x_r at each point, (runs, n, m, m) row-major; a point where any
-    /// entry of a run is NaN has an unknown covariance (NaN outputs there)
-    pub covs: &'a [f64],
+    /// covariance of each run's x_r at each point; a point where any entry of a run is NaN has an
+    /// unknown covariance (NaN outputs there)
+    pub covs: RunCovs<'a>,
     /// covariance common to every pair of runs, (n, m, m), or empty for independent runs
     /// (NaN entries count as zero)
     pub shared: &'a [f64],
     /// the accelerometers' calibration uncertainty (pedestal motion only), or None. With it,
-    /// `covs` may be empty (no measurement covariance: Cov(p) is the calibration's alone; no
-    /// bias, no shared covariance then).
+    /// `covs` may be [`RunCovs::Absent`] (no measurement covariance: Cov(p) is the calibration's
+    /// alone; no bias, no shared covariance then).
     pub calibration: Option<Calibration<'a>>,
+}
+
+/// The runs' measurement covariances.
+#[derive(Clone, Copy)]
+pub enum RunCovs<'a> {
+    /// (runs, n, m, m) row-major
+    Dense(&'a [f64]),
+    /// with pedestal motion, each run's three (n, 8, 8) blocks (no (n, 16, 16) array)
+    Blocks(&'a [RunCov<'a>]),
+    /// none: only with a calibration (Cov(p) is the calibration's alone)
+    Absent,
 }
 
 /// The accelerometers' calibration uncertainty, common to all runs (see the module's documentation).
@@ -121,11 +132,15 @@ pub fn propagate(p: &CovProblem, out: CovOut) -> Result<(), CoreError> {
             return Err(CoreError::value("probe_maps", "must be finite"));
         }
     }
-    let meas = !p.covs.is_empty() || p.calibration.is_none();
-    if meas {
-        expect_len("covs", p.covs, product("covs", &[runs, n, m, m])?)?;
-    } else if out.bias.is_some() || !p.shared.is_empty() {
-        return Err(CoreError::value("covs", "the bias and a shared covariance need the runs' measurement covariances"));
+    match p.covs {
+        RunCovs::Dense(c) => expect_len("covs", c, product("covs", &[runs, n, m, m])?)?,
+        RunCovs::Blocks(_) if m != 16 => return Err(CoreError::value("covs", "blocks are for runs with pedestal motion (q_ped)")),
+        RunCovs::Blocks(b) => RunCov::check_all(b, runs, n)?,
+        RunCovs::Absent if p.calibration.is_none() => return Err(CoreError::value("covs", "are needed (absent only with a calibration)")),
+        RunCovs::Absent if out.bias.is_some() || !p.shared.is_empty() => {
+            return Err(CoreError::value("covs", "the bias and a shared covariance need the runs' measurement covariances"))
+        }
+        RunCovs::Absent => {}
     }
     if !p.shared.is_empty() {
         expect_len("shared", p.shared, n * m * m)?;
@@ -186,10 +201,27 @@ fn task(p: &CovProblem, m: usize, s: usize, out: TaskOut, scratch: &mut Scratch)
     let ped = m == 16;
     let nd = 2 * m * runs; // copies for J
     let with_bias = bias.is_some();
-    let meas = !p.covs.is_empty(); // else the calibration's covariance alone
+    let meas = !matches!(p.covs, RunCovs::Absent); // else the calibration's covariance alone
     let nb = if with_bias { 2 * nd + 1 } else { nd }; // + sigma points and the unperturbed point
     let mr = m * runs;
-    let covs_at = |r: usize, i: usize| &p.covs[((r * n) + s + i) * m * m..((r * n) + s + i + 1) * m * m];
+    // each run's m x m covariance at point i of the task: the dense array's, or the blocks'
+    // joint matrices formed once for the task
+    let mut joints = Vec::new();
+    if let RunCovs::Blocks(b) = p.covs {
+        joints = vec![0.0; tn * runs * 256];
+        for i in 0..tn {
+            for (r, rc) in b.iter().enumerate() {
+                rc.joint(s + i, (&mut joints[(i * runs + r) * 256..(i * runs + r + 1) * 256]).try_into().unwrap());
+            }
+        }
+    }
+    let covs_at = |r: usize, i: usize| -> &[f64] {
+        match p.covs {
+            RunCovs::Dense(c) => &c[((r * n) + s + i) * m * m..((r * n) + s + i + 1) * m * m],
+            RunCovs::Blocks(_) => &joints[(i * runs + r) * 256..(i * runs + r + 1) * 256],
+            RunCovs::Absent => &[],
+        }
+    };
 
     // the step h of each point, and each run's L where the bias is asked for
     let mut h = vec![0.0; tn];
