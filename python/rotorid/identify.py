@@ -514,9 +514,11 @@ def _pedestal_frame(rotor, run, label="", *, finite=True, blocks=False):
     if run.pedestal is None:
         raise RotoridError(f"{label or 'the run'} carries no pedestal motion")
     try:
-        # checked again: fields set after construction skip __post_init__
-        _check_pedestal(run, run.q.shape[0], finite=finite or run.at != "bearings")
-        rb = run.at_bearings(rotor)  # the eq. 19 move of runs at the probes checks q (and NaN in it)
+        # checked again: fields set after construction skip __post_init__ (the eq. 19 move of a
+        # run at the probes checks them, and q, itself)
+        if run.at == "bearings":
+            _check_pedestal(run, run.q.shape[0], finite=finite)
+        rb = run.at_bearings(rotor)
     except RotoridError as exc:
         raise RotoridError(f"{label or 'the run'}: {exc}") from None
     q = rb.frf() if hasattr(rb, "frf") else rb.q

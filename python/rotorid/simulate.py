@@ -86,12 +86,11 @@ def _q_as_checked(resp) -> bool:
 
 
 def _cov_transform(T, cov):
-    """Covariance (..., 8, 8) of [Re q, Im q] after the plane transform T applied to (x1, x2) and
-    (y1, y2) of q."""
+    """Covariance (n, 8, 8) of [Re q, Im q] after the plane transform T applied to (x1, x2) and
+    (y1, y2) of q: A C Aᵀ in the core (exactly symmetric; a point with a NaN all NaN)."""
     if cov is None:
         return None
-    A8 = _plane_matrix8(T)
-    return A8 @ np.asarray(cov) @ A8.T
+    return _core.move_covariances(_plane_matrix8(T), None, np.ascontiguousarray(cov, dtype=float))[0]
 
 
 def check_cov(name, cov, n, size: int = 8):
@@ -224,11 +223,39 @@ def _with_pedestal_at(resp, rotor, where):
     motion itself is measured at the bearings and does not move."""
     A, B = _pedestal_transform(_plane_matrix(rotor, where))
     p = resp.pedestal
-    q = _apply_planes(A, resp.q) + _apply_planes(B, p)
+    q = resp.q
+    if not _q_as_checked(resp):  # replaced after construction: checked here, before the sum below
+        n = (resp.speed_rpm if isinstance(resp, SyncResponse) else resp.freq_hz).size
+        q = complex_array("q", q, shape=(n, 4))
+        p = complex_array("pedestal", p, shape=(n, 4))
+    q = _apply_planes(A, q) + _apply_planes(B, p)
     if resp.cov is None or resp.pedestal_cov is None:
         return q, None, None
-    out = _joint_moved(rotor, joint_cov(resp), where)         # (n, 16, 16)
-    return q, out[:, :8, :8], out[:, :8, 8:]
+    # the joint covariance's congruence M Σ Mᵀ block by block in the core (no (n, 16, 16) array)
+    cross = resp.pedestal_cross
+    cov, cross = _core.move_covariances(_plane_matrix8(A), _plane_matrix8(B), np.ascontiguousarray(resp.cov, dtype=float),
+                                        np.ascontiguousarray(resp.pedestal_cov, dtype=float),
+                                        None if cross is None else np.ascontiguousarray(cross, dtype=float))
+    return q, cov, cross
+
+
+def _pedestal_moved(resp, rotor, where):
+    """The fields (q, at, cov, dof, pedestal, pedestal_cov, pedestal_cross) of a pedestal-carrying
+    response moved to ``where``, for an unchecked constructor; None when its q is not as its
+    constructor checked it (the caller takes the checked constructor then). The response's own
+    fields are checked again (set after construction, they skipped ``__post_init__``); the moved
+    covariances of valid ones are valid (M Σ Mᵀ, exactly symmetric), so the moved response is not
+    checked again: its three covariance checks and the joint (n, 16, 16) one took half of an
+    identification of pedestal runs at the probes."""
+    if not _q_as_checked(resp):
+        return None
+    n = resp.q.shape[0]
+    resp.cov = check_cov("cov", resp.cov, n)
+    resp.dof = check_dof("dof", resp.dof, n)
+    _check_pedestal(resp, n)
+    q, cov, cross = _with_pedestal_at(resp, rotor, where)
+    return dict(q=q, at=where, cov=cov, dof=resp.dof, pedestal=resp.pedestal, pedestal_cov=resp.pedestal_cov,
+                pedestal_cross=cross)
 
 
 def _joint_moved(rotor, joint, where):
@@ -334,6 +361,10 @@ class SyncResponse:
         if self.at == where:
             return self
         if self.pedestal is not None:
+            fields = _pedestal_moved(self, rotor, where)
+            if fields is not None:
+                return SyncResponse._unchecked(speed_rpm=self.speed_rpm, imbalance=self.imbalance, name=self.name,
+                                               **fields)
             q, cov, cross = _with_pedestal_at(self, rotor, where)
             return SyncResponse(self.speed_rpm, q, self.imbalance, where, self.name, cov, self.dof, self.pedestal,
                                 self.pedestal_cov, cross)
@@ -607,6 +638,11 @@ class ImpactResponse:
         if self.at == where:
             return self
         if self.pedestal is not None:
+            fields = _pedestal_moved(self, rotor, where) if self.force is None else None
+            if fields is not None:
+                return ImpactResponse._unchecked(speed_rpm=self.speed_rpm, freq_hz=self.freq_hz, force=None,
+                                                 plane=self.plane, direction=self.direction, name=self.name,
+                                                 sigma=self.sigma, **fields)
             q, cov, cross = _with_pedestal_at(self, rotor, where)
             return ImpactResponse(self.speed_rpm, self.freq_hz, q, None, self.plane, self.direction, where,
                                   self.name, self.sigma, cov, self.dof, self.pedestal, self.pedestal_cov, cross)

@@ -508,6 +508,65 @@ fn py_identify<'py>(
     Ok((to_py(py, k, &sh)?, to_py(py, c, &sh)?, to_py(py, cond, &[batch, n, 2])?, to_py(py, resid, &[batch, n])?, to_py(py, amp, &[batch, n])?, kst, cst, relp, code, rel_amp, nbad))
 }
 
+/// A run's covariance moved between planes with its responses (see
+/// rotorid_core::covariance::move_covariances): `a`, `b` the (8, 8) real maps of [Re q, Im q]
+/// (`b` with pedestal motion: q' = A q + B p), `cov` (n, 8, 8), `pedestal_cov` and `cross` (n, 8,
+/// 8) with `b` (cross None: uncorrelated). Returns (cov', cross' or None).
+#[pyfunction]
+#[pyo3(signature = (a, b, cov, pedestal_cov=None, cross=None))]
+#[allow(clippy::type_complexity)]
+fn move_covariances<'py>(
+    py: Python<'py>,
+    a: PyReadonlyArrayDyn<'py, f64>,
+    b: Option<PyReadonlyArrayDyn<'py, f64>>,
+    cov: PyReadonlyArrayDyn<'py, f64>,
+    pedestal_cov: Option<PyReadonlyArrayDyn<'py, f64>>,
+    cross: Option<PyReadonlyArrayDyn<'py, f64>>,
+) -> PyResult<(Bound<'py, PyArrayDyn<f64>>, Option<Bound<'py, PyArrayDyn<f64>>>)> {
+    let map = |m: &PyReadonlyArrayDyn<'py, f64>, name: &str| -> PyResult<[f64; 64]> {
+        check_shape(name, m.shape(), &[8, 8])?;
+        Ok(slice(m, name)?.try_into().unwrap())
+    };
+    let am = map(&a, "a")?;
+    let bm = b.as_ref().map(|b| map(b, "b")).transpose()?;
+    let n = cov.shape().first().copied().unwrap_or(0);
+    check_shape("cov", cov.shape(), &[n, 8, 8])?;
+    if bm.is_some() != pedestal_cov.is_some() {
+        return Err(PyValueError::new_err("pedestal_cov is given with the pedestal map b, and only then"));
+    }
+    if cross.is_some() && bm.is_none() {
+        return Err(PyValueError::new_err("cross is given with the pedestal map b only"));
+    }
+    for (name, x) in [("pedestal_cov", &pedestal_cov), ("cross", &cross)] {
+        if let Some(x) = x {
+            check_shape(name, x.shape(), &[n, 8, 8])?;
+        }
+    }
+    let rc = rotorid_core::covariance::RunCov {
+        q: slice(&cov, "cov")?,
+        ped: match &pedestal_cov {
+            Some(p) => slice(p, "pedestal_cov")?,
+            None => &[],
+        },
+        cross: match &cross {
+            Some(x) => slice(x, "cross")?,
+            None => &[],
+        },
+    };
+    check_alloc("move_covariances", n.checked_mul(128), 8)?;
+    let (c, x) = py
+        .detach(|| {
+            guarded(|| {
+                let mut c = out_buf(n * 64);
+                let mut x = if bm.is_some() { out_buf(n * 64) } else { Vec::new() };
+                rotorid_core::covariance::move_covariances(&am, bm.as_ref(), rc, &mut c, bm.is_some().then_some(&mut x[..])).map(|_| (c, x))
+            })
+        })?
+        .map_err(core_err)?;
+    let x = if bm.is_some() { Some(to_py(py, x, &[n, 8, 8])?) } else { None };
+    Ok((to_py(py, c, &[n, 8, 8])?, x))
+}
+
 /// Check measurement covariances and stack them (see rotorid_core::covariance): `covs` a list of
 /// R float64 arrays (n, m, m). Returns (the stacked copy (R, n, m, m), every entry of an unknown
 /// matrix NaN; None or the first fault as (kind, array, point), kind "inf", "asymmetric" or
@@ -1742,6 +1801,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(unknown_points, m)?)?;
     m.add_function(wrap_pyfunction!(flag_codes, m)?)?;
     m.add_function(wrap_pyfunction!(wake_pool, m)?)?;
+    m.add_function(wrap_pyfunction!(move_covariances, m)?)?;
     m.add_function(wrap_pyfunction!(sample_times, m)?)?;
     m.add_function(wrap_pyfunction!(imbalance_response, m)?)?;
     m.add_function(wrap_pyfunction!(apply_planes, m)?)?;

@@ -221,3 +221,90 @@ impl RunCov<'_> {
         }
     }
 }
+
+/// Points per task of [`move_covariances`].
+const MOVE_TASK: usize = 1024;
+
+/// A run's covariance moved between planes with its responses: q' = A q (+ B p with pedestal
+/// motion, the probes riding on the pedestals), p' = p, with A and B the 8 x 8 real maps of
+/// [Re q, Im q] (row-major). The joint covariance of [q', p'] is M Σ Mᵀ, M = [[A, B], [0, I]]:
+///     cov'   = A C Aᵀ + (A X Bᵀ) + (A X Bᵀ)ᵀ + B P Bᵀ,
+///     cross' = A X + B P,
+/// C, P, X the blocks of `rc` (P and X absent without `b`; X empty counts as zero). `cov'` is
+/// exactly symmetric (its upper triangle mirrored); a point where any block holds a NaN is all
+/// NaN in both outputs (an unknown covariance). `cross` (n, 8, 8) is written with `b` only.
+pub fn move_covariances(a: &[f64; 64], b: Option<&[f64; 64]>, rc: RunCov, cov: &mut [f64], cross: Option<&mut [f64]>) -> Result<(), CoreError> {
+    use nalgebra::SMatrix;
+    type M8 = SMatrix<f64, 8, 8>;
+
+    if rc.q.len() % 64 != 0 {
+        return Err(CoreError::length("cov", rc.q.len(), "a multiple of 64 (n, 8, 8)".to_string()));
+    }
+    let n = rc.q.len() / 64;
+    if a.iter().chain(b.into_iter().flatten()).any(|v| !v.is_finite()) {
+        return Err(CoreError::value("maps", "must be finite"));
+    }
+    match b {
+        Some(_) => {
+            expect_len("pedestal_cov", rc.ped, n * 64)?;
+            if !rc.cross.is_empty() {
+                expect_len("cross", rc.cross, n * 64)?;
+            }
+            match &cross {
+                Some(x) => expect_len("cross (out)", x, n * 64)?,
+                None => return Err(CoreError::value("cross (out)", "is needed with pedestal motion (b)")),
+            }
+        }
+        None if !rc.ped.is_empty() || !rc.cross.is_empty() => {
+            return Err(CoreError::value("pedestal_cov", "moves with the pedestal map b only"));
+        }
+        None => {}
+    }
+    expect_len("cov (out)", cov, n * 64)?;
+    let am = M8::from_row_slice(a);
+    let bm = b.map(|b| M8::from_row_slice(b));
+    let (out_cov, out_cross) = (Disjoint::new(cov), cross.map(Disjoint::new));
+    for_each_task(n.div_ceil(MOVE_TASK), |t| {
+        // SAFETY: for_each_task hands each task index t to one task
+        let oc = unsafe { out_cov.chunk(t, 64 * MOVE_TASK) };
+        let mut ox = out_cross.as_ref().map(|x| unsafe { x.chunk(t, 64 * MOVE_TASK) });
+        for j in 0..oc.len() / 64 {
+            let k = t * MOVE_TASK + j;
+            let blk = |s: &[f64]| -> Option<M8> { if s.is_empty() { None } else { Some(M8::from_row_slice(&s[64 * k..64 * k + 64])) } };
+            let (c, p, x) = (blk(rc.q).unwrap(), blk(rc.ped), blk(rc.cross));
+            let oc = &mut oc[64 * j..64 * j + 64];
+            let nan = c.iter().chain(p.iter().flatten()).chain(x.iter().flatten()).any(|v| v.is_nan());
+            if nan {
+                oc.fill(f64::NAN);
+                if let Some(ox) = ox.as_deref_mut() {
+                    ox[64 * j..64 * j + 64].fill(f64::NAN);
+                }
+                continue;
+            }
+            let mut moved = am * c * am.transpose();
+            if let (Some(bm), Some(ox)) = (&bm, ox.as_deref_mut()) {
+                let p = p.unwrap();
+                let bp = bm * p;
+                moved += bp * bm.transpose();
+                let mut xc = bp;
+                if let Some(x) = x {
+                    let ax = am * x;
+                    let axb = ax * bm.transpose();
+                    moved += axb + axb.transpose();
+                    xc += ax;
+                }
+                for u in 0..8 {
+                    for v in 0..8 {
+                        ox[64 * j + 8 * u + v] = xc[(u, v)];
+                    }
+                }
+            }
+            for u in 0..8 {
+                for v in 0..8 {
+                    oc[8 * u + v] = moved[(u.min(v), u.max(v))];
+                }
+            }
+        }
+    });
+    Ok(())
+}

@@ -3,7 +3,7 @@
 
 use nalgebra::DMatrix;
 use proptest::prelude::*;
-use rotorid_core::covariance::{check_covariances, CovFault, COV_TOL};
+use rotorid_core::covariance::{check_covariances, move_covariances, CovFault, RunCov, COV_TOL};
 
 fn cfg(cases: u32) -> ProptestConfig {
     ProptestConfig { cases, failure_persistence: None, ..ProptestConfig::default() }
@@ -115,4 +115,84 @@ fn unknown_points_are_found_in_every_block() {
     assert_eq!(unknown_points(&[&c[..10]], &mut out).unwrap_err().name(), "blocks");
     let mut none: Vec<bool> = Vec::new();
     assert!(unknown_points(&[], &mut none).is_ok());
+}
+
+/// M Σ Mᵀ in full (M = [[A, B], [0, I]], Σ the dense joint 16 x 16 matrix), the moved blocks'
+/// reference: (cov', cross').
+fn moved_reference(a: &[f64], b: Option<&[f64]>, c: &[f64], p: &[f64], x: &[f64]) -> (Vec<f64>, Vec<f64>) {
+    let m16 = DMatrix::from_fn(16, 16, |i, j| match (i < 8, j < 8) {
+        (true, true) => a[8 * i + j],
+        (true, false) => b.map_or(0.0, |b| b[8 * i + j - 8]),
+        (false, true) => 0.0,
+        (false, false) => f64::from(u8::from(i == j)),
+    });
+    let s = DMatrix::from_fn(16, 16, |i, j| match (i < 8, j < 8) {
+        (true, true) => c[8 * i + j],
+        (true, false) => x.get(8 * i + j - 8).copied().unwrap_or(0.0),
+        (false, true) => x.get(8 * j + i - 8).copied().unwrap_or(0.0),
+        (false, false) => p.get(8 * (i - 8) + j - 8).copied().unwrap_or(0.0),
+    });
+    let out = &m16 * s * m16.transpose();
+    ((0..64).map(|t| out[(t / 8, t % 8)]).collect(), (0..64).map(|t| out[(t / 8, 8 + t % 8)]).collect())
+}
+
+proptest! {
+    #![proptest_config(cfg(60))]
+
+    /// The moved blocks are M Σ Mᵀ's, with and without pedestal motion and a cross block, over
+    /// more points than a task holds; the moved covariance exactly symmetric; a NaN anywhere in
+    /// a point's blocks makes that point (only) NaN.
+    #[test]
+    fn moved_covariances_are_the_joint_congruence(seed in proptest::collection::vec(-1.0f64..1.0, 23), ped in any::<bool>(),
+                                                  with_cross in any::<bool>(), nan_at in 0usize..1500) {
+        let n = 1500;
+        let gen = |off: usize, len: usize| -> Vec<f64> { (0..len).map(|i| seed[(i * 7 + off) % seed.len()] + 0.3 * ((i + off) as f64).sin()).collect() };
+        let a = gen(1, 64);
+        let b = gen(2, 64);
+        // covariances A Aᵀ-like (symmetric), a cross block of any sign
+        let sym = |v: Vec<f64>| -> Vec<f64> { v.chunks(64).flat_map(|m| (0..64).map(move |t| m[8 * (t / 8) + t % 8] + m[8 * (t % 8) + t / 8])).collect() };
+        let mut c = sym(gen(3, n * 64));
+        let p = if ped { sym(gen(4, n * 64)) } else { Vec::new() };
+        let x = if ped && with_cross { gen(5, n * 64) } else { Vec::new() };
+        c[64 * nan_at + 9] = f64::NAN;
+        let (mut cov, mut cross) = (vec![0.0; n * 64], vec![0.0; if ped { n * 64 } else { 0 }]);
+        let (af, bf): ([f64; 64], [f64; 64]) = (a.clone().try_into().unwrap(), b.clone().try_into().unwrap());
+        move_covariances(&af, if ped { Some(&bf) } else { None }, RunCov { q: &c, ped: &p, cross: &x },
+                         &mut cov, if ped { Some(&mut cross) } else { None }).unwrap();
+        for k in 0..n {
+            let blk = |v: &[f64]| -> Vec<f64> { if v.is_empty() { Vec::new() } else { v[64 * k..64 * k + 64].to_vec() } };
+            if k == nan_at {
+                prop_assert!(cov[64 * k..64 * k + 64].iter().chain(cross.get(64 * k..64 * k + 64).into_iter().flatten()).all(|v| v.is_nan()));
+                continue;
+            }
+            let (want_c, want_x) = moved_reference(&a, if ped { Some(&b) } else { None }, &blk(&c), &blk(&p), &blk(&x));
+            let big = want_c.iter().chain(&want_x).fold(0.0f64, |m, v| m.max(v.abs()));
+            for t in 0..64 {
+                prop_assert!((cov[64 * k + t] - want_c[t]).abs() <= 1e-13 * big, "cov {k} {t}");
+                prop_assert_eq!(cov[64 * k + t].to_bits(), cov[64 * k + 8 * (t % 8) + t / 8].to_bits());
+                if ped {
+                    prop_assert!((cross[64 * k + t] - want_x[t]).abs() <= 1e-13 * big, "cross {k} {t}");
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn moved_covariances_refuse_bad_arguments_by_name() {
+    let eye: [f64; 64] = std::array::from_fn(|t| f64::from(u8::from(t / 8 == t % 8)));
+    let mut bad = eye;
+    bad[3] = f64::INFINITY;
+    let c = vec![0.0; 128];
+    let (mut cov, mut cross) = (vec![0.0; 128], vec![0.0; 128]);
+    let rc = RunCov { q: &c, ped: &c, cross: &[] };
+    let err = |r: Result<(), rotorid_core::CoreError>| r.unwrap_err().name();
+    assert_eq!(err(move_covariances(&eye, None, RunCov { q: &c[..100], ped: &[], cross: &[] }, &mut cov, None)), "cov");
+    assert_eq!(err(move_covariances(&bad, None, RunCov { ped: &[], ..rc }, &mut cov, None)), "maps");
+    assert_eq!(err(move_covariances(&eye, Some(&eye), RunCov { ped: &c[..64], ..rc }, &mut cov, Some(&mut cross))), "pedestal_cov");
+    assert_eq!(err(move_covariances(&eye, Some(&eye), RunCov { cross: &c[..64], ..rc }, &mut cov, Some(&mut cross))), "cross");
+    assert_eq!(err(move_covariances(&eye, Some(&eye), rc, &mut cov, None)), "cross (out)");
+    assert_eq!(err(move_covariances(&eye, None, rc, &mut cov, None)), "pedestal_cov");
+    assert_eq!(err(move_covariances(&eye, None, RunCov { ped: &[], ..rc }, &mut cov[..64], None)), "cov (out)");
+    move_covariances(&eye, Some(&eye), rc, &mut cov, Some(&mut cross)).unwrap();
 }
