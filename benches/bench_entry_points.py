@@ -80,6 +80,15 @@ def entries(n, n_time):
                                          pedestal_cov=np.broadcast_to(np.eye(8) * 1e-15, (m, 8, 8)).copy(),
                                          dof=np.full(m, 30.0))
                     for r in runs_ped]
+    # the same at the probe planes, as a rig records them (each run is moved to the bearings with
+    # its covariance, which correlates the probes' and the accelerometers' errors)
+    runs_ped_probes_cov = [rotorid.SyncResponse(rpm[:m], r.q, r.imbalance, "probes", pedestal=r.pedestal,
+                                                cov=np.broadcast_to(np.eye(8) * 1e-14, (m, 8, 8)).copy(),
+                                                pedestal_cov=np.broadcast_to(np.eye(8) * 1e-15, (m, 8, 8)).copy(),
+                                                dof=np.full(m, 30.0))
+                           for r in (rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s],
+                                                                speed_rpm=rpm[:m], pedestals=ped, at="probes")
+                                     for s in "AB")]
     tests_cov = [rotorid.ImpactResponse(2000.0, f[:m], t.q[:m], None, 0.0, d,
                                         cov=np.broadcast_to(np.eye(8) * 1e-16, (m, 8, 8)).copy(), dof=np.full(m, 10.0))
                  for d, t in ((d, rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=2000.0, freq_hz=f[:m],
@@ -126,6 +135,13 @@ def entries(n, n_time):
         f"identify_impact, 2 tests with cov ({m:,} freqs)": lambda: rotorid.identify_impact(rig.rotor, tests_cov),
         f"identify_synchronous, 2 pedestal runs with cov + accel calibration ({m:,} speeds)":
             lambda: rotorid.identify_synchronous(rig.rotor, runs_ped_cov, accel_gain_std=0.02, accel_phase_std_deg=1.0),
+        f"identify_synchronous, 2 pedestal runs at the probes with cov ({m:,} speeds)":
+            lambda: rotorid.identify_synchronous(rig.rotor, runs_ped_probes_cov),
+        f"identify_synchronous, 2 pedestal runs at the probes with cov + accel calibration ({m:,} speeds)":
+            lambda: rotorid.identify_synchronous(rig.rotor, runs_ped_probes_cov, accel_gain_std=0.02,
+                                                 accel_phase_std_deg=1.0),
+        f"identify_pedestals (2 runs at the probes with cov, {m:,} speeds)":
+            lambda: rotorid.identify_pedestals(rig.rotor, runs_ped_probes_cov),
         "uncertainty.relative_std": lambda: uncertainty.relative_std(ident.k, ident.c, ident.k_std, ident.c_std),
         "SyncResponse (constructor, user data)": lambda: SyncResponse(rpm, run.q, imb, "probes"),
         f"signals.track ({ns // 1_000_000} M samples x 4 channels)": lambda: signals.track(rec, kp=kp,

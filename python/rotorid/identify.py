@@ -436,9 +436,11 @@ def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", ide
     ``accel_gain_std`` (relative, e.g. 0.02) and ``accel_phase_std_deg``: the calibration
     uncertainty of each housing accelerometer's sensitivity and phase, independent between the
     four accelerometers and common to every run and speed (a systematic error that no averaging
-    removes). With pedestal motion it is added to the coefficients' covariance (the derivative of
-    the estimate with respect to each accelerometer's gain and phase, by central differences):
-    the pedestal-compensated coefficients depend strongly on it (docs/pedestals.md).
+    removes). With pedestal motion it is added to the coefficients' covariance: each gain or phase
+    moves every run's pedestal channel (and, through eq. 19, the relative motion of runs measured
+    at the probes) along one direction d, and Σ σ² (J d)(J d)ᵀ is added, with the Jacobian J of
+    the measurement propagation (one core call; without measurement covariances J is formed for
+    it alone). The pedestal-compensated coefficients depend strongly on it (docs/pedestals.md).
 
     ``estimator``: "ls" (least squares, as the report) or "bias-corrected": least squares less its
     second-order errors-in-variables bias, estimated from the measurement covariance (sigma points
