@@ -152,3 +152,49 @@ def test_the_core_refuses_a_bad_calibration_by_name():
                           (dict(calibration=ok, q_ped=None), "pedestal")):
         with pytest.raises((ValueError, RotoridError), match=match):
             _core.propagate(**{**args, **change})
+
+
+def test_runs_at_different_places_and_unknown_points():
+    """One run at the probes, one at the bearings (each its own probe map), a point whose
+    covariance is unknown in one run (NaN there, with the measurement's own covariance), and a
+    shared baseline covariance."""
+    a_run, b_run = _runs(2, at="probes")[0], _runs(2, at="bearings")[1]
+    cov = a_run.cov.copy()
+    cov[4] = np.nan
+    runs = [dataclasses.replace(a_run, cov=cov), b_run]
+    shared = np.broadcast_to(np.eye(16) * 1e-18, (a_run.q.shape[0], 16, 16)).copy()
+    ident = lambda rs, **kw: rotorid.identify_synchronous(RIG.rotor, rs, **kw)  # noqa: E731
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        a = ident(runs, accel_gain_std=GAIN_STD, accel_phase_std_deg=PHASE_STD_DEG)
+        b = ident(runs)
+    assert np.isnan(a.cov[4]).all() and np.isnan(a.k_std[4]).all()
+    assert "uncertainty unknown" in a.flag_reasons
+    want = calibration_cov_oracle(lambda rs: ident(rs), runs)
+    known = np.arange(a.cov.shape[0]) != 4
+    _close((a.cov - b.cov)[known], want[known])
+    # a shared baseline adds to the measurement part only: the calibration's part is unchanged
+    both = _runs(2, at="bearings")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        a = ident(both, accel_gain_std=GAIN_STD, accel_phase_std_deg=PHASE_STD_DEG, shared_cov=shared)
+        b = ident(both, shared_cov=shared)
+    _close(a.cov - b.cov, calibration_cov_oracle(lambda rs: ident(rs), both))
+
+
+@pytest.mark.parametrize("sigma", [0.0, 3.0])
+def test_windowed_impacts_one_direction_at_two_planes(sigma):
+    """Impacts in one direction at two planes (the other independent pair), with and without an
+    exponential window (the core solves at s = sigma + j w)."""
+    f = np.linspace(25.0, 150.0, 13)
+    rng = np.random.default_rng(7)
+    tests = []
+    for plane in (0.0, 0.25):
+        t = rotorid.impact_frf(RIG.rotor, RIG.bearings, speed_rpm=1500.0, freq_hz=f, direction="x", plane=plane,
+                               at="probes", pedestals=PED)
+        c = np.broadcast_to(np.eye(8) * 1e-18, (f.size, 8, 8)).copy()
+        tests.append(dataclasses.replace(t, q=t.q * (1 + 0.002 * rng.standard_normal(t.q.shape)), cov=c,
+                                         dof=np.full(f.size, 10.0), pedestal_cov=c, sigma=sigma))
+    ident = lambda ts, **kw: rotorid.identify_impact(RIG.rotor, ts, **kw)  # noqa: E731
+    a, b = _with_and_without(ident, tests)
+    _close(a.cov - b.cov, calibration_cov_oracle(ident, tests))
