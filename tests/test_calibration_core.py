@@ -15,7 +15,6 @@ import warnings
 
 import numpy as np
 import pytest
-
 import rotorid
 from rotorid.errors import RotoridError
 from rotorid.identify import _CAL_STEP, calibration_perturbations
@@ -42,7 +41,8 @@ def calibration_cov_oracle(identify, runs):
     return cov
 
 
-def _runs(n_runs=2, *, at="probes", cov=True, rpm=np.linspace(2500.0, 6500.0, 19)):
+def _runs(n_runs=2, *, at="probes", cov=True):
+    rpm = np.linspace(2500.0, 6500.0, 19)
     rng = np.random.default_rng(n_runs)
     out = []
     for s in "ABCD"[:n_runs]:
@@ -110,7 +110,7 @@ def test_identical_bearings_are_tested_on_the_measurement_errors_alone():
     """identical=True with redundant equations checks the two bearings' agreement against the
     measurement's standard errors: the calibration, common to both, must not hide a mismatch."""
     runs = _runs(2)
-    ident = lambda rs, **kw: rotorid.identify_synchronous(RIG.rotor, rs, identical=True, **kw)  # noqa: E731
+    ident = lambda rs, **kw: rotorid.identify_synchronous(RIG.rotor, rs, identical=True, **kw)
     a, b = _with_and_without(ident, runs)
     why = "identical bearings rejected by the data"
     rejected = [r.flag_code >> r.flag_reasons.index(why) & 1 for r in (a, b)]
@@ -163,7 +163,7 @@ def test_runs_at_different_places_and_unknown_points():
     cov[4] = np.nan
     runs = [dataclasses.replace(a_run, cov=cov), b_run]
     shared = np.broadcast_to(np.eye(16) * 1e-18, (a_run.q.shape[0], 16, 16)).copy()
-    ident = lambda rs, **kw: rotorid.identify_synchronous(RIG.rotor, rs, **kw)  # noqa: E731
+    ident = lambda rs, **kw: rotorid.identify_synchronous(RIG.rotor, rs, **kw)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         a = ident(runs, accel_gain_std=GAIN_STD, accel_phase_std_deg=PHASE_STD_DEG)
@@ -195,6 +195,6 @@ def test_windowed_impacts_one_direction_at_two_planes(sigma):
         c = np.broadcast_to(np.eye(8) * 1e-18, (f.size, 8, 8)).copy()
         tests.append(dataclasses.replace(t, q=t.q * (1 + 0.002 * rng.standard_normal(t.q.shape)), cov=c,
                                          dof=np.full(f.size, 10.0), pedestal_cov=c, sigma=sigma))
-    ident = lambda ts, **kw: rotorid.identify_impact(RIG.rotor, ts, **kw)  # noqa: E731
+    ident = lambda ts, **kw: rotorid.identify_impact(RIG.rotor, ts, **kw)
     a, b = _with_and_without(ident, tests)
     _close(a.cov - b.cov, calibration_cov_oracle(ident, tests))

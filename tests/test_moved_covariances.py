@@ -11,12 +11,18 @@ import dataclasses
 
 import numpy as np
 import pytest
-
 import rotorid
 from rotorid import _core
 from rotorid.errors import RotoridError
-from rotorid.simulate import (_joint_moved, _pedestal_transform, _plane_matrix, _plane_matrix8, joint_cov,
-                              ImpactResponse, SyncResponse)
+from rotorid.simulate import (
+    ImpactResponse,
+    SyncResponse,
+    _joint_moved,
+    _pedestal_transform,
+    _plane_matrix,
+    _plane_matrix8,
+    joint_cov,
+)
 
 RIG = rotorid.nsf_rig()
 PED = rotorid.example_pedestals()
