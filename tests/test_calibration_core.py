@@ -142,14 +142,14 @@ def test_the_core_refuses_a_bad_calibration_by_name():
     p = [np.ascontiguousarray(r.pedestal) for r in runs]
     om = runs[0].speed_rpm * np.pi / 30
     e = np.array([[r.imbalance._generalized(RIG.rotor) for r in runs]])
-    args = dict(rotor=RIG.rotor.core_params(), w=om, spin=None, q=q, e=e, gain=None, covs=None, q_ped=p, bias=False)
+    args = {"rotor": RIG.rotor.core_params(), "w": om, "spin": None, "q": q, "e": e, "gain": None, "covs": None, "q_ped": p, "bias": False}
     ok = (0.02, 0.01, np.zeros((2, 4, 4)))
     _core.propagate(**args, calibration=ok)
-    for change, match in ((dict(calibration=None), "covs"), (dict(calibration=(0.02, 0.01, np.zeros((3, 4, 4)))), "probe_maps"),
-                          (dict(calibration=(-0.02, 0.01, np.zeros((2, 4, 4)))), "gain_std"),
-                          (dict(calibration=(0.02, 0.01, np.full((2, 4, 4), np.nan))), "probe_maps"),
-                          (dict(calibration=ok, bias=True), "bias"),
-                          (dict(calibration=ok, q_ped=None), "pedestal")):
+    for change, match in (({"calibration": None}, "covs"), ({"calibration": (0.02, 0.01, np.zeros((3, 4, 4)))}, "probe_maps"),
+                          ({"calibration": (-0.02, 0.01, np.zeros((2, 4, 4)))}, "gain_std"),
+                          ({"calibration": (0.02, 0.01, np.full((2, 4, 4), np.nan))}, "probe_maps"),
+                          ({"calibration": ok, "bias": True}, "bias"),
+                          ({"calibration": ok, "q_ped": None}, "pedestal")):
         with pytest.raises((ValueError, RotoridError), match=match):
             _core.propagate(**{**args, **change})
 

@@ -125,9 +125,9 @@ def test_a_q_replaced_after_construction_takes_the_checked_constructor():
     ((np.eye(8), None, np.zeros((3, 8, 7))), {}, "cov"),
     ((np.eye(4), None, np.zeros((3, 8, 8))), {}, "a"),
     ((np.eye(8), np.eye(8), np.zeros((3, 8, 8))), {}, "pedestal_cov"),
-    ((np.eye(8), None, np.zeros((3, 8, 8))), dict(pedestal_cov=np.zeros((3, 8, 8))), "pedestal_cov"),
-    ((np.eye(8), None, np.zeros((3, 8, 8))), dict(cross=np.zeros((3, 8, 8))), "cross"),
-    ((np.eye(8), np.eye(8), np.zeros((3, 8, 8))), dict(pedestal_cov=np.zeros((2, 8, 8))), "pedestal_cov"),
+    ((np.eye(8), None, np.zeros((3, 8, 8))), {"pedestal_cov": np.zeros((3, 8, 8))}, "pedestal_cov"),
+    ((np.eye(8), None, np.zeros((3, 8, 8))), {"cross": np.zeros((3, 8, 8))}, "cross"),
+    ((np.eye(8), np.eye(8), np.zeros((3, 8, 8))), {"pedestal_cov": np.zeros((2, 8, 8))}, "pedestal_cov"),
     ((np.full((8, 8), np.inf), None, np.zeros((3, 8, 8))), {}, "maps"),
 ])
 def test_the_core_refuses_bad_arguments_by_name(args, kw, match):
