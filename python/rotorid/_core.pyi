@@ -79,7 +79,10 @@ def propagate(
     q: list[npt.NDArray[np.complex128]],  # R arrays (n, 4) at the bearings (one problem)
     e: npt.NDArray[np.complex128],  # (1, R, 4)
     gain: npt.NDArray[np.float64] | None,  # (n,) or (1,); None: spin^2
-    covs: npt.NDArray[np.float64],  # (R, n, m, m): [Re q, Im q] (m = 8) or with q_ped [.., Re q_ped, Im q_ped] (16)
+    # (R, n, m, m): [Re q, Im q] (m = 8) or with q_ped [.., Re q_ped, Im q_ped] (16); with q_ped also
+    # a list of one (cov, pedestal_cov, cross or None) of (n, 8, 8) per run; None only with calibration
+    covs: npt.NDArray[np.float64] | list[tuple[npt.NDArray[np.float64], npt.NDArray[np.float64],
+                                                npt.NDArray[np.float64] | None]] | None,
     identical: bool = False,
     method: str = "forces",  # or "report"
     sigma: npt.NDArray[np.float64] | None = None,
@@ -87,12 +90,28 @@ def propagate(
     w_scale: float | None = None,
     shared: npt.NDArray[np.float64] | None = None,  # (n, m, m) common to every pair of runs
     bias: bool = True,
+    # the accelerometers' calibration (with q_ped): (gain std, phase std rad, probe maps (R, 4, 4))
+    calibration: tuple[float, float, npt.NDArray[np.float64]] | None = None,
+    meas_std: bool = False,  # also the standard errors of the measurement covariance alone
 ) -> tuple[
     npt.NDArray[np.float64],  # Cov(p) (n, 16, 16), eq. 9 order, NaN where unknown
     npt.NDArray[np.float64] | None,  # second-order bias (n, 16), with bias
     npt.NDArray[np.uint8],  # unknown (n,): a run's covariance unknown or the estimator singular
     npt.NDArray[np.float64],  # k standard error (n, 2, 2, 2)
     npt.NDArray[np.float64],  # c standard error (n, 2, 2, 2)
+    npt.NDArray[np.float64] | None,  # k standard error of the measurement alone, with meas_std and calibration
+    npt.NDArray[np.float64] | None,  # c standard error of the measurement alone, likewise
+]: ...
+
+def move_covariances(
+    a: npt.NDArray[np.float64],  # (8, 8) map of [Re q, Im q]
+    b: npt.NDArray[np.float64] | None,  # (8, 8) map of the pedestal motion into q (q' = A q + B p)
+    cov: npt.NDArray[np.float64],  # (n, 8, 8)
+    pedestal_cov: npt.NDArray[np.float64] | None = None,  # (n, 8, 8), with b
+    cross: npt.NDArray[np.float64] | None = None,  # (n, 8, 8) rows q, columns pedestal; None: uncorrelated
+) -> tuple[
+    npt.NDArray[np.float64],  # moved cov (n, 8, 8), exactly symmetric; points with a NaN all NaN
+    npt.NDArray[np.float64] | None,  # moved cross (n, 8, 8), with b
 ]: ...
 
 def check_covariances(
