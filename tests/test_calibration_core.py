@@ -198,3 +198,32 @@ def test_windowed_impacts_one_direction_at_two_planes(sigma):
     ident = lambda ts, **kw: rotorid.identify_impact(RIG.rotor, ts, **kw)
     a, b = _with_and_without(ident, tests)
     _close(a.cov - b.cov, calibration_cov_oracle(ident, tests))
+
+
+def pedestal_calibration_oracle(runs, **kw):
+    """The variance the calibration adds to the pedestal fit's mass, k and c, by re-identifying the
+    stepped runs through the public API (each stepped run constructed, moved and checked)."""
+    var = None
+    for std, plus, minus in calibration_perturbations(runs, GAIN_STD, np.deg2rad(PHASE_STD_DEG)):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            est = [rotorid.identify_pedestals(RIG.rotor, side, **kw) for side in (plus, minus)]
+        d = [(std * (getattr(est[0], f) - getattr(est[1], f)) / (2 * _CAL_STEP)) ** 2 for f in ("mass_kg", "k", "c")]
+        var = d if var is None else [v + x for v, x in zip(var, d)]
+    return var
+
+
+@pytest.mark.parametrize("at, cov, cross", [("probes", True, False), ("bearings", False, False),
+                                            ("probes", False, True)])
+def test_pedestal_fits_step_the_motions_as_the_stepped_runs_would(at, cov, cross):
+    runs = _runs(2, at=at, cov=cov)
+    kw = {"cross_coupled": cross}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        a = rotorid.identify_pedestals(RIG.rotor, runs, accel_gain_std=GAIN_STD, accel_phase_std_deg=PHASE_STD_DEG, **kw)
+        b = rotorid.identify_pedestals(RIG.rotor, runs, **kw)
+    assert a.std_source == b.std_source + " + accelerometer calibration"
+    want = pedestal_calibration_oracle(runs, **kw)
+    for got, w in zip((a.mass_std ** 2 - b.mass_std ** 2, a.k_std ** 2 - b.k_std ** 2, a.c_std ** 2 - b.c_std ** 2), want):
+        np.testing.assert_allclose(got, w, rtol=1e-6, atol=1e-9 * np.abs(w).max())
+    assert (want[1] > 0).any()

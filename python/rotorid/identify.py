@@ -606,16 +606,48 @@ def _calibration_inputs(rotor, runs, accel_gain_std, accel_phase_std_deg):
     its measured pedestal motion into the relative motion at the bearings (q = A q_probes + B p
     for a run at the probes, the probes riding on the pedestals; zeros for a run at the bearings):
     a calibration error of accelerometer j moves both p_j and, through B[:, j], q."""
-    from .simulate import _pedestal_transform, _plane_matrix, _plane_matrix4
-
     g, ph = _calibration_std(accel_gain_std, accel_phase_std_deg)
     if not (g or ph):
         return None
+    return g, ph, _probe_maps(rotor, runs)
+
+
+def _probe_maps(rotor, runs):
+    """(R, 4, 4): each run's map B from its measured pedestal motion to its relative motion at
+    the bearings (q = A q_probes + B p for a run at the probes; zeros for a run at the bearings)."""
+    from .simulate import _pedestal_transform, _plane_matrix, _plane_matrix4
+
     maps = np.zeros((len(runs), 4, 4))
     for i, r in enumerate(runs):
         if r.at == "probes":
             maps[i] = _plane_matrix4(_pedestal_transform(_plane_matrix(rotor, "bearings"))[1])
-    return g, ph, maps
+    return maps
+
+
+def calibration_steps(qs, ps, maps, gain_std, phase_std_rad):
+    """:func:`calibration_perturbations` of the runs' motions at the bearings: for each
+    accelerometer j and each of gain and phase with a nonzero uncertainty, (std, (qs, ps) with
+    accelerometer j's gain or phase stepped by +_CAL_STEP, the same by -_CAL_STEP). ``qs``,
+    ``ps``: the runs' relative and pedestal motion at the bearings (n, 4) each; ``maps``:
+    :func:`_probe_maps`. The pedestal channel j scales by the factor f, and a run's relative
+    motion moves by (f - 1) p_j B[:, j], as moving the stepped run from the probes would move it
+    (nothing is constructed, moved or checked again)."""
+    for std, kind in ((gain_std, "gain"), (phase_std_rad, "phase")):
+        if not std:
+            continue
+        for j in range(4):
+            sides = []
+            for sign in (1.0, -1.0):
+                f = 1.0 + sign * _CAL_STEP if kind == "gain" else np.exp(1j * sign * _CAL_STEP)
+                q2, p2 = [], []
+                for q, p, b in zip(qs, ps, maps):
+                    dp = (f - 1.0) * p[:, j]
+                    stepped = p.copy()
+                    stepped[:, j] = f * p[:, j]
+                    p2.append(stepped)
+                    q2.append(q + dp[:, None] * b[:, j][None, :] if b[:, j].any() else q)
+                sides.append((q2, p2))
+            yield std, sides[0], sides[1]
 
 
 def calibration_perturbations(runs, gain_std, phase_std_rad):

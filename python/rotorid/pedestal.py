@@ -455,55 +455,63 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
     # core: equations formed point by point and folded into a QR factor, no design matrix; with
     # covariances, in the same call, the weighted fits or the sandwich covariances
     # (rotorid_core::pedestal_cov)
-    try:
-        th_all, c3_all, ranks, resid_all, m_rows, cov_fit = _core.pedestal_fit(
-            params, np.ascontiguousarray(axis), spin, qs, e, gain, ps, sigma=sig_arr, select=sel, cross=cross,
-            w_scale=w_scale, covs=covs if have_cov else None, shared=shared if have_cov else None, weighted=weighted)
-    except RotoridError as exc:
-        if "NaN or inf" not in str(exc):
-            raise
-        _name_nonfinite(labels, runs)
-    for fi in range(4):
-        if ranks[fi] < nu:
-            raise IdentifiabilityError(f"pedestal {fi // 2 + 1} {'xy'[fi % 2]}: the equations are rank deficient (too "
-                                       "few distinct frequencies, or no pedestal motion in that direction)")
-    mass = np.zeros((2, 2))
-    kk = np.zeros((2, 2, 2))
-    cc = np.zeros((2, 2, 2))
-    ms = np.zeros((2, 2))
-    ks = np.zeros((2, 2, 2))
-    cs = np.zeros((2, 2, 2))
-    dof = np.full((2, 2), float(m_rows - nu))
-    resid = resid_all.reshape(2, 2).copy()
-    src = "residual"
-    for b in range(2):
-        for i in range(2):
-            fi = 2 * b + i
-            th, covt = th_all[fi], c3_all[fi]
-            if have_cov and weighted:
-                # weighted least squares, the errors widened by a misfit beyond the measurement errors
-                th, covt, resid[b, i] = cov_fit[0][fi], cov_fit[1][fi], cov_fit[2][fi]
-                src = "measurement covariance"
-            elif have_cov:
-                # covariances from a few repeats (impacts: dof = impacts - 1) are too noisy to weigh
-                # with (the inverse of a poorly estimated covariance overweights the rows whose
-                # variance happens to come out small): unweighted least squares with the sandwich of
-                # the propagated covariances, or the residual (HC3) covariance, which also sees errors
-                # the measurement covariance misses (run-out filter leftovers, low-coherence bins):
-                # the larger variance of the two counts
-                big = np.diag(covt) > np.diag(cov_fit[1][fi])
-                covt = np.where(big[:, None] & big[None, :], covt, cov_fit[1][fi])
-                src = "residual or measurement covariance, the larger (unweighted fit)"
-            sd = np.sqrt(np.clip(np.diag(covt), 0, None))
-            kk[b, i, i], mass[b, i], cc[b, i, i] = th[0], th[1], th[2]
-            ks[b, i, i], ms[b, i], cs[b, i, i] = sd[0], sd[1], sd[2]
-            if cross:
-                kk[b, i, 1 - i], cc[b, i, 1 - i] = th[3], th[4]
-                ks[b, i, 1 - i], cs[b, i, 1 - i] = sd[3], sd[4]
+    def fit(qs, ps):
+        """(mass, k, c, their standard errors, dof, residual, source) from the runs' relative and
+        pedestal motion at the bearings (the covariances, points and weighting fixed above)."""
+        try:
+            th_all, c3_all, ranks, resid_all, m_rows, cov_fit = _core.pedestal_fit(
+                params, np.ascontiguousarray(axis), spin, qs, e, gain, ps, sigma=sig_arr, select=sel, cross=cross,
+                w_scale=w_scale, covs=covs if have_cov else None, shared=shared if have_cov else None,
+                weighted=weighted)
+        except RotoridError as exc:
+            if "NaN or inf" not in str(exc):
+                raise
+            _name_nonfinite(labels, runs)
+        for fi in range(4):
+            if ranks[fi] < nu:
+                raise IdentifiabilityError(f"pedestal {fi // 2 + 1} {'xy'[fi % 2]}: the equations are rank deficient "
+                                           "(too few distinct frequencies, or no pedestal motion in that direction)")
+        mass = np.zeros((2, 2))
+        kk = np.zeros((2, 2, 2))
+        cc = np.zeros((2, 2, 2))
+        ms = np.zeros((2, 2))
+        ks = np.zeros((2, 2, 2))
+        cs = np.zeros((2, 2, 2))
+        dof = np.full((2, 2), float(m_rows - nu))
+        resid = resid_all.reshape(2, 2).copy()
+        src = "residual"
+        for b in range(2):
+            for i in range(2):
+                fi = 2 * b + i
+                th, covt = th_all[fi], c3_all[fi]
+                if have_cov and weighted:
+                    # weighted least squares, the errors widened by a misfit beyond the measurement errors
+                    th, covt, resid[b, i] = cov_fit[0][fi], cov_fit[1][fi], cov_fit[2][fi]
+                    src = "measurement covariance"
+                elif have_cov:
+                    # covariances from a few repeats (impacts: dof = impacts - 1) are too noisy to weigh
+                    # with (the inverse of a poorly estimated covariance overweights the rows whose
+                    # variance happens to come out small): unweighted least squares with the sandwich of
+                    # the propagated covariances, or the residual (HC3) covariance, which also sees errors
+                    # the measurement covariance misses (run-out filter leftovers, low-coherence bins):
+                    # the larger variance of the two counts
+                    big = np.diag(covt) > np.diag(cov_fit[1][fi])
+                    covt = np.where(big[:, None] & big[None, :], covt, cov_fit[1][fi])
+                    src = "residual or measurement covariance, the larger (unweighted fit)"
+                sd = np.sqrt(np.clip(np.diag(covt), 0, None))
+                kk[b, i, i], mass[b, i], cc[b, i, i] = th[0], th[1], th[2]
+                ks[b, i, i], ms[b, i], cs[b, i, i] = sd[0], sd[1], sd[2]
+                if cross:
+                    kk[b, i, 1 - i], cc[b, i, 1 - i] = th[3], th[4]
+                    ks[b, i, 1 - i], cs[b, i, 1 - i] = sd[3], sd[4]
+        return mass, kk, cc, ms, ks, cs, dof, resid, src
+
+    mass, kk, cc, ms, ks, cs, dof, resid, src = fit(qs, ps)
     out = PedestalIdentification(mass, kk, cc, ms, ks, cs, dof, resid, src, cross, R * ns, labels)
     if cal_g or cal_ph:
-        _add_calibration(out, rotor, runs, cal_g, cal_ph, cross_coupled=cross, freq_range_hz=freq_range_hz,
-                         shared_cov=shared_cov)
+        from .identify import _probe_maps
+
+        _add_calibration(out, fit, qs, ps, _probe_maps(rotor, runs), cal_g, cal_ph)
     return out
 
 
@@ -520,24 +528,19 @@ def _name_nonfinite(labels, runs):
     raise RotoridError("runs contain NaN or inf")
 
 
-def _add_calibration(fit, rotor, runs, gain_std, phase_std_rad, **kw):
+def _add_calibration(out, fit, qs, ps, maps, gain_std, phase_std_rad):
     """Add the accelerometers' calibration uncertainty to a pedestal fit's standard errors: central
-    differences of the whole fit with respect to each accelerometer's gain and phase."""
-    import warnings
+    differences of the whole fit (``fit(qs, ps)``: its weights, points and covariances fixed) with
+    respect to each accelerometer's gain and phase, on the runs' motions at the bearings stepped
+    as moving the stepped runs would step them (``identify.calibration_steps``)."""
+    from .identify import _CAL_STEP, calibration_steps
 
-    from .identify import _CAL_STEP, calibration_perturbations
-
-    var = [np.zeros_like(fit.mass_kg), np.zeros_like(fit.k), np.zeros_like(fit.c)]
-    for std, plus, minus in calibration_perturbations(runs, gain_std, phase_std_rad):
-        est = []
-        for moved in (plus, minus):
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")  # the nominal fit has warned already
-                e = identify_pedestals(rotor, moved, **kw)
-            est.append((e.mass_kg, e.k, e.c))
+    var = [np.zeros_like(out.mass_kg), np.zeros_like(out.k), np.zeros_like(out.c)]
+    for std, plus, minus in calibration_steps(qs, ps, maps, gain_std, phase_std_rad):
+        est = [fit(*side)[:3] for side in (plus, minus)]
         for v, a, b in zip(var, est[0], est[1]):
             v += (std * (a - b) / (2.0 * _CAL_STEP)) ** 2
-    fit.mass_std = np.sqrt(fit.mass_std ** 2 + var[0])
-    fit.k_std = np.sqrt(fit.k_std ** 2 + var[1])
-    fit.c_std = np.sqrt(fit.c_std ** 2 + var[2])
-    fit.std_source += " + accelerometer calibration"
+    out.mass_std = np.sqrt(out.mass_std ** 2 + var[0])
+    out.k_std = np.sqrt(out.k_std ** 2 + var[1])
+    out.c_std = np.sqrt(out.c_std ** 2 + var[2])
+    out.std_source += " + accelerometer calibration"
