@@ -624,6 +624,18 @@ def _probe_maps(rotor, runs):
     return maps
 
 
+def _calibration_factors(gain_std, phase_std_rad):
+    """For each of gain and phase with a nonzero uncertainty and each accelerometer j (xp1, xp2,
+    yp1, yp2): (std, j, (f+, f-)), the factors 1 ± _CAL_STEP or e^{± i _CAL_STEP} its channel is
+    stepped by for central differences."""
+    for std, kind in ((gain_std, "gain"), (phase_std_rad, "phase")):
+        if not std:
+            continue
+        for j in range(4):
+            yield std, j, tuple(1.0 + sign * _CAL_STEP if kind == "gain" else np.exp(1j * sign * _CAL_STEP)
+                                for sign in (1.0, -1.0))
+
+
 def calibration_steps(qs, ps, maps, gain_std, phase_std_rad):
     """:func:`calibration_perturbations` of the runs' motions at the bearings: for each
     accelerometer j and each of gain and phase with a nonzero uncertainty, (std, (qs, ps) with
@@ -632,22 +644,17 @@ def calibration_steps(qs, ps, maps, gain_std, phase_std_rad):
     :func:`_probe_maps`. The pedestal channel j scales by the factor f, and a run's relative
     motion moves by (f - 1) p_j B[:, j], as moving the stepped run from the probes would move it
     (nothing is constructed, moved or checked again)."""
-    for std, kind in ((gain_std, "gain"), (phase_std_rad, "phase")):
-        if not std:
-            continue
-        for j in range(4):
-            sides = []
-            for sign in (1.0, -1.0):
-                f = 1.0 + sign * _CAL_STEP if kind == "gain" else np.exp(1j * sign * _CAL_STEP)
-                q2, p2 = [], []
-                for q, p, b in zip(qs, ps, maps):
-                    dp = (f - 1.0) * p[:, j]
-                    stepped = p.copy()
-                    stepped[:, j] = f * p[:, j]
-                    p2.append(stepped)
-                    q2.append(q + dp[:, None] * b[:, j][None, :] if b[:, j].any() else q)
-                sides.append((q2, p2))
-            yield std, sides[0], sides[1]
+    def stepped(j, f):
+        q2, p2 = [], []
+        for q, p, b in zip(qs, ps, maps):
+            pj = p.copy()
+            pj[:, j] = f * p[:, j]
+            p2.append(pj)
+            q2.append(q + ((f - 1.0) * p[:, j])[:, None] * b[:, j][None, :] if b[:, j].any() else q)
+        return q2, p2
+
+    for std, j, (fp, fm) in _calibration_factors(gain_std, phase_std_rad):
+        yield std, stepped(j, fp), stepped(j, fm)
 
 
 def calibration_perturbations(runs, gain_std, phase_std_rad):
@@ -656,16 +663,13 @@ def calibration_perturbations(runs, gain_std, phase_std_rad):
     by -_CAL_STEP) — the central differences of any estimate with respect to the calibration."""
     import dataclasses
 
-    for std, kind in ((gain_std, "gain"), (phase_std_rad, "phase")):
-        if not std:
-            continue
-        for j in range(4):
-            sides = []
-            for sign in (1.0, -1.0):
-                f = np.ones(4, complex)
-                f[j] = 1.0 + sign * _CAL_STEP if kind == "gain" else np.exp(1j * sign * _CAL_STEP)
-                sides.append([dataclasses.replace(r, pedestal=r.pedestal * f[None, :]) for r in runs])
-            yield std, sides[0], sides[1]
+    def stepped(j, f):
+        fac = np.ones(4, complex)
+        fac[j] = f
+        return [dataclasses.replace(r, pedestal=r.pedestal * fac[None, :]) for r in runs]
+
+    for std, j, (fp, fm) in _calibration_factors(gain_std, phase_std_rad):
+        yield std, stepped(j, fp), stepped(j, fm)
 
 
 def _check_same_axis(name, axes, labels, what, unit, advice):

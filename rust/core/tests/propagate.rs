@@ -166,6 +166,18 @@ fn run(p: &CovProblem) -> Result<(Vec<f64>, Vec<f64>, Vec<u8>), CoreError> {
     Ok((cov, bias, unknown))
 }
 
+/// n speeds from 0.3 times the rigid-body natural frequency of the mean direct stiffness, `step`
+/// times it apart.
+fn speeds(r: &rotorid_core::Rotor, k: &[f64; 8], n: usize, step: f64) -> Vec<f64> {
+    let wn = (2.0 * (k[0] + k[3] + k[4] + k[7]) / 4.0 / r.m).sqrt();
+    (0..n).map(|i| wn * (0.3 + step * i as f64)).collect()
+}
+
+/// The runs' excitation vectors (runs x 4) from pairs of real values.
+fn excitations(e: &[f64], runs: usize) -> Vec<C64> {
+    (0..4 * runs).map(|j| C64::new(e[2 * j], e[2 * j + 1])).collect()
+}
+
 /// Close to the reference: 1e-9 of each value or 1e-12 of the largest (the reference sums J Σ Jᵀ
 /// in another order, and entries that cancel keep only the largest's rounding).
 fn assert_close(name: &str, got: &[f64], want: &[f64]) -> Result<(), TestCaseError> {
@@ -189,12 +201,7 @@ proptest! {
                                          rank in 1usize..17, shared_on in any::<bool>(), ped_on in any::<bool>(),
                                          report in any::<bool>()) {
         let n = 21;
-        let w = {
-            let kmean = (k[0] + k[3] + k[4] + k[7]) / 4.0;
-            let wn = (2.0 * kmean / r.m).sqrt();
-            (0..n).map(|i| wn * (0.3 + 0.1 * i as f64)).collect::<Vec<_>>()
-        };
-        let e = (0..4 * runs).map(|j| C64::new(e[2 * j], e[2 * j + 1])).collect::<Vec<_>>();
+        let (w, e) = (speeds(&r, &k, n, 0.1), excitations(&e, runs));
         let q = imbalance_responses(&r, &k, &cc, &w, &e);
         let qb: Vec<&[C64]> = q.chunks(4 * n).collect();
         let qp: Vec<C64> = q.iter().map(|v| v * C64::new(0.1, 0.05)).collect();
@@ -389,12 +396,7 @@ proptest! {
                                                    gain_std in 0.0f64..0.05, phase_std in 0.0f64..0.05,
                                                    report in any::<bool>()) {
         let n = 15;
-        let w = {
-            let kmean = (k[0] + k[3] + k[4] + k[7]) / 4.0;
-            let wn = (2.0 * kmean / r.m).sqrt();
-            (0..n).map(|i| wn * (0.3 + 0.13 * i as f64)).collect::<Vec<_>>()
-        };
-        let e = (0..4 * runs).map(|j| C64::new(e[2 * j], e[2 * j + 1])).collect::<Vec<_>>();
+        let (w, e) = (speeds(&r, &k, n, 0.13), excitations(&e, runs));
         let q = imbalance_responses(&r, &k, &cc, &w, &e);
         let qb: Vec<&[C64]> = q.chunks(4 * n).collect();
         let qp: Vec<C64> = q.iter().enumerate().map(|(j, v)| v * C64::new(0.2 + 0.01 * (j % 7) as f64, 0.05)).collect();
