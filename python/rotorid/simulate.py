@@ -218,9 +218,10 @@ def _check_pedestal(obj, n, *, finite=True):
                   16)
 
 
-def _with_pedestal_at(resp, rotor, where):
+def _with_pedestal_at(resp, rotor, where, cov=None):
     """(q, cov, pedestal_cross) of a pedestal-carrying response moved to ``where``; the pedestal
-    motion itself is measured at the bearings and does not move."""
+    motion itself is measured at the bearings and does not move. ``cov``: the response's
+    covariance as checked by the caller (default ``resp.cov``)."""
     A, B = _pedestal_transform(_plane_matrix(rotor, where))
     p = resp.pedestal
     q = resp.q
@@ -229,11 +230,12 @@ def _with_pedestal_at(resp, rotor, where):
         q = complex_array("q", q, shape=(n, 4))
         p = complex_array("pedestal", p, shape=(n, 4))
     q = _apply_planes(A, q) + _apply_planes(B, p)
-    if resp.cov is None or resp.pedestal_cov is None:
+    cov = resp.cov if cov is None else cov
+    if cov is None or resp.pedestal_cov is None:
         return q, None, None
     # the joint covariance's congruence M Σ Mᵀ block by block in the core (no (n, 16, 16) array)
     cross = resp.pedestal_cross
-    cov, cross = _core.move_covariances(_plane_matrix8(A), _plane_matrix8(B), np.ascontiguousarray(resp.cov, dtype=float),
+    cov, cross = _core.move_covariances(_plane_matrix8(A), _plane_matrix8(B), np.ascontiguousarray(cov, dtype=float),
                                         np.ascontiguousarray(resp.pedestal_cov, dtype=float),
                                         None if cross is None else np.ascontiguousarray(cross, dtype=float))
     return q, cov, cross
@@ -250,11 +252,11 @@ def _pedestal_moved(resp, rotor, where):
     if not _q_as_checked(resp):
         return None
     n = resp.q.shape[0]
-    resp.cov = check_cov("cov", resp.cov, n)
-    resp.dof = check_dof("dof", resp.dof, n)
+    cov = check_cov("cov", resp.cov, n)
+    dof = check_dof("dof", resp.dof, n)
     _check_pedestal(resp, n)
-    q, cov, cross = _with_pedestal_at(resp, rotor, where)
-    return dict(q=q, at=where, cov=cov, dof=resp.dof, pedestal=resp.pedestal, pedestal_cov=resp.pedestal_cov,
+    q, cov, cross = _with_pedestal_at(resp, rotor, where, cov=cov)
+    return dict(q=q, at=where, cov=cov, dof=dof, pedestal=resp.pedestal, pedestal_cov=resp.pedestal_cov,
                 pedestal_cross=cross)
 
 
