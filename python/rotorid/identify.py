@@ -745,8 +745,9 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
     ``gain`` None: spin^2 (an imbalance), formed by the core. ``planes``: the (2, 2) eq. 19
     transform when ``qs`` are at the probe planes (no covariances then), else None.
     ``w_scale``: ``w`` is given in the axis' unit and is w_scale times that in rad/s (formed by
-    the core: no (n,) temporary unless the calibration's derivatives need it). ``spin`` None: the
-    spin speed is w (synchronous runs)."""
+    the core: no (n,) temporary). ``spin`` None: the spin speed is w (synchronous runs).
+    ``calibration``: the accelerometers' calibration uncertainty (:func:`_calibration_inputs`),
+    added by the core's propagation."""
     assert planes is None or (covs is None and calibration is None and q_ped is None)
     from .uncertainty import _propagate
 
@@ -798,7 +799,6 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
         raise RotoridError("estimator='bias-corrected' needs the measurement covariance of every run or test (cov=)")
     if shared_cov is not None and covs is None:
         raise RotoridError(_SHARED_WITHOUT_COV)
-    ks_meas, cs_meas = ks, cs  # the measurement's standard errors (without the calibration's)
     if covs is not None:
         from .model import _REPORT_TO_BIJ
 
@@ -808,6 +808,7 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
             rotor, w, spin, list(qs), e, gain, sigma, covs, identical=identical, method=method,
             bias=True, shared=shared_cov, q_ped=None if q_ped is None else list(q_ped), w_scale=w_scale,
             calibration=calibration, meas_std=identical and redundant)
+        # the measurement's standard errors alone (without the calibration's)
         ks_meas, cs_meas = meas if meas is not None else (ks, cs)
         rel_std = None  # the standard errors change: recomputed in _finish
         n = axis.size
