@@ -121,13 +121,14 @@ def _propagate(rotor, w, spin, qs, e, gain, sigma, covs, *, identical, method, b
     """:func:`propagate` of arguments rotorid made itself: ``qs`` (and ``q_ped``) lists of the runs'
     (n, 4) arrays, used where they are; ``w`` in the axis' unit times ``w_scale``, ``spin`` None
     for synchronous runs (spin = w), ``gain`` None for an imbalance (spin²), as the core's
-    identification takes them. ``covs``: (R, n, m, m), or with pedestal motion a list of each run's
-    (cov, pedestal_cov, cross or None) blocks (n, 8, 8). ``calibration``: the accelerometers' calibration uncertainty (gain
-    std, phase std in radians, probe maps (R, 4, 4); ``identify._calibration_inputs``), added to
-    the covariance; ``covs`` None then gives the calibration's alone. Returns (cov, bias or None,
-    unknown (n,) bool, k_std, c_std, meas), the standard errors (n, 2, 2, 2) NaN where unknown,
-    ``meas`` with ``meas_std`` and a calibration the standard errors of the measurement covariance
-    alone (k_std, c_std), else None."""
+    identification takes them. ``covs``: (R, n, m, m), or with pedestal motion a list of each
+    run's (cov, pedestal_cov, cross or None) blocks (n, 8, 8). ``calibration``: the
+    accelerometers' calibration uncertainty (gain std, phase std in radians, probe maps
+    (R, 4, 4); ``identify._calibration_inputs``), added to the covariance; ``covs`` None then
+    gives the calibration's alone. Returns (cov, bias or None, unknown (n,) bool, k_std, c_std,
+    meas), the standard errors (n, 2, 2, 2) NaN where unknown, ``meas`` with ``meas_std`` and a
+    calibration the standard errors of the measurement covariance alone (k_std, c_std), else
+    None."""
     def arr(a):
         """A float64 array of at least one dimension (a 0-d value as (1,)), or None."""
         return None if a is None else np.ascontiguousarray(a, dtype=float).reshape(np.shape(a) or (1,))
@@ -135,8 +136,7 @@ def _propagate(rotor, w, spin, qs, e, gain, sigma, covs, *, identical, method, b
     cov, b, unknown, k_std, c_std, mk, mc = _core.propagate(
         rotor.core_params(), arr(w), arr(spin), qs, np.ascontiguousarray(e[None], dtype=complex), arr(gain),
         covs if covs is None or isinstance(covs, list) else np.ascontiguousarray(covs, dtype=float),
-        identical=identical, method=method,
-        sigma=arr(sigma), q_ped=q_ped, w_scale=w_scale,
+        identical=identical, method=method, sigma=arr(sigma), q_ped=q_ped, w_scale=w_scale,
         shared=None if shared is None else np.ascontiguousarray(shared, dtype=float), bias=bias,
         calibration=calibration, meas_std=meas_std)
     return cov, b, unknown.view(bool), k_std, c_std, None if mk is None else (mk, mc)
