@@ -227,3 +227,4 @@ def test_pedestal_fits_step_the_motions_as_the_stepped_runs_would(at, cov, cross
     for got, w in zip((a.mass_std ** 2 - b.mass_std ** 2, a.k_std ** 2 - b.k_std ** 2, a.c_std ** 2 - b.c_std ** 2), want):
         np.testing.assert_allclose(got, w, rtol=1e-6, atol=1e-9 * np.abs(w).max())
     assert (want[1] > 0).any()
+

@@ -902,6 +902,25 @@ def test_pedestal_fit_calibration_uncertainty_scales_the_errors():
     assert not lo[0, 0, 0] <= ped.k[0, 0, 0] <= hi[0, 0, 0]
 
 
+def test_a_weighted_pedestal_fit_without_a_finite_solution_is_refused(monkeypatch):
+    """The weighted fit's design can be numerically rank deficient where the unweighted one is
+    not (weights spanning many orders of magnitude); the core then returns no finite θ, and the
+    fit must say so rather than return NaN pedestals. The core's answer is altered here: no
+    realistic input is known to reach this path."""
+    from rotorid import _corecall
+
+    real = _corecall.core.pedestal_fit
+
+    def nan_theta(*a, **k):
+        th, c3, ranks, resid, m_rows, cov_fit = real(*a, **k)
+        theta = [np.full_like(t, np.nan) if fi == 1 else t for fi, t in enumerate(cov_fit[0])]
+        return th, c3, ranks, resid, m_rows, (theta, cov_fit[1], cov_fit[2])
+
+    monkeypatch.setattr(_corecall.core, "pedestal_fit", nan_theta)
+    with pytest.raises(IdentifiabilityError, match="pedestal 1 y: the equations weighted"):
+        rig, _, runs = _calibrated_runs(np.random.default_rng(2), np.ones(4), np.zeros(4))
+        rotorid.identify_pedestals(rig.rotor, runs)
+
 @pytest.mark.parametrize("kw, match", [
     (dict(accel_gain_std=0.6), "relative"),
     (dict(accel_gain_std=-0.01), "accel_gain_std"),

@@ -487,6 +487,13 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
                 if have_cov and weighted:
                     # weighted least squares, the errors widened by a misfit beyond the measurement errors
                     th, covt, resid[b, i] = cov_fit[0][fi], cov_fit[1][fi], cov_fit[2][fi]
+                    if not np.isfinite(th).all():
+                        # the unweighted design has full rank (checked above): the weights made it
+                        # numerically rank deficient
+                        raise IdentifiabilityError(
+                            f"pedestal {b + 1} {'xy'[i]}: the equations weighted by the measurement covariances are "
+                            "numerically rank deficient (covariances spanning many orders of magnitude across the "
+                            "points?); drop the runs' cov and pedestal_cov to fit unweighted with residual errors")
                     src = "measurement covariance"
                 elif have_cov:
                     # covariances from a few repeats (impacts: dof = impacts - 1) are too noisy to weigh
