@@ -60,11 +60,14 @@ def _design(s, s2, p, b, i, cross):
     return X
 
 
-def _covariance_fit(theta, c3, b, i, cross, R, sel, s_lap, w, F, p, J, S, Sh, weighted):
-    """Pedestal b, direction i with the runs' measurement covariances, from the core's unweighted
-    estimate ``theta`` (physical units) and its HC3 covariance ``c3``: weighted least squares
-    (``weighted``) or the larger of the sandwich and HC3 variances. Returns (theta, covariance,
-    relative residual of the weighted fit or None, std_source)."""
+def covariance_fit(theta, b, i, cross, R, sel, s_lap, w, F, p, J, S, Sh, weighted):
+    """Pedestal b, direction i with the runs' measurement covariances, from the unweighted
+    estimate ``theta`` (physical units): weighted least squares (``weighted``) or the sandwich
+    covariance of the unweighted fit (the caller takes the larger of it and HC3). ``F`` (R, n, 4)
+    bearing forces, ``p`` (R, n, 4) pedestal motion, ``J`` (R, n, 16, 4) the forces' Jacobian,
+    ``S`` (R, n, 16, 16) and ``Sh`` the runs' and shared covariances (NaN-free), ``sel`` the points
+    used (None: all). Returns (theta, covariance, relative residual of the weighted fit or None,
+    std_source)."""
     nu = theta.size
     col = 2 * i + b                                               # index of (b, i) in [x1, x2, y1, y2]
     pick = slice(None) if sel is None else sel
@@ -75,7 +78,6 @@ def _covariance_fit(theta, c3, b, i, cross, R, sel, s_lap, w, F, p, J, S, Sh, we
     scale = np.maximum(np.maximum(Xs.max(axis=0), -Xs.min(axis=0)), 1e-300)
     Xs /= scale                                                   # the core's scaling: the same fit
     theta = theta * scale
-    c3 = c3 * np.outer(scale, scale)
     m_rows = y.size
     ns = m_rows // (2 * R)
     # the equations of one point, all runs together: (ns, 2R, u) and (ns, 2R), rows [Re, Im] of
@@ -140,10 +142,10 @@ def _covariance_fit(theta, c3, b, i, cross, R, sel, s_lap, w, F, p, J, S, Sh, we
 
 
 def cov_fit_numpy(params, axis, spin, qs, e, gain, ps, *, sigma=None, select=None, cross=False, w_scale=None,
-                  covs, shared=None, weighted=True, thetas, c3s):
+                  covs, shared=None, weighted=True, thetas):
     """What ``_core.pedestal_fit(..., covs=covs, shared=shared, weighted=weighted)`` gives as its
-    last element, (theta (4, u), cov (4, u, u), resid (4,)), from the unweighted fits ``thetas``,
-    ``c3s`` (the arguments as the core takes them)."""
+    last element, (theta (4, u), cov (4, u, u), resid (4,)), from the unweighted fits ``thetas``
+    (the arguments as the core takes them)."""
     w = (w_scale or 1.0) * np.asarray(axis, float)
     sig = 0.0 if sigma is None else float(np.asarray(sigma).ravel()[0])
     s_lap = sig + 1j * w
@@ -169,7 +171,7 @@ def cov_fit_numpy(params, axis, spin, qs, e, gain, ps, *, sigma=None, select=Non
     th_out, cov_out, res_out = np.empty((4, u)), np.empty((4, u, u)), np.full(4, np.nan)
     for fi in range(4):
         b, i = fi // 2, fi % 2
-        th, covt, r_w, _ = _covariance_fit(thetas[fi], c3s[fi], b, i, cross, R, select, s_lap, w, F, p, J, S, Sh,
+        th, covt, r_w, _ = covariance_fit(thetas[fi], b, i, cross, R, select, s_lap, w, F, p, J, S, Sh,
                                            weighted)
         th_out[fi], cov_out[fi] = th, covt
         if r_w is not None:

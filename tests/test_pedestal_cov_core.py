@@ -40,7 +40,7 @@ def _both(monkeypatch, call):
         seen.append(weighted)
         fit = cov_fit_numpy(params, axis, spin, qs, e, gain, ps, sigma=sigma, select=select, cross=cross,
                             w_scale=w_scale, covs=[_joint(b) for b in covs], shared=shared, weighted=weighted,
-                            thetas=out[0], c3s=out[1])
+                            thetas=out[0])
         return (*out[:5], fit)
 
     new = call()

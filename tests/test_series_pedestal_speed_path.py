@@ -7,10 +7,10 @@ and inf are still named, in the words of the finite check, and the results match
 
 ``identify_pedestals`` fits in the core (``_core.pedestal_fit``): the equations are formed point
 by point and folded into a Householder QR factor, the rank from the factor's singular values, the
-HC3 meat from a second pass (with covariances, the weighted or sandwich fit continues in NumPy from
-the core's estimate). The reference below is the first implementation's arithmetic, kept here:
+HC3 meat from a second pass (with covariances, the weighted or sandwich fit in the same core
+call). The reference below is the first implementation's arithmetic, kept here:
 C-order designs stacked from complex columns, ``lstsq``, ``matrix_rank``, ``einsum`` and BLAS
-products. Estimates agree to 1e-12; standard errors
+products; with covariances it continues with the NumPy fit of ``pedestal_cov_oracle``. Estimates agree to 1e-12; standard errors
 to 1e-12 or the rounding of (X^T X)^-1 (cond(X)² eps: both differ from the exact HC3 value by that
 much); on noise-free runs the standard errors and residuals are rounding noise and are compared
 with a bound relative to the estimates.
@@ -28,6 +28,8 @@ from rotorid._corecall import core
 from rotorid.pedestal import GLS_MIN_DOF
 from rotorid.rawsim import example_rig
 from rotorid.simulate import RPM
+
+from pedestal_cov_oracle import covariance_fit
 
 EPS = np.finfo(float).eps
 
@@ -245,51 +247,15 @@ def _reference(rotor, runs, *, cross_coupled=False, freq_range_hz=None, shared_c
             conds[b, i] = np.linalg.cond(Xs)
             m_rows = y.size
             if have_cov:
-                ns = int(sel.sum())
-                Xp = np.stack([Xs[:m_rows // 2], Xs[m_rows // 2:]], 1).reshape(R, ns, 2, nu)
-                Xp = Xp.transpose(1, 0, 2, 3).reshape(ns, 2 * R, nu)
-                yp = np.stack([y[:m_rows // 2], y[m_rows // 2:]], 1).reshape(R, ns, 2)
-                yp = yp.transpose(1, 0, 2).reshape(ns, 2 * R)
-
-                def point_cov(theta):
-                    th = theta / scale
-                    D_own = th[0] + s_lap ** 2 * th[1] + s_lap * th[2]
-                    D_oth = (th[3] + s_lap * th[4]) if cross else 0.0 * w
-                    g = J[:, :, :, col].copy()
-                    g[:, :, 8 + col] -= D_own[None]
-                    g[:, :, 12 + col] -= 1j * D_own[None]
-                    if cross:
-                        oc = 2 * (1 - i) + b
-                        g[:, :, 8 + oc] -= D_oth[None]
-                        g[:, :, 12 + oc] -= 1j * D_oth[None]
-                    G2 = np.stack([g.real, g.imag], -2)[:, sel]
-                    V = np.zeros((ns, 2 * R, 2 * R))
-                    for r in range(R):
-                        for t in range(R):
-                            if r != t and Sh is None:
-                                continue
-                            M = S[r][sel] if r == t else Sh[sel]
-                            V[:, 2 * r:2 * r + 2, 2 * t:2 * t + 2] = G2[r] @ M @ np.swapaxes(G2[t], -1, -2)
-                    return V
-
-                if weighted:
-                    for _ in range(2):
-                        Lc = np.linalg.cholesky(point_cov(theta) + 1e-300 * np.eye(2 * R))
-                        Xw = np.linalg.solve(Lc, Xp).reshape(-1, nu)
-                        yw = np.linalg.solve(Lc, yp[..., None])[..., 0].ravel()
-                        theta, *_ = np.linalg.lstsq(Xw, yw, rcond=None)
-                    covt = np.linalg.inv(Xw.T @ Xw)
-                    rw = yw - Xw @ theta
-                    covt = covt * max(float(rw @ rw) / max(Xw.shape[0] - nu, 1), 1.0)
-                    src = "measurement covariance"
-                else:
-                    XtXi = np.linalg.inv(Xs.T @ Xs)
-                    meat = np.einsum("kau,kab,kbv->uv", Xp, point_cov(theta), Xp)
-                    covt = XtXi @ meat @ XtXi
+                # the weighted fit or the sandwich as the pedestal-covariance oracle computes them
+                th_c, cov_c, _, src = covariance_fit(theta / scale, b, i, cross, R, sel, s_lap, w, F, p, J, S, Sh,
+                                                     weighted)
+                theta, covt = th_c * scale, cov_c * np.outer(scale, scale)
+                if not weighted:
+                    # unweighted: the larger of the sandwich and the residual (HC3) variances
                     c3 = _old_hc3(Xs, y - Xs @ theta)
                     big = np.diag(c3) > np.diag(covt)
                     covt = np.where(big[:, None] & big[None, :], c3, covt)
-                    src = "residual or measurement covariance, the larger (unweighted fit)"
             else:
                 covt = _old_hc3(Xs, y - Xs @ theta)
                 src = "residual"
