@@ -60,6 +60,20 @@ def _design(s, s2, p, b, i, cross):
     return X
 
 
+def force_jacobian(forces, q, p):
+    """J (R, n, 16, 4): the bearing forces' change per unit of each real input [Re q, Im q, Re p,
+    Im p] (the forces are complex-linear in them), by unit perturbations of ``forces(q, p)``."""
+    R, n = q.shape[:2]
+    zero_q, zero_p = np.zeros_like(q), np.zeros_like(p)
+    F0 = forces(zero_q, zero_p)
+    J = np.empty((R, n, 16, 4), complex)
+    for comp in range(16):
+        dq, dp = zero_q.copy(), zero_p.copy()
+        (dq if comp < 8 else dp)[..., comp % 4] = 1j if comp % 8 >= 4 else 1.0
+        J[:, :, comp] = forces(dq, dp) - F0
+    return J
+
+
 def covariance_fit(theta, b, i, cross, R, sel, s_lap, w, F, p, J, S, Sh, weighted):
     """Pedestal b, direction i with the runs' measurement covariances, from the unweighted
     estimate ``theta`` (physical units): weighted least squares (``weighted``) or the sandwich
@@ -158,13 +172,7 @@ def cov_fit_numpy(params, axis, spin, qs, e, gain, ps, *, sigma=None, select=Non
                                     q_ped=np.ascontiguousarray(pp[None]))[0]
 
     F = forces(q, p)
-    zero_q, zero_p = np.zeros_like(q), np.zeros_like(p)
-    F0 = forces(zero_q, zero_p)
-    J = np.empty((R, n, 16, 4), complex)
-    for comp in range(16):
-        dq, dp = zero_q.copy(), zero_p.copy()
-        (dq if comp < 8 else dp)[..., comp % 4] = 1j if comp % 8 >= 4 else 1.0
-        J[:, :, comp] = forces(dq, dp) - F0
+    J = force_jacobian(forces, q, p)
     S = np.nan_to_num(np.stack(covs))
     Sh = None if shared is None else np.nan_to_num(shared)
     u = 5 if cross else 3

@@ -29,7 +29,7 @@ from rotorid.pedestal import GLS_MIN_DOF
 from rotorid.rawsim import example_rig
 from rotorid.simulate import RPM
 
-from pedestal_cov_oracle import covariance_fit
+from pedestal_cov_oracle import covariance_fit, force_jacobian
 
 EPS = np.finfo(float).eps
 
@@ -213,13 +213,7 @@ def _reference(rotor, runs, *, cross_coupled=False, freq_range_hz=None, shared_c
     R, n = q.shape[:2]
     nu = 5 if cross else 3
     if have_cov:
-        zero_q, zero_p = np.zeros_like(q), np.zeros_like(p)
-        F0 = forces(zero_q, zero_p)
-        J = np.empty((R, n, 16, 4), complex)
-        for comp in range(16):
-            dq, dp = zero_q.copy(), zero_p.copy()
-            (dq if comp < 8 else dp)[..., comp % 4] = 1j if comp % 8 >= 4 else 1.0
-            J[:, :, comp] = forces(dq, dp) - F0
+        J = force_jacobian(forces, q, p)
         S = np.stack(covs)
         unknown = np.isnan(S).any(axis=(0, 2, 3))
         if unknown[sel].all():
