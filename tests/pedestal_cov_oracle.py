@@ -165,7 +165,7 @@ def cov_fit_numpy(params, axis, spin, qs, e, gain, ps, *, sigma=None, select=Non
     s_lap = sig + 1j * w
     spin = w if spin is None else spin
     q, p = np.stack(qs), np.stack(ps)
-    R, n = q.shape[:2]
+    R = q.shape[0]
 
     def forces(qq, pp):
         return _core.bearing_forces(params, w, spin, np.ascontiguousarray(qq[None]), e, gain, sigma=sigma,

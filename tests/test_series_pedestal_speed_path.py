@@ -210,7 +210,7 @@ def _reference(rotor, runs, *, cross_coupled=False, freq_range_hz=None, shared_c
                                    q_ped=np.ascontiguousarray(pp[None]))[0]
 
     F = forces(q, p)
-    R, n = q.shape[:2]
+    R = q.shape[0]
     nu = 5 if cross else 3
     if have_cov:
         J = force_jacobian(forces, q, p)
