@@ -23,7 +23,11 @@ use rayon::prelude::*;
 
 #[cfg(target_arch = "x86_64")]
 mod avx2;
+#[cfg(target_arch = "x86_64")]
+mod avx512;
 pub mod propagate;
+#[cfg(target_arch = "x86_64")]
+mod registers;
 
 const SINGULAR_COND: f64 = 1e14;
 
@@ -736,28 +740,31 @@ fn solve_apart<const N: usize>(rows: &[[Z<N>; 4]], out: &mut LaneSol<N>) {
     *out = solve_lanes(rows);
 }
 
-/// [`forces_chunk`] for this CPU: on AVX2 and AVX-512 CPUs the kernel written on AVX2 registers
-/// ([`avx2`]), 2 lanes of the build's baseline elsewhere; the same operations lane by lane, so
-/// the same values (a property test and CI's bit digest compare them).
+/// [`forces_chunk`] for this CPU: the kernel written on registers ([`registers`]) with 8 lanes
+/// of AVX-512 ([`avx512`]) or 4 of AVX2 ([`avx2`]), 2 lanes of the build's baseline elsewhere; the
+/// same operations lane by lane, so the same values (property tests and CI's bit digest compare
+/// them).
 ///
-/// History (one thread, 4,096 points from 4 runs, best of 12-20 interleaved runs of
-/// `examples/identify_points` on an AMD EPYC (Zen 4), ns per point):
-/// - generic lanes, 8 wide with the solver inlined (the first kernel): AVX-512 code 112-120,
-///   AVX2 code 115-125 (every value in two AVX2 registers: the loop spilled them);
-/// - generic lanes, 4 wide with the solver a function of its own: AVX2 code 89-92 (compiled for
-///   AVX-512 on the same CPU 133; 8 wide, AVX-512 code 146-149); baseline 159-161 with 2 lanes;
-/// - [`avx2`], transposes in and out, the flags as lane masks, the solver on registers: 63.4
-///   (1,181 -> 851 instructions per point); with 2 runs 46.3 -> 27.0 (571 -> 346).
-///
-/// So an AVX-512 CPU runs the AVX2 code here (its 512-bit registers bought nothing this kernel
-/// could keep in them); the forward kernel, whose lane loops hold their values in registers,
-/// keeps its AVX-512 version.
+/// History (one thread, 4,096 points from 4 runs, `examples/identify_points`, ns per point):
+/// - AMD EPYC (Zen 4), best of 12-20 interleaved runs: generic lanes, 8 wide with the solver
+///   inlined (the first kernel): AVX-512 code 112-120, AVX2 code 115-125 (every value in two AVX2
+///   registers: the loop spilled them); generic lanes, 4 wide with the solver a function of its
+///   own: AVX2 code 89-92 (compiled for AVX-512 on the same CPU 133; 8 wide, AVX-512 code
+///   146-149); baseline 159-161 with 2 lanes; [`avx2`], transposes in and out, the flags as lane
+///   masks, the solver on registers: 63.4 (1,181 -> 851 instructions per point); with 2 runs
+///   46.3 -> 27.0 (571 -> 346). So the AVX-512 CPUs ran the AVX2 code until the register kernel
+///   had an 8-lane version.
+/// - Intel Xeon (two 512-bit FMA ports), best of 5 interleaved runs: the register kernel at 4
+///   lanes of AVX2 63-65, at 8 lanes of AVX-512 47-49; with standard errors 78-80 and 63-65; 2
+///   runs 27.5 and 20.8. Not measured on Zen 4, whose 512-bit operations are two 256-bit halves.
 fn forces_chunk_dispatch(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize {
     match crate::lanes::simd() {
         // SAFETY: simd() reports AVX2 and FMA at the Avx2 level; CPUs with AVX-512 F and DQ have
         // them too (every kernel's AVX-512 version is compiled with them enabled).
         #[cfg(target_arch = "x86_64")]
-        crate::lanes::Simd::Avx512 | crate::lanes::Simd::Avx2 => unsafe { avx2::forces_chunk(p, kc, start, out) },
+        crate::lanes::Simd::Avx512 => unsafe { avx512::forces_chunk(p, kc, start, out) },
+        #[cfg(target_arch = "x86_64")]
+        crate::lanes::Simd::Avx2 => unsafe { avx2::forces_chunk(p, kc, start, out) },
         _ => forces_chunk::<2>(p, kc, start, out),
     }
 }
