@@ -20,33 +20,12 @@ import time
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(__file__))
-from common import best_of_each, print_header  # noqa: E402
+from common import best_of_each, print_header, record_core_calls, replay  # noqa: E402
 
 import rotorid  # noqa: E402
-from rotorid import _corecall  # noqa: E402
 from rotorid.simulate import SyncResponse  # noqa: E402
 
 TARGET = 90.0
-
-
-def record(api):
-    """The core calls (function, args, kwargs) ``api`` makes, recorded as it runs once."""
-    core = _corecall.core
-    calls = []
-    names = [n for n in dir(_corecall._raw) if callable(getattr(_corecall._raw, n)) and not n.startswith("_")]
-    saved = {n: core.__dict__.get(n) for n in names}
-    try:
-        for n in names:
-            fn = getattr(core, n)
-            setattr(core, n, lambda *a, _fn=fn, **k: (calls.append((_fn, a, k)), _fn(*a, **k))[1])
-        api()
-    finally:
-        for n, fn in saved.items():
-            if fn is None:
-                core.__dict__.pop(n, None)
-            else:
-                setattr(core, n, fn)
-    return calls
 
 
 def entries(n, n_time):
@@ -166,16 +145,12 @@ def main():
     below = []
     for name in names:
         api = ents[name]
-        calls = record(api)
+        calls = record_core_calls(api)
         if not calls:
             print(f"{name:42s} {'':>9s} {'':>9s} {'':>10s}  none (pure Python/NumPy)")
             continue
 
-        def replay(calls=calls):
-            for fn, a, k in calls:
-                fn(*a, **k)
-
-        t = best_of_each({"api": api, "core": replay}, rounds)
+        t = best_of_each({"api": api, "core": replay(calls)}, rounds)
         pct = 100.0 * t["core"] / t["api"]
         kinds = sorted({fn.__name__ for fn, _, _ in calls})
         print(f"{name:42s} {1e3 * t['api']:9.3f} {1e3 * t['core']:9.3f} {pct:9.1f} %  {', '.join(kinds)} "

@@ -6,8 +6,8 @@ Work: the 16 coefficients at every frequency from two impact FRFs (x and y at th
 w = 2 pi f, spin = running speed and unit excitation (the core call identify_impact makes).
 Timed in the same process, best of ``repeat`` interleaved rounds of two back-to-back calls:
   rotorid._core.identify      the raw core call (with_std=False: two tests are not redundant, so the
-                              public API asks for no standard errors either); also timed as the API
-                              calls it (runs as a list of arrays) when the installed core accepts that
+                              public API asks for no standard errors either); also a replay of exactly
+                              the core calls identify_impact makes (recorded once, same arguments)
   rotorid.identify_impact     the public API
   NumPy (benches/baselines.py): numpy_fast (the original all-at-once baseline) and the Gram-matrix
                               formulation unblocked, cache-blocked on 1 thread and on --threads
@@ -25,7 +25,7 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(__file__))
 from baselines import numpy_fast, numpy_ident, numpy_report  # noqa: E402
 from common import (BLOCK_CANDIDATES, Blocks, best_of, best_of_each, check_api, numpy_variants,  # noqa: E402
-                    print_header, quick_args, quiet_blas, rel_diff, report, runs_as_list_if_supported)
+                    print_header, quick_args, quiet_blas, record_core_calls, rel_diff, replay, report)
 
 import rotorid  # noqa: E402
 from rotorid import _core  # noqa: E402
@@ -63,11 +63,6 @@ def main():
     def core():
         return _core.identify(p, w, spin, q4, e3, gain, with_std=False)
 
-    q_api, q_form = runs_as_list_if_supported(lambda q: _core.identify(p, w, spin, q, e3, gain, with_std=False), q4)
-
-    def core_api_options():
-        return _core.identify(p, w, spin, q_api, e3, gain, with_std=False)
-
     def api():
         return rotorid.identify_impact(rig.rotor, tests)
 
@@ -93,9 +88,9 @@ def main():
     print(tuning)
     print()
 
-    same_call = q_api is q4       # the API's call is the core call above unless the runs go as a list
-    fns = {"core": core, **({} if same_call else {"core_api": core_api_options}),
-           **({"api": api} if ident is not None else {}), **variants}
+    # the API's own core calls, replayed (recorded once)
+    api_fns = {"core_api": replay(record_core_calls(api)), "api": api} if ident is not None else {}
+    fns = {"core": core, **api_fns, **variants}
     t = best_of_each(fns, repeat)
     extra = []
     if not args.quick:
@@ -104,7 +99,7 @@ def main():
     report(work=f"identify {n:,} frequencies from 2 impacts", n=n, unit="freqs",
            core=("rotorid._core.identify (k, c, cond, residual, amplitude)", t["core"]),
            api=(("rotorid.identify_impact (public API)", t["api"], t.get("core_api"),
-                 f"rotorid._core.identify as the API calls it ({q_form})") if "api" in t else None),
+                 "rotorid._core.identify as the API calls it (replayed)") if "api" in t else None),
            numpy={k: t[k] for k in variants}, target_ratio=TARGET, extra_rows=extra)
     blocks.close()
 

@@ -296,16 +296,36 @@ BLOCK_CANDIDATES = (1024, 2048, 4096, 8192, 16384)
 API_FAILURES = []
 
 
-def runs_as_list_if_supported(call, q4):
-    """The responses in the form the public API hands the core: a list of per-run (n, 4) arrays
-    when the installed core accepts one (newer cores), else the stacked (1, R, n, 4) array.
-    ``call(q)`` makes the core call. Returns (q, description)."""
-    runs = [np.ascontiguousarray(q4[0, r]) for r in range(q4.shape[1])]
+def record_core_calls(api):
+    """The core calls (function, args, kwargs) ``api`` makes, recorded as it runs once (every
+    function of ``rotorid._core`` is seen through ``rotorid._corecall.core``)."""
+    from rotorid import _corecall
+
+    core = _corecall.core
+    calls = []
+    names = [n for n in dir(_corecall._raw) if callable(getattr(_corecall._raw, n)) and not n.startswith("_")]
+    saved = {n: core.__dict__.get(n) for n in names}
     try:
-        call(runs)
-        return runs, "runs as a list"
-    except (TypeError, ValueError):
-        return q4, "runs stacked"
+        for n in names:
+            fn = getattr(core, n)
+            setattr(core, n, lambda *a, _fn=fn, **k: (calls.append((_fn, a, k)), _fn(*a, **k))[1])
+        api()
+    finally:
+        for n, fn in saved.items():
+            if fn is None:
+                core.__dict__.pop(n, None)
+            else:
+                setattr(core, n, fn)
+    return calls
+
+
+def replay(calls):
+    """A callable making exactly the recorded core calls again, with the same argument objects:
+    the core's share of a public call, to time against it."""
+    def run():
+        for fn, a, k in calls:
+            fn(*a, **k)
+    return run
 
 
 def check_api(label, fn):
