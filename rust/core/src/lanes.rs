@@ -1,8 +1,8 @@
 //! Lane vectors for the data-parallel kernels: `L` independent points processed in lock-step so
 //! that LLVM turns every lane loop into SIMD instructions (AVX2/AVX-512 via runtime dispatch).
 //! `V<N>` and `Z<N>` take other lane counts: the identification kernel uses one register's width
-//! (4 lanes of AVX2 code, also on AVX-512 CPUs, and 2 at the baseline), since a group wider than
-//! the registers holds two or more of them per value and spills.
+//! (8 lanes at AVX-512, 4 at AVX2, 2 at the baseline), since a group wider than the registers
+//! holds two or more of them per value and spills.
 
 use std::ops::{Add, AddAssign, Mul, Neg, Sub};
 

@@ -7,8 +7,8 @@
 //! - `identify_forces` (default): the four rotor equations give the reaction force of each
 //!   bearing, and each bearing becomes a complex least-squares problem [x_b y_b] z = f_b with two
 //!   unknowns and two right-hand sides (x row and y row of Z_b). Points are solved in lock-step
-//!   (SIMD lanes: 4 in `avx2.rs` on AVX2 and AVX-512 CPUs, 2 in the generic kernel here
-//!   elsewhere, the same bits): two rows by Cramer's rule, more rows by the corrected
+//!   (SIMD lanes: 8 on AVX-512 and 4 on AVX2 CPUs in `registers.rs`, 2 in the generic kernel
+//!   here elsewhere, the same bits): two rows by Cramer's rule, more rows by the corrected
 //!   semi-normal equations, and any lane with cond > 1e6 again by a complex Givens QR.
 //! - `identify_report`: the report's 16-unknown real formulation (eq. 8-12, 16-18) solved with
 //!   faer's QR. Kept as the reference; it equals the default exactly for two runs.
@@ -513,8 +513,8 @@ fn put_row<const N: usize>(row: &mut [Z<N>; 4], x: Z<N>, y: Z<N>, fx: Z<N>, fy: 
 }
 
 /// One chunk of consecutive points starting at flat index `start` (= b * n + i), N at a time
-/// (one register's width: 2 at the baseline, see [`forces_chunk_dispatch`]; [`avx2`] is this
-/// function on AVX2 registers); each bearing system is solved by [`solve_apart`].
+/// (one register's width: 2 at the baseline, see [`forces_chunk_dispatch`]; [`registers`] is this
+/// function on AVX2 and AVX-512 registers); each bearing system is solved by [`solve_apart`].
 fn forces_chunk<const N: usize>(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize {
     let Outs { k, c, cond, resid, amp, mut ks, mut cs, rel: mut rel_out } = out;
     let n = p.w.len();
