@@ -471,6 +471,31 @@ def test_scalar_check_fast_path_refuses_what_the_full_check_refuses(value, kw, o
             number("x", value, **kw)
 
 
+@pytest.mark.parametrize("layout", ["C", "F", "strided", "complex64"])
+@pytest.mark.parametrize("bad", [complex(np.nan, 0.0), complex(0.0, np.nan), complex(np.inf, 1.0),
+                                 complex(1.0, -np.inf), None])
+def test_complex_finiteness_check_finds_every_nan_and_inf(layout, bad):
+    """``complex_array``'s finiteness check (one core pass over the float64 pairs of a C-contiguous
+    complex128 array, NumPy otherwise) refuses NaN or inf in either part at any position, names the
+    first, and accepts the largest finite values."""
+    from rotorid._validate import complex_array
+
+    rng = np.random.default_rng(3)
+    a = rng.normal(size=(7, 6)) + 1j * rng.normal(size=(7, 6))
+    big = np.finfo(np.complex64 if layout == "complex64" else float).max
+    a[0, 0] = complex(big, -big)
+    if bad is not None:
+        a[5, 2] = bad  # (5, 1) of the strided view
+    view = {"C": a, "F": np.asfortranarray(a), "strided": a[:, ::2],
+            "complex64": a.astype(np.complex64)}[layout]
+    if bad is None:
+        np.testing.assert_array_equal(complex_array("q", view), view)
+        return
+    first = r"\(5, 1\)" if layout == "strided" else r"\(5, 2\)"
+    with pytest.raises(RotoridError, match="q contains NaN or inf \\(first at index " + first):
+        complex_array("q", view)
+
+
 def test_core_plane_transform_refuses_bad_shapes():
     from rotorid import _core
 
