@@ -283,11 +283,11 @@ unsafe fn relative_std<const N: usize, R: Regs<N>>(k: &[R::V; 8], c: &[R::V; 8],
 }
 
 /// How far ahead, in points, the kernel prefetches its inputs and outputs. At 100,000 speeds from 4
-/// runs (41.6 MB in and out, from memory: the caches emptied before each call), 2 threads, Intel
-/// Xeon: 3.97-4.19 ms without, 3.01-3.37 ms at 16 points ahead at AVX-512 (the responses alone:
-/// 3.35-3.46, 8 points 3.48-3.58, 24 points 3.49-3.66); at AVX2 4.30-4.41 -> 4.07-4.26. The
-/// hardware prefetchers follow the 4 response streams and 5 output streams of a chunk, but not
-/// far enough ahead to overlap the kernel's arithmetic.
+/// runs (41.6 MB in and out) out of the caches (`benches/bench_identify_cold.py`), 2 threads,
+/// Intel Xeon: 3.97-4.19 ms without, 3.01-3.44 ms at 16 points ahead at AVX-512 (the responses
+/// alone: 3.35-3.46, 8 points 3.48-3.58, 24 points 3.49-3.66); at AVX2 4.30-4.41 -> 4.07-4.26 (8,
+/// 32 and 48 points no better). The hardware prefetchers follow the 4 response streams and 5
+/// output streams of a chunk, but not far enough ahead to overlap the kernel's arithmetic.
 const PREFETCH: usize = 16;
 
 /// The excitation e[o..o + 4] in every lane.
