@@ -76,6 +76,46 @@ def test_report_method_matches_numpy_oracle_with_redundant_noisy_runs():
     assert np.all(res.residual > 0)
 
 
+def test_refinement_step_only_from_cond_1e3_and_everywhere_on_request():
+    """Redundant runs are solved by the semi-normal equations, refined (one step with the true
+    residual) from cond = 1e3 on; ``refine_all=True`` (how the uncertainty propagation's central
+    differences solve) refines every point. Below 1e3 the two differ by the normal equations'
+    rounding, a small multiple of cond^2 eps of the bearing's impedance; from 1e3 on they are the
+    same bits."""
+    from rotorid import _core
+
+    rig = rotorid.nsf_rig()
+    rpm = np.linspace(300.0, 20000.0, 400)
+    rng = np.random.default_rng(5)
+    # nearly circular orbits, y = -j x (1 + d) with d from 1 to 1e-5 over the speeds: the x and y
+    # columns of each bearing's system grow nearly parallel and cond spans ~10 to ~1e5
+    d = 10.0 ** -np.linspace(0.0, 5.0, rpm.size)
+    qs = []
+    for name in "ABC":
+        r = rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[name], speed_rpm=rpm)
+        q = r.q * (1 + 0.02 * (rng.standard_normal(r.q.shape) + 1j * rng.standard_normal(r.q.shape)))
+        wobble = d[:, None] * (rng.standard_normal((rpm.size, 2)) + 1j * rng.standard_normal((rpm.size, 2)))
+        q[:, 2:] = -1j * q[:, :2] * (1 + wobble)
+        qs.append(q)
+    om = rpm * oracle.RPM
+    e = np.array([rig.imbalances[x].generalized(rig.rotor) for x in "ABC"], dtype=complex)[None]
+    args = (rig.rotor.core_params(), om, om, np.array(qs)[None], e, om ** 2)
+    k, c, cond = (a[0] for a in _core.identify(*args, with_std=False)[:3])
+    kr, cr, condr = (a[0] for a in _core.identify(*args, with_std=False, refine_all=True)[:3])
+    np.testing.assert_array_equal(cond, condr)
+    assert (cond < 1e3).any() and (cond >= 1e3).any()
+    z = k + 1j * om[:, None, None, None] * c        # (n, bearing, 2, 2)
+    zr = kr + 1j * om[:, None, None, None] * cr
+    err = np.abs(z - zr).max(axis=(2, 3))
+    scale = np.abs(zr).max(axis=(2, 3))
+    low = cond < 1e3
+    assert (err[low] <= 64 * cond[low] ** 2 * np.finfo(float).eps * scale[low]).all()
+    assert (err[low] > 0).any()                    # the step is skipped there
+    np.testing.assert_array_equal(z[~low], zr[~low])
+    with pytest.raises(TypeError):
+        _core.identify(*args, refine_all="yes")
+
+
 def test_least_squares_uses_all_runs_and_reports_standard_errors():
     rig = rotorid.nsf_rig()
     rpm = np.linspace(3000, 6000, 7)

@@ -75,7 +75,7 @@ def _coefficients(**arrays):
 def _eval(rotor, w, spin, qb, e, gain, sigma, identical, method, pb=None):
     k, c, *_ = _core.identify(rotor.core_params(), w, spin, np.ascontiguousarray(qb), np.ascontiguousarray(e[None],
                               dtype=complex), gain, identical=identical, method=method, with_std=False, sigma=sigma,
-                              q_ped=None if pb is None else np.ascontiguousarray(pb))
+                              q_ped=None if pb is None else np.ascontiguousarray(pb), refine_all=True)
     return _report_order(k, c)
 
 

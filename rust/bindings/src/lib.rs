@@ -419,9 +419,10 @@ fn report_method(method: &str) -> PyResult<bool> {
 /// identify::relative_std) (B, n). `flag_limits` (cond_max, min_rel_amplitude, max_rel_std):
 /// also the flag codes (uint8) and amp / max amp of each batch row (B, n), as `flag_codes` gives
 /// them, computed in the same call (None otherwise); "uncertain" only when standard errors are
-/// computed.
+/// computed. `refine_all`: the refinement step of the semi-normal equations in every point, not
+/// only from cond = REFINE_COND on (how the uncertainty propagation's central differences solve).
 #[pyfunction]
-#[pyo3(name = "identify", signature = (rotor, w, spin, q, e, gain, identical=false, method="forces", with_std=true, sigma=None, q_ped=None, planes=None, w_scale=None, flag_limits=None))]
+#[pyo3(name = "identify", signature = (rotor, w, spin, q, e, gain, identical=false, method="forces", with_std=true, sigma=None, q_ped=None, planes=None, w_scale=None, flag_limits=None, refine_all=false))]
 #[allow(clippy::too_many_arguments)]
 fn py_identify<'py>(
     py: Python<'py>,
@@ -439,6 +440,7 @@ fn py_identify<'py>(
     planes: Option<PyReadonlyArrayDyn<'py, f64>>,
     w_scale: Option<f64>,
     flag_limits: Option<&Bound<'py, PyAny>>,
+    refine_all: bool,
 ) -> PyResult<IdentTuple<'py>> {
     let flag_limits = flag_limits
         .map(|f| f.extract::<(f64, f64, f64)>())
@@ -476,7 +478,8 @@ fn py_identify<'py>(
                 c_std: if want_std { Some(&mut cs[..]) } else { None },
                 rel_std: if want_std { Some(&mut rel[..]) } else { None },
             };
-            let nbad = if report { identify::identify_report(&prob, out) } else { identify::identify_forces(&prob, out) }?;
+            let refine_cond = if refine_all { 0.0 } else { identify::REFINE_COND };
+            let nbad = if report { identify::identify_report(&prob, out) } else { identify::identify_forces_refined(&prob, out, refine_cond) }?;
             // the flags of each batch row while its outputs are still in cache (and the pool's
             // threads awake): no second call from Python
             let flags = match flag_limits {

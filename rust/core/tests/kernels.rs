@@ -848,6 +848,13 @@ fn identification_argument_errors_name_the_argument() {
             }
         }
     }
+    // the refinement threshold
+    let (mut k, mut cc, mut cond, mut resid, mut amp) = (vec![0.0; 16], vec![0.0; 16], vec![0.0; 4], vec![0.0; 2], vec![0.0; 2]);
+    let out = IdentOut { k: &mut k, c: &mut cc, cond: &mut cond, resid: &mut resid, amp: &mut amp, k_std: None, c_std: None, rel_std: None };
+    match rotorid_core::identify::identify_forces_refined(&base, out, f64::NAN) {
+        Err(err) => assert_eq!(err.name(), "refine_cond", "{err}"),
+        Ok(_) => panic!("expected an error about refine_cond"),
+    }
 }
 
 proptest! {

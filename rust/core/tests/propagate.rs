@@ -8,19 +8,20 @@ use proptest::prelude::*;
 use rotorid_core::covariance::psd_cholesky;
 use rotorid_core::covariance::RunCov;
 use rotorid_core::identify::propagate::{propagate, Calibration, CovOut, CovProblem, RunCovs, H_REL};
-use rotorid_core::identify::{identify_forces, identify_report, IdentOut, IdentProblem, REPORT_TO_BIJ};
+use rotorid_core::identify::{identify_forces_refined, identify_report, IdentOut, IdentProblem, REPORT_TO_BIJ};
 use rotorid_core::{CoreError, C64};
 
 fn cfg(cases: u32) -> ProptestConfig {
     ProptestConfig { cases, failure_persistence: None, ..ProptestConfig::default() }
 }
 
-/// The report vector (eq. 9 order) of every point of one problem, by the public identification.
+/// The report vector (eq. 9 order) of every point of one problem, by the public identification
+/// refined at every point (as the propagation's central differences solve).
 fn report_vectors(p: &IdentProblem, report: bool) -> Vec<[f64; 16]> {
     let n = p.batch * p.w.len();
     let (mut k, mut cc, mut cond, mut resid, mut amp) = (vec![0.0; 8 * n], vec![0.0; 8 * n], vec![0.0; 2 * n], vec![0.0; n], vec![0.0; n]);
     let out = IdentOut { k: &mut k, c: &mut cc, cond: &mut cond, resid: &mut resid, amp: &mut amp, k_std: None, c_std: None, rel_std: None };
-    if report { identify_report(p, out) } else { identify_forces(p, out) }.unwrap();
+    if report { identify_report(p, out) } else { identify_forces_refined(p, out, 0.0) }.unwrap();
     (0..n)
         .map(|i| {
             let mut v = [0.0; 16];

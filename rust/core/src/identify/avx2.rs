@@ -183,16 +183,16 @@ impl Regs<N> for Avx2 {
         _mm256_blendv_pd(a, b, m)
     }
     #[inline(always)]
-    unsafe fn solve(rows: &[[C<__m256d>; 4]], out: &mut Sol<__m256d>) {
-        solve_rows(rows, out)
+    unsafe fn solve(rows: &[[C<__m256d>; 4]], refine_cond: f64, out: &mut Sol<__m256d>) {
+        solve_rows(rows, refine_cond, out)
     }
 }
 
 #[target_feature(enable = "avx2,fma")]
 #[inline]
-fn solve_rows(rows: &[[C<__m256d>; 4]], out: &mut Sol<__m256d>) {
+fn solve_rows(rows: &[[C<__m256d>; 4]], refine_cond: f64, out: &mut Sol<__m256d>) {
     // SAFETY: compiled for AVX2, called from the AVX2 kernel only
-    unsafe { super::registers::solve::<N, Avx2>(rows, out) }
+    unsafe { super::registers::solve::<N, Avx2>(rows, refine_cond, out) }
 }
 
 /// [`super::forces_chunk`] on AVX2 registers (see [`super::registers`]).

@@ -197,16 +197,16 @@ impl Regs<N> for Avx512 {
         _mm512_mask_blend_pd(m, a, b)
     }
     #[inline(always)]
-    unsafe fn solve(rows: &[[C<__m512d>; 4]], out: &mut Sol<__m512d>) {
-        solve_rows(rows, out)
+    unsafe fn solve(rows: &[[C<__m512d>; 4]], refine_cond: f64, out: &mut Sol<__m512d>) {
+        solve_rows(rows, refine_cond, out)
     }
 }
 
 #[target_feature(enable = "avx512f,avx512dq,avx2,fma")]
 #[inline]
-fn solve_rows(rows: &[[C<__m512d>; 4]], out: &mut Sol<__m512d>) {
+fn solve_rows(rows: &[[C<__m512d>; 4]], refine_cond: f64, out: &mut Sol<__m512d>) {
     // SAFETY: compiled for AVX-512, called from the AVX-512 kernel only
-    unsafe { super::registers::solve::<N, Avx512>(rows, out) }
+    unsafe { super::registers::solve::<N, Avx512>(rows, refine_cond, out) }
 }
 
 /// [`super::forces_chunk`] on AVX-512 registers (see [`super::registers`]).

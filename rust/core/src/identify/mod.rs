@@ -8,8 +8,9 @@
 //!   bearing, and each bearing becomes a complex least-squares problem [x_b y_b] z = f_b with two
 //!   unknowns and two right-hand sides (x row and y row of Z_b). Points are solved in lock-step
 //!   (SIMD lanes: 8 on AVX-512 and 4 on AVX2 CPUs in `registers.rs`, 2 in the generic kernel
-//!   here elsewhere, the same bits): two rows by Cramer's rule, more rows by the corrected
-//!   semi-normal equations, and any lane with cond > 1e6 again by a complex Givens QR.
+//!   here elsewhere, the same bits): two rows by Cramer's rule, more rows by the semi-normal
+//!   equations (corrected by one refinement step from cond = 1e3 on, [`REFINE_COND`]), and any
+//!   lane with cond > 1e6 again by a complex Givens QR.
 //! - `identify_report`: the report's 16-unknown real formulation (eq. 8-12, 16-18) solved with
 //!   faer's QR. Kept as the reference; it equals the default exactly for two runs.
 
@@ -154,13 +155,20 @@ impl<const N: usize> LaneSol<N> {
 /// Largest condition number solved through the corrected semi-normal equations; lanes above it
 /// go through the Givens QR (backward stable up to SINGULAR_COND).
 const CSNE_COND: f64 = 1e6;
+/// Smallest condition number at which a lane takes the refinement step. Below it the semi-normal
+/// equations alone are accurate to about cond^2 eps <= 1e6 * 1.1e-16 ~ 1e-10 relative (the
+/// identification's inputs are measured to 1e-3 at best); the step then only costs time: 12-13 %
+/// of the kernel's (4 runs, `identify_points 4096 300 nostd 4`: AVX2 62 -> 54 ns per point,
+/// AVX-512 44.5 -> 39). Per lane, so every lane width gives the same bits.
+pub const REFINE_COND: f64 = 1e3;
 
 /// Solve rows [x, y, f_x, f_y] (x z0 + y z1 = f_k, k = 0, 1) in the least-squares sense for N
-/// points at once: 2x2 Hermitian normal equations in closed form plus one refinement step with
-/// the residual of the original rows (corrected semi-normal equations: as accurate as QR while
-/// cond^2 * eps << 1, hence CSNE_COND). No square root or division inside the row loops.
+/// points at once: 2x2 Hermitian normal equations in closed form plus, where cond >= REFINE_COND,
+/// one refinement step with the residual of the original rows (corrected semi-normal equations:
+/// as accurate as QR while cond^2 * eps << 1, hence CSNE_COND). No square root or division inside
+/// the row loops.
 #[inline(always)]
-fn solve_lanes<const N: usize>(rows: &[[Z<N>; 4]]) -> LaneSol<N> {
+fn solve_lanes<const N: usize>(rows: &[[Z<N>; 4]], refine_cond: f64) -> LaneSol<N> {
     if rows.len() == 2 {
         return solve_square(rows);
     }
@@ -189,18 +197,30 @@ fn solve_lanes<const N: usize>(rows: &[[Z<N>; 4]]) -> LaneSol<N> {
     let mut z = [solve(&h[0]), solve(&h[1])];
     let mut ahr = [[Z::<N>::zero(); 2]; 2];
     let mut res2 = [V::<N>::zero(); 2];
+    // the refinement step only in lanes whose cond reaches REFINE_COND (and NaN lanes); the
+    // residual in every lane
+    let refine: [bool; N] = std::array::from_fn(|l| !(cond.0[l] < refine_cond));
+    let any = refine.iter().any(|&b| b);
     for r in rows {
         for k in 0..2 {
             let res = r[2 + k] - r[0] * z[k][0] - r[1] * z[k][1];
             res2[k] += res.norm_sqr();
-            ahr[k][0] += r[0].cmul(res);
-            ahr[k][1] += r[1].cmul(res);
+            if any {
+                ahr[k][0] += r[0].cmul(res);
+                ahr[k][1] += r[1].cmul(res);
+            }
         }
     }
-    for k in 0..2 {
-        let dz = solve(&ahr[k]);
-        z[k][0] += dz[0];
-        z[k][1] += dz[1];
+    if any {
+        for k in 0..2 {
+            let dz = solve(&ahr[k]);
+            for l in (0..N).filter(|&l| refine[l]) {
+                for u in 0..2 {
+                    z[k][u].re.0[l] += dz[u].re.0[l];
+                    z[k][u].im.0[l] += dz[u].im.0[l];
+                }
+            }
+        }
     }
     let total = a + d + rhs2[0] + rhs2[1];
     LaneSol { z, g: [d * idet, a * idet], cond, res2, rhs2, total, qq: a + d }
@@ -392,6 +412,9 @@ impl IdentOut<'_> {
 /// Per-call constants of the rotor equations.
 #[derive(Clone, Copy)]
 pub(crate) struct Consts {
+    /// lanes from this condition number on take the refinement step ([`REFINE_COND`]; 0 in
+    /// [`identify_serial`]: every lane)
+    refine_cond: f64,
     ml2: f64,
     ml1: f64,
     it: f64,
@@ -404,7 +427,7 @@ pub(crate) struct Consts {
 impl Consts {
     pub(crate) fn new(r: &Rotor) -> Self {
         let il = 1.0 / r.span();
-        Consts { ml2: r.m * r.l2 * il, ml1: r.m * r.l1 * il, it: r.it * il, ip: r.ip * il, il, l1: r.l1, l2: r.l2 }
+        Consts { refine_cond: REFINE_COND, ml2: r.m * r.l2 * il, ml1: r.m * r.l1 * il, it: r.it * il, ip: r.ip * il, il, l1: r.l1, l2: r.l2 }
     }
 }
 
@@ -640,8 +663,8 @@ fn forces_chunk<const N: usize>(p: &IdentProblem, kc: &Consts, start: usize, out
             put_row(&mut rows[s2][nr[s2]], q[1], q[3], f2x, f2y);
             nr[s2] += 1;
         }
-        solve_apart(&rows[0][..nr[0]], &mut sols[0]);
-        solve_apart(&rows[1][..nr[1]], &mut sols[1]);
+        solve_apart(&rows[0][..nr[0]], kc.refine_cond, &mut sols[0]);
+        solve_apart(&rows[1][..nr[1]], kc.refine_cond, &mut sols[1]);
         // rows of the systems together hold every entry of q and E: a NaN/inf input shows up here
         let mut bad = [false; N];
         for l in 0..N {
@@ -736,8 +759,8 @@ fn forces_chunk<const N: usize>(p: &IdentProblem, kc: &Consts, start: usize, out
 
 /// [`solve_lanes`] as a function of its own: inlined into the group loop, its values spilled.
 #[inline(never)]
-fn solve_apart<const N: usize>(rows: &[[Z<N>; 4]], out: &mut LaneSol<N>) {
-    *out = solve_lanes(rows);
+fn solve_apart<const N: usize>(rows: &[[Z<N>; 4]], refine_cond: f64, out: &mut LaneSol<N>) {
+    *out = solve_lanes(rows, refine_cond);
 }
 
 /// [`forces_chunk`] for this CPU: the kernel written on registers ([`registers`]) with 8 lanes
@@ -771,13 +794,23 @@ fn forces_chunk_dispatch(p: &IdentProblem, kc: &Consts, start: usize, out: Outs)
 
 /// Fast bearing-force solver. Returns the number of points whose input contained NaN/inf.
 pub fn identify_forces(p: &IdentProblem, out: IdentOut) -> Result<usize, CoreError> {
-    p.check()?;
-    out.check(product("batch x points", &[p.batch, p.points()])?)?;
-    Ok(forces_all(p, out))
+    identify_forces_refined(p, out, REFINE_COND)
 }
 
-fn forces_all(p: &IdentProblem, out: IdentOut) -> usize {
-    let kc = Consts::new(&p.rotor);
+/// [`identify_forces`] with the refinement step in the lanes whose condition number reaches
+/// `refine_cond` (0: in every lane, as the uncertainty propagation's central differences take
+/// it; [`REFINE_COND`] is the default).
+pub fn identify_forces_refined(p: &IdentProblem, out: IdentOut, refine_cond: f64) -> Result<usize, CoreError> {
+    p.check()?;
+    out.check(product("batch x points", &[p.batch, p.points()])?)?;
+    if refine_cond.is_nan() {
+        return Err(CoreError::value("refine_cond", "must not be NaN"));
+    }
+    Ok(forces_all(p, out, refine_cond))
+}
+
+fn forces_all(p: &IdentProblem, out: IdentOut, refine_cond: f64) -> usize {
+    let kc = Consts { refine_cond, ..Consts::new(&p.rotor) };
     let IdentOut { k, c, cond, resid, amp, k_std, c_std, rel_std } = out;
     let npts = resid.len();
     if npts < SERIAL_BELOW {
@@ -855,11 +888,14 @@ fn report_all(p: &IdentProblem, out: IdentOut) -> usize {
 }
 
 /// Both solvers on one thread, for callers that are tasks of a parallel loop themselves (the
-/// perturbed copies of [`propagate`]); the same values as [`identify_forces`] and
-/// [`identify_report`] (each point is solved alone). Standard errors are not computed. Returns
-/// the number of NaN/inf points. `p` must have passed [`IdentProblem::check`].
+/// perturbed copies of [`propagate`]); the values of [`identify_forces`] with the refinement step
+/// in every lane (below [`REFINE_COND`] the semi-normal equations' rounding, ~cond^2 eps, would
+/// be divided by the central differences' step, ~1e-6: the refined solution is smooth in the
+/// inputs to ~cond eps), and of [`identify_report`] (each point is solved alone). Standard errors
+/// are not computed. Returns the number of NaN/inf points. `p` must have passed
+/// [`IdentProblem::check`].
 pub(crate) fn identify_serial(p: &IdentProblem, report: bool, out: IdentOut) -> usize {
-    let kc = Consts::new(&p.rotor);
+    let kc = Consts { refine_cond: 0.0, ..Consts::new(&p.rotor) };
     let IdentOut { k, c, cond, resid, amp, .. } = out;
     if !report {
         return forces_chunk_dispatch(p, &kc, 0, Outs { k, c, cond, resid, amp, ks: None, cs: None, rel: None });
