@@ -8,7 +8,7 @@
 //! against 62.9 ns with 4 runs, 25.3 against 27.0 with 2), and the lane pointers in a function of
 //! their own (inlined, 4 runs took 74 ns).
 
-use super::registers::{Regs, Sol, C};
+use super::registers::{one_intrinsic_ops, store_group, Regs, Sol, C};
 use super::{Consts, IdentProblem, Outs};
 use crate::lanes::V;
 use std::arch::x86_64::*;
@@ -36,31 +36,8 @@ unsafe fn transpose(a: [__m256d; 4]) -> [__m256d; 4] {
 
 impl Regs<N> for Avx2 {
     type V = __m256d;
+    one_intrinsic_ops!(__m256d, N, _mm256_set1_pd, _mm256_add_pd, _mm256_sub_pd, _mm256_mul_pd, _mm256_div_pd, _mm256_sqrt_pd, _mm256_loadu_pd);
     type M = __m256d;
-    #[inline(always)]
-    unsafe fn splat(x: f64) -> __m256d {
-        _mm256_set1_pd(x)
-    }
-    #[inline(always)]
-    unsafe fn add(a: __m256d, b: __m256d) -> __m256d {
-        _mm256_add_pd(a, b)
-    }
-    #[inline(always)]
-    unsafe fn sub(a: __m256d, b: __m256d) -> __m256d {
-        _mm256_sub_pd(a, b)
-    }
-    #[inline(always)]
-    unsafe fn mul(a: __m256d, b: __m256d) -> __m256d {
-        _mm256_mul_pd(a, b)
-    }
-    #[inline(always)]
-    unsafe fn div(a: __m256d, b: __m256d) -> __m256d {
-        _mm256_div_pd(a, b)
-    }
-    #[inline(always)]
-    unsafe fn sqrt(a: __m256d) -> __m256d {
-        _mm256_sqrt_pd(a)
-    }
     #[inline(always)]
     unsafe fn neg(a: __m256d) -> __m256d {
         _mm256_xor_pd(a, _mm256_set1_pd(-0.0))
@@ -75,21 +52,8 @@ impl Regs<N> for Avx2 {
         _mm256_blendv_pd(_mm256_max_pd(a, b), _mm256_add_pd(a, b), _mm256_cmp_pd::<_CMP_UNORD_Q>(a, b))
     }
     #[inline(always)]
-    unsafe fn load(p: *const f64) -> __m256d {
-        _mm256_loadu_pd(p)
-    }
-    #[inline(always)]
     unsafe fn lanes_of(f: impl Fn(usize) -> f64) -> __m256d {
         _mm256_setr_pd(f(0), f(1), f(2), f(3))
-    }
-    #[inline(always)]
-    unsafe fn to_lanes(a: __m256d) -> V<N> {
-        // SAFETY: V<4> is repr(transparent) over [f64; 4], the same 32 bytes as __m256d
-        std::mem::transmute::<__m256d, V<N>>(a)
-    }
-    #[inline(always)]
-    unsafe fn from_lanes(a: V<N>) -> __m256d {
-        std::mem::transmute::<V<N>, __m256d>(a)
     }
     #[inline(always)]
     unsafe fn load_points(ptr: &[*const f64; N]) -> [C<__m256d>; 4] {
@@ -106,20 +70,13 @@ impl Regs<N> for Avx2 {
     unsafe fn put_rows(dst: &mut [f64], g0: usize, nl: usize, v: &[__m256d; 8]) {
         let lo = transpose([v[0], v[1], v[2], v[3]]);
         let hi = transpose([v[4], v[5], v[6], v[7]]);
-        let store = |d: *mut f64| {
+        store_group::<{ 8 * N }>(dst, 8 * g0, 8 * nl, |d| {
             for l in 0..N {
                 // d holds 32 doubles; row l is d[8 l..8 l + 8]
                 _mm256_storeu_pd(d.add(8 * l), lo[l]);
                 _mm256_storeu_pd(d.add(8 * l + 4), hi[l]);
             }
-        };
-        if nl == N {
-            store(dst[8 * g0..8 * g0 + 8 * N].as_mut_ptr());
-        } else {
-            let mut tmp = [0.0f64; 8 * N];
-            store(tmp.as_mut_ptr());
-            dst[8 * g0..8 * (g0 + nl)].copy_from_slice(&tmp[..8 * nl]);
-        }
+        });
     }
     #[inline(always)]
     unsafe fn put_lanes(dst: &mut [f64], g0: usize, nl: usize, v: __m256d) {
@@ -133,18 +90,11 @@ impl Regs<N> for Avx2 {
     unsafe fn put_pairs(dst: &mut [f64], g0: usize, nl: usize, a: __m256d, b: __m256d) {
         let (lo, hi) = (_mm256_unpacklo_pd(a, b), _mm256_unpackhi_pd(a, b));
         let pairs = [_mm256_permute2f128_pd::<0x20>(lo, hi), _mm256_permute2f128_pd::<0x31>(lo, hi)];
-        let store = |d: *mut f64| {
+        store_group::<{ 2 * N }>(dst, 2 * g0, 2 * nl, |d| {
             // d holds 8 doubles
             _mm256_storeu_pd(d, pairs[0]);
             _mm256_storeu_pd(d.add(4), pairs[1]);
-        };
-        if nl == N {
-            store(dst[2 * g0..2 * g0 + 2 * N].as_mut_ptr());
-        } else {
-            let mut tmp = [0.0f64; 2 * N];
-            store(tmp.as_mut_ptr());
-            dst[2 * g0..2 * (g0 + nl)].copy_from_slice(&tmp[..2 * nl]);
-        }
+        });
     }
     #[inline(always)]
     unsafe fn finite(x: __m256d) -> __m256d {

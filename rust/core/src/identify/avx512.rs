@@ -8,7 +8,7 @@
 //! halves) the earlier lane-array kernels of 8 lanes were slower than 4 (see
 //! [`super::forces_chunk_dispatch`]); this register kernel was not measured there.
 
-use super::registers::{Regs, Sol, C};
+use super::registers::{one_intrinsic_ops, store_group, Regs, Sol, C};
 use super::{Consts, IdentProblem, Outs};
 use crate::lanes::V;
 use std::arch::x86_64::*;
@@ -57,31 +57,8 @@ unsafe fn transpose(r: [__m512d; 8]) -> [__m512d; 8] {
 
 impl Regs<N> for Avx512 {
     type V = __m512d;
+    one_intrinsic_ops!(__m512d, N, _mm512_set1_pd, _mm512_add_pd, _mm512_sub_pd, _mm512_mul_pd, _mm512_div_pd, _mm512_sqrt_pd, _mm512_loadu_pd);
     type M = __mmask8;
-    #[inline(always)]
-    unsafe fn splat(x: f64) -> __m512d {
-        _mm512_set1_pd(x)
-    }
-    #[inline(always)]
-    unsafe fn add(a: __m512d, b: __m512d) -> __m512d {
-        _mm512_add_pd(a, b)
-    }
-    #[inline(always)]
-    unsafe fn sub(a: __m512d, b: __m512d) -> __m512d {
-        _mm512_sub_pd(a, b)
-    }
-    #[inline(always)]
-    unsafe fn mul(a: __m512d, b: __m512d) -> __m512d {
-        _mm512_mul_pd(a, b)
-    }
-    #[inline(always)]
-    unsafe fn div(a: __m512d, b: __m512d) -> __m512d {
-        _mm512_div_pd(a, b)
-    }
-    #[inline(always)]
-    unsafe fn sqrt(a: __m512d) -> __m512d {
-        _mm512_sqrt_pd(a)
-    }
     #[inline(always)]
     unsafe fn neg(a: __m512d) -> __m512d {
         _mm512_xor_pd(a, _mm512_set1_pd(-0.0))
@@ -96,21 +73,8 @@ impl Regs<N> for Avx512 {
         _mm512_mask_blend_pd(_mm512_cmp_pd_mask::<_CMP_UNORD_Q>(a, b), _mm512_max_pd(a, b), _mm512_add_pd(a, b))
     }
     #[inline(always)]
-    unsafe fn load(p: *const f64) -> __m512d {
-        _mm512_loadu_pd(p)
-    }
-    #[inline(always)]
     unsafe fn lanes_of(f: impl Fn(usize) -> f64) -> __m512d {
         _mm512_setr_pd(f(0), f(1), f(2), f(3), f(4), f(5), f(6), f(7))
-    }
-    #[inline(always)]
-    unsafe fn to_lanes(a: __m512d) -> V<N> {
-        // SAFETY: V<8> is repr(transparent) over [f64; 8], the same 64 bytes as __m512d
-        std::mem::transmute::<__m512d, V<N>>(a)
-    }
-    #[inline(always)]
-    unsafe fn from_lanes(a: V<N>) -> __m512d {
-        std::mem::transmute::<V<N>, __m512d>(a)
     }
     #[inline(always)]
     unsafe fn load_points(ptr: &[*const f64; N]) -> [C<__m512d>; 4] {
@@ -120,19 +84,12 @@ impl Regs<N> for Avx512 {
     #[inline(always)]
     unsafe fn put_rows(dst: &mut [f64], g0: usize, nl: usize, v: &[__m512d; 8]) {
         let rows = transpose(*v);
-        let store = |d: *mut f64| {
+        store_group::<{ 8 * N }>(dst, 8 * g0, 8 * nl, |d| {
             for (l, row) in rows.iter().enumerate() {
                 // d holds 64 doubles; row l is d[8 l..8 l + 8]
                 _mm512_storeu_pd(d.add(8 * l), *row);
             }
-        };
-        if nl == N {
-            store(dst[8 * g0..8 * g0 + 8 * N].as_mut_ptr());
-        } else {
-            let mut tmp = [0.0f64; 8 * N];
-            store(tmp.as_mut_ptr());
-            dst[8 * g0..8 * (g0 + nl)].copy_from_slice(&tmp[..8 * nl]);
-        }
+        });
     }
     #[inline(always)]
     unsafe fn put_lanes(dst: &mut [f64], g0: usize, nl: usize, v: __m512d) {
@@ -147,18 +104,11 @@ impl Regs<N> for Avx512 {
         // indices 0-7 pick a's lanes, 8-15 b's: [a0 b0 a1 b1 a2 b2 a3 b3], [a4 b4 ... a7 b7]
         let lo = _mm512_permutex2var_pd(a, _mm512_setr_epi64(0, 8, 1, 9, 2, 10, 3, 11), b);
         let hi = _mm512_permutex2var_pd(a, _mm512_setr_epi64(4, 12, 5, 13, 6, 14, 7, 15), b);
-        let store = |d: *mut f64| {
+        store_group::<{ 2 * N }>(dst, 2 * g0, 2 * nl, |d| {
             // d holds 16 doubles
             _mm512_storeu_pd(d, lo);
             _mm512_storeu_pd(d.add(8), hi);
-        };
-        if nl == N {
-            store(dst[2 * g0..2 * g0 + 2 * N].as_mut_ptr());
-        } else {
-            let mut tmp = [0.0f64; 2 * N];
-            store(tmp.as_mut_ptr());
-            dst[2 * g0..2 * (g0 + nl)].copy_from_slice(&tmp[..2 * nl]);
-        }
+        });
     }
     #[inline(always)]
     unsafe fn finite(x: __m512d) -> __mmask8 {

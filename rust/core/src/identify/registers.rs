@@ -88,6 +88,64 @@ pub(super) trait Regs<const N: usize> {
     unsafe fn solve(rows: &[[C<Self::V>; 4]], refine_cond: f64, out: &mut Sol<Self::V>);
 }
 
+/// The [`Regs`] operations that are one intrinsic each, for a register type `$v` of `$n` lanes
+/// (the same in every instance; the intrinsics are named where the macro is used).
+macro_rules! one_intrinsic_ops {
+    ($v:ty, $n:expr, $set1:ident, $add:ident, $sub:ident, $mul:ident, $div:ident, $sqrt:ident, $load:ident) => {
+        #[inline(always)]
+        unsafe fn splat(x: f64) -> $v {
+            $set1(x)
+        }
+        #[inline(always)]
+        unsafe fn add(a: $v, b: $v) -> $v {
+            $add(a, b)
+        }
+        #[inline(always)]
+        unsafe fn sub(a: $v, b: $v) -> $v {
+            $sub(a, b)
+        }
+        #[inline(always)]
+        unsafe fn mul(a: $v, b: $v) -> $v {
+            $mul(a, b)
+        }
+        #[inline(always)]
+        unsafe fn div(a: $v, b: $v) -> $v {
+            $div(a, b)
+        }
+        #[inline(always)]
+        unsafe fn sqrt(a: $v) -> $v {
+            $sqrt(a)
+        }
+        #[inline(always)]
+        unsafe fn load(p: *const f64) -> $v {
+            $load(p)
+        }
+        #[inline(always)]
+        unsafe fn to_lanes(a: $v) -> V<{ $n }> {
+            // V<N> is repr(transparent) over [f64; N], the same bytes as the register
+            std::mem::transmute::<$v, V<{ $n }>>(a)
+        }
+        #[inline(always)]
+        unsafe fn from_lanes(a: V<{ $n }>) -> $v {
+            std::mem::transmute::<V<{ $n }>, $v>(a)
+        }
+    };
+}
+pub(super) use one_intrinsic_ops;
+
+/// Write `M` doubles through `store` at `dst[off..off + M]`, or, for a group cut short (`keep` <
+/// `M` of them wanted), into a scratch block whose first `keep` values are copied there.
+#[inline(always)]
+pub(super) fn store_group<const M: usize>(dst: &mut [f64], off: usize, keep: usize, store: impl Fn(*mut f64)) {
+    if keep == M {
+        store(dst[off..off + M].as_mut_ptr());
+    } else {
+        let mut tmp = [0.0f64; M];
+        store(tmp.as_mut_ptr());
+        dst[off..off + keep].copy_from_slice(&tmp[..keep]);
+    }
+}
+
 /// A complex lane vector in registers (`repr(C)`: the layout of a `Z<N>`, more strictly aligned).
 #[derive(Clone, Copy)]
 #[repr(C)]
