@@ -2,9 +2,9 @@
 //! in a `__m512d`, lane masks in a `__mmask8`. The lanes do the AVX2 kernel's operations (no fused
 //! multiply-add), so the outputs are the same bits at every level.
 //!
-//! On the Intel Xeon this was written on (two 512-bit FMA ports), one thread, 4,096 points from 4
-//! runs, best of interleaved runs of `examples/identify_points`: see the README's benchmarks
-//! (2026-11-27, eighth session). On an AMD EPYC (Zen 4, 512-bit operations as two 256-bit
+//! On the Intel Xeon this was written on it takes 39-41 ns per point against the AVX2 instance's
+//! 54-57 (one thread, 4,096 points from 4 runs, `examples/identify_points`; see
+//! [`super::forces_chunk_dispatch`] and the README's benchmarks, 2026-11-27, eighth session). On an AMD EPYC (Zen 4, 512-bit operations as two 256-bit
 //! halves) the earlier lane-array kernels of 8 lanes were slower than 4 (see
 //! [`super::forces_chunk_dispatch`]); this register kernel was not measured there.
 

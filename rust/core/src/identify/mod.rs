@@ -777,9 +777,11 @@ fn solve_apart<const N: usize>(rows: &[[Z<N>; 4]], refine_cond: f64, out: &mut L
 ///   masks, the solver on registers: 63.4 (1,181 -> 851 instructions per point); with 2 runs
 ///   46.3 -> 27.0 (571 -> 346). So the AVX-512 CPUs ran the AVX2 code until the register kernel
 ///   had an 8-lane version.
-/// - Intel Xeon (two 512-bit FMA ports), best of 5 interleaved runs: the register kernel at 4
-///   lanes of AVX2 63-65, at 8 lanes of AVX-512 47-49; with standard errors 78-80 and 63-65; 2
-///   runs 27.5 and 20.8. Not measured on Zen 4, whose 512-bit operations are two 256-bit halves.
+/// - Intel Xeon (eighth session), best of 3-5 interleaved runs: the register kernel at 4 lanes of
+///   AVX2 63-65, at 8 lanes of AVX-512 47-49 (with standard errors 78-80 and 63-65; 2 runs 27.5
+///   and 20.8); with the pointers' closure inlined 61-65 and 44-45; with the refinement step
+///   only from [`REFINE_COND`] on 54-57 and 39-41 (2 runs, no refinement there: 28-30 and
+///   20-21). Not measured on Zen 4, whose 512-bit operations are two 256-bit halves.
 fn forces_chunk_dispatch(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize {
     match crate::lanes::simd() {
         // SAFETY: simd() reports AVX2 and FMA at the Avx2 level; CPUs with AVX-512 F and DQ have
