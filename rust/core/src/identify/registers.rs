@@ -654,8 +654,9 @@ mod tests {
         Avx512,
     }
 
-    /// Every output of one chunk, from a register kernel or the 2-lane generic one.
-    fn run(p: &IdentProblem, with_std: bool, kernel: Kernel) -> (usize, Vec<Vec<f64>>) {
+    /// Every output of one chunk, from a register kernel or the 2-lane generic one, refined from
+    /// `refine_cond` on.
+    fn run_refined(p: &IdentProblem, with_std: bool, kernel: Kernel, refine_cond: f64) -> (usize, Vec<Vec<f64>>) {
         let np = p.batch * p.points();
         let mut o: Vec<Vec<f64>> = [8, 8, 2, 1, 1, 8, 8, 1].iter().map(|m| vec![0.0; m * np]).collect();
         let [k, c, cond, resid, amp, ks, cs, rel] = &mut o[..] else { unreachable!() };
@@ -669,7 +670,7 @@ mod tests {
             cs: with_std.then_some(&mut cs[..]),
             rel: with_std.then_some(&mut rel[..]),
         };
-        let kc = Consts::new(&p.rotor);
+        let kc = Consts { refine_cond, ..Consts::new(&p.rotor) };
         // SAFETY: each kernel is called only when the CPU has its features (see the test)
         let nbad = match kernel {
             Kernel::Generic => generic_chunk::<2>(p, &kc, 0, outs),
@@ -677,6 +678,11 @@ mod tests {
             Kernel::Avx512 => unsafe { avx512::forces_chunk(p, &kc, 0, outs) },
         };
         (nbad, o)
+    }
+
+    /// [`run_refined`] with the default threshold.
+    fn run(p: &IdentProblem, with_std: bool, kernel: Kernel) -> (usize, Vec<Vec<f64>>) {
+        run_refined(p, with_std, kernel, REFINE_COND_FOR_TESTS)
     }
 
     fn value(seed: u64, special: u8) -> f64 {
@@ -687,20 +693,6 @@ mod tests {
             3 => 1e200,
             _ => (seed % 2001) as f64 * 1e-3 - 1.0,
         }
-    }
-
-    /// k, c and cond of the generic kernel, with the default refinement threshold or refining every
-    /// lane (as `identify_serial` does).
-    fn generic_kcc(p: &IdentProblem, refine_all: bool) -> [Vec<f64>; 3] {
-        let np = p.batch * p.points();
-        let (mut k, mut c, mut cond, mut resid, mut amp) = (vec![0.0; 8 * np], vec![0.0; 8 * np], vec![0.0; 2 * np], vec![0.0; np], vec![0.0; np]);
-        let mut kc = Consts::new(&p.rotor);
-        if refine_all {
-            kc.refine_cond = 0.0;
-        }
-        let outs = Outs { k: &mut k, c: &mut c, cond: &mut cond, resid: &mut resid, amp: &mut amp, ks: None, cs: None, rel: None };
-        generic_chunk::<2>(p, &kc, 0, outs);
-        [k, c, cond]
     }
 
     proptest! {
@@ -735,8 +727,10 @@ mod tests {
                 batch: 1, runs, identical: false,
             };
             p.check().unwrap();
-            let [k, c, cond] = generic_kcc(&p, false);
-            let [kr, cr, condr] = generic_kcc(&p, true);
+            // the generic kernel with the default threshold, and refining every lane
+            let (_, o) = run_refined(&p, false, Kernel::Generic, REFINE_COND_FOR_TESTS);
+            let (_, or) = run_refined(&p, false, Kernel::Generic, 0.0);
+            let ([k, c, cond], [kr, cr, condr]) = ([&o[0], &o[1], &o[2]], [&or[0], &or[1], &or[2]]);
             for i in 0..n {
                 for sb in 0..2 {
                     let cn = cond[2 * i + sb];
