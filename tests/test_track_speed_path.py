@@ -291,6 +291,36 @@ def test_the_core_order_vectors_refuse_bad_arguments_by_name():
         _core.order_vectors(x, 100.0, 0.0, kp, 0, 5, 8, [-1])
 
 
+def test_the_core_block_statistics_refuse_bad_arguments_by_name():
+    per = np.zeros((10, 2, 4), complex)
+    t = np.zeros(10)
+    i64 = lambda *v: np.array(v, np.int64)  # noqa: E731
+    out = _core.block_statistics(per, t, t, i64(0, 5), i64(5, 5), 1)
+    assert [a.shape for a in out] == [(2, 2, 4), (2, 8, 8), (2,), (2,), (2,), (2, 4)]
+    with pytest.raises(ValueError, match="block 0 .3 revolutions from 8. is empty or ends past the 10 revolutions"):
+        _core.block_statistics(per, t, t, i64(8), i64(3))
+    with pytest.raises(ValueError, match="is empty"):
+        _core.block_statistics(per, t, t, i64(0), i64(0))
+    with pytest.raises(ValueError, match="starts must be >= 0, got -1"):
+        _core.block_statistics(per, t, t, i64(-1), i64(2))
+    with pytest.raises(ValueError, match=r"lengths has shape \[1\], expected \[2\]"):
+        _core.block_statistics(per, t, t, i64(0, 1), i64(2))
+    with pytest.raises(ValueError, match="cov_order must be an order index below 2, got 2"):
+        _core.block_statistics(per, t, t, i64(0), i64(2), 2)
+    with pytest.raises(ValueError, match="max_batches must be at least 2"):
+        _core.block_statistics(per, t, t, i64(0), i64(2), 0, 1)
+    with pytest.raises(ValueError, match="channels must be at least 4"):
+        _core.block_statistics(per[:, :, :3].copy(), t, t, i64(0), i64(2))
+    with pytest.raises(ValueError, match=r"rpm has shape \[9\], expected \[10\]"):
+        _core.block_statistics(per, t[:9], t, i64(0), i64(2))
+    with pytest.raises(ValueError, match=r"per_rev has shape \[10, 8\], expected \(revolutions, orders, channels\)"):
+        _core.block_statistics(per.reshape(10, 8), t, t, i64(0), i64(2))
+    with pytest.raises(ValueError, match="per_rev must be a C-contiguous array"):
+        _core.block_statistics(np.zeros((10, 4, 2), complex).transpose(0, 2, 1), t, t, i64(0), i64(2))
+    with pytest.raises(RotoridError, match=r"v must be per-revolution vectors of shape \(revolutions, 4 or 8\)"):
+        order.mean_covariance(np.zeros((5, 3), complex))
+
+
 def test_order_vectors_do_not_depend_on_the_thread_count():
     """Revolutions are summed in tasks of a few revolutions each; the drift slopes join them after
     the tasks. One thread (RAYON_NUM_THREADS=1) gives the same bits as the pool."""

@@ -193,7 +193,12 @@ def mean_covariance(v, *, max_batches: int = 16):
     Re p, Im p]), from batch means: the revolutions are cut into up to ``max_batches``
     consecutive batches, so noise correlated over fewer revolutions than a batch is accounted
     for. Returns (cov (8, 8), dof)."""
-    cov, dof = _batch_mean_covariance(np.asarray(v)[None], max_batches=max_batches)
+    v = np.ascontiguousarray(v, dtype=complex)
+    if v.ndim != 2 or v.shape[1] not in (4, 8) or v.shape[0] < 1:
+        raise RotoridError(f"v must be per-revolution vectors of shape (revolutions, 4 or 8), got shape {v.shape}")
+    revs = v.shape[0]
+    _, cov, dof, *_ = _core.block_statistics(v[:, None, :], np.zeros(revs), np.zeros(revs), np.zeros(1, np.int64),
+                                             np.full(1, revs, np.int64), 0, int(max_batches))
     return cov[0], float(dof[0])
 
 
@@ -202,50 +207,11 @@ def _block_statistics(per_rev, rpm, tmid, starts, lengths, i1):
     n_orders, C), the covariance of the 1X mean (n_blocks, 2C, 2C) and its dof
     (:func:`mean_covariance`; NaN without order 1 at index ``i1``), the mean speed and mid time,
     and the scatter of the first order's per-revolution vectors about their mean (n_blocks, 4).
-    Blocks of one length are reduced together, as views where they follow each other (a
-    coast-down has thousands of equal blocks; a loop over them cost 4-6x the tracking itself)."""
-    nb, nch = starts.size, per_rev.shape[2]
-    m = 2 * nch
-    mean = np.empty((nb,) + per_rev.shape[1:], complex)
-    cov, dof = np.full((nb, m, m), np.nan), np.full(nb, np.nan)
-    sp, tm, scat = np.empty(nb), np.empty(nb), np.empty((nb, 4))
-    for n in np.unique(lengths):
-        n = int(n)
-        sel = np.flatnonzero(lengths == n)
-        count, s0 = sel.size, int(starts[sel[0]])
-        if np.array_equal(starts[sel], s0 + n * np.arange(count)):
-            span = slice(s0, s0 + n * count)            # back to back: views, no copies
-            v = per_rev[span].reshape(count, n, *per_rev.shape[1:])
-            r, t = rpm[span].reshape(count, n), tmid[span].reshape(count, n)
-        else:
-            idx = starts[sel, None] + np.arange(n)      # (blocks, n) revolution indices
-            v, r, t = per_rev[idx], rpm[idx], tmid[idx]
-        bm = v.mean(axis=1)                             # (blocks, n_orders, C)
-        mean[sel] = bm
-        if i1 is not None:
-            cov[sel], dof[sel] = _batch_mean_covariance(v[:, :, i1, :])
-        sp[sel] = r.mean(axis=1)
-        tm[sel] = t.mean(axis=1)
-        dev = v[:, :, 0, :4] - bm[:, None, 0, :4]
-        scat[sel] = np.sqrt(np.mean(dev.real ** 2 + dev.imag ** 2, axis=1))
+    One core call for all blocks (``block_statistics``): a coast-down has thousands of blocks."""
+    mean, cov, dof, sp, tm, scat = _core.block_statistics(
+        np.ascontiguousarray(per_rev), np.ascontiguousarray(rpm, dtype=float), np.ascontiguousarray(tmid, dtype=float),
+        np.ascontiguousarray(starts, dtype=np.int64), np.ascontiguousarray(lengths, dtype=np.int64), i1)
     return mean, cov, dof, sp, scat, tm
-
-
-def _batch_mean_covariance(v, *, max_batches: int = 16):
-    """:func:`mean_covariance` of a stack of blocks of equal length, ``v`` (blocks, revs, k):
-    (cov (blocks, 2k, 2k), dof (blocks,)): for each block the sample covariance (ddof 1) of its
-    batch means' [Re, Im] parts, divided by the number of batches."""
-    nbl, n, k = v.shape
-    nb = min(n, max_batches)
-    if nb < 2:
-        return np.full((nbl, 2 * k, 2 * k), np.nan), np.full(nbl, np.nan)
-    size = n // nb
-    # (a block of up to 16 revolutions: each batch is one revolution)
-    b = v[:, :nb] if size == 1 else v[:, : nb * size].reshape(nbl, nb, size, k).mean(axis=2)
-    r = np.concatenate([part for g in range(0, k, 4) for part in (b[:, :, g:g + 4].real, b[:, :, g:g + 4].imag)],
-                       axis=2)                          # (blocks, nb, 2k)
-    dev = r - r.mean(axis=1, keepdims=True)
-    return np.matmul(dev.transpose(0, 2, 1), dev) / ((nb - 1) * nb), np.full(nbl, float(nb - 1))
 
 
 def steady_segments(kp: Keyphasor, *, tolerance: float = 0.005, min_revs: int = 8, settle_revs: int = 2):

@@ -4,7 +4,7 @@
 //! become a `RuntimeError` (a panic never crosses into Python).
 
 use rotorid_core::study::{self, Excitation, ImpactErrors, Method, Study, SyncErrors};
-use rotorid_core::{forced, identify, modal, model, order, pedestal, pedestal_cov, series, timesim, CoreError, Rotor, C64};
+use rotorid_core::{forced, identify, modal, model, order, pedestal, pedestal_cov, revolution_blocks, series, timesim, CoreError, Rotor, C64};
 use numpy::{PyArray1, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyMemoryError, PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -1439,6 +1439,83 @@ fn order_vectors<'py>(
     to_py(py, out, &[revs, orders.len(), nch])
 }
 
+/// Statistics of blocks of consecutive revolutions (rotorid_core::revolution_blocks): per_rev
+/// (revs, orders, C) complex; rpm, t_mid (revs,); starts, lengths (blocks,) int64; cov_order: the
+/// order index whose mean's covariance is estimated, or None, from at most max_batches batch
+/// means. Returns (mean (blocks, orders, C),
+/// cov (blocks, 2C, 2C), dof, rpm, t_mid (blocks,), scatter (blocks, 4)).
+#[pyfunction]
+#[pyo3(signature = (per_rev, rpm, t_mid, starts, lengths, cov_order=None, max_batches=revolution_blocks::MAX_BATCHES))]
+#[allow(clippy::type_complexity)]
+fn block_statistics<'py>(
+    py: Python<'py>,
+    per_rev: PyReadonlyArrayDyn<'py, C64>,
+    rpm: PyReadonlyArrayDyn<'py, f64>,
+    t_mid: PyReadonlyArrayDyn<'py, f64>,
+    starts: PyReadonlyArrayDyn<'py, i64>,
+    lengths: PyReadonlyArrayDyn<'py, i64>,
+    cov_order: Option<usize>,
+    max_batches: usize,
+) -> PyResult<(
+    Bound<'py, PyArrayDyn<C64>>,
+    Bound<'py, PyArrayDyn<f64>>,
+    Bound<'py, PyArrayDyn<f64>>,
+    Bound<'py, PyArrayDyn<f64>>,
+    Bound<'py, PyArrayDyn<f64>>,
+    Bound<'py, PyArrayDyn<f64>>,
+)> {
+    let shape = per_rev.shape();
+    if shape.len() != 3 {
+        return Err(PyValueError::new_err(format!("per_rev has shape {shape:?}, expected (revolutions, orders, channels)")));
+    }
+    let (revs, no, nc) = (shape[0], shape[1], shape[2]);
+    check_shape("rpm", rpm.shape(), &[revs])?;
+    check_shape("t_mid", t_mid.shape(), &[revs])?;
+    let nb = starts.len();
+    check_shape("starts", starts.shape(), &[nb])?;
+    check_shape("lengths", lengths.shape(), &[nb])?;
+    let index = |name: &str, a: &PyReadonlyArrayDyn<'py, i64>| -> PyResult<Vec<usize>> {
+        slice(a, name)?
+            .iter()
+            .map(|&v| usize::try_from(v).map_err(|_| PyValueError::new_err(format!("{name} must be >= 0, got {v}"))))
+            .collect()
+    };
+    let (st, ln) = (index("starts", &starts)?, index("lengths", &lengths)?);
+    let m = 2 * nc;
+    check_alloc("block_statistics", nb.checked_mul(no * nc + m * m + 8), 16)?;
+    let rev = revolution_blocks::Revolutions {
+        per_rev: slice(&per_rev, "per_rev")?,
+        orders: no,
+        channels: nc,
+        rpm: slice(&rpm, "rpm")?,
+        t_mid: slice(&t_mid, "t_mid")?,
+    };
+    let (mean, cov, dof, sp, tm, scat) = py.detach(|| {
+        guarded(|| {
+            let (mut mean, mut cov, mut dof) = (out_buf(nb * no * nc), out_buf(nb * m * m), out_buf(nb));
+            let (mut sp, mut tm, mut scat) = (out_buf(nb), out_buf(nb), out_buf(nb * 4));
+            let mut out = revolution_blocks::BlockOutputs {
+                mean: &mut mean,
+                cov: &mut cov,
+                dof: &mut dof,
+                rpm: &mut sp,
+                t_mid: &mut tm,
+                scatter: &mut scat,
+            };
+            revolution_blocks::block_statistics(&rev, &st, &ln, cov_order, max_batches, &mut out).map(|_| (mean, cov, dof, sp, tm, scat))
+        })
+    })?
+    .map_err(core_err)?;
+    Ok((
+        to_py(py, mean, &[nb, no, nc])?,
+        to_py(py, cov, &[nb, m, m])?,
+        to_py(py, dof, &[nb])?,
+        to_py(py, sp, &[nb])?,
+        to_py(py, tm, &[nb])?,
+        to_py(py, scat, &[nb, 4])?,
+    ))
+}
+
 /// Resample channels x (C, N), or a list of C channels (N,) used where they are, at p uniform
 /// angles per revolution for revolutions k0..k1.
 /// Returns (C, k1 - k0, p).
@@ -1803,6 +1880,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(check_covariances, m)?)?;
     m.add_function(wrap_pyfunction!(unknown_points, m)?)?;
     m.add_function(wrap_pyfunction!(flag_codes, m)?)?;
+    m.add_function(wrap_pyfunction!(block_statistics, m)?)?;
     m.add_function(wrap_pyfunction!(wake_pool, m)?)?;
     m.add_function(wrap_pyfunction!(move_covariances, m)?)?;
     m.add_function(wrap_pyfunction!(sample_times, m)?)?;

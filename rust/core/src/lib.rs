@@ -39,6 +39,7 @@ pub mod pedestal;
 pub mod pedestal_cov;
 pub mod par;
 pub mod pedestal_fit;
+pub mod revolution_blocks;
 pub mod series;
 pub mod study;
 pub mod timesim;
