@@ -1,5 +1,6 @@
-"""Public API throughput as a share of its core calls, for the batch entry points the other benches
-do not time (forward models, plane transforms, time stepping, series supports, pedestals).
+"""Public API throughput as a share of its core calls, for every batch entry point on large inputs
+(forward models, plane transforms, time stepping, series supports, pedestals, order tracking, and
+the two identifications, which bench_identify.py and bench_impact.py also time at their own sizes).
 
     python benches/bench_entry_points.py [--rounds 15] [--only NAME ...] [--quick]
 
@@ -72,6 +73,10 @@ def entries(n, n_time):
                                         cov=np.broadcast_to(np.eye(8) * 1e-16, (m, 8, 8)).copy(), dof=np.full(m, 10.0))
                  for d, t in ((d, rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=2000.0, freq_hz=f[:m],
                                                      direction=d)) for d in "xy")]
+    # the identifications at the same large size (bench_impact.py times 10,000 frequencies, where
+    # the API's fixed ~0.1 ms of Python is a third to a half of the call)
+    runs4 = [rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=rpm) for s in "ABCD"]
+    tests2 = [rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=2000.0, freq_hz=f, direction=d) for d in "xy"]
     from rotorid import signals, uncertainty
     from rotorid.recording import Recording
 
@@ -104,6 +109,8 @@ def entries(n, n_time):
         "SyncResponse.at_bearings": lambda: run.at_bearings(rig.rotor),
         "ImpactResponse.at_bearings": lambda: test.at_bearings(rig.rotor),
         "series_impedance": lambda: rotorid.series_impedance(zb, zd, 12.0, f),
+        "identify_synchronous (4 runs)": lambda: rotorid.identify_synchronous(rig.rotor, runs4),
+        "identify_impact (2 tests)": lambda: rotorid.identify_impact(rig.rotor, tests2),
         "identify_pedestals (2 runs)": lambda: rotorid.identify_pedestals(rig.rotor, runs_ped),
         "identify_pedestals (2 runs, cross-coupled)": lambda: rotorid.identify_pedestals(rig.rotor, runs_ped,
                                                                                          cross_coupled=True),
