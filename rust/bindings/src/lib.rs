@@ -1446,7 +1446,7 @@ fn order_vectors<'py>(
 /// cov (blocks, 2C, 2C), dof, rpm, t_mid (blocks,), scatter (blocks, 4)).
 #[pyfunction]
 #[pyo3(signature = (per_rev, rpm, t_mid, starts, lengths, cov_order=None, max_batches=revolution_blocks::MAX_BATCHES))]
-#[allow(clippy::type_complexity)]
+#[allow(clippy::type_complexity, clippy::too_many_arguments)]
 fn block_statistics<'py>(
     py: Python<'py>,
     per_rev: PyReadonlyArrayDyn<'py, C64>,
