@@ -282,6 +282,62 @@ def test_identifications_without_standard_errors_hold_read_only_nan():
         ident.k_std[0, 0, 0, 0] = 1.0
 
 
+def test_no_two_identifications_share_a_mutable_nan_view():
+    """The unknown standard errors are views of one read-only NaN array per shape: reshaping one
+    result's view in place leaves the next result's alone, and none can be made writeable."""
+    rig = rotorid.nsf_rig()
+    f = np.linspace(2, 200, 20)
+    tests = [rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=1000, freq_hz=f, direction=d) for d in "xy"]
+    first = rotorid.identify_impact(rig.rotor, tests)
+    first.k_std.shape = (20, 8)
+    second = rotorid.identify_impact(rig.rotor, tests)
+    assert second.k_std.shape == second.c_std.shape == (20, 2, 2, 2) and second.rel_std.shape == (20,)
+    with pytest.raises(ValueError, match="WRITEABLE"):
+        second.k_std.flags.writeable = True
+
+
+def test_impact_layouts_are_read_once_and_changed_tests_are_seen():
+    """The excitations and their independence are cached per layout of (plane, direction): a test
+    changed after construction is identified with its new layout, a plane or direction set to
+    something the constructor would refuse is refused by name, and the cached excitations cannot
+    be written."""
+    from rotorid import identify as ident_mod
+
+    rig = rotorid.nsf_rig()
+    f = np.linspace(2, 200, 20)
+    hx, hy = (rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=1000, freq_hz=f, direction=d) for d in "xy")
+    e, rank = ident_mod._test_excitations([hx, hy])
+    np.testing.assert_array_equal(e, [hx.excitation(), hy.excitation()])
+    assert rank == 2 and not e.flags.writeable
+    assert ident_mod._test_excitations([hx, hy])[0] is e          # the same layout: read once
+    ref = rotorid.identify_impact(rig.rotor, [hx, hy])
+    # the y test turned into a second x test at the same plane: dependent, whatever was cached
+    hy.direction = "x"
+    with pytest.raises(IdentifiabilityError, match="not independent"):
+        rotorid.identify_impact(rig.rotor, [hx, hy])
+    hy.direction = "y"
+    np.testing.assert_array_equal(rotorid.identify_impact(rig.rotor, [hx, hy]).k, ref.k)
+    # values the cache does not take: checked as the constructor checks them
+    hy.plane = np.float32(0.0)
+    np.testing.assert_array_equal(rotorid.identify_impact(rig.rotor, [hx, hy]).k, ref.k)
+    hy.plane = "a"
+    with pytest.raises(RotoridError, match="plane"):
+        rotorid.identify_impact(rig.rotor, [hx, hy])
+    # True hashes as 1.0, a layout the cache may hold: still refused
+    ident_mod._test_excitations([hx, rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=1000, freq_hz=f,
+                                                        direction="y", plane=1.0)])
+    hy.plane = True
+    with pytest.raises(RotoridError, match="plane must be a real number, got True"):
+        rotorid.identify_impact(rig.rotor, [hx, hy])
+    hy.plane, hy.direction = 0.0, "z"
+    with pytest.raises(RotoridError, match="direction must be"):
+        rotorid.identify_impact(rig.rotor, [hx, hy])
+    hy.plane = float("nan")
+    hy.direction = "y"
+    with pytest.raises(RotoridError, match="plane"):
+        rotorid.identify_impact(rig.rotor, [hx, hy])
+
+
 @given(rotors(), bearing_pair(), st.sampled_from(["forces", "report"]), st.booleans(), st.booleans())
 # a clean-clone CI run found this one: a stiff bearing (27e6 N/m) with small damping at 5 Hz
 @example(rotorid.RigidRotor(mass_kg=5.0, it_kgm2=0.07660866082524159, ip_kgm2=0.09576082603155199, l1=0.53125, l2=0.25,
