@@ -994,13 +994,11 @@ def _test_excitations(tests):
     return E, _excitation_rank(E)
 
 
-def check_impact_independence(tests, labels, *, identical=False, excitation=None, rank=None):
-    """Raise IdentifiabilityError when the impacts cannot excite independent responses.
-    ``excitation``: the tests' (R, 4) generalized forces when the caller has them already, and
-    ``rank`` their rank (:func:`_excitation_rank`)."""
-    E = np.array([t.excitation() for t in tests]) if excitation is None else excitation  # (R, 4), real
+def check_impact_independence(tests, labels, *, identical=False):
+    """Raise IdentifiabilityError when the impacts cannot excite independent responses; else
+    return the tests' (R, 4) generalized forces, per unit force (:func:`_test_excitations`)."""
+    E, rank = _test_excitations(tests)
     need = 1 if identical else 2
-    rank = _excitation_rank(E) if rank is None else rank
     if rank < need:
         if len(tests) < need:
             raise IdentifiabilityError(
@@ -1011,6 +1009,7 @@ def check_impact_independence(tests, labels, *, identical=False, excitation=None
         raise IdentifiabilityError(
             "the impact tests are not independent (all in the same direction at the same plane, so every test repeats the "
             f"same excitation): {desc}. Add an impact in the orthogonal direction or at another plane (report section 5)")
+    return E
 
 
 def identify_impact(rotor: RigidRotor, tests, *, method: str = "forces", identical: bool = False,
@@ -1056,8 +1055,7 @@ def identify_impact(rotor: RigidRotor, tests, *, method: str = "forces", identic
         if not math.isclose(t.sigma, tests[0].sigma, rel_tol=1e-9, abs_tol=0.0):
             raise RotoridError(f"sigma (exponential window decay) of {labels[i]} ({t.sigma:g} 1/s) differs from "
                                f"{labels[0]} ({tests[0].sigma:g} 1/s): window all tests alike")
-    e, rank = _test_excitations(tests)  # (R, 4), per unit force
-    check_impact_independence(tests, labels, identical=identical, excitation=e, rank=rank)
+    e = check_impact_independence(tests, labels, identical=identical)  # (R, 4), per unit force
     q_ped = cal = planes = None
     if _has_pedestal(tests, labels):
         qs, q_ped, covs, dofs, pflags = _pedestal_inputs(rotor, tests, labels, "freq_hz", f)
