@@ -144,6 +144,19 @@ def angle_resample(
     fs: float, t0: float, kp: npt.NDArray[np.float64], k0: int, k1: int, p: int,
 ) -> npt.NDArray[np.float64]: ...  # (C, k1 - k0, p): p uniform angles per revolution k0..k1
 
+def block_statistics(
+    per_rev: npt.NDArray[np.complex128],  # (revolutions, orders, C), C >= 4
+    rpm: npt.NDArray[np.float64], t_mid: npt.NDArray[np.float64],  # (revolutions,)
+    starts: npt.NDArray[np.int64], lengths: npt.NDArray[np.int64],  # (blocks,): revolutions of each block
+    cov_order: int | None = None, max_batches: int = 16,
+) -> tuple[npt.NDArray[np.complex128], npt.NDArray[np.float64], npt.NDArray[np.float64],
+           npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    """Per block: (mean vectors (blocks, orders, C), batch-means covariance of order ``cov_order``'s
+    mean (blocks, 2C, 2C; NaN without it or for one revolution), its dof, mean rpm, mean t_mid,
+    scatter of order 0 on channels 0-3 (blocks, 4)) (revolution_blocks.rs)."""
+    ...
+
+
 def order_vectors(
     x: npt.NDArray[np.float64] | list[npt.NDArray[np.float64]],  # as angle_resample
     fs: float, t0: float, kp: npt.NDArray[np.float64], k0: int, k1: int, p: int,
