@@ -2,13 +2,16 @@
 (forward models, plane transforms, time stepping, series supports, pedestals, order tracking, and
 the two identifications, which bench_identify.py and bench_impact.py also time at their own sizes).
 
-    python benches/bench_entry_points.py [--rounds 15] [--only NAME ...] [--quick]
+    python benches/bench_entry_points.py [--rounds 15] [--only NAME ...] [--quick] [--points N]
 
 For each entry point the core calls it makes are recorded while it runs once (every function of
 ``rotorid._core`` is seen through ``rotorid._corecall.core``), then the public call and a replay of
 exactly those core calls with the same argument objects are timed in interleaved rounds of two back-to-back
 calls each (best of ``--rounds``, ``common.best_of_each``). API / core = core time / API time,
-target >= 90 % (issue 10). Large inputs: 100,000 speeds or frequencies, 2 M samples for time stepping, 10 M samples x 4 channels for
+target >= 90 % (issue 10). "API - core" is what the public call adds, in µs: run at two sizes
+(``--quick`` is 10,000 points, ``--points`` any other), it shows whether that is a fixed cost per
+call (Python's checks and the result object, slower right after a core call has filled the caches
+with its arrays) or grows with the input (a copy, a scan, a temporary). Large inputs: 100,000 speeds or frequencies, 2 M samples for time stepping, 10 M samples x 4 channels for
 order tracking (one core call for the per-revolution order vectors; then the block statistics:
 one steady segment, or a coast-down's ~6,000 blocks of 4 revolutions).
 """
@@ -142,25 +145,33 @@ def main():
     ap.add_argument("--rounds", type=int, default=15)
     ap.add_argument("--only", nargs="*")
     ap.add_argument("--quick", action="store_true", help="10,000 points, 200,000 samples, 5 rounds")
+    ap.add_argument("--points", type=int, default=None,
+                    help="speeds or frequencies per entry point (default 100,000; 10,000 with --quick); time "
+                         "stepping and order tracking take 20 and 100 samples per point up to 100,000 points")
     args = ap.parse_args()
     n, n_time = (10_000, 200_000) if args.quick else (100_000, 2_000_000)
+    if args.points is not None:
+        if args.points < 100:
+            ap.error(f"--points must be >= 100, got {args.points}")
+        n, n_time = args.points, 20 * min(args.points, 100_000)
     rounds = 5 if args.quick else args.rounds
     print_header("public entry points against their core calls", f"{n:,} points or {n_time:,} samples each", 1)
     ents = entries(n, n_time)
     names = args.only or list(ents)
-    print(f"{'entry point':42s} {'API ms':>9s} {'core ms':>9s} {'API / core':>10s}  core calls")
+    print(f"{'entry point':42s} {'API ms':>9s} {'core ms':>9s} {'API - core':>11s} {'API / core':>10s}  core calls")
     below = []
     for name in names:
         api = ents[name]
         calls = record_core_calls(api)
         if not calls:
-            print(f"{name:42s} {'':>9s} {'':>9s} {'':>10s}  none (pure Python/NumPy)")
+            print(f"{name:42s} {'':>9s} {'':>9s} {'':>11s} {'':>10s}  none (pure Python/NumPy)")
             continue
 
         t = best_of_each({"api": api, "core": replay(calls)}, rounds)
         pct = 100.0 * t["core"] / t["api"]
         kinds = sorted({fn.__name__ for fn, _, _ in calls})
-        print(f"{name:42s} {1e3 * t['api']:9.3f} {1e3 * t['core']:9.3f} {pct:9.1f} %  {', '.join(kinds)} "
+        print(f"{name:42s} {1e3 * t['api']:9.3f} {1e3 * t['core']:9.3f} {1e6 * (t['api'] - t['core']):8.0f} µs "
+              f"{pct:9.1f} %  {', '.join(kinds)} "
               f"({len(calls)} call{'s' if len(calls) > 1 else ''})", flush=True)
         if pct < TARGET:
             below.append(f"{name} ({pct:.0f} %)")

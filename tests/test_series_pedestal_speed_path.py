@@ -128,6 +128,31 @@ def test_series_scalar_frequency_and_mass_errors():
             rotorid.series_impedance(**kw)
 
 
+def test_series_frequency_bounds_are_closed_at_0_and_1e6_hz():
+    """The one-pass bounds check keeps [0, 1e6] Hz closed: -0, 0 and 1e6 pass; the nearest values
+    outside are refused by name."""
+    args = _args(4)
+    for edge in (0.0, -0.0, 1e6):
+        f = np.array([edge, 10.0, 20.0, 30.0])
+        z = rotorid.series_impedance(**{**args, "freq_hz": f})
+        direct, _ = core.series_impedance(args["z_bearing"], args["z_damper"], args["journal_mass_kg"], 2 * np.pi * f)
+        np.testing.assert_array_equal(z, direct)
+    for bad, msg in [(-np.finfo(float).smallest_subnormal, "freq_hz must be >= 0"),
+                     (float(np.nextafter(1e6, np.inf)), "beyond 1e6 Hz")]:
+        with pytest.raises(RotoridError, match=msg):
+            rotorid.series_impedance(**{**args, "freq_hz": np.array([10.0, bad, 20.0, 30.0])})
+
+
+@pytest.mark.parametrize("w_scale", [0.0, -1.0, np.nan, np.inf])
+def test_series_core_refuses_a_bad_w_scale(w_scale):
+    args = _args(3)
+    with pytest.raises(ValueError, match="w_scale"):
+        core.series_impedance(args["z_bearing"], args["z_damper"], args["journal_mass_kg"], args["freq_hz"], w_scale)
+    with pytest.raises(ValueError, match="times w_scale must be finite"):
+        core.series_impedance(args["z_bearing"], args["z_damper"], args["journal_mass_kg"],
+                              np.array([1.0, 1e308, 2.0]), 1e10)
+
+
 def test_series_a_true_resonance_is_still_named_singular():
     """Finite impedances with a singular point: the frequency is named, not an argument."""
     kb, kd, m = 3e6, 1e6, 10.0

@@ -212,7 +212,8 @@ def series_impedance(
     z_bearing: npt.NDArray[np.complex128],  # (n or 1, 2, 2)
     z_damper: npt.NDArray[np.complex128],  # (n or 1, 2, 2)
     journal_mass: npt.NDArray[np.float64],  # (n or 1,)
-    w: npt.NDArray[np.float64],  # (n,) rad/s
+    w: npt.NDArray[np.float64],  # (n,) rad/s, or an axis times w_scale in rad/s
+    w_scale: float = 1.0,
 ) -> tuple[npt.NDArray[np.complex128], int]:
     """Z_eq = Z_b - Z_b (Z_b + Z_d - w^2 m_j I)^-1 Z_b (n, 2, 2), n_singular (NaN there)."""
 

@@ -9,6 +9,11 @@ from .._validate import complex_array, real_array
 from ..errors import RotoridError
 
 
+#: the open interval (_BELOW_ZERO, _ABOVE_MAX_HZ) of first_outside is the closed [0, 1e6] Hz
+_BELOW_ZERO = -np.finfo(float).smallest_subnormal
+_ABOVE_MAX_HZ = float(np.nextafter(1e6, np.inf))
+
+
 def _stack(name, z, n):
     """(n or 1, 2, 2) complex, C-contiguous: one matrix for every point, or one per point. NaN and
     inf pass here: the core finds them itself (such a point comes out singular), and
@@ -62,19 +67,20 @@ def series_impedance(z_bearing, z_damper, journal_mass_kg, freq_hz) -> np.ndarra
     750000.0
     """
     f = np.atleast_1d(real_array("freq_hz", freq_hz, finite=False))
-    # the bounds in two reductions (NaN fails both comparisons, -inf and inf one each); only
-    # when they fail the full checks, for the error naming what is wrong
-    if f.size and not (f.min() >= 0.0 and f.max() <= 1e6):
-        real_array("freq_hz", freq_hz, nonneg=True)               # NaN, inf or a negative frequency
-        raise RotoridError(f"freq_hz up to {f.max():.3g} Hz: beyond 1e6 Hz (a unit error?)")
     if f.ndim != 1 or f.size == 0:
         raise RotoridError(f"freq_hz must be a non-empty 1-D array of frequencies, got shape {f.shape}")
+    # 0 <= f <= 1e6 in one pass of the core (NaN is outside); only when that fails the full checks,
+    # for the error naming what is wrong
+    if _core.first_outside(np.ascontiguousarray(f), _BELOW_ZERO, _ABOVE_MAX_HZ) is not None:
+        real_array("freq_hz", freq_hz, nonneg=True)               # NaN, inf or a negative frequency
+        raise RotoridError(f"freq_hz up to {f.max():.3g} Hz: beyond 1e6 Hz (a unit error?)")
     n = f.size
     zb, zd = _stack("z_bearing", z_bearing, n), _stack("z_damper", z_damper, n)
     m = np.atleast_1d(real_array("journal_mass_kg", journal_mass_kg, nonneg=True))
     if m.ndim != 1 or m.size not in (1, n):
         raise RotoridError(f"journal_mass_kg must be one mass or one per point ({n}), got shape {m.shape}")
-    z, nbad = _core.series_impedance(zb, zd, np.ascontiguousarray(m), np.ascontiguousarray(2 * np.pi * f))
+    # w = 2 pi f formed by the core, point by point (no (n,) array)
+    z, nbad = _core.series_impedance(zb, zd, np.ascontiguousarray(m), np.ascontiguousarray(f), 2 * np.pi)
     if nbad:
         # a NaN or inf in an impedance makes its points singular in the core: named first, in the
         # words of the finite check (which before the call would scan both inputs every time)

@@ -1013,15 +1013,18 @@ fn modal_pedestal<'py>(
 }
 
 /// Bearing film in series with a damper through the damper journal's mass (see series.rs):
-/// z_bearing, z_damper (n or 1, 2, 2) complex, journal_mass (n or 1,), w (n,) rad/s. Returns
+/// z_bearing, z_damper (n or 1, 2, 2) complex, journal_mass (n or 1,), w (n,) rad/s, or any axis
+/// times `w_scale` in rad/s (2 pi for one in Hz: formed point by point, no (n,) array). Returns
 /// (z_eq (n, 2, 2), n_singular).
 #[pyfunction]
+#[pyo3(signature = (z_bearing, z_damper, journal_mass, w, w_scale=1.0))]
 fn series_impedance<'py>(
     py: Python<'py>,
     z_bearing: PyReadonlyArrayDyn<'py, C64>,
     z_damper: PyReadonlyArrayDyn<'py, C64>,
     journal_mass: PyReadonlyArrayDyn<'py, f64>,
     w: PyReadonlyArrayDyn<'py, f64>,
+    w_scale: f64,
 ) -> PyResult<(Bound<'py, PyArrayDyn<C64>>, usize)> {
     let n = w.len();
     for (name, a) in [("z_bearing", &z_bearing), ("z_damper", &z_damper)] {
@@ -1041,7 +1044,7 @@ fn series_impedance<'py>(
         .detach(|| {
             guarded(|| {
                 let mut out = vec![C64::new(0.0, 0.0); n * 4];
-                series::series_impedance(zb, zd, m, ws, &mut out).map(|nb| (out, nb))
+                series::series_impedance_scaled(zb, zd, m, ws, w_scale, &mut out).map(|nb| (out, nb))
             })
         })?
         .map_err(core_err)?;

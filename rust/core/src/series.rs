@@ -69,14 +69,32 @@ pub fn series_impedance(
     w: &[f64],
     z_eq: &mut [C64],
 ) -> Result<usize, CoreError> {
-    let n = w.len();
+    series_impedance_scaled(z_bearing, z_damper, journal_mass, w, 1.0, z_eq)
+}
+
+/// [`series_impedance`] at w_i = `w_scale` * `axis`_i, formed point by point (the bits of scaling
+/// the axis first): an axis in Hz with `w_scale` = 2 pi needs no (n,) array of w. `w_scale` must
+/// be finite and > 0, `axis` finite.
+pub fn series_impedance_scaled(
+    z_bearing: &[C64],
+    z_damper: &[C64],
+    journal_mass: &[f64],
+    axis: &[f64],
+    w_scale: f64,
+    z_eq: &mut [C64],
+) -> Result<usize, CoreError> {
+    if !(w_scale.is_finite() && w_scale > 0.0) {
+        return Err(CoreError::value("w_scale", "must be finite and > 0"));
+    }
+    let n = axis.len();
     let total = product("z_eq", &[n, 4])?;
     expect_len_or_broadcast("z_bearing", z_bearing, 4, total)?;
     expect_len_or_broadcast("z_damper", z_damper, 4, total)?;
     expect_len_or_broadcast("journal_mass", journal_mass, 1, n)?;
     expect_len("z_eq", z_eq, total)?;
-    if w.iter().any(|x| !x.is_finite()) {
-        return Err(CoreError::value("w", "(vibration frequency) must be finite"));
+    if axis.iter().any(|x| !(w_scale * x).is_finite()) {
+        let what = if w_scale == 1.0 { "(vibration frequency) must be finite" } else { "(vibration frequency axis) times w_scale must be finite" };
+        return Err(CoreError::value("w", what));
     }
     if journal_mass.iter().any(|m| !(m.is_finite() && *m >= 0.0)) {
         return Err(CoreError::value("journal_mass", "must be finite and >= 0"));
@@ -88,8 +106,9 @@ pub fn series_impedance(
         let zb = c2_at(z_bearing, if bb { 0 } else { 4 * i });
         let mut d = c2_at(z_damper, if bd { 0 } else { 4 * i });
         let m = journal_mass[if bm { 0 } else { i }];
-        d[0][0] -= w[i] * w[i] * m;
-        d[1][1] -= w[i] * w[i] * m;
+        let wi = w_scale * axis[i];
+        d[0][0] -= wi * wi * m;
+        d[1][1] -= wi * wi * m;
         match series(&zb, &d) {
             Some((_, ze)) => {
                 out.copy_from_slice(&[ze[0][0], ze[0][1], ze[1][0], ze[1][1]]);
@@ -149,5 +168,23 @@ mod tests {
         assert!(series_impedance(&z, &z, &[1.0], &[1.0, f64::NAN], &mut out).is_err());
         assert!(series_impedance(&z[..3], &z, &[1.0], &[1.0, 2.0], &mut out).is_err());
         assert!(series_impedance(&z, &z, &[1.0, 1.0, 1.0], &[1.0, 2.0], &mut out).is_err());
+        for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+            assert!(series_impedance_scaled(&z, &z, &[1.0], &[1.0, 2.0], bad, &mut out).is_err(), "w_scale {bad}");
+        }
+        assert!(series_impedance_scaled(&z, &z, &[1.0], &[1.0, 1e308], 1e10, &mut out).is_err());
+    }
+
+    #[test]
+    fn a_scaled_axis_gives_the_bits_of_scaling_first() {
+        let zb = [c(2e6, 3e3), c(1e5, -2e2), c(-4e4, 7e2), c(2.5e6, 4e3)];
+        let zd = [c(8e5, 1e3), c(0.0, 0.0), c(0.0, 0.0), c(9e5, 2e3)];
+        let scale = 2.0 * std::f64::consts::PI;
+        let f: Vec<f64> = (0..3000).map(|i| 0.37 * i as f64).collect();
+        let w: Vec<f64> = f.iter().map(|x| scale * x).collect();
+        let (mut a, mut b) = (vec![c(0.0, 0.0); 4 * f.len()], vec![c(0.0, 0.0); 4 * f.len()]);
+        let na = series_impedance(&zb, &zd, &[12.0], &w, &mut a).unwrap();
+        let nb = series_impedance_scaled(&zb, &zd, &[12.0], &f, scale, &mut b).unwrap();
+        assert_eq!(na, nb);
+        assert!(a.iter().zip(&b).all(|(x, y)| x.re.to_bits() == y.re.to_bits() && x.im.to_bits() == y.im.to_bits()));
     }
 }
