@@ -86,6 +86,30 @@ def test_synchronous_runs_give_the_dense_propagation(monkeypatch, n):
         _same(*_both(monkeypatch, lambda: rotorid.identify_synchronous(RIG.rotor, runs, estimator=estimator)))
 
 
+def test_the_bias_is_the_propagated_one_in_bearing_order_and_zero_where_unknown(monkeypatch):
+    """k_bias / c_bias (n, 2, 2, 2) are the oracle's bias vector (eq. 9 order: Kxx1, Kxx2, Kxy1, ...)
+    put in [point, bearing, i, j] order, 0 at the points whose covariance is unknown (NaN there)."""
+    runs = _runs(23, nan_at=(5, 17))
+    seen = {}
+
+    def dense_kept(*a, **kw):
+        out = _dense(*a, **kw)
+        seen["b"] = out[1]
+        return out
+
+    monkeypatch.setattr(uncertainty, "_propagate", dense_kept)
+    ident = rotorid.identify_synchronous(RIG.rotor, runs)
+    b = seen["b"]
+    assert np.isnan(b[[5, 17]]).all() and np.isfinite(np.delete(b, [5, 17], 0)).all()
+    names = ("xx", "xy", "yx", "yy")
+    for j, name in enumerate(rotorid.REPORT_ORDER[:8]):
+        bearing, ij = int(name[-1]) - 1, names.index(name[1:3])
+        for half, got in ((0, ident.k_bias), (8, ident.c_bias)):
+            want = np.nan_to_num(b[:, half + j])
+            np.testing.assert_array_equal(got[:, bearing, ij // 2, ij % 2], want, err_msg=name)
+    assert not ident.k_bias[[5, 17]].any()
+
+
 def test_a_shared_baseline_and_probe_planes_give_the_dense_propagation(monkeypatch):
     runs = _runs(19, probes=True)
     shared = np.broadcast_to(np.eye(8) * 2e-15, (19, 8, 8))

@@ -231,3 +231,28 @@ def test_complex_arrays_refuse_non_finite_parts_either_way(bad):
 
     with pytest.raises(RotoridError, match="q contains NaN or inf \\(first at index \\(1, 2\\)\\)"):
         complex_array("q", [[1 + 1j, 2j, 3.0], [4.0, 5 - 1j, bad]])
+
+
+@pytest.mark.parametrize("bad", [0.0, -3.0, np.nan, -np.inf])
+@pytest.mark.parametrize("where", [0, 4])
+def test_dof_must_be_numbers_above_zero_in_the_constructor_and_after(bad, where):
+    """dof (n,) of a covariance: > 0, inf allowed (known exactly); refused by name when built and
+    when set after construction (the identification checks the runs' dofs again)."""
+    rig = rotorid.nsf_rig()
+    rpm = np.linspace(2000.0, 6000.0, 5)
+    cov = np.broadcast_to(np.eye(8) * 1e-14, (5, 8, 8))
+    runs = [rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=rpm) for s in "ABC"]
+    dof = np.full(5, 12.0)
+    dof[where] = bad
+    with pytest.raises(RotoridError, match=r"dof \(degrees of freedom of cov\) must be > 0"):
+        SyncResponse(rpm, runs[0].q, runs[0].imbalance, cov=cov, dof=dof)
+    ok = [SyncResponse(rpm, r.q, r.imbalance, cov=cov, dof=np.where(np.arange(5) == where, np.inf, 12.0)) for r in runs]
+    assert np.isinf(ok[0].dof[where])
+    ident = rotorid.identify_synchronous(rig.rotor, ok)
+    assert np.isfinite(ident.k).all()
+    ok[1].dof = dof
+    with pytest.raises(RotoridError, match=r"dof \(degrees of freedom of cov\) must be > 0"):
+        rotorid.identify_synchronous(rig.rotor, ok)
+    ok[1].dof = dof[:3]
+    with pytest.raises(RotoridError, match=r"dof must be a number or 5 numbers > 0"):
+        rotorid.identify_synchronous(rig.rotor, ok)

@@ -148,10 +148,14 @@ def polar_std(x, cov, j):
         return np.sqrt(np.clip(along, 0, None)), np.sqrt(np.clip(across, 0, None)) / np.abs(x)
 
 
-def check_dof(name, dof, n):
-    """Degrees of freedom (n,) of a covariance: numbers > 0 (inf: known exactly)."""
+def check_dof(name, dof, n, *, copy=True):
+    """Degrees of freedom (n,) of a covariance: numbers > 0 (inf: known exactly). A checked copy;
+    ``copy=False``: the caller's own array when it is already a valid float (n,) one."""
     if dof is None:
         return None
+    if isinstance(dof, np.ndarray) and dof.dtype == float and dof.shape == (n,) and n and \
+            _core.first_outside(np.ascontiguousarray(dof), 0.0, np.inf) is None:
+        return dof.copy() if copy else dof  # finite and > 0 in one pass (inf and the rest: below)
     if isinstance(dof, (str, bytes)) or np.iscomplexobj(dof):
         raise RotoridError(f"{name} must be numbers > 0, got {dof!r}")
     try:
@@ -194,8 +198,20 @@ def _polar_columns(data, names, vectors, cov):
 def pedestal_ratio(p, q) -> np.ndarray:
     """(n,) pedestal motion ``p`` relative to the motion relative to the pedestals ``q`` (both
     (n, 4)): rms over the four coordinates of |p| / |q| (inf or NaN where q is zero)."""
+    return np.sqrt(_rows_ratio(_sum_sq_rows(p), _sum_sq_rows(q)))
+
+
+def _sum_sq_rows(a):
+    """sum_j |a_ij|^2 of a complex (n, m): one pass over the real view (``np.abs(a) ** 2`` took a
+    square root, a square and two temporaries per entry)."""
+    a = np.ascontiguousarray(a, dtype=complex)
+    v = a.view(float).reshape(a.shape[0], -1)
+    return np.einsum("ij,ij->i", v, v)
+
+
+def _rows_ratio(num, den):
     with np.errstate(divide="ignore", invalid="ignore"):
-        return np.sqrt(np.sum(np.abs(p) ** 2, 1) / np.sum(np.abs(q) ** 2, 1))
+        return num / den
 
 
 def _check_pedestal(obj, n, *, finite=True):
