@@ -87,8 +87,18 @@ def test_the_core_forms_the_relative_motion_and_the_imbalance_gain_as_defined(ri
     np.testing.assert_array_equal(pi, pa)
     np.testing.assert_array_equal(pr, pa)
     np.testing.assert_array_equal(qr, qa - pa)
+    # at the probe planes: the absolute motion moved by the plane transform, less p, bit for bit
+    T = np.ascontiguousarray(bearings_to_probes_matrix(rig.rotor))
+    qt, pt, _ = _core.forced_response_pedestal(p, k, c, ped, om, om, e, imbalance=True, relative=True, planes=T)
+    np.testing.assert_array_equal(pt, pa)
+    np.testing.assert_array_equal(qt, _core.apply_planes(T, qa)[0] - pa)
     with pytest.raises(ValueError, match="gain and imbalance=True exclude each other"):
         _core.forced_response_pedestal(p, k, c, ped, om, om, e, gain=om ** 2, imbalance=True)
+    with pytest.raises(ValueError, match="planes needs relative=True"):
+        _core.forced_response_pedestal(p, k, c, ped, om, om, e, imbalance=True, planes=T)
+    for bad in (np.eye(3), np.ones(4)):
+        with pytest.raises(ValueError, match="planes"):
+            _core.forced_response_pedestal(p, k, c, ped, om, om, e, imbalance=True, relative=True, planes=bad)
 
 
 def test_impact_frf_and_its_move_keep_every_field(rig):

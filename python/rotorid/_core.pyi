@@ -188,8 +188,10 @@ def forced_response_pedestal(
     imbalance: bool = False,  # scale by spin^2 (not with gain)
     relative: bool = False,  # journal motion relative to the pedestals instead of absolute
     w_scale: float | None = None,  # as in forced_response (spin may be (1,) too)
+    planes: npt.NDArray[np.float64] | None = None,  # (2, 2) bearings -> probes, with relative=True: T q - p
 ) -> tuple[npt.NDArray[np.complex128], npt.NDArray[np.complex128], int]:
-    """Journal (absolute, or relative) and pedestal motion at the bearings, each (n, nrhs, 4), n_singular."""
+    """Journal (absolute, or relative: at the bearings, or at the probe planes with ``planes``) and
+    pedestal motion at the bearings, each (n, nrhs, 4), n_singular."""
 
 def effective_coefficients(
     k: npt.NDArray[np.float64],  # (n or 1, 8)

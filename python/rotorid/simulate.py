@@ -755,21 +755,17 @@ def impact_frf(rotor: RigidRotor, bearings: BearingCoefficients, *, speed_rpm: f
 
 def _with_pedestals(rotor, k, c, pedestals, spin, w, force, at, *, singular, imbalance=False, w_scale=None):
     """(q relative to the pedestals at ``at``, pedestal motion at the bearings), both (n, 4), of
-    one force vector with flexible pedestals. At the bearings the core forms the relative motion
-    q - p itself; at the probe planes (probes riding on the pedestals) the relative reading is
-    T q - p with T from the bearings to the probes (the same as moving q - p there with
-    :func:`_pedestal_transform`, without a second array). ``singular(mask)``: the message when
-    points are singular."""
-    qa, qp, nsing = _core.forced_response_pedestal(rotor.core_params(), k, c, pedestals.core_params(), spin, w,
-                                                   force, imbalance=imbalance, relative=at == "bearings", w_scale=w_scale)
+    one force vector with flexible pedestals. The core forms the relative motion in the pass that
+    forms p: q - p at the bearings; at the probe planes (probes riding on the pedestals) the
+    relative reading T q - p with T from the bearings to the probes (the same as moving q - p
+    there with :func:`_pedestal_transform`), with the bits of moving q first and subtracting p
+    after. ``singular(mask)``: the message when points are singular."""
+    q, qp, nsing = _core.forced_response_pedestal(rotor.core_params(), k, c, pedestals.core_params(), spin, w,
+                                                  force, imbalance=imbalance, relative=True, w_scale=w_scale,
+                                                  planes=_planes_to(rotor, at))
     if nsing:
-        raise RotoridError(singular(~np.all(np.isfinite(qa[:, 0, :]), axis=1)))
-    qa, qp = qa[:, 0, :], qp[:, 0, :]
-    if at == "bearings":
-        return qa, qp
-    q = _apply_planes(_plane_matrix(rotor, "probes"), qa, checked=True)
-    q -= qp
-    return q, qp
+        raise RotoridError(singular(~np.all(np.isfinite(q[:, 0, :]), axis=1)))
+    return q[:, 0, :], qp[:, 0, :]
 
 
 def _expm(a: np.ndarray) -> np.ndarray:

@@ -915,7 +915,7 @@ fn pedestals_of(p: &PyReadonlyArrayDyn<'_, f64>) -> PyResult<pedestal::Pedestals
 /// relative to the pedestals (q_abs - q_ped, formed in the core), else its absolute motion.
 /// `spin` and `w_scale` as in `forced_response`.
 #[pyfunction]
-#[pyo3(signature = (rotor, k, c, pedestals, spin, w, force, gain=None, imbalance=false, relative=false, w_scale=None))]
+#[pyo3(signature = (rotor, k, c, pedestals, spin, w, force, gain=None, imbalance=false, relative=false, w_scale=None, planes=None))]
 #[allow(clippy::too_many_arguments)]
 fn forced_response_pedestal<'py>(
     py: Python<'py>,
@@ -930,9 +930,11 @@ fn forced_response_pedestal<'py>(
     imbalance: bool,
     relative: bool,
     w_scale: Option<f64>,
+    planes: Option<PyReadonlyArrayDyn<'py, f64>>,
 ) -> PyResult<(Bound<'py, PyArrayDyn<C64>>, Bound<'py, PyArrayDyn<C64>>, usize)> {
     let rot = rotor_of(&rotor)?;
     let ped = pedestals_of(&pedestals)?;
+    let planes = planes.as_ref().map(|t| plane_transform("planes", t)).transpose()?;
     let n = w.len();
     let (ss, ws) = (axis_values("spin", &spin, n, None)?, axis_values("w", &w, n, w_scale)?);
     // q_abs and q_ped (4 + 4 per point) and the core's k_eff, c_eff, transfer (about 2 more)
@@ -945,7 +947,12 @@ fn forced_response_pedestal<'py>(
         (None, true) => forced::Gain::SpinSquared,
         (None, false) => forced::Gain::One,
     };
-    let motion = if relative { pedestal::RotorMotion::Relative } else { pedestal::RotorMotion::Absolute };
+    let motion = match (relative, planes) {
+        (false, None) => pedestal::RotorMotion::Absolute,
+        (true, None) => pedestal::RotorMotion::Relative,
+        (true, Some(t)) => pedestal::RotorMotion::RelativeAtPlanes(t),
+        (false, Some(_)) => return Err(PyValueError::new_err("planes needs relative=True (the reading of probes riding on the pedestals)")),
+    };
     let (qa, qp, nsing) = py
         .detach(|| {
             guarded(|| {

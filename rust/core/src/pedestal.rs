@@ -152,13 +152,18 @@ pub fn effective_coefficients(
 }
 
 /// Which rotor motion [`forced_response`] writes.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum RotorMotion {
     /// q, the rotor's motion in space
     Absolute,
     /// q - p, the rotor's motion relative to its pedestals (what pedestal-mounted probes read at
     /// the bearings), formed in the same pass as p: no second array for the caller to subtract
     Relative,
+    /// T q - p with the plane transform T = [T11, T12, T21, T22] from the bearings to the probe
+    /// planes ([`crate::model::planes_point`] on x and on y): what probes riding on the
+    /// pedestals read at the probe planes (the pedestal motion is measured at the bearings), in
+    /// the same pass, with the bits of moving q first and subtracting p after
+    RelativeAtPlanes([f64; 4]),
 }
 
 /// Forced response of the rotor on bearings in flexible pedestals: for every point i and force
@@ -196,7 +201,6 @@ pub fn forced_response(
     let mut tr = vec![C64::new(0.0, 0.0); n * 8];
     effective_coefficients(kb, cb, ped, w, &mut ke, &mut ce, &mut tr)?;
     let nsing = forced::forced_kernel(rotor, &ke, &ce, spin, w, force, nrhs, gain, None, q_rotor);
-    let relative = motion == RotorMotion::Relative;
     q_ped
         .par_chunks_mut(4 * nrhs)
         .zip(q_rotor.par_chunks_mut(4 * nrhs))
@@ -206,15 +210,20 @@ pub fn forced_response(
             let t = &tr[8 * i..8 * i + 8];
             for r in 0..nrhs {
                 let q = &mut qa[4 * r..4 * r + 4];
+                let mut p = [C64::new(0.0, 0.0); 4];
                 for b in 0..2 {
                     let (x, y) = (q[b], q[2 + b]);
-                    let (px, py) = (t[4 * b] * x + t[4 * b + 1] * y, t[4 * b + 2] * x + t[4 * b + 3] * y);
-                    po[4 * r + b] = px;
-                    po[4 * r + 2 + b] = py;
-                    if relative {
-                        q[b] = x - px;
-                        q[2 + b] = y - py;
-                    }
+                    p[b] = t[4 * b] * x + t[4 * b + 1] * y;
+                    p[2 + b] = t[4 * b + 2] * x + t[4 * b + 3] * y;
+                }
+                po[4 * r..4 * r + 4].copy_from_slice(&p);
+                let seen = match motion {
+                    RotorMotion::Absolute => continue,
+                    RotorMotion::Relative => [q[0], q[1], q[2], q[3]],
+                    RotorMotion::RelativeAtPlanes(tp) => crate::model::planes_point(&tp, [q[0], q[1], q[2], q[3]]),
+                };
+                for d in 0..4 {
+                    q[d] = seen[d] - p[d];
                 }
             }
         });

@@ -851,6 +851,16 @@ fn relative_motion_and_imbalance_gain_match_their_definitions() {
     for i in 0..qa.len() {
         assert_eq!(qr[i], qa[i] - pa[i], "value {i}");
     }
+    // at the probe planes: T q moved as the plane transform moves it, minus p, bit for bit
+    let t = [1.3, -0.3, -0.2, 1.2];
+    let (qt, pt) = run(Gain::SpinSquared, RotorMotion::RelativeAtPlanes(t));
+    assert_eq!(pt, pa);
+    for (j, (got, (q, p))) in qt.chunks_exact(4).zip(qa.chunks_exact(4).zip(pa.chunks_exact(4))).enumerate() {
+        let moved = rotorid_core::model::planes_point(&t, [q[0], q[1], q[2], q[3]]);
+        for d in 0..4 {
+            assert_eq!(got[d], moved[d] - p[d], "point/force {j}, coordinate {d}");
+        }
+    }
     assert!(pa.iter().all(|z| z.re.is_finite()) && pa.iter().any(|z| z.norm() > 0.0));
     let (mut q, mut p) = (vec![zero(); 8 * n], vec![zero(); 8 * n]);
     let err = pedestal::forced_response(&r, &KB, &CB, &ped, &w, &w, &E2, 2, Gain::PerPoint(&w2[1..]), RotorMotion::Relative, &mut q, &mut p);
