@@ -2,24 +2,29 @@
 (forward models, plane transforms, time stepping, series supports, pedestals, order tracking, and
 the two identifications, which bench_identify.py and bench_impact.py also time at their own sizes).
 
-    python benches/bench_entry_points.py [--rounds 15] [--only NAME ...] [--quick] [--points N]
+    python benches/bench_entry_points.py [--rounds 15] [--only NAME ...] [--quick] [--points N[,N...]]
 
 For each entry point the core calls it makes are recorded while it runs once (every function of
 ``rotorid._core`` is seen through ``rotorid._corecall.core``), then the public call and a replay of
 exactly those core calls with the same argument objects are timed in interleaved rounds of two back-to-back
 calls each (best of ``--rounds``, ``common.best_of_each``). API / core = core time / API time,
-target >= 90 % (issue 10). "API - core" is what the public call adds, in µs: run at two sizes
-(``--quick`` is 10,000 points, ``--points`` any other), it shows whether that is a fixed cost per
-call (Python's checks and the result object, slower right after a core call has filled the caches
-with its arrays) or grows with the input (a copy, a scan, a temporary). Large inputs: 100,000 speeds or frequencies, 2 M samples for time stepping, 10 M samples x 4 channels for
-order tracking (one core call for the per-revolution order vectors; then the block statistics:
-one steady segment, or a coast-down's ~6,000 blocks of 4 revolutions).
+target >= 90 % (issue 10). "API - core" is what the public call adds, in µs. Large inputs:
+100,000 speeds or frequencies (the identifications with covariances a tenth of that), 2 M samples
+for time stepping, 10 M samples x 4 channels for order tracking (one core call for the
+per-revolution order vectors; then the block statistics: one steady segment, or a coast-down's
+~6,000 blocks of 4 revolutions).
+
+``--points 100000,1000000`` times every size and then the API's throughput on the points added
+from one size to the next: the core's extra time over the API's. A fixed cost per call (Python's
+checks and the result object, several times slower right after a core call has streamed its
+arrays through the caches) drops out of it; a cost per point (a copy, a scan, a temporary) does
+not. Time stepping and order tracking stop growing at 100,000 points (2 M and 10 M samples: the
+recording of the next size would take gigabytes), so they have no added points above that size.
 """
 
 import argparse
 import os
 import sys
-import time
 
 import numpy as np
 
@@ -117,23 +122,23 @@ def entries(n, n_time):
         "identify_pedestals (2 runs)": lambda: rotorid.identify_pedestals(rig.rotor, runs_ped),
         "identify_pedestals (2 runs, cross-coupled)": lambda: rotorid.identify_pedestals(rig.rotor, runs_ped,
                                                                                          cross_coupled=True),
-        f"identify_pedestals (2 runs with cov, {m:,} speeds)": lambda: rotorid.identify_pedestals(rig.rotor,
+        "identify_pedestals (2 runs with cov, n/10 speeds)": lambda: rotorid.identify_pedestals(rig.rotor,
                                                                                                   runs_ped_cov),
-        f"identify_synchronous, 4 runs with cov ({m:,} speeds)": lambda: rotorid.identify_synchronous(rig.rotor,
+        "identify_synchronous, 4 runs with cov (n/10 speeds)": lambda: rotorid.identify_synchronous(rig.rotor,
                                                                                                       runs_cov),
-        f"identify_impact, 2 tests with cov ({m:,} freqs)": lambda: rotorid.identify_impact(rig.rotor, tests_cov),
-        f"identify_synchronous, 2 pedestal runs with cov + accel calibration ({m:,} speeds)":
+        "identify_impact, 2 tests with cov (n/10 freqs)": lambda: rotorid.identify_impact(rig.rotor, tests_cov),
+        "identify_synchronous, 2 pedestal runs with cov + accel calibration (n/10 speeds)":
             lambda: rotorid.identify_synchronous(rig.rotor, runs_ped_cov, accel_gain_std=0.02, accel_phase_std_deg=1.0),
-        f"identify_synchronous, 2 pedestal runs at the probes with cov ({m:,} speeds)":
+        "identify_synchronous, 2 pedestal runs at the probes with cov (n/10 speeds)":
             lambda: rotorid.identify_synchronous(rig.rotor, runs_ped_probes_cov),
-        f"identify_synchronous, 2 pedestal runs at the probes with cov + accel calibration ({m:,} speeds)":
+        "identify_synchronous, 2 pedestal runs at the probes with cov + accel calibration (n/10 speeds)":
             lambda: rotorid.identify_synchronous(rig.rotor, runs_ped_probes_cov, accel_gain_std=0.02,
                                                  accel_phase_std_deg=1.0),
-        f"identify_pedestals (2 runs at the probes with cov, {m:,} speeds)":
+        "identify_pedestals (2 runs at the probes with cov, n/10 speeds)":
             lambda: rotorid.identify_pedestals(rig.rotor, runs_ped_probes_cov),
         "uncertainty.relative_std": lambda: uncertainty.relative_std(ident.k, ident.c, ident.k_std, ident.c_std),
         "SyncResponse (constructor, user data)": lambda: SyncResponse(rpm, run.q, imb, "probes"),
-        f"signals.track ({ns // 1_000_000} M samples x 4 channels)": lambda: signals.track(rec, kp=kp,
+        "signals.track (steady, 4 channels)": lambda: signals.track(rec, kp=kp,
                                                                                           points_per_rev=512),
         "signals.track, coast-down blocks of 4 revs": lambda: signals.track(rec, kp=kp, points_per_rev=512,
                                                                            steady=False),
@@ -145,21 +150,40 @@ def main():
     ap.add_argument("--rounds", type=int, default=15)
     ap.add_argument("--only", nargs="*")
     ap.add_argument("--quick", action="store_true", help="10,000 points, 200,000 samples, 5 rounds")
-    ap.add_argument("--points", type=int, default=None,
-                    help="speeds or frequencies per entry point (default 100,000; 10,000 with --quick); time "
-                         "stepping and order tracking take 20 and 100 samples per point up to 100,000 points")
+    ap.add_argument("--points", default=None,
+                    help="speeds or frequencies per entry point, or several sizes separated by commas "
+                         "(default 100000; 10000 with --quick); time stepping and order tracking take 20 and "
+                         "100 samples per point up to 100,000 points. With two sizes or more the API's "
+                         "throughput on the points added from one size to the next is printed too")
     args = ap.parse_args()
-    n, n_time = (10_000, 200_000) if args.quick else (100_000, 2_000_000)
+    sizes = [10_000 if args.quick else 100_000]
     if args.points is not None:
-        if args.points < 100:
-            ap.error(f"--points must be >= 100, got {args.points}")
-        n, n_time = args.points, 20 * min(args.points, 100_000)
+        try:
+            sizes = sorted({int(v) for v in args.points.split(",")})
+        except ValueError:
+            ap.error(f"--points must be whole numbers separated by commas, got {args.points!r}")
+        if sizes[0] < 100:
+            ap.error(f"--points must be >= 100, got {sizes[0]}")
     rounds = 5 if args.quick else args.rounds
-    print_header("public entry points against their core calls", f"{n:,} points or {n_time:,} samples each", 1)
-    ents = entries(n, n_time)
-    names = args.only or list(ents)
+    times = {}
+    for n in sizes:
+        n_time = 20 * min(n, 100_000)
+        print_header("public entry points against their core calls", f"{n:,} points or {n_time:,} samples each", 1)
+        times[n] = run_size(entries(n, n_time), args.only, rounds)
+        print()
+    if len(sizes) > 1:
+        added(times, sizes)
+
+
+def run_size(ents, only, rounds):
+    """Time every entry point (or those named in ``only``) against its replayed core calls:
+    {name: (API s, core s)}."""
+    names = only or list(ents)
+    unknown = [nm for nm in names if nm not in ents]
+    if unknown:
+        raise SystemExit(f"unknown entry point(s): {unknown}; known: {list(ents)}")
     print(f"{'entry point':42s} {'API ms':>9s} {'core ms':>9s} {'API - core':>11s} {'API / core':>10s}  core calls")
-    below = []
+    below, out = [], {}
     for name in names:
         api = ents[name]
         calls = record_core_calls(api)
@@ -168,6 +192,7 @@ def main():
             continue
 
         t = best_of_each({"api": api, "core": replay(calls)}, rounds)
+        out[name] = (t["api"], t["core"])
         pct = 100.0 * t["core"] / t["api"]
         kinds = sorted({fn.__name__ for fn, _, _ in calls})
         print(f"{name:42s} {1e3 * t['api']:9.3f} {1e3 * t['core']:9.3f} {1e6 * (t['api'] - t['core']):8.0f} µs "
@@ -176,7 +201,33 @@ def main():
         if pct < TARGET:
             below.append(f"{name} ({pct:.0f} %)")
     print(f"\nbelow {TARGET:.0f} %: {', '.join(below) or 'none'}")
+    return out
 
+
+def added(times, sizes):
+    """Throughput on the added points: from each size to the next, the core's extra time over the
+    API's extra time. A fixed cost per call (Python's checks, the result object) drops out; what
+    is left is what the API costs per point beyond its core calls (a copy, a scan, a temporary)."""
+    print("API throughput on the points added between sizes (core's extra time / API's extra time)")
+    pairs = list(zip(sizes, sizes[1:]))
+    print(f"{'entry point':42s} " + " ".join(f"{f'{a:,} -> {b:,}':>22s}" for a, b in pairs))
+    below = []
+    for name in times[sizes[0]]:
+        cells = []
+        for a, b in pairs:
+            if name not in times[a] or name not in times[b]:
+                cells.append(f"{'':>22s}")
+                continue
+            (api_a, core_a), (api_b, core_b) = times[a][name], times[b][name]
+            if core_b < 1.5 * core_a:
+                cells.append(f"{'(input not grown)':>22s}")
+                continue
+            pct = 100.0 * (core_b - core_a) / (api_b - api_a)
+            cells.append(f"{pct:20.1f} %")
+            if pct < TARGET:
+                below.append(f"{name} ({a:,} -> {b:,}: {pct:.0f} %)")
+        print(f"{name:42s} " + " ".join(cells))
+    print(f"\nbelow {TARGET:.0f} %: {', '.join(below) or 'none'}")
 
 if __name__ == "__main__":
     main()
