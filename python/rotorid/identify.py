@@ -742,6 +742,7 @@ def _bij_from_report(x):
     n = x.shape[0]
     return np.ascontiguousarray(x.reshape(n, 4, 2).transpose(0, 2, 1)).reshape(n, 2, 2, 2)
 
+
 #: the impacts' excitation gain, 1 at every frequency (broadcast by the core; read-only, shared)
 _UNIT_GAIN = np.ones(1)
 _UNIT_GAIN.flags.writeable = False
@@ -836,7 +837,6 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
         # the measurement's standard errors alone (without the calibration's)
         ks_meas, cs_meas = meas if meas is not None else (ks, cs)
         rel_std = None  # the standard errors change: recomputed in _finish
-        n = axis.size
         # the bias in [point, bearing, i, j] order, unknown (NaN) as 0: one finiteness pass of the
         # core, NaN handled only when there is one, and one strided copy per half (nan_to_num on
         # the strided halves took 27 ms of a 100,000-speed call)

@@ -153,7 +153,7 @@ def check_dof(name, dof, n, *, copy=True):
     ``copy=False``: the caller's own array when it is already a valid float (n,) one."""
     if dof is None:
         return None
-    if isinstance(dof, np.ndarray) and dof.dtype == float and dof.shape == (n,) and n and \
+    if isinstance(dof, np.ndarray) and dof.dtype == float and dof.shape == (n,) and \
             _core.first_outside(np.ascontiguousarray(dof), 0.0, np.inf) is None:
         return dof.copy() if copy else dof  # finite and > 0 in one pass (inf and the rest: below)
     if isinstance(dof, (str, bytes)) or np.iscomplexobj(dof):
@@ -198,7 +198,8 @@ def _polar_columns(data, names, vectors, cov):
 def pedestal_ratio(p, q) -> np.ndarray:
     """(n,) pedestal motion ``p`` relative to the motion relative to the pedestals ``q`` (both
     (n, 4)): rms over the four coordinates of |p| / |q| (inf or NaN where q is zero)."""
-    return np.sqrt(_rows_ratio(_sum_sq_rows(p), _sum_sq_rows(q)))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.sqrt(_sum_sq_rows(p) / _sum_sq_rows(q))
 
 
 def _sum_sq_rows(a):
@@ -207,11 +208,6 @@ def _sum_sq_rows(a):
     a = np.ascontiguousarray(a, dtype=complex)
     v = a.view(float).reshape(a.shape[0], -1)
     return np.einsum("ij,ij->i", v, v)
-
-
-def _rows_ratio(num, den):
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return num / den
 
 
 def _check_pedestal(obj, n, *, finite=True):
