@@ -912,8 +912,9 @@ fn pedestals_of(p: &PyReadonlyArrayDyn<'_, f64>) -> PyResult<pedestal::Pedestals
 /// Forced response with flexible pedestals (see pedestal.rs): (q (n, nrhs, 4), q_ped (n, nrhs,
 /// 4), n_singular). `gain` (n,) scales each point's solution; `imbalance=True` scales it by
 /// spin^2 instead (no gain array; not with `gain`). `relative=True`: q is the rotor's motion
-/// relative to the pedestals (q_abs - q_ped, formed in the core), else its absolute motion.
-/// `spin` and `w_scale` as in `forced_response`.
+/// relative to the pedestals (q_abs - q_ped, formed in the core), else its absolute motion;
+/// with `planes` (2, 2), the bearings-to-probes transform T, the relative reading at the probe
+/// planes T q_abs - q_ped (needs `relative=True`). `spin` and `w_scale` as in `forced_response`.
 #[pyfunction]
 #[pyo3(signature = (rotor, k, c, pedestals, spin, w, force, gain=None, imbalance=false, relative=false, w_scale=None, planes=None))]
 #[allow(clippy::too_many_arguments)]
