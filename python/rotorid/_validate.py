@@ -88,7 +88,7 @@ def _check(name, a, ndim, shape, positive, nonneg, nonzero, finite=True):
     lo = hi = math.nan
     if a.size and real and (finite or positive or nonneg):
         lo, hi = float(a.min()), float(a.max())
-    if finite and a.size and not (math.isfinite(lo) and math.isfinite(hi) if real else _all_finite_complex(a)):
+    if finite and a.size and not (math.isfinite(lo) and math.isfinite(hi) if real else all_finite(a)):
         bad = np.argwhere(~np.isfinite(a))[0]
         raise RotoridError(f"{name} contains NaN or inf (first at index {tuple(int(i) for i in bad)})")
     # NaN (finite=False) passes every bound; the minimum is then NaN, which no comparison fails
@@ -101,11 +101,12 @@ def _check(name, a, ndim, shape, positive, nonneg, nonzero, finite=True):
     return a
 
 
-def _all_finite_complex(a):
-    """True when no real or imaginary part of ``a`` is NaN or inf. A C-contiguous complex128 array
-    is read as its float64 pairs by the core in one pass without a temporary (0.25 against 0.37 ms
-    for NumPy's isfinite and all at 100,000 x 4 values); other layouts go through NumPy."""
-    if a.dtype == np.complex128 and a.flags.c_contiguous:
+def all_finite(a):
+    """True when no value (no real or imaginary part) of ``a`` is NaN or inf. A C-contiguous
+    float64 or complex128 array (the latter as its float64 pairs) is read by the core in one pass
+    without a temporary (0.25 against 0.37 ms for NumPy's isfinite and all at 100,000 x 4 complex
+    values); other layouts go through NumPy."""
+    if a.dtype in (np.float64, np.complex128) and a.flags.c_contiguous:
         return _core.first_outside(a.reshape(-1).view(np.float64), -math.inf, math.inf) is None
     return bool(np.all(np.isfinite(a)))
 
