@@ -365,8 +365,9 @@ WAKE_FROM = 4096
 def _wake_core_threads(resp):
     """Wake the core's thread pool while the API checks its inputs (~50 µs), so that its threads
     are running when the core call begins rather than being woken by it: at 10,000 impact
-    frequencies a woken-late helper added ~50 µs to the 0.2 ms call. ``resp``: the first run or
-    test, for its number of points."""
+    frequencies a woken-late helper added ~50 µs to the 0.2 ms call. A no-op when the helpers
+    are still spinning after an earlier call (``ROTORID_SPIN_US``, README). ``resp``: the first
+    run or test, for its number of points."""
     q = getattr(resp, "q", None)
     if getattr(q, "shape", (0,))[0] >= WAKE_FROM:
         _core.wake_pool()

@@ -1858,7 +1858,8 @@ fn study_bin_edges(py: Python<'_>) -> PyResult<Bound<'_, PyArrayDyn<f64>>> {
 }
 
 /// Wake the thread pool's helpers ahead of a parallel core call (rotorid_core::par::wake_helpers):
-/// they spin until the next parallel call begins, or for at most `max_wait_us` microseconds.
+/// they spin for at most `max_wait_us` microseconds, or until the spin time (`SPIN_US`) after
+/// the parallel calls made meanwhile, taking part in those calls.
 #[pyfunction]
 #[pyo3(signature = (max_wait_us = 2000.0))]
 fn wake_pool(max_wait_us: f64) -> PyResult<()> {
@@ -1875,8 +1876,10 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     LOADED_BY.get_or_init(std::process::id);
     // a misspelt cap is refused here, not silently ignored by the kernels' dispatch
     rotorid_core::lanes::simd_cap_from_env().map_err(core_err)?;
+    rotorid_core::par::spin_time_from_env().map_err(core_err)?;
     m.add("SIMD", rotorid_core::lanes::simd().name())?;
     m.add("SIMD_CPU", rotorid_core::lanes::simd_of_cpu().name())?;
+    m.add("SPIN_US", rotorid_core::par::spin_time().as_secs_f64() * 1e6)?;
     m.add_function(wrap_pyfunction!(forced_response, m)?)?;
     m.add_function(wrap_pyfunction!(py_identify, m)?)?;
     m.add_function(wrap_pyfunction!(py_modal, m)?)?;

@@ -10,15 +10,24 @@
 //! the caller does all the work itself, at the speed of one thread, and it never waits for a
 //! thread that has not started a task. Each task index is handed out exactly once, so tasks that
 //! write disjoint parts of the outputs ([`Disjoint`]) give the results of a serial loop.
+//!
+//! Between calls the pool's threads spin for [`spin_time`] (`ROTORID_SPIN_US`, 200 µs by
+//! default) before they sleep, and join the next call from outside the pool through an offer
+//! they watch, without a job queued for them: a loop of short calls with a little Python between
+//! them (a loop of API calls) then pays no wake-up per call. Waking a sleeping thread costs the
+//! caller itself ~38 µs on the 2-vCPU virtual machine of the benchmarks (a futex wake).
 
 use std::marker::PhantomData;
 use std::any::Any;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex, OnceLock};
+use std::time::{Duration, Instant};
 
 /// The counters a call shares with the jobs it spawns; the jobs own them (a job that starts after
 /// the call has returned finds no task left and touches nothing else).
 struct Counters {
+    /// the number of tasks
+    n: usize,
     next: AtomicUsize,
     done: AtomicUsize,
     /// the first panic of a task, raised again in the caller
@@ -34,11 +43,33 @@ struct TaskRef(*const (dyn Fn(usize) + Sync));
 // SAFETY: the closure is Sync, and the pointer's use is bounded as described above.
 unsafe impl Send for TaskRef {}
 
+/// Claim and run tasks of a call until none is left (the caller's loop and every helper's).
+fn work(c: &Counters, t: TaskRef) {
+    loop {
+        let i = c.next.fetch_add(1, Ordering::Relaxed);
+        if i >= c.n {
+            break;
+        }
+        // SAFETY: i < n was claimed, so the call is still waiting for this task (see TaskRef).
+        let f = unsafe { &*t.0 };
+        if let Err(payload) = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| f(i))) {
+            c.panic.lock().unwrap_or_else(|p| p.into_inner()).get_or_insert(payload);
+        }
+        c.done.fetch_add(1, Ordering::Release);
+    }
+}
+
 /// Run `task(i)` for every i in 0..n, each exactly once, on the calling thread and on up to
 /// (pool size - 1) threads of the current rayon pool (so at most the pool's size works at once;
 /// RAYON_NUM_THREADS=1 runs everything on the caller). Called from a thread of a pool, it is
 /// rayon's own parallel loop. A panic in a task is raised again in the caller (with its message)
 /// after every claimed task has finished.
+///
+/// From outside a pool the call is first offered to the helpers still spinning after an earlier
+/// call (see [`spin_time`]) or woken by [`wake_helpers`]: they take its tasks without a job being
+/// queued for them, so no sleeping thread is woken (a wake-up costs the caller ~38 µs on the
+/// 2-vCPU virtual machine of the benchmarks). Jobs are spawned only for the helpers missing.
+/// After the call, the helpers spin for [`spin_time`] in case another call follows.
 pub fn for_each_task<F: Fn(usize) + Sync>(n: usize, task: F) {
     if n == 0 {
         return;
@@ -53,26 +84,25 @@ pub fn for_each_task<F: Fn(usize) + Sync>(n: usize, task: F) {
         (0..n).into_par_iter().for_each(&task);
         return;
     }
-    CALLS.fetch_add(1, Ordering::Release);
-    let counters = Arc::new(Counters { next: AtomicUsize::new(0), done: AtomicUsize::new(0), panic: Mutex::new(None) });
+    let counters =
+        Arc::new(Counters { n, next: AtomicUsize::new(0), done: AtomicUsize::new(0), panic: Mutex::new(None) });
     let dyn_task: &(dyn Fn(usize) + Sync) = &task;
     // SAFETY (lifetime erasure): see TaskRef; the wait below outlives every dereference.
     let task_ref = TaskRef(unsafe { std::mem::transmute::<&(dyn Fn(usize) + Sync), &'static (dyn Fn(usize) + Sync)>(dyn_task) });
-    let work = move |c: &Counters, t: TaskRef| loop {
-        let i = c.next.fetch_add(1, Ordering::Relaxed);
-        if i >= n {
-            break;
-        }
-        // SAFETY: i < n was claimed, so the call is still waiting for this task (see TaskRef).
-        let f = unsafe { &*t.0 };
-        if let Err(payload) = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| f(i))) {
-            c.panic.lock().unwrap_or_else(|p| p.into_inner()).get_or_insert(payload);
-        }
-        c.done.fetch_add(1, Ordering::Release);
-    };
-    for _ in 0..helpers {
+    // the offer first, then the call count that spinning helpers watch, then the count of those
+    // helpers (sequentially consistent with a helper's leaving: see `spin`): a helper that leaves
+    // is either counted out here, and replaced by a job, or sees the new call and takes it
+    *OFFER.lock().unwrap_or_else(|p| p.into_inner()) = Some((Arc::clone(&counters), task_ref));
+    let call = CALLS.fetch_add(1, Ordering::SeqCst) + 1;
+    let spinning = SPINNING.load(Ordering::SeqCst);
+    for _ in spinning.min(helpers)..helpers {
         let c = Arc::clone(&counters);
-        rayon::spawn(move || work(&c, task_ref));
+        SPINNING.fetch_add(1, Ordering::SeqCst);
+        rayon::spawn(move || {
+            work(&c, task_ref);
+            drop(c);
+            spin(call);
+        });
     }
     work(&counters, task_ref);
     // every index is claimed: wait for the tasks still running on other threads (each is one
@@ -86,52 +116,141 @@ pub fn for_each_task<F: Fn(usize) + Sync>(n: usize, task: F) {
             std::thread::yield_now();
         }
     }
+    // withdrawn (unless another thread's call has replaced it): a helper arriving late finds
+    // nothing (had it taken the counters, it would find every task claimed and never touch the
+    // closure)
+    {
+        let mut offer = OFFER.lock().unwrap_or_else(|p| p.into_inner());
+        if offer.as_ref().is_some_and(|(c, _)| Arc::ptr_eq(c, &counters)) {
+            *offer = None;
+        }
+    }
+    // the helpers wait for the next call for the spin time from now (a longer wait asked for by
+    // wake_helpers ends with this call)
+    let spin_ns = u64::try_from(spin_time().as_nanos()).unwrap_or(u64::MAX);
+    DEADLINE_NS.store(now_ns().saturating_add(spin_ns), Ordering::SeqCst);
     let first_panic = counters.panic.lock().unwrap_or_else(|p| p.into_inner()).take();
     if let Some(payload) = first_panic {
         std::panic::resume_unwind(payload);
     }
 }
 
-/// Parallel calls begun from outside the pool (see [`wake_helpers`]).
+/// Parallel calls begun from outside the pool.
 static CALLS: AtomicUsize = AtomicUsize::new(0);
-/// Set while helper threads are held awake by [`wake_helpers`].
-static AWAKE: AtomicBool = AtomicBool::new(false);
+/// The tasks of the call in progress from outside the pool, for spinning helpers to join.
+#[allow(clippy::type_complexity)]
+static OFFER: Mutex<Option<(Arc<Counters>, TaskRef)>> = Mutex::new(None);
+/// Helper jobs spinning (or about to), ready to join the next call from outside the pool.
+static SPINNING: AtomicUsize = AtomicUsize::new(0);
+/// Nanoseconds after [`EPOCH`] at which spinning helpers return to the pool (and sleep).
+static DEADLINE_NS: AtomicU64 = AtomicU64::new(0);
+static EPOCH: OnceLock<Instant> = OnceLock::new();
+
+fn now_ns() -> u64 {
+    EPOCH.get_or_init(Instant::now).elapsed().as_nanos() as u64
+}
+
+
+/// A helper's wait for the next call from outside the pool: it joins every call made while it
+/// spins, and returns to the pool once [`DEADLINE_NS`] has passed with no call.
+/// `seen`: the last call it has taken part in (or knew of when it began).
+fn spin(mut seen: usize) {
+    let mut spins = 0u32;
+    loop {
+        let call = CALLS.load(Ordering::SeqCst);
+        if call != seen {
+            seen = call;
+            join_offer();
+            continue;
+        }
+        std::hint::spin_loop();
+        spins = spins.wrapping_add(1);
+        if spins.is_multiple_of(256) && now_ns() >= DEADLINE_NS.load(Ordering::SeqCst) {
+            SPINNING.fetch_sub(1, Ordering::SeqCst);
+            // a call that counted this helper just before it left: take part after all (if the
+            // call saw it leave, a job of its own covers the helper as well: harmless)
+            if CALLS.load(Ordering::SeqCst) != seen {
+                join_offer();
+            }
+            return;
+        }
+    }
+}
+
+/// Take part in the call on offer, if there is one.
+fn join_offer() {
+    let offer = OFFER.lock().unwrap_or_else(|p| p.into_inner()).clone();
+    if let Some((c, t)) = offer {
+        work(&c, t);
+    }
+}
+
+/// How long the pool's helper threads keep spinning after a parallel call, ready for the next:
+/// `ROTORID_SPIN_US` microseconds ([`spin_time_from_env`]), 200 µs by default. A short call
+/// followed by another (a loop of API calls, each with ~50 µs of Python between them) then finds
+/// its helpers running instead of asleep. The cost is that much CPU time of each helper after a
+/// call that no other call follows; 0 turns it off (helpers then sleep right after a call).
+pub fn spin_time() -> Duration {
+    *SPIN_TIME.get_or_init(|| spin_time_from_env().ok().flatten().unwrap_or(DEFAULT_SPIN))
+}
+
+static SPIN_TIME: OnceLock<Duration> = OnceLock::new();
+/// The default of [`spin_time`].
+pub const DEFAULT_SPIN: Duration = Duration::from_micros(200);
+
+/// The spin time `ROTORID_SPIN_US` asks for: None when unset or empty, an error for anything but
+/// a number of microseconds within 0 and 1,000,000 (1 s).
+pub fn spin_time_from_env() -> Result<Option<Duration>, crate::error::CoreError> {
+    match std::env::var("ROTORID_SPIN_US") {
+        Err(_) => Ok(None),
+        Ok(v) if v.trim().is_empty() => Ok(None),
+        Ok(v) => match v.trim().parse::<f64>() {
+            Ok(us) if (0.0..=1e6).contains(&us) => Ok(Some(Duration::from_secs_f64(us * 1e-6))),
+            _ => Err(crate::error::CoreError::value(
+                "ROTORID_SPIN_US",
+                format!("must be a number of microseconds within 0 and 1000000 (or unset), got {v:?}"),
+            )),
+        },
+    }
+}
 
 /// Wake the pool's threads ahead of a parallel call, so that they are running when the call's
 /// tasks arrive instead of being woken by them.
 ///
 /// A caller that has work of its own to do before its parallel call (the Python API validates
-/// its inputs for ~50 µs before the core call) calls this first: each helper thread is woken now,
-/// while the caller works, and spins until the next [`for_each_task`] from outside the pool begins
-/// or `max_wait` has passed, then takes that call's tasks at once. Without it, the first tasks of
-/// a call after an idle pause wait for the wake-up of a sleeping thread (tens to hundreds of
-/// microseconds on a virtual machine), and a short call runs mostly on the caller alone.
-/// At most one set of helpers is held awake at a time; nothing happens on a one-thread pool or
-/// from inside a pool. The cost when no call follows is `max_wait` of CPU time per helper.
-pub fn wake_helpers(max_wait: std::time::Duration) {
+/// its inputs for ~50 µs before the core call) calls this first: each helper thread not already
+/// spinning is woken now, while the caller works, and spins until `max_wait` has passed (or
+/// longer, if calls follow: see [`for_each_task`]), taking part in every [`for_each_task`] from
+/// outside the pool made meanwhile. Without it, the first tasks of a call after an idle pause
+/// wait for the wake-up of a sleeping thread (tens to hundreds of microseconds on a virtual
+/// machine), and a short call runs mostly on the caller alone. Nothing happens on a one-thread
+/// pool or from inside a pool. The cost when no call follows is `max_wait` of CPU time per
+/// helper; a call made meanwhile ends the wait [`spin_time`] after it.
+pub fn wake_helpers(max_wait: Duration) {
     let helpers = rayon::current_num_threads().saturating_sub(1);
-    if helpers == 0 || rayon::current_thread_index().is_some() || AWAKE.swap(true, Ordering::AcqRel) {
+    if helpers == 0 || rayon::current_thread_index().is_some() {
         return;
     }
-    let calls = CALLS.load(Ordering::Acquire);
-    let waiting = Arc::new(AtomicUsize::new(helpers));
-    for _ in 0..helpers {
-        let waiting = Arc::clone(&waiting);
-        rayon::spawn(move || {
-            let start = std::time::Instant::now();
-            let mut spins = 0u32;
-            while CALLS.load(Ordering::Acquire) == calls {
-                std::hint::spin_loop();
-                spins = spins.wrapping_add(1);
-                if spins % 256 == 0 && start.elapsed() >= max_wait {
-                    break;
-                }
+    let wait_ns = u64::try_from(max_wait.as_nanos()).unwrap_or(u64::MAX);
+    DEADLINE_NS.fetch_max(now_ns().saturating_add(wait_ns), Ordering::SeqCst);
+    let seen = CALLS.load(Ordering::SeqCst);
+    // top up to one spinning job per helper thread
+    let mut spinning = SPINNING.load(Ordering::SeqCst);
+    while spinning < helpers {
+        match SPINNING.compare_exchange(spinning, spinning + 1, Ordering::SeqCst, Ordering::SeqCst) {
+            Ok(_) => {
+                rayon::spawn(move || spin(seen));
+                spinning += 1;
             }
-            if waiting.fetch_sub(1, Ordering::AcqRel) == 1 {
-                AWAKE.store(false, Ordering::Release);
-            }
-        });
+            Err(now) => spinning = now,
+        }
     }
+}
+
+/// Helper jobs spinning now (or spawned to), ready for the next call from outside the pool: 0
+/// once they have all gone back to sleep.
+pub fn spinning_helpers() -> usize {
+    SPINNING.load(Ordering::SeqCst)
 }
 
 /// `task(i)` for every i in 0..n as in [`for_each_task`], and the sum of the results.
@@ -191,33 +310,6 @@ mod tests {
             let total = pool.install(|| sum_tasks(n, |i| i));
             assert_eq!(total, n * n.saturating_sub(1) / 2);
         }
-    }
-
-    #[test]
-    fn woken_helpers_end_their_wait_at_the_next_call_or_by_themselves() {
-        use std::time::{Duration, Instant};
-        let until_asleep = |limit: Duration| {
-            let t = Instant::now();
-            while AWAKE.load(Ordering::Acquire) {
-                assert!(t.elapsed() < limit, "helpers still held awake after {limit:?}");
-                std::thread::sleep(Duration::from_micros(100));
-            }
-        };
-        // a call after the wake: every task once, and the helpers let go
-        wake_helpers(Duration::from_secs(5));
-        let hits: Vec<AtomicUsize> = (0..500).map(|_| AtomicUsize::new(0)).collect();
-        for_each_task(hits.len(), |i| {
-            hits[i].fetch_add(1, Ordering::Relaxed);
-        });
-        assert!(hits.iter().all(|h| h.load(Ordering::Relaxed) == 1));
-        until_asleep(Duration::from_secs(2));
-        // no call: the wait ends by itself after max_wait
-        wake_helpers(Duration::from_millis(1));
-        until_asleep(Duration::from_secs(2));
-        // from inside a pool it does nothing (the pool's own threads are running)
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
-        pool.install(|| wake_helpers(Duration::from_secs(5)));
-        assert!(!AWAKE.load(Ordering::Acquire));
     }
 
     #[test]

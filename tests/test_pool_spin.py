@@ -1,0 +1,95 @@
+"""The core's helper threads keep spinning for ``ROTORID_SPIN_US`` after a parallel call (200 µs
+by default, rust/core/src/par.rs): the value in use is reported, a misspelt one is refused in one
+line, and the results are the same bits whatever it is (0 = helpers sleep at once)."""
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import rotorid
+from rotorid import _core
+
+# an identification and a forward response large enough to run on the pool, both printed as bytes
+_WORK = """
+import sys, numpy as np, rotorid
+from rotorid import _core
+rig = rotorid.nsf_rig()
+f = np.linspace(2, 300, 9000)
+tests = [rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=1000.0, freq_hz=f, plane=0.0, direction=d) for d in "xy"]
+out = []
+for _ in range(3):  # back to back: helpers still spinning from the call before
+    ident = rotorid.identify_impact(rig.rotor, tests)
+    out.append(ident.k.tobytes() + ident.c.tobytes() + ident.flag_code.tobytes())
+assert out[0] == out[1] == out[2]
+resp = rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances["A"], speed_rpm=np.linspace(500, 9000, 20000))
+sys.stdout.write(repr(_core.SPIN_US) + "\\n" + (out[0] + resp.q.tobytes()).hex())
+"""
+
+
+def _run(code, spin, timeout=120):
+    env = {**os.environ}
+    env.pop("ROTORID_SPIN_US", None)
+    if spin is not None:
+        env["ROTORID_SPIN_US"] = spin
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=timeout)
+
+
+def test_the_spin_time_in_use_is_reported():
+    want = float(os.environ.get("ROTORID_SPIN_US") or 200.0)
+    assert _core.SPIN_US == want
+
+
+@pytest.mark.parametrize("spin", [None, "0", "1000"])
+def test_results_are_the_same_bits_whatever_the_spin_time(spin):
+    got = _run(_WORK, spin)
+    assert got.returncode == 0, got.stderr
+    reported, data = got.stdout.split("\n")
+    assert float(reported) == (200.0 if spin is None else float(spin))
+    rig = rotorid.nsf_rig()
+    f = np.linspace(2, 300, 9000)
+    tests = [rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=1000.0, freq_hz=f, plane=0.0, direction=d)
+             for d in "xy"]
+    ident = rotorid.identify_impact(rig.rotor, tests)
+    resp = rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances["A"],
+                                      speed_rpm=np.linspace(500, 9000, 20000))
+    assert bytes.fromhex(data) == ident.k.tobytes() + ident.c.tobytes() + ident.flag_code.tobytes() + resp.q.tobytes()
+
+
+@pytest.mark.parametrize("value", ["fast", "-5", "2e6", "nan", "200us"])
+def test_a_bad_spin_time_is_refused_in_one_line(value, tmp_path):
+    got = _run("import rotorid; rotorid.nsf_rig()", value)
+    assert got.returncode != 0
+    assert "RotoridError" in got.stderr
+    assert (f"ROTORID_SPIN_US must be a number of microseconds within 0 and 1000000 (or unset), got \"{value}\""
+            in got.stderr)
+    env = {**os.environ, "ROTORID_SPIN_US": value}
+    cli = subprocess.run([sys.executable, "-m", "rotorid.cli", "demo", "--out", str(tmp_path / "d")],
+                         capture_output=True, text=True, env=env, timeout=120)
+    assert cli.returncode == 1
+    assert cli.stderr.strip().splitlines() == [
+        "rotorid: error: cannot load rotorid's compiled core: ROTORID_SPIN_US must be a number of microseconds "
+        f"within 0 and 1000000 (or unset), got \"{value}\""]
+    assert not (tmp_path / "d").exists()
+
+
+def test_helpers_spinning_at_a_fork_leave_the_child_working():
+    # the parent's helpers are spinning when it forks (a call just ended); the child, which has
+    # none of the parent's threads, runs its calls on a pool of its own
+    code = """
+import os, numpy as np, rotorid
+rig = rotorid.nsf_rig()
+f = np.linspace(2, 300, 9000)
+tests = [rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=1000.0, freq_hz=f, plane=0.0, direction=d) for d in "xy"]
+ref = rotorid.identify_impact(rig.rotor, tests)
+pid = os.fork()
+if pid == 0:
+    ok = all(np.array_equal(rotorid.identify_impact(rig.rotor, tests).k, ref.k) for _ in range(3))
+    os._exit(0 if ok else 3)
+_, status = os.waitpid(pid, 0)
+raise SystemExit(os.waitstatus_to_exitcode(status))
+"""
+    got = _run(code, "100000", timeout=60)
+    assert got.returncode == 0, got.stderr
