@@ -91,6 +91,19 @@ fn helpers_spin_between_calls_and_then_sleep() {
     all_asleep_within(Duration::from_secs(2));
     every_task_once(1000);
 
+    // calls from several threads at once (one offer at a time: a call whose offer is replaced
+    // runs on its caller and whoever joined it; every task still once)
+    std::thread::scope(|scope| {
+        for t in 0..4usize {
+            scope.spawn(move || {
+                for k in 0..200usize {
+                    every_task_once(2 + (t * 37 + k * 11) % 600);
+                }
+            });
+        }
+    });
+    all_asleep_within(Duration::from_secs(2));
+
     // the spin time the environment asks for, and misspellings refused
     for (v, want) in [("0", Some(Duration::ZERO)), ("150", Some(Duration::from_micros(150))), (" 1e3 ", Some(Duration::from_millis(1))), ("", None)] {
         std::env::set_var("ROTORID_SPIN_US", v);
