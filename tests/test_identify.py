@@ -364,14 +364,18 @@ def test_core_flags_in_the_identify_call_equal_the_separate_flag_pass(with_std):
     q[0, :, 90] = 0.0  # a singular point
     e = np.stack([rig.imbalances[n].generalized(rig.rotor) for n in "ABC"])[None]
     limits = (50.0, 0.2, 0.05)
-    *_, rel_std, code, rel_amp, nbad = _core.identify(rig.rotor.core_params(), om, om, q, e, om ** 2,
-                                                       with_std=with_std, flag_limits=limits)
+    *_, rel_std, code, rel_amp, ok, nbad = _core.identify(rig.rotor.core_params(), om, om, q, e, om ** 2,
+                                                           with_std=with_std, flag_limits=limits)
     k, c, cond, resid, amp, *_ = _core.identify(rig.rotor.core_params(), om, om, q, e, om ** 2, with_std=with_std)
-    assert nbad == 1 and code.dtype == np.uint8 and code.shape == rel_amp.shape == (3, rpm.size)
+    assert nbad == 1 and code.dtype == np.uint8 and code.shape == rel_amp.shape == ok.shape == (3, rpm.size)
+    assert ok.dtype == bool
+    np.testing.assert_array_equal(ok, code == 0)
     for b in range(3):
-        want_code, want_rel = _core.flag_codes(cond[b], amp[b], rel_std[b] if with_std else None, *limits)
+        want_code, want_rel, want_ok = _core.flag_codes(cond[b], amp[b], rel_std[b] if with_std else None, *limits)
         np.testing.assert_array_equal(code[b], want_code)
         np.testing.assert_array_equal(rel_amp[b], want_rel)
+        assert want_ok.dtype == bool
+        np.testing.assert_array_equal(want_ok, want_code == 0)
     # every reason occurs somewhere, so the comparison covers each bit
     for bit in (1, 2, 8) + ((4,) if with_std else ()):
         assert (code & bit).any(), bit
@@ -379,7 +383,7 @@ def test_core_flags_in_the_identify_call_equal_the_separate_flag_pass(with_std):
     # a row with a NaN point has no peak amplitude: relative amplitude 0 (the API refuses NaN input)
     assert (rel_amp[2] == 0).all() and (rel_amp[1] > 0).all()
     no_flags = _core.identify(rig.rotor.core_params(), om, om, q, e, om ** 2, with_std=with_std)
-    assert no_flags[8] is None and no_flags[9] is None
+    assert no_flags[8] is None and no_flags[9] is None and no_flags[10] is None
     from rotorid._corecall import core
 
     for bad in ((50.0, 0.2), "abc", (50.0, None, 0.1)):

@@ -316,6 +316,7 @@ type IdentTuple<'py> = (
     Option<Bound<'py, PyArrayDyn<f64>>>,
     Option<Bound<'py, PyArrayDyn<u8>>>,
     Option<Bound<'py, PyArrayDyn<f64>>>,
+    Option<Bound<'py, PyArrayDyn<bool>>>,
     usize,
 );
 
@@ -413,12 +414,12 @@ fn report_method(method: &str) -> PyResult<bool> {
 /// w, spin: (n,) (spin also (1,)); spin None: spin = w (synchronous runs, after `w_scale`);
 /// gain: (n,), (1,) or None (spin^2: an imbalance); planes: None, or the (2, 2)
 /// eq. 19 transform from the planes q was measured at to the bearings. method: "forces" (default solver) or "report" (16-unknown real
-/// formulation). Returns (k, c, cond, resid, amp, k_std, c_std, rel_std, flag_code, rel_amp,
+/// formulation). Returns (k, c, cond, resid, amp, k_std, c_std, rel_std, flag_code, rel_amp, ok,
 /// n_nonfinite) with k, c: (B, n, 2, 2, 2), cond (B, n, 2), resid, amp (rms response amplitude)
 /// and rel_std (largest standard error relative to the bearing's direct coefficients, see
 /// identify::relative_std) (B, n). `flag_limits` (cond_max, min_rel_amplitude, max_rel_std):
-/// also the flag codes (uint8) and amp / max amp of each batch row (B, n), as `flag_codes` gives
-/// them, computed in the same call (None otherwise); "uncertain" only when standard errors are
+/// also the flag codes (uint8), amp / max amp and ok = (code == 0) of each batch row (B, n), as
+/// `flag_codes` gives them, computed in the same call (None otherwise); "uncertain" only when standard errors are
 /// computed. `refine_all`: the refinement step of the semi-normal equations in every point, not
 /// only from cond = REFINE_COND on (how the uncertainty propagation's central differences solve).
 #[pyfunction]
@@ -486,12 +487,14 @@ fn py_identify<'py>(
                 Some((cond_max, min_rel_amplitude, max_rel_std)) => {
                     let mut code = vec![0u8; npts];
                     let mut rel_amp = out_buf(npts);
-                    for (b, (oc, ra)) in code.chunks_mut(n.max(1)).zip(rel_amp.chunks_mut(n.max(1))).enumerate() {
+                    let mut ok = vec![false; npts];
+                    let row = n.max(1);
+                    for (b, ((oc, ra), okb)) in code.chunks_mut(row).zip(rel_amp.chunks_mut(row)).zip(ok.chunks_mut(row)).enumerate() {
                         let rows = b * n..(b + 1) * n;
                         let rs = if want_std { &rel[rows.clone()] } else { &[][..] };
-                        identify::flag_codes(&cond[2 * rows.start..2 * rows.end], &amp[rows], rs, cond_max, min_rel_amplitude, max_rel_std, ra, oc)?;
+                        identify::flag_codes(&cond[2 * rows.start..2 * rows.end], &amp[rows], rs, cond_max, min_rel_amplitude, max_rel_std, ra, oc, okb)?;
                     }
-                    Some((code, rel_amp))
+                    Some((code, rel_amp, ok))
                 }
                 None => None,
             };
@@ -504,11 +507,13 @@ fn py_identify<'py>(
     let kst = if want_std { Some(to_py(py, ks, &sh)?) } else { None };
     let cst = if want_std { Some(to_py(py, cs, &sh)?) } else { None };
     let relp = if want_std { Some(to_py(py, rel, &[batch, n])?) } else { None };
-    let (code, rel_amp) = match flags {
-        Some((code, rel_amp)) => (Some(to_py(py, code, &[batch, n])?), Some(to_py(py, rel_amp, &[batch, n])?)),
-        None => (None, None),
+    let (code, rel_amp, ok) = match flags {
+        Some((code, rel_amp, ok)) => {
+            (Some(to_py(py, code, &[batch, n])?), Some(to_py(py, rel_amp, &[batch, n])?), Some(to_py(py, ok, &[batch, n])?))
+        }
+        None => (None, None, None),
     };
-    Ok((to_py(py, k, &sh)?, to_py(py, c, &sh)?, to_py(py, cond, &[batch, n, 2])?, to_py(py, resid, &[batch, n])?, to_py(py, amp, &[batch, n])?, kst, cst, relp, code, rel_amp, nbad))
+    Ok((to_py(py, k, &sh)?, to_py(py, c, &sh)?, to_py(py, cond, &[batch, n, 2])?, to_py(py, resid, &[batch, n])?, to_py(py, amp, &[batch, n])?, kst, cst, relp, code, rel_amp, ok, nbad))
 }
 
 /// A run's covariance moved between planes with its responses (see
@@ -832,7 +837,7 @@ fn relative_std<'py>(
 }
 
 /// Flag codes of an identification in one pass (see identify::flag_codes): cond (n, 2), amp (n,),
-/// rel_std (n,) or None (unknown) -> (code uint8 (n,), amp / max amp (n,)).
+/// rel_std (n,) or None (unknown) -> (code uint8 (n,), amp / max amp (n,), ok = code == 0 (n,)).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
 fn flag_codes<'py>(
@@ -843,7 +848,7 @@ fn flag_codes<'py>(
     cond_max: f64,
     min_rel_amplitude: f64,
     max_rel_std: f64,
-) -> PyResult<(Bound<'py, PyArrayDyn<u8>>, Bound<'py, PyArrayDyn<f64>>)> {
+) -> PyResult<(Bound<'py, PyArrayDyn<u8>>, Bound<'py, PyArrayDyn<f64>>, Bound<'py, PyArrayDyn<bool>>)> {
     let n = amp.len();
     check_shape("cond", cond.shape(), &[n, 2])?;
     if let Some(r) = &rel_std {
@@ -854,15 +859,16 @@ fn flag_codes<'py>(
         None => &[],
     };
     let (cs, am) = (slice(&cond, "cond")?, slice(&amp, "amp")?);
-    let (code, rel) = py.detach(|| {
+    let (code, rel, ok) = py.detach(|| {
         guarded(|| {
             let mut code = vec![0u8; n];
             let mut rel = out_buf(n);
-            identify::flag_codes(cs, am, rs, cond_max, min_rel_amplitude, max_rel_std, &mut rel, &mut code).map(|_| (code, rel))
+            let mut ok = vec![false; n];
+            identify::flag_codes(cs, am, rs, cond_max, min_rel_amplitude, max_rel_std, &mut rel, &mut code, &mut ok).map(|_| (code, rel, ok))
         })
     })?
     .map_err(core_err)?;
-    Ok((to_py(py, code, &[n])?, to_py(py, rel, &[n])?))
+    Ok((to_py(py, code, &[n])?, to_py(py, rel, &[n])?, to_py(py, ok, &[n])?))
 }
 
 /// The arguments of a modal analysis: k, c (n, 8), spin (n,) as slices, with the output memory

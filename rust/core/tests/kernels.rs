@@ -935,14 +935,19 @@ fn flag_codes_match_their_definition() {
     // point 1 is uncertain too, but a singular point carries that reason alone; a NaN relative
     // standard error (unknown) flags nothing
     let rel_std = [0.01, 0.5, 0.01, 0.01, f64::NAN];
-    let (mut rel, mut code) = ([0.0; 5], [0u8; 5]);
-    flag_codes(&cond, &amp, &rel_std, 1e4, 0.08, 0.1, &mut rel, &mut code).unwrap();
+    let (mut rel, mut code, mut ok) = ([0.0; 5], [0u8; 5], [false; 5]);
+    flag_codes(&cond, &amp, &rel_std, 1e4, 0.08, 0.1, &mut rel, &mut code, &mut ok).unwrap();
     assert_eq!(rel, [0.25, 0.5, 1.0, 0.025, 0.75]);
     assert_eq!(code, [0, FLAG_SINGULAR, FLAG_ILL_CONDITIONED, FLAG_SINGULAR | FLAG_LOW_AMPLITUDE, 0]);
-    let (mut rel0, mut code0) = ([9.0; 2], [9u8; 2]);
-    flag_codes(&[1.0; 4], &[0.0, 0.0], &[0.0; 2], 1e4, 0.08, 0.1, &mut rel0, &mut code0).unwrap();
-    assert_eq!((rel0, code0), ([0.0; 2], [FLAG_LOW_AMPLITUDE; 2]));
-    assert!(flag_codes(&cond[..9], &amp, &rel_std, 1e4, 0.08, 0.1, &mut rel, &mut code).is_err());
+    assert_eq!(ok, [true, false, false, false, true]);
+    let (mut rel0, mut code0, mut ok0) = ([9.0; 2], [9u8; 2], [true; 2]);
+    flag_codes(&[1.0; 4], &[0.0, 0.0], &[0.0; 2], 1e4, 0.08, 0.1, &mut rel0, &mut code0, &mut ok0).unwrap();
+    assert_eq!((rel0, code0, ok0), ([0.0; 2], [FLAG_LOW_AMPLITUDE; 2], [false; 2]));
+    assert!(flag_codes(&cond[..9], &amp, &rel_std, 1e4, 0.08, 0.1, &mut rel, &mut code, &mut ok).is_err());
+    assert_eq!(
+        flag_codes(&cond, &amp, &rel_std, 1e4, 0.08, 0.1, &mut rel, &mut code, &mut [false; 4]).unwrap_err().to_string(),
+        "ok has 4 elements, expected 5"
+    );
 }
 
 #[test]
@@ -955,8 +960,8 @@ fn flag_codes_peak_propagates_nan_like_numpy() {
                 amp[j] = f64::NAN;
             }
             let top = amp.iter().cloned().fold(0.0f64, f64::max);
-            let (mut rel, mut code) = (vec![0.0; n], vec![0u8; n]);
-            flag_codes(&vec![1.0; 2 * n], &amp, &[], 1e4, 0.0, 0.1, &mut rel, &mut code).unwrap();
+            let (mut rel, mut code, mut ok) = (vec![0.0; n], vec![0u8; n], vec![false; n]);
+            flag_codes(&vec![1.0; 2 * n], &amp, &[], 1e4, 0.0, 0.1, &mut rel, &mut code, &mut ok).unwrap();
             for i in 0..n {
                 let want = if nan_at.is_some() { 0.0 } else { amp[i] / top };
                 assert_eq!(rel[i], want, "n {n}, NaN at {nan_at:?}, point {i}");
@@ -978,8 +983,10 @@ fn flag_codes_in_parallel_match_the_definition_point_by_point() {
             let rel_std: Vec<f64> = (0..n).map(|i| ((i % 17) as f64) / 50.0).collect();
             let peak = if nan_last { f64::NAN } else { 999.0 };
             for with_std in [false, true] {
+                // ok starts as the opposite of what it must become: every value is written
                 let (mut rel, mut code) = (vec![0.0; n], vec![0u8; n]);
-                flag_codes(&cond, &amp, if with_std { &rel_std } else { &[] }, 1e4, 0.05, 0.2, &mut rel, &mut code).unwrap();
+                let mut ok: Vec<bool> = (0..n).map(|i| i % 2 == 0).collect();
+                flag_codes(&cond, &amp, if with_std { &rel_std } else { &[] }, 1e4, 0.05, 0.2, &mut rel, &mut code, &mut ok).unwrap();
                 for i in 0..n {
                     let (c0, c1) = (cond[2 * i], cond[2 * i + 1]);
                     let finite = c0.is_finite() && c1.is_finite();
@@ -998,6 +1005,7 @@ fn flag_codes_in_parallel_match_the_definition_point_by_point() {
                         want |= FLAG_LOW_AMPLITUDE;
                     }
                     assert_eq!(code[i], want, "n {n}, NaN last {nan_last}, std {with_std}, point {i}");
+                    assert_eq!(ok[i], want == 0, "ok: n {n}, NaN last {nan_last}, std {with_std}, point {i}");
                     assert_eq!(rel[i].to_bits(), ra.to_bits(), "n {n}, point {i}");
                 }
             }

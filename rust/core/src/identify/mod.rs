@@ -1154,31 +1154,36 @@ struct FlagLimits {
 
 /// The flags of a run of points: branch-free per point (the comparisons are false for NaN) over
 /// zipped slices (no bounds checks), so the loop vectorizes. `rs` None: the standard errors are
-/// unknown (no point is "uncertain"; a separate loop, no buffer of NaN to read).
+/// unknown (no point is "uncertain"; a separate loop, no buffer of NaN to read). `ok` receives
+/// code == 0.
 #[inline(always)]
-fn flag_pass(lim: &FlagLimits, cond: &[f64], amp: &[f64], rs: Option<&[f64]>, rel: &mut [f64], code: &mut [u8]) {
+fn flag_pass(lim: &FlagLimits, cond: &[f64], amp: &[f64], rs: Option<&[f64]>, rel: &mut [f64], code: &mut [u8], ok: &mut [bool]) {
     let peak = lim.peak;
     let has_peak = peak > 0.0; // every amplitude 0, or one NaN (no peak): relative amplitude 0
-    let one = |c: &[f64], a: f64, s: f64, r: &mut f64, o: &mut u8| {
+    let one = |c: &[f64], a: f64, s: f64, r: &mut f64, o: &mut u8, k: &mut bool| {
         let (c0, c1) = (c[0], c[1]);
         let finite = c0.is_finite() & c1.is_finite();
         let worst = if c0 > c1 { c0 } else { c1 };
         let ra = if has_peak { a / peak } else { 0.0 };
         *r = ra;
-        *o = (!finite as u8) * FLAG_SINGULAR
+        let bits = (!finite as u8) * FLAG_SINGULAR
             | ((finite & (worst > lim.cond_max)) as u8) * FLAG_ILL_CONDITIONED
             | ((finite & (s > lim.max_rel_std)) as u8) * FLAG_UNCERTAIN
             | ((ra < lim.min_rel_amplitude) as u8) * FLAG_LOW_AMPLITUDE;
+        *o = bits;
+        *k = bits == 0;
     };
     match rs {
         Some(rs) => {
-            for ((((c, &a), &s), r), o) in cond.chunks_exact(2).zip(amp).zip(rs).zip(rel.iter_mut()).zip(code.iter_mut()) {
-                one(c, a, s, r, o);
+            for (((((c, &a), &s), r), o), k) in
+                cond.chunks_exact(2).zip(amp).zip(rs).zip(rel.iter_mut()).zip(code.iter_mut()).zip(ok.iter_mut())
+            {
+                one(c, a, s, r, o, k);
             }
         }
         None => {
-            for (((c, &a), r), o) in cond.chunks_exact(2).zip(amp).zip(rel.iter_mut()).zip(code.iter_mut()) {
-                one(c, a, f64::NAN, r, o);
+            for ((((c, &a), r), o), k) in cond.chunks_exact(2).zip(amp).zip(rel.iter_mut()).zip(code.iter_mut()).zip(ok.iter_mut()) {
+                one(c, a, f64::NAN, r, o, k);
             }
         }
     }
@@ -1186,14 +1191,16 @@ fn flag_pass(lim: &FlagLimits, cond: &[f64], amp: &[f64], rs: Option<&[f64]>, re
 
 crate::lanes::simd_dispatch! {
     /// [`flag_pass`] at the widest SIMD level of this CPU.
-    fn flag_pass_dispatch(lim: &FlagLimits, cond: &[f64], amp: &[f64], rs: Option<&[f64]>, rel: &mut [f64], code: &mut [u8]) -> () => flag_pass
+    fn flag_pass_dispatch(lim: &FlagLimits, cond: &[f64], amp: &[f64], rs: Option<&[f64]>, rel: &mut [f64], code: &mut [u8], ok: &mut [bool]) -> () => flag_pass
 }
 
 /// Why each point should not be trusted, as bits, in one pass: singular (a condition number that
 /// is inf or NaN), ill-conditioned (cond > `cond_max`), uncertain (`rel_std` > `max_rel_std`),
 /// low amplitude (amp / max(amp) < `min_rel_amplitude`). `cond`: (n, 2); `amp`: (n,); `rel_std`:
 /// (n,), or empty when the standard errors are unknown (no point is then "uncertain");
-/// `rel_amp` receives amp / max(amp) (0 when every amplitude is 0); `code`: (n,).
+/// `rel_amp` receives amp / max(amp) (0 when every amplitude is 0); `code`: (n,); `ok` (n,)
+/// receives code == 0 (the points to trust), in the same pass.
+#[allow(clippy::too_many_arguments)]
 pub fn flag_codes(
     cond: &[f64],
     amp: &[f64],
@@ -1203,6 +1210,7 @@ pub fn flag_codes(
     max_rel_std: f64,
     rel_amp: &mut [f64],
     code: &mut [u8],
+    ok: &mut [bool],
 ) -> Result<(), CoreError> {
     let n = code.len();
     expect_len("cond", cond, product("cond", &[n, 2])?)?;
@@ -1211,11 +1219,12 @@ pub fn flag_codes(
         expect_len("rel_std", rel_std, n)?;
     }
     expect_len("rel_amp", rel_amp, n)?;
+    expect_len("ok", ok, n)?;
     let rel_std = if rel_std.is_empty() { None } else { Some(rel_std) };
     if n < PAR_FROM {
         // waking the pool costs more than the pass
         let lim = FlagLimits { peak: max_propagating_nan(amp), cond_max, min_rel_amplitude, max_rel_std };
-        flag_pass_dispatch(&lim, cond, amp, rel_std, rel_amp, code);
+        flag_pass_dispatch(&lim, cond, amp, rel_std, rel_amp, code, ok);
         return Ok(());
     }
     // the peak in parallel too: a serial pass over amp was a third of the time at 100,000 points
@@ -1226,12 +1235,12 @@ pub fn flag_codes(
     crate::par::for_each_task(nchunks, |j| unsafe { chunk_peaks.chunk(j, 1) }[0] = max_propagating_nan(&amp[j * PAR_CHUNK..n.min((j + 1) * PAR_CHUNK)]));
     let peak = peaks.iter().fold(f64::NEG_INFINITY, |a, &b| max_nan(a, b));
     let lim = FlagLimits { peak, cond_max, min_rel_amplitude, max_rel_std };
-    let (code, rel_amp) = (Disjoint::new(code), Disjoint::new(rel_amp));
+    let (code, rel_amp, ok) = (Disjoint::new(code), Disjoint::new(rel_amp), Disjoint::new(ok));
     crate::par::for_each_task(nchunks, |j| {
         // SAFETY: as above
-        let (oc, rc) = unsafe { (code.chunk(j, PAR_CHUNK), rel_amp.chunk(j, PAR_CHUNK)) };
+        let (oc, rc, ok) = unsafe { (code.chunk(j, PAR_CHUNK), rel_amp.chunk(j, PAR_CHUNK), ok.chunk(j, PAR_CHUNK)) };
         let (lo, hi) = (j * PAR_CHUNK, j * PAR_CHUNK + oc.len());
-        flag_pass_dispatch(&lim, &cond[2 * lo..2 * hi], &amp[lo..hi], rel_std.map(|r| &r[lo..hi]), rc, oc);
+        flag_pass_dispatch(&lim, &cond[2 * lo..2 * hi], &amp[lo..hi], rel_std.map(|r| &r[lo..hi]), rc, oc, ok);
     });
     Ok(())
 }
