@@ -189,7 +189,9 @@ fn join_offer() {
 /// `ROTORID_SPIN_US` microseconds ([`spin_time_from_env`]), 200 µs by default. A short call
 /// followed by another (a loop of API calls, each with ~50 µs of Python between them) then finds
 /// its helpers running instead of asleep. The cost is that much CPU time of each helper after a
-/// call that no other call follows; 0 turns it off (helpers then sleep right after a call). Read
+/// call that no other call follows; 0 turns it off (helpers then sleep right after a call). A
+/// rayon loop started from outside the pool meanwhile (modal analysis, the studies) finds the
+/// spinning helpers busy until their deadline and starts on the pool's other threads. Read
 /// once; a value [`spin_time_from_env`] refuses falls back to the default here (the Python
 /// bindings refuse it when they load).
 pub fn spin_time() -> Duration {
