@@ -394,7 +394,7 @@ def test_core_flags_in_the_identify_call_equal_the_separate_flag_pass(with_std):
 def test_wake_pool_refuses_bad_waits_and_leaves_results_alone():
     from rotorid import _corecall
 
-    for bad in (-1.0, float("nan"), float("inf"), 2e6):
+    for bad in (-1.0, float("nan"), float("inf"), 50_001.0, 2e6):
         with pytest.raises(RotoridError, match="max_wait_us"):
             _corecall.core.wake_pool(bad)
     rig = rotorid.nsf_rig()

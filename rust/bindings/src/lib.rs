@@ -1869,8 +1869,11 @@ fn study_bin_edges(py: Python<'_>) -> PyResult<Bound<'_, PyArrayDyn<f64>>> {
 #[pyfunction]
 #[pyo3(signature = (max_wait_us = 2000.0))]
 fn wake_pool(max_wait_us: f64) -> PyResult<()> {
-    if !(max_wait_us.is_finite() && (0.0..=1e6).contains(&max_wait_us)) {
-        return Err(PyValueError::new_err(format!("max_wait_us must be within 0 and 1e6 (1 s), got {max_wait_us}")));
+    let longest = rotorid_core::par::MAX_SPIN.as_secs_f64() * 1e6;
+    if !(max_wait_us.is_finite() && (0.0..=longest).contains(&max_wait_us)) {
+        return Err(PyValueError::new_err(format!(
+            "max_wait_us must be within 0 and {longest} (the longest a helper spins), got {max_wait_us}"
+        )));
     }
     // through the pool the next call will use: in a forked child (whose inherited global pool has
     // no threads) that is the child's own pool, inside which waking is a no-op

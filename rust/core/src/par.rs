@@ -53,7 +53,14 @@ fn work(c: &Counters, t: TaskRef) {
         // SAFETY: i < n was claimed, so the call is still waiting for this task (see TaskRef).
         let f = unsafe { &*t.0 };
         if let Err(payload) = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| f(i))) {
-            c.panic.lock().unwrap_or_else(|p| p.into_inner()).get_or_insert(payload);
+            let mut first = c.panic.lock().unwrap_or_else(|p| p.into_inner());
+            if first.is_none() {
+                *first = Some(payload);
+            } else {
+                // kept, not dropped: a payload whose drop panics would unwind the caller out of
+                // its wait while helpers still run its tasks
+                std::mem::forget(payload);
+            }
         }
         c.done.fetch_add(1, Ordering::Release);
     }
@@ -94,10 +101,21 @@ pub fn for_each_task<F: Fn(usize) + Sync>(n: usize, task: F) {
     // is either counted out here, and replaced by a job, or sees the new call and takes it
     *OFFER.lock().unwrap_or_else(|p| p.into_inner()) = Some((Arc::clone(&counters), task_ref));
     let call = CALLS.fetch_add(1, Ordering::SeqCst) + 1;
-    let spinning = SPINNING.load(Ordering::SeqCst);
-    for _ in spinning.min(helpers)..helpers {
+    // reserve the missing helpers in one step: calls from several threads at once never hold
+    // more than `helpers` jobs spinning between them
+    let mut spinning = SPINNING.load(Ordering::SeqCst);
+    let missing = loop {
+        let want = helpers.saturating_sub(spinning);
+        if want == 0 {
+            break 0;
+        }
+        match SPINNING.compare_exchange(spinning, spinning + want, Ordering::SeqCst, Ordering::SeqCst) {
+            Ok(_) => break want,
+            Err(now) => spinning = now,
+        }
+    };
+    for _ in 0..missing {
         let c = Arc::clone(&counters);
-        SPINNING.fetch_add(1, Ordering::SeqCst);
         rayon::spawn(move || {
             work(&c, task_ref);
             drop(c);
@@ -150,22 +168,31 @@ fn now_ns() -> u64 {
     EPOCH.get_or_init(Instant::now).elapsed().as_nanos() as u64
 }
 
-
 /// A helper's wait for the next call from outside the pool: it joins every call made while it
 /// spins, and returns to the pool once [`DEADLINE_NS`] has passed with no call.
 /// `seen`: the last call it has taken part in (or knew of when it began).
 fn spin(mut seen: usize) {
+    let spin_ns = u64::try_from(spin_time().as_nanos()).unwrap_or(u64::MAX);
+    let born = now_ns();
+    // the spin time after the helper's own last task, whatever the deadline it finds: the caller
+    // publishes the new deadline only after its wait, which a helper finishing first would miss
+    let mut floor = born.saturating_add(spin_ns);
     let mut spins = 0u32;
     loop {
         let call = CALLS.load(Ordering::SeqCst);
         if call != seen {
             seen = call;
             join_offer();
+            floor = now_ns().saturating_add(spin_ns);
             continue;
         }
         std::hint::spin_loop();
         spins = spins.wrapping_add(1);
-        if spins.is_multiple_of(256) && now_ns() >= DEADLINE_NS.load(Ordering::SeqCst) {
+        if !spins.is_multiple_of(256) {
+            continue;
+        }
+        let now = now_ns();
+        if (now >= floor && now >= DEADLINE_NS.load(Ordering::SeqCst)) || now.saturating_sub(born) >= MAX_SPIN_NS {
             SPINNING.fetch_sub(1, Ordering::SeqCst);
             // a call that counted this helper just before it left: take part after all (if the
             // call saw it leave, a job of its own covers the helper as well: harmless)
@@ -176,6 +203,13 @@ fn spin(mut seen: usize) {
         }
     }
 }
+
+/// The longest a helper job spins, calls or not (the next call spawns a fresh one): a helper
+/// spinning for calls made from one thread never keeps the pool's thread from other work
+/// (rayon's own loops, started from another thread) for longer than this. Also the longest
+/// spin time and wait that [`spin_time_from_env`] and the bindings accept.
+pub const MAX_SPIN: Duration = Duration::from_millis(50);
+const MAX_SPIN_NS: u64 = MAX_SPIN.as_nanos() as u64;
 
 /// Take part in the call on offer, if there is one.
 fn join_offer() {
@@ -203,16 +237,16 @@ static SPIN_TIME: OnceLock<Duration> = OnceLock::new();
 pub const DEFAULT_SPIN: Duration = Duration::from_micros(200);
 
 /// The spin time `ROTORID_SPIN_US` asks for: None when unset or empty, an error for anything but
-/// a number of microseconds within 0 and 1,000,000 (1 s).
+/// a number of microseconds within 0 and 50,000 ([`MAX_SPIN`]).
 pub fn spin_time_from_env() -> Result<Option<Duration>, crate::error::CoreError> {
     match std::env::var("ROTORID_SPIN_US") {
         Err(_) => Ok(None),
         Ok(v) if v.trim().is_empty() => Ok(None),
         Ok(v) => match v.trim().parse::<f64>() {
-            Ok(us) if (0.0..=1e6).contains(&us) => Ok(Some(Duration::from_secs_f64(us * 1e-6))),
+            Ok(us) if (0.0..=MAX_SPIN.as_secs_f64() * 1e6).contains(&us) => Ok(Some(Duration::from_secs_f64(us * 1e-6))),
             _ => Err(crate::error::CoreError::value(
                 "ROTORID_SPIN_US",
-                format!("must be a number of microseconds within 0 and 1000000 (or unset), got {v:?}"),
+                format!("must be a number of microseconds within 0 and 50000 (or unset), got {v:?}"),
             )),
         },
     }
@@ -223,13 +257,13 @@ pub fn spin_time_from_env() -> Result<Option<Duration>, crate::error::CoreError>
 ///
 /// A caller that has work of its own to do before its parallel call (the Python API validates
 /// its inputs for ~50 µs before the core call) calls this first: each helper thread not already
-/// spinning is woken now, while the caller works, and spins until `max_wait` has passed (or
-/// longer, if calls follow: see [`for_each_task`]), taking part in every [`for_each_task`] from
-/// outside the pool made meanwhile. Without it, the first tasks of a call after an idle pause
+/// spinning is woken now, while the caller works, and spins until `max_wait` has passed (at most
+/// 50 ms; a call made meanwhile ends the wait [`spin_time`] after it), taking part in every
+/// [`for_each_task`] from outside the pool made meanwhile. Without it, the first tasks of a call after an idle pause
 /// wait for the wake-up of a sleeping thread (tens to hundreds of microseconds on a virtual
 /// machine), and a short call runs mostly on the caller alone. Nothing happens on a one-thread
 /// pool or from inside a pool. The cost when no call follows is `max_wait` of CPU time per
-/// helper; a call made meanwhile ends the wait [`spin_time`] after it.
+/// helper.
 pub fn wake_helpers(max_wait: Duration) {
     let helpers = rayon::current_num_threads().saturating_sub(1);
     if helpers == 0 || rayon::current_thread_index().is_some() {

@@ -6,7 +6,7 @@
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
-use rotorid_core::par::{for_each_task, spin_time, spin_time_from_env, spinning_helpers, wake_helpers, DEFAULT_SPIN};
+use rotorid_core::par::{for_each_task, spin_time, spin_time_from_env, spinning_helpers, wake_helpers, DEFAULT_SPIN, MAX_SPIN};
 
 fn all_asleep_within(limit: Duration) -> Duration {
     let t = Instant::now();
@@ -54,6 +54,33 @@ fn helpers_spin_between_calls_and_then_sleep() {
     assert!(spinning_helpers() <= helpers);
     all_asleep_within(Duration::from_secs(2));
 
+    // still spinning after a call whose caller finished long after them, although the deadline
+    // they found had passed (the caller sets the new one only after its wait): the caller's
+    // first task takes 100 µs, every other task nothing; checked on the calls that took under
+    // 180 µs in all (on a busy machine a call can stall in the wake-up of a sleeping thread)
+    let mut checked = 0;
+    for _ in 0..60 {
+        std::thread::sleep(Duration::from_millis(1)); // helpers asleep, the last deadline long past
+        let caller = std::thread::current().id();
+        let slowed = std::sync::atomic::AtomicBool::new(false);
+        let t = Instant::now();
+        for_each_task(64, |_| {
+            if std::thread::current().id() == caller && !slowed.swap(true, Ordering::Relaxed) {
+                let until = Instant::now() + Duration::from_micros(100);
+                while Instant::now() < until {
+                    std::hint::spin_loop();
+                }
+            }
+        });
+        let n = spinning_helpers();
+        if t.elapsed() < Duration::from_micros(180) {
+            checked += 1;
+            assert_eq!(n, helpers, "helpers left before the call ended");
+        }
+    }
+    assert!(helpers == 0 || checked > 0, "no call came under 180 µs");
+    all_asleep_within(Duration::from_secs(2));
+
     // calls back to back, each joined by the helpers still spinning after the one before
     for n in [2, 3, 17, 1000, 5000] {
         every_task_once(n);
@@ -74,10 +101,14 @@ fn helpers_spin_between_calls_and_then_sleep() {
     every_task_once(500);
     all_asleep_within(Duration::from_secs(2));
 
-    // woken with no call after: the wait ends by itself after max_wait
+    // woken with no call after: the wait ends by itself after max_wait, and after MAX_SPIN at
+    // the longest whatever max_wait was
     wake_helpers(Duration::from_millis(2));
     let slept_after = all_asleep_within(Duration::from_secs(2));
     assert!(slept_after < Duration::from_millis(500), "{slept_after:?}");
+    wake_helpers(Duration::from_secs(3600));
+    let slept_after = all_asleep_within(Duration::from_secs(2));
+    assert!(slept_after < MAX_SPIN + Duration::from_millis(450), "{slept_after:?}");
 
     // from inside a pool nothing spins (the pool's own threads run its calls)
     let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
@@ -93,23 +124,44 @@ fn helpers_spin_between_calls_and_then_sleep() {
 
     // calls from several threads at once (one offer at a time: a call whose offer is replaced
     // runs on its caller and whoever joined it; every task still once)
+    // never more helper jobs spinning than the pool has helpers (sampled meanwhile)
+    let running = std::sync::atomic::AtomicBool::new(true);
+    let most = AtomicUsize::new(0);
     std::thread::scope(|scope| {
-        for t in 0..4usize {
-            scope.spawn(move || {
-                for k in 0..200usize {
-                    every_task_once(2 + (t * 37 + k * 11) % 600);
-                }
-            });
+        let (running, most) = (&running, &most);
+        scope.spawn(move || {
+            while running.load(Ordering::Relaxed) {
+                most.fetch_max(spinning_helpers(), Ordering::Relaxed);
+                std::hint::spin_loop();
+            }
+        });
+        let callers: Vec<_> = (0..4usize)
+            .map(|t| {
+                scope.spawn(move || {
+                    for k in 0..200usize {
+                        every_task_once(2 + (t * 37 + k * 11) % 600);
+                        if k % 4 == t {
+                            // a pause now and then: helpers leave, and calls find none spinning
+                            std::thread::sleep(Duration::from_micros(300));
+                        }
+                    }
+                })
+            })
+            .collect();
+        for c in callers {
+            c.join().unwrap();
         }
+        running.store(false, Ordering::Relaxed);
     });
+    assert!(most.load(Ordering::Relaxed) <= helpers, "{} helper jobs spinning at once", most.load(Ordering::Relaxed));
     all_asleep_within(Duration::from_secs(2));
 
     // the spin time the environment asks for, and misspellings refused
-    for (v, want) in [("0", Some(Duration::ZERO)), ("150", Some(Duration::from_micros(150))), (" 1e3 ", Some(Duration::from_millis(1))), ("", None)] {
+    for (v, want) in [("0", Some(Duration::ZERO)), ("150", Some(Duration::from_micros(150))), (" 1e3 ", Some(Duration::from_millis(1))), ("50000", Some(MAX_SPIN)), ("", None)] {
         std::env::set_var("ROTORID_SPIN_US", v);
         assert_eq!(spin_time_from_env().unwrap(), want, "{v:?}");
     }
-    for v in ["-1", "2e6", "nan", "inf", "200us", "fast"] {
+    for v in ["-1", "50001", "2e6", "nan", "inf", "200us", "fast"] {
         std::env::set_var("ROTORID_SPIN_US", v);
         let e = spin_time_from_env().unwrap_err().to_string();
         assert!(e.contains("ROTORID_SPIN_US") && e.contains(v), "{v:?}: {e}");
