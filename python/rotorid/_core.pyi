@@ -11,6 +11,7 @@ import numpy.typing as npt
 __version__: str
 SIMD: str  # the SIMD level the kernels run at: avx512, avx2 or baseline (ROTORID_SIMD caps it)
 SIMD_CPU: str  # the widest level this CPU supports
+SPIN_US: float  # how long the pool's helpers spin after a parallel call, µs (ROTORID_SPIN_US sets it)
 
 def forced_response(
     rotor: npt.NDArray[np.float64],
@@ -70,6 +71,7 @@ def identify(
     npt.NDArray[np.float64] | None,  # largest relative standard error per point (batch, n)
     npt.NDArray[np.uint8] | None,  # flag codes (bit i: singular, ill-conditioned, uncertain, low amplitude), with flag_limits
     npt.NDArray[np.float64] | None,  # amplitude / its maximum over each batch row (batch, n), with flag_limits
+    npt.NDArray[np.bool_] | None,  # ok = (flag code == 0) (batch, n), with flag_limits
     int,  # number of points with NaN/inf input
 ]: ...
 
@@ -131,8 +133,8 @@ def unknown_points(
 def sample_times(n: int, dt: float) -> npt.NDArray[np.float64]: ...  # i * dt for i in 0..n
 
 def wake_pool(max_wait_us: float = 2000.0) -> None:
-    """Wake the thread pool's helpers ahead of a parallel call; they spin until it begins, or for
-    at most max_wait_us microseconds (0 to 1e6)."""
+    """Wake the thread pool's helpers ahead of a parallel call; they spin for at most max_wait_us
+    microseconds (0 to 50,000), or until SPIN_US after the parallel calls made meanwhile."""
     ...
 
 def first_outside(a: npt.NDArray[np.float64], lo: float, hi: float) -> int | None:
