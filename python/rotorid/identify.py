@@ -337,8 +337,8 @@ def _finish(axis_name, axis, amp, k, c, cond, resid, ks, cs, cond_max, min_rel_a
         # bit i of the code is reason i of _BASE_REASONS, set in one pass by the core, with
         # ok = code == 0 (no (n,) pass and temporary here: 0.3-1.7 ms at a million points)
         code, rel, ok = _core.flag_codes(np.ascontiguousarray(cond), np.ascontiguousarray(amp),
-                                     np.ascontiguousarray(rel_std, dtype=float) if std_known else None,
-                                     float(cond_max), float(min_rel_amplitude), float(max_rel_std))
+                                         np.ascontiguousarray(rel_std, dtype=float) if std_known else None,
+                                         float(cond_max), float(min_rel_amplitude), float(max_rel_std))
     reasons = list(_BASE_REASONS)
     if extra_flags is not None:
         try:

@@ -96,25 +96,13 @@ pub fn for_each_task<F: Fn(usize) + Sync>(n: usize, task: F) {
     let dyn_task: &(dyn Fn(usize) + Sync) = &task;
     // SAFETY (lifetime erasure): see TaskRef; the wait below outlives every dereference.
     let task_ref = TaskRef(unsafe { std::mem::transmute::<&(dyn Fn(usize) + Sync), &'static (dyn Fn(usize) + Sync)>(dyn_task) });
-    // the offer first, then the call count that spinning helpers watch, then the count of those
-    // helpers (sequentially consistent with a helper's leaving: see `spin`): a helper that leaves
-    // is either counted out here, and replaced by a job, or sees the new call and takes it
+    // the offer first, then the call count that spinning helpers watch, then the reservation of
+    // the helpers missing (sequentially consistent with a helper's leaving: see `spin`): a helper
+    // that leaves is either counted out there, and replaced by a job, or sees the new call and
+    // takes it
     *OFFER.lock().unwrap_or_else(|p| p.into_inner()) = Some((Arc::clone(&counters), task_ref));
     let call = CALLS.fetch_add(1, Ordering::SeqCst) + 1;
-    // reserve the missing helpers in one step: calls from several threads at once never hold
-    // more than `helpers` jobs spinning between them
-    let mut spinning = SPINNING.load(Ordering::SeqCst);
-    let missing = loop {
-        let want = helpers.saturating_sub(spinning);
-        if want == 0 {
-            break 0;
-        }
-        match SPINNING.compare_exchange(spinning, spinning + want, Ordering::SeqCst, Ordering::SeqCst) {
-            Ok(_) => break want,
-            Err(now) => spinning = now,
-        }
-    };
-    for _ in 0..missing {
+    for _ in 0..reserve_spinners(helpers) {
         let c = Arc::clone(&counters);
         rayon::spawn(move || {
             work(&c, task_ref);
@@ -145,8 +133,7 @@ pub fn for_each_task<F: Fn(usize) + Sync>(n: usize, task: F) {
     }
     // the helpers wait for the next call for the spin time from now (a longer wait asked for by
     // wake_helpers ends with this call)
-    let spin_ns = u64::try_from(spin_time().as_nanos()).unwrap_or(u64::MAX);
-    DEADLINE_NS.store(now_ns().saturating_add(spin_ns), Ordering::SeqCst);
+    DEADLINE_NS.store(now_ns().saturating_add(nanos(spin_time())), Ordering::SeqCst);
     let first_panic = counters.panic.lock().unwrap_or_else(|p| p.into_inner()).take();
     if let Some(payload) = first_panic {
         std::panic::resume_unwind(payload);
@@ -168,11 +155,34 @@ fn now_ns() -> u64 {
     EPOCH.get_or_init(Instant::now).elapsed().as_nanos() as u64
 }
 
+/// `d` in nanoseconds, saturated.
+fn nanos(d: Duration) -> u64 {
+    u64::try_from(d.as_nanos()).unwrap_or(u64::MAX)
+}
+
+/// Reserve places for the helper jobs missing to make `helpers` spinning (or about to), in one
+/// step (sequentially consistent with a helper's leaving: see [`spin`]), so that calls and wakes
+/// from several threads at once never hold more than `helpers` between them; returns how many
+/// jobs the caller is to spawn.
+fn reserve_spinners(helpers: usize) -> usize {
+    let mut spinning = SPINNING.load(Ordering::SeqCst);
+    loop {
+        let want = helpers.saturating_sub(spinning);
+        if want == 0 {
+            return 0;
+        }
+        match SPINNING.compare_exchange(spinning, spinning + want, Ordering::SeqCst, Ordering::SeqCst) {
+            Ok(_) => return want,
+            Err(now) => spinning = now,
+        }
+    }
+}
+
 /// A helper's wait for the next call from outside the pool: it joins every call made while it
 /// spins, and returns to the pool once [`DEADLINE_NS`] has passed with no call.
 /// `seen`: the last call it has taken part in (or knew of when it began).
 fn spin(mut seen: usize) {
-    let spin_ns = u64::try_from(spin_time().as_nanos()).unwrap_or(u64::MAX);
+    let spin_ns = nanos(spin_time());
     let born = now_ns();
     // the spin time after the helper's own last task, whatever the deadline it finds: the caller
     // publishes the new deadline only after its wait, which a helper finishing first would miss
@@ -259,29 +269,21 @@ pub fn spin_time_from_env() -> Result<Option<Duration>, crate::error::CoreError>
 /// its inputs for ~50 µs before the core call) calls this first: each helper thread not already
 /// spinning is woken now, while the caller works, and spins until `max_wait` has passed (at most
 /// 50 ms; a call made meanwhile ends the wait [`spin_time`] after it), taking part in every
-/// [`for_each_task`] from outside the pool made meanwhile. Without it, the first tasks of a call after an idle pause
-/// wait for the wake-up of a sleeping thread (tens to hundreds of microseconds on a virtual
-/// machine), and a short call runs mostly on the caller alone. Nothing happens on a one-thread
-/// pool or from inside a pool. The cost when no call follows is `max_wait` of CPU time per
+/// [`for_each_task`] from outside the pool made meanwhile. Without it, the first tasks of a call
+/// after an idle pause wait for the wake-up of a sleeping thread (tens to hundreds of
+/// microseconds on a virtual machine), and a short call runs mostly on the caller alone. Nothing
+/// happens on a one-thread pool or from inside a pool. The cost when no call follows is `max_wait` of CPU time per
 /// helper.
 pub fn wake_helpers(max_wait: Duration) {
     let helpers = rayon::current_num_threads().saturating_sub(1);
     if helpers == 0 || rayon::current_thread_index().is_some() {
         return;
     }
-    let wait_ns = u64::try_from(max_wait.as_nanos()).unwrap_or(u64::MAX);
-    DEADLINE_NS.fetch_max(now_ns().saturating_add(wait_ns), Ordering::SeqCst);
+    DEADLINE_NS.fetch_max(now_ns().saturating_add(nanos(max_wait)), Ordering::SeqCst);
     let seen = CALLS.load(Ordering::SeqCst);
     // top up to one spinning job per helper thread
-    let mut spinning = SPINNING.load(Ordering::SeqCst);
-    while spinning < helpers {
-        match SPINNING.compare_exchange(spinning, spinning + 1, Ordering::SeqCst, Ordering::SeqCst) {
-            Ok(_) => {
-                rayon::spawn(move || spin(seen));
-                spinning += 1;
-            }
-            Err(now) => spinning = now,
-        }
+    for _ in 0..reserve_spinners(helpers) {
+        rayon::spawn(move || spin(seen));
     }
 }
 
