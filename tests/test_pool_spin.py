@@ -1,6 +1,8 @@
 """The core's helper threads keep spinning for ``ROTORID_SPIN_US`` after a parallel call (200 µs
-by default, rust/core/src/par.rs): the value in use is reported, a misspelt one is refused in one
-line, and the results are the same bits whatever it is (0 = helpers sleep at once)."""
+by default, rust/core/src/par.rs), and a woken helper is kept off its caller's CPU unless
+``ROTORID_STEER=0`` (rust/core/src/par/steer.rs): the values in use are reported, a misspelt one
+is refused in one line, and the results are the same bits whatever they are (0 = helpers sleep at
+once)."""
 
 import os
 import subprocess
@@ -28,11 +30,14 @@ sys.stdout.write(repr(_core.SPIN_US) + "\\n" + (out[0] + resp.q.tobytes()).hex()
 """
 
 
-def _run(code, spin, timeout=120):
+def _run(code, spin, timeout=120, steer=None):
     env = {**os.environ}
     env.pop("ROTORID_SPIN_US", None)
+    env.pop("ROTORID_STEER", None)
     if spin is not None:
         env["ROTORID_SPIN_US"] = spin
+    if steer is not None:
+        env["ROTORID_STEER"] = steer
     return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=timeout,
                           check=False)
 
@@ -42,12 +47,19 @@ def test_the_spin_time_in_use_is_reported():
     assert _core.SPIN_US == want
 
 
-@pytest.mark.parametrize("spin", [None, "0", "1000"])
-def test_results_are_the_same_bits_whatever_the_spin_time(spin):
-    got = _run(_WORK, spin)
+def test_the_steering_in_use_is_reported():
+    assert _core.STEER is (sys.platform.startswith("linux") and os.environ.get("ROTORID_STEER", "").strip() != "0")
+
+
+@pytest.mark.parametrize(("spin", "steer"), [(None, None), ("0", None), ("1000", None), ("0", "0"), (None, "0")])
+def test_results_are_the_same_bits_whatever_the_spin_time_and_steering(spin, steer):
+    got = _run(_WORK.replace("repr(_core.SPIN_US)", "repr(_core.SPIN_US) + ' ' + repr(_core.STEER)"), spin,
+               steer=steer)
     assert got.returncode == 0, got.stderr
     reported, data = got.stdout.split("\n")
-    assert float(reported) == (200.0 if spin is None else float(spin))
+    spin_us, steering = reported.split()
+    assert float(spin_us) == (200.0 if spin is None else float(spin))
+    assert steering == repr(steer != "0" and sys.platform.startswith("linux"))
     rig = rotorid.nsf_rig()
     f = np.linspace(2, 300, 9000)
     tests = [rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=1000.0, freq_hz=f, plane=0.0, direction=d)
@@ -75,9 +87,26 @@ def test_a_bad_spin_time_is_refused_in_one_line(value, tmp_path):
     assert not (tmp_path / "d").exists()
 
 
-def test_helpers_spinning_at_a_fork_leave_the_child_working():
-    # the parent's helpers are spinning when it forks (a call just ended); the child, which has
-    # none of the parent's threads, runs its calls on a pool of its own
+@pytest.mark.parametrize("value", ["yes", "2", "-1", "off"])
+def test_a_bad_steering_value_is_refused_in_one_line(value, tmp_path):
+    got = _run("import rotorid; rotorid.nsf_rig()", None, steer=value)
+    assert got.returncode != 0
+    assert "RotoridError" in got.stderr
+    assert f"ROTORID_STEER must be 0 or 1 (or unset), got \"{value}\"" in got.stderr
+    env = {**os.environ, "ROTORID_STEER": value}
+    cli = subprocess.run([sys.executable, "-m", "rotorid.cli", "demo", "--out", str(tmp_path / "d")],
+                         capture_output=True, text=True, env=env, timeout=120, check=False)
+    assert cli.returncode == 1
+    assert cli.stderr.strip().splitlines() == [
+        f"rotorid: error: cannot load rotorid's compiled core: ROTORID_STEER must be 0 or 1 (or unset), got \"{value}\""]
+    assert not (tmp_path / "d").exists()
+
+
+@pytest.mark.parametrize("spin", ["50000", "0"])
+def test_helpers_spinning_at_a_fork_leave_the_child_working(spin):
+    # the parent's helpers are spinning when it forks (a call just ended), or asleep with their
+    # CPU masks recorded and steered by every call (spin 0); the child, which has none of the
+    # parent's threads, runs its calls on a pool of its own and steers none of the parent's
     code = """
 import os, numpy as np, rotorid
 rig = rotorid.nsf_rig()
@@ -91,5 +120,5 @@ if pid == 0:
 _, status = os.waitpid(pid, 0)
 raise SystemExit(os.waitstatus_to_exitcode(status))
 """
-    got = _run(code, "50000", timeout=60)
+    got = _run(code, spin, timeout=60)
     assert got.returncode == 0, got.stderr

@@ -12,6 +12,7 @@ __version__: str
 SIMD: str  # the SIMD level the kernels run at: avx512, avx2 or baseline (ROTORID_SIMD caps it)
 SIMD_CPU: str  # the widest level this CPU supports
 SPIN_US: float  # how long the pool's helpers spin after a parallel call, µs (ROTORID_SPIN_US sets it)
+STEER: bool  # woken helpers kept off the caller's CPU (ROTORID_STEER=0 turns it off; Linux)
 
 def forced_response(
     rotor: npt.NDArray[np.float64],

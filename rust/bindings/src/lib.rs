@@ -1886,9 +1886,11 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     // a misspelt cap is refused here, not silently ignored by the kernels' dispatch
     rotorid_core::lanes::simd_cap_from_env().map_err(core_err)?;
     rotorid_core::par::spin_time_from_env().map_err(core_err)?;
+    rotorid_core::par::steer::steer_from_env().map_err(core_err)?;
     m.add("SIMD", rotorid_core::lanes::simd().name())?;
     m.add("SIMD_CPU", rotorid_core::lanes::simd_of_cpu().name())?;
     m.add("SPIN_US", rotorid_core::par::spin_time().as_secs_f64() * 1e6)?;
+    m.add("STEER", rotorid_core::par::steer::steering())?;
     m.add_function(wrap_pyfunction!(forced_response, m)?)?;
     m.add_function(wrap_pyfunction!(py_identify, m)?)?;
     m.add_function(wrap_pyfunction!(py_modal, m)?)?;

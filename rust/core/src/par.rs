@@ -17,6 +17,8 @@
 //! them (a loop of API calls) then pays no wake-up per call. Waking a sleeping thread costs the
 //! caller itself ~38 µs on the 2-vCPU virtual machine of the benchmarks (a futex wake).
 
+pub mod steer;
+
 use std::marker::PhantomData;
 use std::any::Any;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
@@ -102,7 +104,12 @@ pub fn for_each_task<F: Fn(usize) + Sync>(n: usize, task: F) {
     // takes it
     *OFFER.lock().unwrap_or_else(|p| p.into_inner()) = Some((Arc::clone(&counters), task_ref));
     let call = CALLS.fetch_add(1, Ordering::SeqCst) + 1;
-    for _ in 0..reserve_spinners(helpers) {
+    let missing = reserve_spinners(helpers);
+    if missing > 0 {
+        // a woken helper is to start on another CPU than this busy one (see steer)
+        steer::away_from_caller();
+    }
+    for _ in 0..missing {
         let c = Arc::clone(&counters);
         rayon::spawn(move || {
             work(&c, task_ref);
@@ -131,6 +138,8 @@ pub fn for_each_task<F: Fn(usize) + Sync>(n: usize, task: F) {
             *offer = None;
         }
     }
+    // the pool's threads may use every CPU again (rayon's own loops)
+    steer::restore();
     // the helpers wait for the next call for the spin time from now (a longer wait asked for by
     // wake_helpers ends with this call)
     DEADLINE_NS.store(now_ns().saturating_add(nanos(spin_time())), Ordering::SeqCst);
@@ -281,8 +290,13 @@ pub fn wake_helpers(max_wait: Duration) {
     }
     DEADLINE_NS.fetch_max(now_ns().saturating_add(nanos(max_wait)), Ordering::SeqCst);
     let seen = CALLS.load(Ordering::SeqCst);
-    // top up to one spinning job per helper thread
-    for _ in 0..reserve_spinners(helpers) {
+    // top up to one spinning job per helper thread, started on another CPU than this one (see
+    // steer; the next call gives the threads their masks back)
+    let missing = reserve_spinners(helpers);
+    if missing > 0 {
+        steer::away_from_caller();
+    }
+    for _ in 0..missing {
         rayon::spawn(move || spin(seen));
     }
 }
