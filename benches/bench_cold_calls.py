@@ -4,11 +4,14 @@
 
 Work: the core call of identify_impact on 10,000 frequencies from 2 impacts (about 0.3-0.7 ms),
 timed alone ``calls`` times after each of: nothing (back to back), 100 µs of Python, 100 µs of
-NumPy reading 3 MB, a 100 µs sleep, a 1 ms sleep. A public API call always comes after some
+NumPy reading 3 MB, a 100 µs sleep, a 1 ms sleep, a 30 ms sleep; and the public
+``identify_impact`` after a 30 ms sleep (at most 100 calls each). A public API call always comes after some
 Python, and a script's calls come after whatever the script does; a pool thread that has gone
 to sleep in between has to be woken. The kernels share their tasks with the calling thread
 (rust/core/src/par.rs), so a late pool thread costs at most the second thread's share, not a
-wake-up round trip. Prints min and median per case; run with RAYON_NUM_THREADS=1 for one thread.
+wake-up round trip, and a woken thread is kept off the caller's CPU (rust/core/src/par/steer.rs;
+``ROTORID_STEER=0`` to compare). Prints min and median per case; run with RAYON_NUM_THREADS=1 for
+one thread.
 No NumPy comparison: this bench measures latency, not throughput.
 """
 
@@ -61,18 +64,26 @@ def main():
         while time.perf_counter() - t0 < us * 1e-6:
             big.sum()
 
-    cases = [("back to back", None), ("after 100 µs of Python", lambda: python_for(100)),
-             ("after 100 µs of NumPy (3 MB)", lambda: numpy_for(100)),
-             ("after a 100 µs sleep", lambda: time.sleep(1e-4)), ("after a 1 ms sleep", lambda: time.sleep(1e-3))]
+    def api():
+        return rotorid.identify_impact(rig.rotor, tests)
+
+    cases = [("back to back", None, core), ("after 100 µs of Python", lambda: python_for(100), core),
+             ("after 100 µs of NumPy (3 MB)", lambda: numpy_for(100), core),
+             ("after a 100 µs sleep", lambda: time.sleep(1e-4), core), ("after a 1 ms sleep", lambda: time.sleep(1e-3), core),
+             ("after a 30 ms sleep", lambda: time.sleep(0.03), core),
+             ("public API after a 30 ms sleep", lambda: time.sleep(0.03), api)]
     core()
+    api()
+    print(f"pool helpers spin {_core.SPIN_US:g} µs after a call; woken helpers kept off the caller's CPU: "
+          f"{'yes' if _core.STEER else 'no (ROTORID_STEER=0)'}")
     print(f"{'case':32s} {'min µs':>8s} {'median µs':>10s}")
-    for label, before in cases:
+    for label, before, fn in cases:
         times = []
-        for _ in range(calls):
+        for _ in range(calls if before is None or "30 ms" not in label else min(calls, 100)):
             if before is not None:
                 before()
             t = time.perf_counter()
-            core()
+            fn()
             times.append(time.perf_counter() - t)
         print(f"{label:32s} {min(times) * 1e6:8.0f} {np.median(times) * 1e6:10.0f}")
 
