@@ -1,6 +1,6 @@
 //! `par::steer` in a process of its own (the spin time and the steering are read once per
 //! process): helpers woken by a call start on another CPU than the caller's, and the pool's
-//! threads get their own CPU masks back after the call.
+//! threads get their own CPU masks back after the call, or after a wake that no call follows.
 
 use rotorid_core::par::{for_each_task, steer};
 use std::sync::Mutex;
@@ -74,4 +74,15 @@ fn woken_helpers_start_off_the_callers_cpu_and_the_masks_come_back() {
         }
     }
     assert!(steered_tasks > 0, "no helper took a task while the masks excluded the caller's CPU");
+    // a wake that no call follows (an API call refusing its input after waking the pool): the
+    // last helper to stop spinning gives the masks back
+    std::thread::sleep(Duration::from_millis(3));
+    rotorid_core::par::wake_helpers(Duration::from_millis(1));
+    assert!(steer::state().1.is_some(), "the wake narrowed the masks");
+    let t0 = Instant::now();
+    while steer::state().1.is_some() && t0.elapsed() < Duration::from_secs(2) {
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    assert_eq!(steer::state().1, None, "the masks are given back when the woken helpers stop spinning");
+    assert!(steer::masks_as_recorded());
 }

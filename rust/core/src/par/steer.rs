@@ -18,7 +18,9 @@
 //! forked child (whose pool threads are not those recorded), and not touched at all with
 //! `ROTORID_STEER=0`.
 
-use std::sync::{Mutex, OnceLock};
+#[cfg(target_os = "linux")]
+use std::sync::Mutex;
+use std::sync::OnceLock;
 
 /// A thread of the global pool: its kernel thread id and the CPU mask it started with.
 #[cfg(target_os = "linux")]
@@ -29,15 +31,24 @@ struct PoolThread {
 
 #[cfg(target_os = "linux")]
 struct Pool {
-    /// the process that recorded the threads (a forked child has none of them)
-    pid: libc::pid_t,
     threads: Vec<PoolThread>,
     /// the CPU the masks exclude now, if any
     excluded: Option<usize>,
 }
 
+/// The process that recorded the threads (a forked child has none of them; it never takes the
+/// lock, which a parent's thread may have held when it forked) and the threads.
 #[cfg(target_os = "linux")]
-static POOL: OnceLock<Option<Mutex<Pool>>> = OnceLock::new();
+static POOL: OnceLock<Option<(libc::pid_t, Mutex<Pool>)>> = OnceLock::new();
+
+/// [`POOL`]'s threads, in the process that recorded them (else None: not set, steering off, or
+/// a forked child).
+#[cfg(target_os = "linux")]
+fn ours() -> Option<&'static Mutex<Pool>> {
+    let (pid, pool) = POOL.get()?.as_ref()?;
+    // SAFETY: getpid has no preconditions
+    (*pid == unsafe { libc::getpid() }).then_some(pool)
+}
 
 /// Whether helpers are steered away from their caller's CPU: on Linux with `ROTORID_STEER` unset,
 /// empty or 1 (the default), not with 0 ([`steer_from_env`]; a value it refuses falls back to the default
@@ -69,12 +80,11 @@ pub fn steer_from_env() -> Result<Option<bool>, crate::error::CoreError> {
 /// not the one recorded). None where steering is off.
 #[cfg(target_os = "linux")]
 fn pool() -> Option<&'static Mutex<Pool>> {
-    let pool = POOL
-        .get_or_init(|| {
-            // SAFETY: getpid has no preconditions
-            steering().then(|| Mutex::new(Pool { pid: unsafe { libc::getpid() }, threads: Vec::new(), excluded: None }))
-        })
-        .as_ref()?;
+    POOL.get_or_init(|| {
+        // SAFETY: getpid has no preconditions
+        steering().then(|| (unsafe { libc::getpid() }, Mutex::new(Pool { threads: Vec::new(), excluded: None })))
+    });
+    let pool = ours()?;
     // after POOL is set, which the threads' registrations look up
     BROADCAST.call_once(|| rayon::spawn_broadcast(register));
     Some(pool)
@@ -93,7 +103,7 @@ fn register(_: rayon::BroadcastContext<'_>) {
         let ok = libc::sched_getaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &mut mask) == 0;
         ok.then(|| PoolThread { tid: libc::syscall(libc::SYS_gettid) as libc::pid_t, mask })
     };
-    if let (Some(me), Some(Some(pool))) = (me, POOL.get()) {
+    if let (Some(me), Some(pool)) = (me, ours()) {
         pool.lock().unwrap_or_else(|e| e.into_inner()).threads.push(me);
     }
 }
@@ -112,8 +122,7 @@ pub fn away_from_caller() {
         let cpu = unsafe { libc::sched_getcpu() };
         let Ok(cpu) = usize::try_from(cpu) else { return };
         let mut p = pool.lock().unwrap_or_else(|e| e.into_inner());
-        // SAFETY: getpid has no preconditions
-        if p.excluded == Some(cpu) || p.pid != unsafe { libc::getpid() } || cpu >= libc::CPU_SETSIZE as usize {
+        if p.excluded == Some(cpu) || cpu >= libc::CPU_SETSIZE as usize {
             return;
         }
         for t in &p.threads {
@@ -135,10 +144,9 @@ pub fn away_from_caller() {
 pub fn restore() {
     #[cfg(target_os = "linux")]
     {
-        let Some(Some(pool)) = POOL.get() else { return };
+        let Some(pool) = ours() else { return };
         let mut p = pool.lock().unwrap_or_else(|e| e.into_inner());
-        // SAFETY: getpid has no preconditions
-        if p.excluded.is_none() || p.pid != unsafe { libc::getpid() } {
+        if p.excluded.is_none() {
             return;
         }
         for t in &p.threads {
@@ -155,7 +163,7 @@ pub fn restore() {
 /// where nothing is recorded).
 pub fn masks_as_recorded() -> bool {
     #[cfg(target_os = "linux")]
-    if let Some(Some(pool)) = POOL.get() {
+    if let Some(pool) = ours() {
         let p = pool.lock().unwrap_or_else(|e| e.into_inner());
         return p.threads.iter().all(|t| {
             // SAFETY: a zeroed cpu_set_t filled by the system call
@@ -172,7 +180,7 @@ pub fn masks_as_recorded() -> bool {
 /// The CPU masks' state for tests: (pool threads recorded, the CPU they exclude now).
 pub fn state() -> (usize, Option<usize>) {
     #[cfg(target_os = "linux")]
-    if let Some(Some(pool)) = POOL.get() {
+    if let Some(pool) = ours() {
         let p = pool.lock().unwrap_or_else(|e| e.into_inner());
         return (p.threads.len(), p.excluded);
     }
