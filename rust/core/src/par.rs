@@ -105,13 +105,12 @@ pub fn for_each_task<F: Fn(usize) + Sync>(n: usize, task: F) {
     *OFFER.lock().unwrap_or_else(|p| p.into_inner()) = Some((Arc::clone(&counters), task_ref));
     let call = CALLS.fetch_add(1, Ordering::SeqCst) + 1;
     let missing = reserve_spinners(helpers);
-    if missing > 0 {
-        // a woken helper is to start on another CPU than this busy one (see steer)
-        steer::away_from_caller();
-    }
+    // a woken helper is to start on another CPU than this busy one (see steer)
+    steer::away_from_caller(missing);
     for _ in 0..missing {
         let c = Arc::clone(&counters);
         rayon::spawn(move || {
+            steer::job_started();
             work(&c, task_ref);
             drop(c);
             spin(call);
@@ -138,7 +137,8 @@ pub fn for_each_task<F: Fn(usize) + Sync>(n: usize, task: F) {
             *offer = None;
         }
     }
-    // the pool's threads may use every CPU again (rayon's own loops)
+    // the pool's threads may use every CPU again (rayon's own loops), should a helper job not
+    // have started yet (it gives the masks back as it starts)
     steer::restore();
     // the helpers wait for the next call for the spin time from now (a longer wait asked for by
     // wake_helpers ends with this call)
@@ -297,13 +297,14 @@ pub fn wake_helpers(max_wait: Duration) {
     DEADLINE_NS.fetch_max(now_ns().saturating_add(nanos(max_wait)), Ordering::SeqCst);
     let seen = CALLS.load(Ordering::SeqCst);
     // top up to one spinning job per helper thread, started on another CPU than this one (see
-    // steer; the next call gives the threads their masks back)
+    // steer; the last job to start gives the threads their masks back)
     let missing = reserve_spinners(helpers);
-    if missing > 0 {
-        steer::away_from_caller();
-    }
+    steer::away_from_caller(missing);
     for _ in 0..missing {
-        rayon::spawn(move || spin(seen));
+        rayon::spawn(move || {
+            steer::job_started();
+            spin(seen)
+        });
     }
 }
 

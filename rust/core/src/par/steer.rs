@@ -1,21 +1,24 @@
 //! Keeping a woken helper off its caller's CPU (Linux).
 //!
 //! When a thread that is running wakes a sleeping one, Linux places the wakee on the waker's CPU
-//! unless it finds an idle CPU it may use. On a virtual machine an idle vCPU is halted, and the
-//! guest's scheduler counts a halted vCPU as preempted, not idle (`available_idle_cpu` asks
-//! `vcpu_is_preempted`): the woken helper is queued behind its caller, which is busy with the
-//! call's tasks, while the other vCPU stays idle. Measured on the 2-vCPU virtual machine of the
-//! benchmarks (`perf sched timehist -w -M`, 100,000-speed identifications 30 ms apart): the
-//! helper was migrated onto the caller's CPU and waited 3.9 ms there, so the call took 5.8-6.2 ms
-//! on one CPU instead of 3.2 ms on two, in 8 of 12 calls.
+//! unless it finds an idle CPU it may use. On the 2-vCPU virtual machine of the benchmarks it
+//! found none though the other vCPU was idle (likely because a guest counts a halted vCPU as
+//! preempted, not idle: `available_idle_cpu` asks `vcpu_is_preempted`): the woken helper was
+//! queued behind its caller, busy with the call's tasks. Measured there (`perf sched timehist -w
+//! -M`, 100,000-speed identifications 30 ms apart): the helper was migrated onto the caller's CPU
+//! and waited 3.9 ms, so the call took 5.8-6.2 ms on one CPU instead of 3.2 ms on two, in 8 of
+//! 12 calls.
 //!
-//! [`away_from_caller`] narrows the CPU masks of the pool's threads to the process's CPUs other
-//! than the caller's before a call wakes them, so a woken helper can only start elsewhere, and
-//! [`restore`] gives them back their own masks after the call (rayon's own loops, started from
-//! outside the pool, need every CPU). Both are hints: an error (a cpuset that changed, a thread
-//! gone) leaves the masks as they are, and the results never depend on where a task runs. Masks
-//! are never narrowed to nothing (a process allowed one CPU is left alone), never touched in a
-//! forked child (whose pool threads are not those recorded), and not touched at all with
+//! [`away_from_caller`] narrows the CPU masks of the pool's threads to their CPUs other than the
+//! caller's before a call (or a wake) spawns helper jobs, so a woken helper can only start
+//! elsewhere; the last of those jobs to start gives the masks back at once ([`job_started`]), as
+//! they matter only where a woken thread is placed (rayon's own loops, started from outside the
+//! pool, need every CPU), and the call's end does it too should a job not have started
+//! ([`restore`]). Both are hints: an error (a cpuset that changed, a thread gone) leaves the
+//! masks as they are, and the results never depend on where a task runs. Masks are never
+//! narrowed to nothing (a process allowed one CPU is left alone), never touched in a forked
+//! child (whose pool threads are not those recorded), not touched for pools of more than
+//! [`MAX_STEERED_THREADS`] threads (one system call per thread each way), and not at all with
 //! `ROTORID_STEER=0`.
 
 #[cfg(target_os = "linux")]
@@ -34,7 +37,17 @@ struct Pool {
     threads: Vec<PoolThread>,
     /// the CPU the masks exclude now, if any
     excluded: Option<usize>,
+    /// the CPU the last narrowing excluded (kept after the restore; for tests)
+    last: Option<usize>,
 }
+
+/// Helper jobs spawned after the last narrowing that have not started yet: the last to start
+/// gives the masks back ([`job_started`]).
+static PENDING: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+
+/// The largest pool steered: each narrowing and restore is one system call per pool thread
+/// (~1 µs), and the queueing it avoids was measured on 2 vCPUs.
+pub const MAX_STEERED_THREADS: usize = 8;
 
 /// The process that recorded the threads (a forked child has none of them; it never takes the
 /// lock, which a parent's thread may have held when it forked) and the threads.
@@ -82,7 +95,8 @@ pub fn steer_from_env() -> Result<Option<bool>, crate::error::CoreError> {
 fn pool() -> Option<&'static Mutex<Pool>> {
     POOL.get_or_init(|| {
         // SAFETY: getpid has no preconditions
-        steering().then(|| (unsafe { libc::getpid() }, Mutex::new(Pool { threads: Vec::new(), excluded: None })))
+        (steering() && rayon::current_num_threads() <= MAX_STEERED_THREADS)
+            .then(|| (unsafe { libc::getpid() }, Mutex::new(Pool { threads: Vec::new(), excluded: None, last: None })))
     });
     let pool = ours()?;
     // after POOL is set, which the threads' registrations look up
@@ -108,39 +122,72 @@ fn register(_: rayon::BroadcastContext<'_>) {
     }
 }
 
-/// Narrow the pool threads' CPU masks to exclude the calling thread's CPU (see the module
-/// documentation); a no-op from inside a pool, when the masks already exclude it, or where a
-/// thread would be left no CPU.
-pub fn away_from_caller() {
+/// Narrow the pool threads' CPU masks to exclude the calling thread's CPU before `jobs` helper
+/// jobs are spawned (see the module documentation); each job calls [`job_started`] first, and
+/// the last of them gives the masks back: they matter only where a woken thread is placed. A
+/// no-op from inside a pool, for `jobs` = 0, or where a thread would be left no CPU; the masks
+/// are narrowed from the threads' current ones (a `taskset` since is kept).
+pub fn away_from_caller(jobs: usize) {
     #[cfg(target_os = "linux")]
     {
-        if rayon::current_thread_index().is_some() {
+        if jobs == 0 || rayon::current_thread_index().is_some() {
             return;
         }
         let Some(pool) = pool() else { return };
         // SAFETY: sched_getcpu has no preconditions
         let cpu = unsafe { libc::sched_getcpu() };
         let Ok(cpu) = usize::try_from(cpu) else { return };
-        let mut p = pool.lock().unwrap_or_else(|e| e.into_inner());
-        if p.excluded == Some(cpu) || cpu >= libc::CPU_SETSIZE as usize {
+        if cpu >= libc::CPU_SETSIZE as usize {
             return;
         }
-        for t in &p.threads {
-            let mut mask = t.mask;
-            // SAFETY: cpu < CPU_SETSIZE; the masks are the threads' own, read by sched_getaffinity
+        let mut p = pool.lock().unwrap_or_else(|e| e.into_inner());
+        if p.excluded == Some(cpu) {
+            PENDING.fetch_add(jobs, std::sync::atomic::Ordering::SeqCst);
+            return;
+        }
+        let size = std::mem::size_of::<libc::cpu_set_t>();
+        let mut narrowed = false;
+        let refresh = p.excluded.is_none();
+        for t in p.threads.iter_mut() {
+            // SAFETY: zeroed cpu_set_t values filled by the system call; cpu < CPU_SETSIZE
             unsafe {
+                if refresh {
+                    // the thread's mask now, to give back later
+                    let mut now: libc::cpu_set_t = std::mem::zeroed();
+                    if libc::sched_getaffinity(t.tid, size, &mut now) == 0 {
+                        t.mask = now;
+                    }
+                }
+                let mut mask = t.mask;
                 libc::CPU_CLR(cpu, &mut mask);
-                if libc::CPU_COUNT(&mask) > 0 {
-                    libc::sched_setaffinity(t.tid, std::mem::size_of::<libc::cpu_set_t>(), &mask);
+                if libc::CPU_COUNT(&mask) > 0 && libc::sched_setaffinity(t.tid, size, &mask) == 0 {
+                    narrowed = true;
                 }
             }
         }
-        p.excluded = Some(cpu);
+        if narrowed {
+            p.excluded = Some(cpu);
+            p.last = Some(cpu);
+            PENDING.store(jobs, std::sync::atomic::Ordering::SeqCst);
+        }
     }
 }
 
-/// Give the pool's threads back the CPU masks they started with, if [`away_from_caller`]
-/// narrowed them.
+/// Called by a helper job spawned after [`away_from_caller`] as it starts: the last one of them
+/// gives the masks back.
+pub fn job_started() {
+    #[cfg(target_os = "linux")]
+    {
+        use std::sync::atomic::Ordering;
+        let left = PENDING.fetch_update(Ordering::SeqCst, Ordering::SeqCst, |n| n.checked_sub(1));
+        if left == Ok(1) {
+            restore();
+        }
+    }
+}
+
+/// Give the pool's threads back the CPU masks they had before [`away_from_caller`] narrowed
+/// them (a backstop: the last helper job to start does it, or else the call that woke them).
 pub fn restore() {
     #[cfg(target_os = "linux")]
     {
@@ -156,7 +203,27 @@ pub fn restore() {
             }
         }
         p.excluded = None;
+        PENDING.store(0, std::sync::atomic::Ordering::SeqCst);
     }
+}
+
+/// Whether every recorded pool thread's CPU mask leaves out `cpu` now (for tests).
+pub fn masks_exclude(cpu: usize) -> bool {
+    #[cfg(target_os = "linux")]
+    if let Some(pool) = ours() {
+        let p = pool.lock().unwrap_or_else(|e| e.into_inner());
+        return !p.threads.is_empty()
+            && p.threads.iter().all(|t| {
+                // SAFETY: a zeroed cpu_set_t filled by the system call; CPU_ISSET checks its index
+                unsafe {
+                    let mut now: libc::cpu_set_t = std::mem::zeroed();
+                    libc::sched_getaffinity(t.tid, std::mem::size_of::<libc::cpu_set_t>(), &mut now) == 0
+                        && !libc::CPU_ISSET(cpu, &now)
+                }
+            });
+    }
+    let _ = cpu;
+    false
 }
 
 /// Whether every recorded pool thread has the CPU mask it started with now (for tests; true
@@ -177,12 +244,13 @@ pub fn masks_as_recorded() -> bool {
     true
 }
 
-/// The CPU masks' state for tests: (pool threads recorded, the CPU they exclude now).
-pub fn state() -> (usize, Option<usize>) {
+/// The CPU masks' state for tests: (pool threads recorded, the CPU they exclude now, the CPU
+/// the last narrowing excluded).
+pub fn state() -> (usize, Option<usize>, Option<usize>) {
     #[cfg(target_os = "linux")]
     if let Some(pool) = ours() {
         let p = pool.lock().unwrap_or_else(|e| e.into_inner());
-        return (p.threads.len(), p.excluded);
+        return (p.threads.len(), p.excluded, p.last);
     }
-    (0, None)
+    (0, None, None)
 }
