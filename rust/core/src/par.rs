@@ -212,17 +212,11 @@ fn spin(mut seen: usize) {
         }
         let now = now_ns();
         if (now >= floor && now >= DEADLINE_NS.load(Ordering::SeqCst)) || now.saturating_sub(born) >= MAX_SPIN_NS {
-            let was = SPINNING.fetch_sub(1, Ordering::SeqCst);
+            SPINNING.fetch_sub(1, Ordering::SeqCst);
             // a call that counted this helper just before it left: take part after all (if the
             // call saw it leave, a job of its own covers the helper as well: harmless)
             if CALLS.load(Ordering::SeqCst) != seen {
                 join_offer();
-            }
-            if was == 1 {
-                // the last helper to leave gives the pool's threads their CPU masks back, should
-                // a wake_helpers have narrowed them for a call that never came (an API call
-                // refusing its input after waking the pool)
-                steer::restore();
             }
             return;
         }

@@ -25,7 +25,8 @@
 use std::sync::Mutex;
 use std::sync::OnceLock;
 
-/// A thread of the global pool: its kernel thread id and the CPU mask it started with.
+/// A thread of the global pool: its kernel thread id and the CPU mask to give back (its own,
+/// read when it registered and again before each narrowing from whole masks).
 #[cfg(target_os = "linux")]
 struct PoolThread {
     tid: libc::pid_t,
@@ -43,6 +44,7 @@ struct Pool {
 
 /// Helper jobs spawned after the last narrowing that have not started yet: the last to start
 /// gives the masks back ([`job_started`]).
+#[cfg(target_os = "linux")]
 static PENDING: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
 
 /// The largest pool steered: each narrowing and restore is one system call per pool thread
