@@ -8,7 +8,7 @@
 //! against 62.9 ns with 4 runs, 25.3 against 27.0 with 2), and the lane pointers in a function of
 //! their own (inlined, 4 runs took 74 ns).
 
-use super::registers::{one_intrinsic_ops, store_group, Regs, Sol, C};
+use super::registers::{one_intrinsic_ops, store_group, Regs, C};
 use super::{Consts, IdentProblem, Outs};
 use crate::lanes::V;
 use std::arch::x86_64::*;
@@ -132,22 +132,17 @@ impl Regs<N> for Avx2 {
     unsafe fn blend(a: __m256d, b: __m256d, m: __m256d) -> __m256d {
         _mm256_blendv_pd(a, b, m)
     }
-    #[inline(always)]
-    unsafe fn solve(rows: &[[C<__m256d>; 4]], refine_cond: f64, out: &mut Sol<__m256d>) {
-        solve_rows(rows, refine_cond, out)
-    }
-}
-
-#[target_feature(enable = "avx2,fma")]
-#[inline]
-fn solve_rows(rows: &[[C<__m256d>; 4]], refine_cond: f64, out: &mut Sol<__m256d>) {
-    // SAFETY: compiled for AVX2, called from the AVX2 kernel only
-    unsafe { super::registers::solve::<N, Avx2>(rows, refine_cond, out) }
 }
 
 /// [`super::forces_chunk`] on AVX2 registers (see [`super::registers`]).
 #[target_feature(enable = "avx2,fma")]
 pub(super) fn forces_chunk(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize {
     // SAFETY: this function is compiled for and called on AVX2 + FMA CPUs only
-    unsafe { super::registers::forces_chunk::<N, Avx2>(p, kc, start, out) }
+    unsafe {
+        if super::registers::is_plain(p) {
+            super::registers::forces_chunk::<N, Avx2, true>(p, kc, start, out)
+        } else {
+            super::registers::forces_chunk::<N, Avx2, false>(p, kc, start, out)
+        }
+    }
 }

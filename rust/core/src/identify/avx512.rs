@@ -8,7 +8,7 @@
 //! halves) the earlier lane-array kernels of 8 lanes were slower than 4 (see
 //! [`super::forces_chunk_dispatch`]); this register kernel was not measured there.
 
-use super::registers::{one_intrinsic_ops, store_group, Regs, Sol, C};
+use super::registers::{one_intrinsic_ops, store_group, Regs, C};
 use super::{Consts, IdentProblem, Outs};
 use crate::lanes::V;
 use std::arch::x86_64::*;
@@ -146,22 +146,17 @@ impl Regs<N> for Avx512 {
     unsafe fn blend(a: __m512d, b: __m512d, m: __mmask8) -> __m512d {
         _mm512_mask_blend_pd(m, a, b)
     }
-    #[inline(always)]
-    unsafe fn solve(rows: &[[C<__m512d>; 4]], refine_cond: f64, out: &mut Sol<__m512d>) {
-        solve_rows(rows, refine_cond, out)
-    }
-}
-
-#[target_feature(enable = "avx512f,avx512dq,avx2,fma")]
-#[inline]
-fn solve_rows(rows: &[[C<__m512d>; 4]], refine_cond: f64, out: &mut Sol<__m512d>) {
-    // SAFETY: compiled for AVX-512, called from the AVX-512 kernel only
-    unsafe { super::registers::solve::<N, Avx512>(rows, refine_cond, out) }
 }
 
 /// [`super::forces_chunk`] on AVX-512 registers (see [`super::registers`]).
 #[target_feature(enable = "avx512f,avx512dq,avx2,fma")]
 pub(super) fn forces_chunk(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize {
     // SAFETY: this function is compiled for and called on AVX-512 F + DQ CPUs only
-    unsafe { super::registers::forces_chunk::<N, Avx512>(p, kc, start, out) }
+    unsafe {
+        if super::registers::is_plain(p) {
+            super::registers::forces_chunk::<N, Avx512, true>(p, kc, start, out)
+        } else {
+            super::registers::forces_chunk::<N, Avx512, false>(p, kc, start, out)
+        }
+    }
 }

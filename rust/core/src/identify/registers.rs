@@ -83,9 +83,6 @@ pub(super) trait Regs<const N: usize> {
     unsafe fn m_bits(a: Self::M) -> u32;
     /// b where m, else a.
     unsafe fn blend(a: Self::V, b: Self::V, m: Self::M) -> Self::V;
-    /// [`solve`] for this width: a function of its own in the instantiating module (inlined in the
-    /// group loop it spilled the loop's registers on AVX2).
-    unsafe fn solve(rows: &[[C<Self::V>; 4]], refine_cond: f64, out: &mut Sol<Self::V>);
 }
 
 /// The [`Regs`] operations that are one intrinsic each, for a register type `$v` of `$n` lanes
@@ -276,10 +273,26 @@ unsafe fn row_residual<const N: usize, R: Regs<N>>(r: &[C<R::V>; 4], k: usize, z
     sub::<N, R>(sub::<N, R>(r[2 + k], mul::<N, R>(r[0], zk[0])), mul::<N, R>(r[1], zk[1]))
 }
 
-/// [`super::solve_lanes`] on registers for more than two rows: the semi-normal equations, corrected
-/// where cond >= `refine_cond`.
+/// The 2 x 2 Hermitian normal equations of a system, kept between [`solve_normal`] and
+/// [`solve_residual`].
+#[derive(Clone, Copy)]
+pub(super) struct Gram<T> {
+    a: T,
+    d: T,
+    gxy: C<T>,
+    gc: C<T>,
+    idet: T,
+}
+
+/// [`super::solve_lanes`] on registers for more than two rows, in two halves: the semi-normal
+/// equations ([`solve_normal`]), then the residuals and, where cond >= `refine_cond`, the
+/// refinement step ([`solve_residual`]). A caller with two systems runs both first halves before
+/// either second half (no faster on AVX2, measured; kept as the order that leaves the out-of-order
+/// core the most independent work).
+/// The first half of the semi-normal solve: the normal equations' solution, cond, and the sums
+/// of squares.
 #[inline(always)]
-pub(super) unsafe fn solve<const N: usize, R: Regs<N>>(rows: &[[C<R::V>; 4]], refine_cond: f64, out: &mut Sol<R::V>) {
+pub(super) unsafe fn solve_normal<const N: usize, R: Regs<N>>(rows: &[[C<R::V>; 4]], out: &mut Sol<R::V>) -> Gram<R::V> {
     let sp = |x: f64| R::splat(x);
     let zero = sp(0.0);
     let zc0 = C { re: zero, im: zero };
@@ -309,11 +322,23 @@ pub(super) unsafe fn solve<const N: usize, R: Regs<N>>(rows: &[[C<R::V>; 4]], re
     let idet = R::div(sp(1.0), det);
     let cond = R::sqrt(R::mul(R::mul(lmax, lmax), idet));
     let gc = conj::<N, R>(gxy);
-    let mut z = [solve_gram::<N, R>(h[0], a, d, gxy, gc, idet), solve_gram::<N, R>(h[1], a, d, gxy, gc, idet)];
+    let z = [solve_gram::<N, R>(h[0], a, d, gxy, gc, idet), solve_gram::<N, R>(h[1], a, d, gxy, gc, idet)];
+    let ad = R::add(a, d);
+    let total = R::add(R::add(ad, rhs2[0]), rhs2[1]);
+    *out = Sol { z, g: [R::mul(d, idet), R::mul(a, idet)], cond, res2: [zero; 2], rhs2, total, qq: ad };
+    Gram { a, d, gxy, gc, idet }
+}
+
+/// The second half of the semi-normal solve (after [`solve_normal`]): the residuals' sums of squares, and the refinement step in the
+/// lanes whose cond reaches `refine_cond` (and NaN lanes; see super::REFINE_COND).
+#[inline(always)]
+pub(super) unsafe fn solve_residual<const N: usize, R: Regs<N>>(rows: &[[C<R::V>; 4]], refine_cond: f64, g: &Gram<R::V>, out: &mut Sol<R::V>) {
+    let zero = R::splat(0.0);
+    let zc0 = C { re: zero, im: zero };
+    let Gram { a, d, gxy, gc, idet } = *g;
+    let mut z = out.z;
     let mut res2 = [zero; 2];
-    // the refinement step only in lanes whose cond reaches refine_cond (and NaN lanes; see
-    // super::REFINE_COND), the residual in every lane
-    let refine = R::not_lt(cond, sp(refine_cond));
+    let refine = R::not_lt(out.cond, R::splat(refine_cond));
     let any = R::m_bits(refine) != 0;
     for k in 0..2 {
         // two loops rather than one with the refinement's sums under a branch: at AVX2 the single
@@ -337,9 +362,8 @@ pub(super) unsafe fn solve<const N: usize, R: Regs<N>>(rows: &[[C<R::V>; 4]], re
             z[k][u] = C { re: R::blend(z[k][u].re, zu.re, refine), im: R::blend(z[k][u].im, zu.im, refine) };
         }
     }
-    let ad = R::add(a, d);
-    let total = R::add(R::add(ad, rhs2[0]), rhs2[1]);
-    *out = Sol { z, g: [R::mul(d, idet), R::mul(a, idet)], cond, res2, rhs2, total, qq: ad };
+    out.z = z;
+    out.res2 = res2;
 }
 
 /// [`super::relative_std_point`] in lanes, on the values just stored as k, c, k_std and c_std
@@ -381,7 +405,6 @@ struct Group<'a, const N: usize> {
     i0: usize,
     bi: &'a [(usize, usize); N],
     runs: usize,
-    r: usize,
 }
 
 impl<const N: usize> Group<'_, N> {
@@ -390,8 +413,7 @@ impl<const N: usize> Group<'_, N> {
     /// method rather than a closure: LLVM left the closure a call, 4.5 % of the AVX2 kernel's
     /// time (perf, `identify_points 4096 2000 nostd 4`).
     #[inline(always)]
-    unsafe fn ptrs(&self, blocks: &[&[C64]]) -> [*const f64; N] {
-        let r = self.r;
+    unsafe fn ptrs(&self, blocks: &[&[C64]], r: usize) -> [*const f64; N] {
         if self.contiguous {
             let (b0, i0) = (self.b0, self.i0);
             // one bounds check for the group: its points are 4 i0..4 (i0 + N) of a block
@@ -407,15 +429,25 @@ impl<const N: usize> Group<'_, N> {
     }
 }
 
-/// [`super::forces_chunk`] on registers (see the module's documentation).
+/// Whether `p` is the common case that [`forces_chunk`]'s `PLAIN` instance serves: responses at
+/// the bearings, no window, no pedestal motion, one excitation per run shared by the batch.
+#[inline]
+pub(super) fn is_plain(p: &IdentProblem) -> bool {
+    p.e.len() == p.runs * 4 && p.sigma.is_empty() && p.q_ped.is_empty() && p.planes.is_none()
+}
+
+/// [`super::forces_chunk`] on registers (see the module's documentation); `PLAIN` when
+/// [`is_plain`] holds.
 #[inline(always)]
-pub(super) unsafe fn forces_chunk<const N: usize, R: Regs<N>>(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize {
+pub(super) unsafe fn forces_chunk<const N: usize, R: Regs<N>, const PLAIN: bool>(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize {
     let Outs { k, c, cond, resid, amp, mut ks, mut cs, rel: mut rel_out } = out;
     let n = p.w.len();
     let npts = resid.len();
-    let shared_e = p.e.len() == p.runs * 4;
-    let windowed = !p.sigma.is_empty();
-    let has_ped = !p.q_ped.is_empty();
+    debug_assert!(!PLAIN || is_plain(p));
+    // constants in the PLAIN instance, so that its group loop has none of these branches
+    let shared_e = PLAIN || p.e.len() == p.runs * 4;
+    let windowed = !PLAIN && !p.sigma.is_empty();
+    let has_ped = !PLAIN && !p.q_ped.is_empty();
     let nsys = if p.identical { 1 } else { 2 };
     let mut nbad = 0;
     let sp = |x: f64| R::splat(x);
@@ -425,7 +457,7 @@ pub(super) unsafe fn forces_chunk<const N: usize, R: Regs<N>>(p: &IdentProblem, 
     let mut sols = [Sol::splat(zero); 2];
     let (ml2, ml1, it) = (sp(kc.ml2), sp(kc.ml1), sp(kc.it));
     let (l1, l2, il, ip) = (sp(kc.l1), sp(kc.l2), sp(kc.il), sp(kc.ip));
-    let planes = p.planes.map(|t| [sp(t[0]), sp(t[1]), sp(t[2]), sp(t[3])]);
+    let planes = if PLAIN { None } else { p.planes.map(|t| [sp(t[0]), sp(t[1]), sp(t[2]), sp(t[3])]) };
     let nanv = sp(f64::NAN);
     let want_std = ks.is_some() && cs.is_some();
     let inv_4runs = sp(1.0 / (4.0 * p.runs as f64));
@@ -484,10 +516,10 @@ pub(super) unsafe fn forces_chunk<const N: usize, R: Regs<N>>(p: &IdentProblem, 
         let wg = R::mul(R::mul(w, spin), ip);
         let sgg = R::mul(R::mul(sig, spin), ip);
         let mut nr = [0usize; 2];
+        let group = Group { contiguous, b0, i0, bi: &bi, runs: p.runs };
         for r in 0..p.runs {
-            let group = Group { contiguous, b0, i0, bi: &bi, runs: p.runs, r };
             // each pointer is the start of a point's 4 complex values (8 doubles)
-            let mut q = R::load_points(&group.ptrs(p.q));
+            let mut q = R::load_points(&group.ptrs(p.q, r));
             if let Some(t) = &planes {
                 q = [
                     add::<N, R>(scale::<N, R>(q[0], t[0]), scale::<N, R>(q[1], t[1])),
@@ -496,6 +528,17 @@ pub(super) unsafe fn forces_chunk<const N: usize, R: Regs<N>>(p: &IdentProblem, 
                     add::<N, R>(scale::<N, R>(q[2], t[2]), scale::<N, R>(q[3], t[3])),
                 ];
             }
+            // the system rows of this run, their responses written now (their forces below): q then
+            // need not stay in registers through the force computation
+            let s2 = if p.identical { 0 } else { 1 };
+            let j0 = nr[0];
+            nr[0] += 1;
+            let j1 = nr[s2];
+            nr[s2] += 1;
+            rows[0][j0][0] = q[0];
+            rows[0][j0][1] = q[2];
+            rows[s2][j1][0] = q[1];
+            rows[s2][j1][1] = q[3];
             let e_row: [C<R::V>; 4];
             let e: &[C<R::V>; 4] = if shared_e {
                 &e_shared[r]
@@ -512,7 +555,7 @@ pub(super) unsafe fn forces_chunk<const N: usize, R: Regs<N>>(p: &IdentProblem, 
             // the inertia acts on the absolute motion: q + q_ped with flexible pedestals
             let qa = if has_ped {
                 // as for q (q_ped has q's layout, checked by IdentProblem::check)
-                let d = R::load_points(&group.ptrs(p.q_ped));
+                let d = R::load_points(&group.ptrs(p.q_ped, r));
                 [add::<N, R>(q[0], d[0]), add::<N, R>(q[1], d[1]), add::<N, R>(q[2], d[2]), add::<N, R>(q[3], d[3])]
             } else {
                 q
@@ -538,18 +581,24 @@ pub(super) unsafe fn forces_chunk<const N: usize, R: Regs<N>>(p: &IdentProblem, 
             let f1y = scale::<N, R>(add::<N, R>(scale::<N, R>(rv1, l2), rv3), il);
             let f2x = scale::<N, R>(add::<N, R>(rv2, scale::<N, R>(rv0, l1)), il);
             let f2y = scale::<N, R>(sub::<N, R>(scale::<N, R>(rv1, l1), rv3), il);
-            rows[0][nr[0]] = [q[0], q[2], f1x, f1y];
-            nr[0] += 1;
-            let s2 = if p.identical { 0 } else { 1 };
-            rows[s2][nr[s2]] = [q[1], q[3], f2x, f2y];
-            nr[s2] += 1;
+            rows[0][j0][2] = f1x;
+            rows[0][j0][3] = f1y;
+            rows[s2][j1][2] = f2x;
+            rows[s2][j1][3] = f2y;
         }
         // two rows (two runs, the impact case): Cramer's rule inlined here; more: `R::solve`
+        // more: the semi-normal equations, both systems' first halves before either second half
+        let mut grams = [None; 2];
         for sb in 0..nsys {
             if nr[sb] == 2 {
                 sols[sb] = solve_square::<N, R>(&rows[sb][0], &rows[sb][1]);
             } else {
-                R::solve(&rows[sb][..nr[sb]], kc.refine_cond, &mut sols[sb]);
+                grams[sb] = Some(solve_normal::<N, R>(&rows[sb][..nr[sb]], &mut sols[sb]));
+            }
+        }
+        for sb in 0..nsys {
+            if let Some(g) = &grams[sb] {
+                solve_residual::<N, R>(&rows[sb][..nr[sb]], kc.refine_cond, g, &mut sols[sb]);
             }
         }
         // rows of the systems together hold every entry of q and E: a NaN/inf input shows up here
