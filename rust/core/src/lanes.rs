@@ -155,6 +155,23 @@ impl<const N: usize> V<N> {
         }
         V(o)
     }
+    /// self * b + c per lane, rounded once (a fused multiply-add: the FMA instruction where the
+    /// code is compiled with it, else the C library's `fma`, correctly rounded in software: the
+    /// same bits either way).
+    #[inline(always)]
+    pub fn mul_add(self, b: Self, c: Self) -> Self {
+        V(std::array::from_fn(|l| self.0[l].mul_add(b.0[l], c.0[l])))
+    }
+    /// c - self * b per lane, rounded once (as [`V::mul_add`]).
+    #[inline(always)]
+    pub fn neg_mul_add(self, b: Self, c: Self) -> Self {
+        V(std::array::from_fn(|l| (-self.0[l]).mul_add(b.0[l], c.0[l])))
+    }
+    /// self * b - c per lane, rounded once (as [`V::mul_add`]).
+    #[inline(always)]
+    pub fn mul_sub(self, b: Self, c: Self) -> Self {
+        V(std::array::from_fn(|l| self.0[l].mul_add(b.0[l], -c.0[l])))
+    }
     #[inline(always)]
     pub fn recip(self) -> Self {
         let mut o = self.0;
@@ -223,6 +240,41 @@ impl<const N: usize> Z<N> {
     #[inline(always)]
     pub fn cmul(self, b: Self) -> Self {
         Z { re: self.re * b.re + self.im * b.im, im: self.re * b.im - self.im * b.re }
+    }
+    /// acc + |self|^2 in two fused multiply-adds: re^2 + (im^2 + acc).
+    #[inline(always)]
+    pub fn norm_sqr_add(self, acc: V<N>) -> V<N> {
+        self.re.mul_add(self.re, self.im.mul_add(self.im, acc))
+    }
+    /// acc + conj(self) * b in four fused multiply-adds (re: self.re b.re + (self.im b.im +
+    /// acc.re); im: self.re b.im + (acc.im - self.im b.re)).
+    #[inline(always)]
+    pub fn cmul_add(self, b: Self, acc: Self) -> Self {
+        Z { re: self.re.mul_add(b.re, self.im.mul_add(b.im, acc.re)), im: self.re.mul_add(b.im, self.im.neg_mul_add(b.re, acc.im)) }
+    }
+    /// f - x z0 - y z1 in eight fused multiply-adds, from f's parts inwards: each product's real
+    /// and imaginary terms are taken off (or added) in the order x.re, x.im, y.re, y.im.
+    #[inline(always)]
+    pub fn sub_two_products(f: Self, x: Self, z0: Self, y: Self, z1: Self) -> Self {
+        let re = y.im.mul_add(z1.im, y.re.neg_mul_add(z1.re, x.im.mul_add(z0.im, x.re.neg_mul_add(z0.re, f.re))));
+        let im = y.im.neg_mul_add(z1.re, y.re.neg_mul_add(z1.im, x.im.neg_mul_add(z0.re, x.re.neg_mul_add(z0.im, f.im))));
+        Z { re, im }
+    }
+    /// acc + self * s, each part in one fused multiply-add.
+    #[inline(always)]
+    pub fn scale_add(self, s: V<N>, acc: Self) -> Self {
+        Z { re: self.re.mul_add(s, acc.re), im: self.im.mul_add(s, acc.im) }
+    }
+    /// self * s - c, each part in one fused multiply-add.
+    #[inline(always)]
+    pub fn scale_sub(self, s: V<N>, c: Self) -> Self {
+        Z { re: self.re.mul_sub(s, c.re), im: self.im.mul_sub(s, c.im) }
+    }
+    /// self - j s a, each part in one fused multiply-add (re: a.im s + self.re; im: self.im -
+    /// a.re s).
+    #[inline(always)]
+    pub fn sub_jscale(self, a: Self, s: V<N>) -> Self {
+        Z { re: a.im.mul_add(s, self.re), im: a.re.neg_mul_add(s, self.im) }
     }
     /// j * s * self
     #[inline(always)]
@@ -297,6 +349,34 @@ mod tests {
                 prop_assert!(close(x * s.0[l], sc.re.0[l], sc.im.0[l]));
                 prop_assert!(close(x.conj(), cj.re.0[l], cj.im.0[l]));
                 prop_assert!((x.norm_sqr() - ns.0[l]).abs() <= 1e-12 * (1.0 + x.norm_sqr()));
+            }
+            // the fused forms: the complex value they stand for, and each part rounded once
+            // (a fused multiply-add is exact before its rounding: f64::mul_add lane by lane)
+            let zc = Z { re: lanes(&a[3 * L..]), im: lanes(&a[L..]) };
+            let (nsa, cma) = (za.norm_sqr_add(s), za.cmul_add(zb, zc));
+            let (sa, ss, sj) = (za.scale_add(s, zb), za.scale_sub(s, zb), zc.sub_jscale(za, s));
+            let two = Z::sub_two_products(zc, za, zb, zb, za);
+            for l in 0..L {
+                let x = C64::new(za.re.0[l], za.im.0[l]);
+                let y = C64::new(zb.re.0[l], zb.im.0[l]);
+                let c = C64::new(zc.re.0[l], zc.im.0[l]);
+                let sl = s.0[l];
+                let close = |z: C64, re: f64, im: f64| (z.re - re).abs() <= 1e-9 * (1.0 + z.norm()) && (z.im - im).abs() <= 1e-9 * (1.0 + z.norm());
+                prop_assert!((x.norm_sqr() + sl - nsa.0[l]).abs() <= 1e-9 * (1.0 + x.norm_sqr() + sl.abs()));
+                prop_assert!(close(x.conj() * y + c, cma.re.0[l], cma.im.0[l]));
+                prop_assert!(close(x * sl + y, sa.re.0[l], sa.im.0[l]));
+                prop_assert!(close(x * sl - y, ss.re.0[l], ss.im.0[l]));
+                prop_assert!(close(c - C64::new(0.0, sl) * x, sj.re.0[l], sj.im.0[l]));
+                prop_assert!(close(c - x * y - y * x, two.re.0[l], two.im.0[l]));
+                let (xr, xi, yr, yi, cr, ci) = (x.re, x.im, y.re, y.im, c.re, c.im);
+                let bits = |u: f64, v: f64| u.to_bits() == v.to_bits();
+                prop_assert!(bits(nsa.0[l], xr.mul_add(xr, xi.mul_add(xi, sl))));
+                prop_assert!(bits(cma.re.0[l], xr.mul_add(yr, xi.mul_add(yi, cr))) && bits(cma.im.0[l], xr.mul_add(yi, (-xi).mul_add(yr, ci))));
+                prop_assert!(bits(sa.re.0[l], xr.mul_add(sl, yr)) && bits(ss.im.0[l], xi.mul_add(sl, -yi)));
+                prop_assert!(bits(sj.re.0[l], xi.mul_add(sl, cr)) && bits(sj.im.0[l], (-xr).mul_add(sl, ci)));
+                let re = yi.mul_add(xi, (-yr).mul_add(xr, xi.mul_add(yi, (-xr).mul_add(yr, cr))));
+                let im = (-yi).mul_add(xr, (-yr).mul_add(xi, (-xi).mul_add(yr, (-xr).mul_add(yi, ci))));
+                prop_assert!(bits(two.re.0[l], re) && bits(two.im.0[l], im));
             }
             let v = lanes(&a[0..]).sqrt();
             let r = s.recip();

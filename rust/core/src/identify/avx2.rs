@@ -15,8 +15,7 @@ use std::arch::x86_64::*;
 
 const N: usize = 4;
 
-/// AVX2 + FMA (the FMA feature only because every AVX2 kernel of the crate is compiled with it:
-/// no fused multiply-add is used here).
+/// AVX2 + FMA (the fused multiply-adds of [`super::registers`] are FMA instructions).
 pub(super) struct Avx2;
 
 /// 4 x 4 transpose of doubles: row l of the output is lane l of the inputs.
@@ -37,6 +36,18 @@ unsafe fn transpose(a: [__m256d; 4]) -> [__m256d; 4] {
 impl Regs<N> for Avx2 {
     type V = __m256d;
     one_intrinsic_ops!(__m256d, N, _mm256_set1_pd, _mm256_add_pd, _mm256_sub_pd, _mm256_mul_pd, _mm256_div_pd, _mm256_sqrt_pd, _mm256_loadu_pd);
+    #[inline(always)]
+    unsafe fn mul_add(a: __m256d, b: __m256d, c: __m256d) -> __m256d {
+        _mm256_fmadd_pd(a, b, c)
+    }
+    #[inline(always)]
+    unsafe fn neg_mul_add(a: __m256d, b: __m256d, c: __m256d) -> __m256d {
+        _mm256_fnmadd_pd(a, b, c)
+    }
+    #[inline(always)]
+    unsafe fn mul_sub(a: __m256d, b: __m256d, c: __m256d) -> __m256d {
+        _mm256_fmsub_pd(a, b, c)
+    }
     type M = __m256d;
     #[inline(always)]
     unsafe fn neg(a: __m256d) -> __m256d {

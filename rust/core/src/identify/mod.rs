@@ -177,13 +177,13 @@ fn solve_lanes<const N: usize>(rows: &[[Z<N>; 4]], refine_cond: f64) -> LaneSol<
     let mut h = [[Z::<N>::zero(); 2]; 2];
     let mut rhs2 = [V::<N>::zero(); 2];
     for r in rows {
-        a += r[0].norm_sqr();
-        d += r[1].norm_sqr();
-        gxy += r[0].cmul(r[1]);
+        a = r[0].norm_sqr_add(a);
+        d = r[1].norm_sqr_add(d);
+        gxy = r[0].cmul_add(r[1], gxy);
         for k in 0..2 {
-            h[k][0] += r[0].cmul(r[2 + k]);
-            h[k][1] += r[1].cmul(r[2 + k]);
-            rhs2[k] += r[2 + k].norm_sqr();
+            h[k][0] = r[0].cmul_add(r[2 + k], h[k][0]);
+            h[k][1] = r[1].cmul_add(r[2 + k], h[k][1]);
+            rhs2[k] = r[2 + k].norm_sqr_add(rhs2[k]);
         }
     }
     let g2 = gxy.norm_sqr();
@@ -203,11 +203,11 @@ fn solve_lanes<const N: usize>(rows: &[[Z<N>; 4]], refine_cond: f64) -> LaneSol<
     let any = refine.iter().any(|&b| b);
     for r in rows {
         for k in 0..2 {
-            let res = r[2 + k] - r[0] * z[k][0] - r[1] * z[k][1];
-            res2[k] += res.norm_sqr();
+            let res = Z::sub_two_products(r[2 + k], r[0], z[k][0], r[1], z[k][1]);
+            res2[k] = res.norm_sqr_add(res2[k]);
             if any {
-                ahr[k][0] += r[0].cmul(res);
-                ahr[k][1] += r[1].cmul(res);
+                ahr[k][0] = r[0].cmul_add(res, ahr[k][0]);
+                ahr[k][1] = r[1].cmul_add(res, ahr[k][1]);
             }
         }
     }
@@ -538,7 +538,8 @@ fn put_row<const N: usize>(row: &mut [Z<N>; 4], x: Z<N>, y: Z<N>, fx: Z<N>, fy: 
 /// One chunk of consecutive points starting at flat index `start` (= b * n + i), N at a time
 /// (one register's width: 2 at the baseline, see [`forces_chunk_dispatch`]; [`registers`] is this
 /// function on AVX2 and AVX-512 registers); each bearing system is solved by [`solve_apart`].
-fn forces_chunk<const N: usize>(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize {
+#[inline(always)]
+fn forces_chunk<const N: usize, S: SolveApart>(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize {
     let Outs { k, c, cond, resid, amp, mut ks, mut cs, rel: mut rel_out } = out;
     let n = p.w.len();
     let npts = resid.len();
@@ -634,15 +635,16 @@ fn forces_chunk<const N: usize>(p: &IdentProblem, kc: &Consts, start: usize, out
                 }
             }
             // R = E + w^2 M q - j w Omega G q (eq. 10 / 26), M and G sparse (eq. 3)
-            let m0 = qa[0].scale(ml2) + qa[1].scale(ml1);
-            let m1 = qa[2].scale(ml2) + qa[3].scale(ml1);
+            // (products that are added or subtracted are fused multiply-adds, as in `registers`)
+            let m0 = qa[0].scale_add(ml2, qa[1].scale(ml1));
+            let m1 = qa[2].scale_add(ml2, qa[3].scale(ml1));
             let m2 = (qa[1] - qa[0]).scale(it);
             let m3 = (qa[2] - qa[3]).scale(it);
             let (g2, g3) = (qa[3] - qa[2], qa[1] - qa[0]);
-            let mut rv0 = e[0].scale(gain) + m0.scale(a2);
-            let mut rv1 = e[1].scale(gain) + m1.scale(a2);
-            let mut rv2 = e[2].scale(gain) + m2.scale(a2) - g2.jscale(wg);
-            let mut rv3 = e[3].scale(gain) + m3.scale(a2) - g3.jscale(wg);
+            let mut rv0 = m0.scale_add(a2, e[0].scale(gain));
+            let mut rv1 = m1.scale_add(a2, e[1].scale(gain));
+            let mut rv2 = m2.scale_add(a2, e[2].scale(gain)).sub_jscale(g2, wg);
+            let mut rv3 = m3.scale_add(a2, e[3].scale(gain)).sub_jscale(g3, wg);
             if windowed {
                 rv0 = rv0 - m0.jscale(b2);
                 rv1 = rv1 - m1.jscale(b2);
@@ -652,10 +654,10 @@ fn forces_chunk<const N: usize>(p: &IdentProblem, kc: &Consts, start: usize, out
             // Bearing reaction forces from the four rotor equations: rows 1 and 3 give
             // f1x + f2x = R1, -l1 f1x + l2 f2x = R3; rows 2 and 4 give f1y + f2y = R2,
             // l1 f1y - l2 f2y = R4 (eq. 3 and 10).
-            let f1x = (rv0.scale(l2) - rv2).scale(il);
-            let f1y = (rv1.scale(l2) + rv3).scale(il);
-            let f2x = (rv2 + rv0.scale(l1)).scale(il);
-            let f2y = (rv1.scale(l1) - rv3).scale(il);
+            let f1x = rv0.scale_sub(l2, rv2).scale(il);
+            let f1y = rv1.scale_add(l2, rv3).scale(il);
+            let f2x = rv0.scale_add(l1, rv2).scale(il);
+            let f2y = rv1.scale_sub(l1, rv3).scale(il);
             // stored field by field (a whole [Z; 4] temporary went through memcpy)
             put_row(&mut rows[0][nr[0]], q[0], q[2], f1x, f1y);
             nr[0] += 1;
@@ -663,8 +665,11 @@ fn forces_chunk<const N: usize>(p: &IdentProblem, kc: &Consts, start: usize, out
             put_row(&mut rows[s2][nr[s2]], q[1], q[3], f2x, f2y);
             nr[s2] += 1;
         }
-        solve_apart(&rows[0][..nr[0]], kc.refine_cond, &mut sols[0]);
-        solve_apart(&rows[1][..nr[1]], kc.refine_cond, &mut sols[1]);
+        // SAFETY: S is Plain, or WithFma inside forces_chunk_fma (called on FMA CPUs only)
+        unsafe {
+            S::solve(&rows[0][..nr[0]], kc.refine_cond, &mut sols[0]);
+            S::solve(&rows[1][..nr[1]], kc.refine_cond, &mut sols[1]);
+        }
         // rows of the systems together hold every entry of q and E: a NaN/inf input shows up here
         let mut bad = [false; N];
         for l in 0..N {
@@ -763,10 +768,61 @@ fn solve_apart<const N: usize>(rows: &[[Z<N>; 4]], refine_cond: f64, out: &mut L
     *out = solve_lanes(rows, refine_cond);
 }
 
+/// [`solve_apart`] compiled with the FMA instruction, which its fused multiply-adds then are (in
+/// [`solve_apart`] they are calls of the C library's `fma`: the same bits, 10x slower).
+///
+/// # Safety
+/// Only on a CPU with FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "fma")]
+#[inline(never)]
+unsafe fn solve_apart_fma<const N: usize>(rows: &[[Z<N>; 4]], refine_cond: f64, out: &mut LaneSol<N>) {
+    *out = solve_lanes(rows, refine_cond);
+}
+
+/// Which [`solve_apart`] the generic kernel calls.
+trait SolveApart {
+    /// # Safety
+    /// As the implementation's function.
+    unsafe fn solve<const N: usize>(rows: &[[Z<N>; 4]], refine_cond: f64, out: &mut LaneSol<N>);
+}
+
+/// [`solve_apart`], for any CPU.
+struct Plain;
+impl SolveApart for Plain {
+    unsafe fn solve<const N: usize>(rows: &[[Z<N>; 4]], refine_cond: f64, out: &mut LaneSol<N>) {
+        solve_apart(rows, refine_cond, out)
+    }
+}
+
+/// [`solve_apart_fma`], for CPUs with FMA only.
+#[cfg(target_arch = "x86_64")]
+struct WithFma;
+#[cfg(target_arch = "x86_64")]
+impl SolveApart for WithFma {
+    unsafe fn solve<const N: usize>(rows: &[[Z<N>; 4]], refine_cond: f64, out: &mut LaneSol<N>) {
+        solve_apart_fma(rows, refine_cond, out)
+    }
+}
+
+/// The generic kernel (2 lanes) compiled with the FMA instruction, for the baseline level on an
+/// x86-64 CPU that has it.
+///
+/// # Safety
+/// Only on a CPU with FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "fma")]
+unsafe fn forces_chunk_fma(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize {
+    forces_chunk::<2, WithFma>(p, kc, start, out)
+}
+
 /// [`forces_chunk`] for this CPU: the kernel written on registers ([`registers`]) with 8 lanes
-/// of AVX-512 ([`avx512`]) or 4 of AVX2 ([`avx2`]), 2 lanes of the build's baseline elsewhere; the
-/// same operations lane by lane, so the same values (property tests and CI's bit digest compare
-/// them).
+/// of AVX-512 ([`avx512`]) or 4 of AVX2 ([`avx2`]), 2 lanes of the build's baseline elsewhere
+/// (compiled with the FMA instruction on an x86-64 CPU that has it, [`forces_chunk_fma`]); the
+/// same operations lane by lane, fused multiply-adds included, so the same values (property
+/// tests and CI's bit digest compare them, on aarch64 too). On an x86-64 CPU without FMA the
+/// baseline's fused multiply-adds are the C library's `fma`: the same bits, about 10x slower
+/// (measured as calls on this FMA CPU: 98 against 885 ns per point).
 ///
 /// History (one thread, 4,096 points from 4 runs, `examples/identify_points`, ns per point):
 /// - AMD EPYC (Zen 4), best of 12-20 interleaved runs: generic lanes, 8 wide with the solver
@@ -782,6 +838,10 @@ fn solve_apart<const N: usize>(rows: &[[Z<N>; 4]], refine_cond: f64, out: &mut L
 ///   and 20.8); with the pointers' closure inlined 61-65 and 44-45; with the refinement step
 ///   only from [`REFINE_COND`] on 54-57 and 39-41 (2 runs, no refinement there: 28-30 and
 ///   20-21). Not measured on Zen 4, whose 512-bit operations are two 256-bit halves.
+/// - Intel Xeon (thirteenth session), min of 7 interleaved runs: 49.3 (AVX2) and 33 (AVX-512);
+///   the layout branches out of the common case, the rows' responses stored before the forces
+///   and the solve inlined 43.5-44.5 and 33; fused multiply-adds in the row loops 37.4-38.7 and
+///   28.5-29.2, and in the forces too 36.8 and 28.1. Baseline 91 -> 98.
 fn forces_chunk_dispatch(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize {
     match crate::lanes::simd() {
         // SAFETY: simd() reports AVX2 and FMA at the Avx2 level; CPUs with AVX-512 F and DQ have
@@ -790,7 +850,14 @@ fn forces_chunk_dispatch(p: &IdentProblem, kc: &Consts, start: usize, out: Outs)
         crate::lanes::Simd::Avx512 => unsafe { avx512::forces_chunk(p, kc, start, out) },
         #[cfg(target_arch = "x86_64")]
         crate::lanes::Simd::Avx2 => unsafe { avx2::forces_chunk(p, kc, start, out) },
-        _ => forces_chunk::<2>(p, kc, start, out),
+        _ => {
+            // SAFETY: the CPU has FMA
+            #[cfg(target_arch = "x86_64")]
+            if std::is_x86_feature_detected!("fma") {
+                return unsafe { forces_chunk_fma(p, kc, start, out) };
+            }
+            forces_chunk::<2, Plain>(p, kc, start, out)
+        }
     }
 }
 
