@@ -35,19 +35,8 @@ unsafe fn transpose(a: [__m256d; 4]) -> [__m256d; 4] {
 
 impl Regs<N> for Avx2 {
     type V = __m256d;
-    one_intrinsic_ops!(__m256d, N, _mm256_set1_pd, _mm256_add_pd, _mm256_sub_pd, _mm256_mul_pd, _mm256_div_pd, _mm256_sqrt_pd, _mm256_loadu_pd);
-    #[inline(always)]
-    unsafe fn mul_add(a: __m256d, b: __m256d, c: __m256d) -> __m256d {
-        _mm256_fmadd_pd(a, b, c)
-    }
-    #[inline(always)]
-    unsafe fn neg_mul_add(a: __m256d, b: __m256d, c: __m256d) -> __m256d {
-        _mm256_fnmadd_pd(a, b, c)
-    }
-    #[inline(always)]
-    unsafe fn mul_sub(a: __m256d, b: __m256d, c: __m256d) -> __m256d {
-        _mm256_fmsub_pd(a, b, c)
-    }
+    one_intrinsic_ops!(__m256d, N, _mm256_set1_pd, _mm256_add_pd, _mm256_sub_pd, _mm256_mul_pd, _mm256_div_pd, _mm256_sqrt_pd, _mm256_loadu_pd,
+        _mm256_fmadd_pd, _mm256_fnmadd_pd, _mm256_fmsub_pd);
     type M = __m256d;
     #[inline(always)]
     unsafe fn neg(a: __m256d) -> __m256d {

@@ -57,19 +57,8 @@ unsafe fn transpose(r: [__m512d; 8]) -> [__m512d; 8] {
 
 impl Regs<N> for Avx512 {
     type V = __m512d;
-    one_intrinsic_ops!(__m512d, N, _mm512_set1_pd, _mm512_add_pd, _mm512_sub_pd, _mm512_mul_pd, _mm512_div_pd, _mm512_sqrt_pd, _mm512_loadu_pd);
-    #[inline(always)]
-    unsafe fn mul_add(a: __m512d, b: __m512d, c: __m512d) -> __m512d {
-        _mm512_fmadd_pd(a, b, c)
-    }
-    #[inline(always)]
-    unsafe fn neg_mul_add(a: __m512d, b: __m512d, c: __m512d) -> __m512d {
-        _mm512_fnmadd_pd(a, b, c)
-    }
-    #[inline(always)]
-    unsafe fn mul_sub(a: __m512d, b: __m512d, c: __m512d) -> __m512d {
-        _mm512_fmsub_pd(a, b, c)
-    }
+    one_intrinsic_ops!(__m512d, N, _mm512_set1_pd, _mm512_add_pd, _mm512_sub_pd, _mm512_mul_pd, _mm512_div_pd, _mm512_sqrt_pd, _mm512_loadu_pd,
+        _mm512_fmadd_pd, _mm512_fnmadd_pd, _mm512_fmsub_pd);
     type M = __mmask8;
     #[inline(always)]
     unsafe fn neg(a: __m512d) -> __m512d {

@@ -98,7 +98,8 @@ pub(super) trait Regs<const N: usize> {
 /// The [`Regs`] operations that are one intrinsic each, for a register type `$v` of `$n` lanes
 /// (the same in every instance; the intrinsics are named where the macro is used).
 macro_rules! one_intrinsic_ops {
-    ($v:ty, $n:expr, $set1:ident, $add:ident, $sub:ident, $mul:ident, $div:ident, $sqrt:ident, $load:ident) => {
+    ($v:ty, $n:expr, $set1:ident, $add:ident, $sub:ident, $mul:ident, $div:ident, $sqrt:ident, $load:ident,
+     $fmadd:ident, $fnmadd:ident, $fmsub:ident) => {
         #[inline(always)]
         unsafe fn splat(x: f64) -> $v {
             $set1(x)
@@ -126,6 +127,18 @@ macro_rules! one_intrinsic_ops {
         #[inline(always)]
         unsafe fn load(p: *const f64) -> $v {
             $load(p)
+        }
+        #[inline(always)]
+        unsafe fn mul_add(a: $v, b: $v, c: $v) -> $v {
+            $fmadd(a, b, c)
+        }
+        #[inline(always)]
+        unsafe fn neg_mul_add(a: $v, b: $v, c: $v) -> $v {
+            $fnmadd(a, b, c)
+        }
+        #[inline(always)]
+        unsafe fn mul_sub(a: $v, b: $v, c: $v) -> $v {
+            $fmsub(a, b, c)
         }
         #[inline(always)]
         unsafe fn to_lanes(a: $v) -> V<{ $n }> {
