@@ -1121,8 +1121,12 @@ pub(crate) fn motion_forces(kc: &Consts, w: f64, sigma: f64, spin: f64, qa: &[C6
 fn max_nan(a: f64, b: f64) -> f64 {
     if a.is_nan() || b.is_nan() {
         f64::NAN
+    } else if a > b {
+        // `maxpd`'s rule, b when equal: f64::max may return either zero for (0, -0), and the
+        // lanes' maximum (`Regs::max_nan`) must get the same bits
+        a
     } else {
-        a.max(b)
+        b
     }
 }
 
