@@ -1,7 +1,8 @@
 """The SIMD dispatch: ``ROTORID_SIMD`` caps the level the kernels run at (how the benches measure
 the AVX2 kernels on an AVX-512 machine), and every level gives the same bits. The kernels are
-written lane by lane without fused multiply-adds, so AVX-512, AVX2 and the baseline build do the
-same IEEE operations in the same order; a difference here means a kernel's result depends on the
+written lane by lane, so AVX-512, AVX2 and the baseline build do the same IEEE operations in the
+same order (the identification kernel's fused multiply-adds are fused at every level, the other
+kernels fuse none); a difference here means a kernel's result depends on the
 CPU it runs on. Each level runs in a fresh interpreter (the level is read once per process)."""
 
 import os

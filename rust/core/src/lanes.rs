@@ -86,7 +86,7 @@ impl Simd {
 
 /// Define `$name` calling `$kernel` compiled for AVX-512 (F, DQ), for AVX2 + FMA, or for the
 /// build's baseline, whichever [`simd`] reports for this CPU: the same source and operations, with
-/// wider registers (and fused multiply-adds) where available.
+/// wider registers where available (LLVM fuses nothing on its own: the same bits at every level).
 macro_rules! simd_dispatch {
     ($(#[$m:meta])* fn $name:ident($($arg:ident: $ty:ty),* $(,)?) -> $ret:ty => $kernel:ident) => {
         $(#[$m])*
@@ -156,8 +156,9 @@ impl<const N: usize> V<N> {
         V(o)
     }
     /// self * b + c per lane, rounded once (a fused multiply-add: the FMA instruction where the
-    /// code is compiled with it, else the C library's `fma`, correctly rounded in software: the
-    /// same bits either way).
+    /// code is compiled with it, else the C library's `fma`, which glibc rounds correctly in
+    /// software: the same bits either way; some other C libraries' `fma` is not correctly rounded
+    /// on CPUs without FMA).
     #[inline(always)]
     pub fn mul_add(self, b: Self, c: Self) -> Self {
         V(std::array::from_fn(|l| self.0[l].mul_add(b.0[l], c.0[l])))

@@ -537,9 +537,13 @@ fn put_row<const N: usize>(row: &mut [Z<N>; 4], x: Z<N>, y: Z<N>, fx: Z<N>, fy: 
 
 /// One chunk of consecutive points starting at flat index `start` (= b * n + i), N at a time
 /// (one register's width: 2 at the baseline, see [`forces_chunk_dispatch`]; [`registers`] is this
-/// function on AVX2 and AVX-512 registers); each bearing system is solved by [`solve_apart`].
+/// function on AVX2 and AVX-512 registers); each bearing system is solved by `S`'s
+/// [`SolveApart::solve`].
+///
+/// # Safety
+/// `S` = [`WithFma`] only on a CPU with FMA ([`Plain`] anywhere).
 #[inline(always)]
-fn forces_chunk<const N: usize, S: SolveApart>(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize {
+unsafe fn forces_chunk<const N: usize, S: SolveApart>(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize {
     let Outs { k, c, cond, resid, amp, mut ks, mut cs, rel: mut rel_out } = out;
     let n = p.w.len();
     let npts = resid.len();
@@ -665,7 +669,7 @@ fn forces_chunk<const N: usize, S: SolveApart>(p: &IdentProblem, kc: &Consts, st
             put_row(&mut rows[s2][nr[s2]], q[1], q[3], f2x, f2y);
             nr[s2] += 1;
         }
-        // SAFETY: S is Plain, or WithFma inside forces_chunk_fma (called on FMA CPUs only)
+        // SAFETY: S is Plain, or WithFma on an FMA CPU (this function's contract)
         unsafe {
             S::solve(&rows[0][..nr[0]], kc.refine_cond, &mut sols[0]);
             S::solve(&rows[1][..nr[1]], kc.refine_cond, &mut sols[1]);
@@ -769,7 +773,7 @@ fn solve_apart<const N: usize>(rows: &[[Z<N>; 4]], refine_cond: f64, out: &mut L
 }
 
 /// [`solve_apart`] compiled with the FMA instruction, which its fused multiply-adds then are (in
-/// [`solve_apart`] they are calls of the C library's `fma`: the same bits, 10x slower).
+/// [`solve_apart`] they are calls of the C library's `fma`: with glibc the same bits, 10x slower).
 ///
 /// # Safety
 /// Only on a CPU with FMA.
@@ -813,15 +817,18 @@ impl SolveApart for WithFma {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "fma")]
 unsafe fn forces_chunk_fma(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize {
-    forces_chunk::<2, WithFma>(p, kc, start, out)
+    // SAFETY: the caller's contract: the CPU has FMA
+    unsafe { forces_chunk::<2, WithFma>(p, kc, start, out) }
 }
 
 /// [`forces_chunk`] for this CPU: the kernel written on registers ([`registers`]) with 8 lanes
 /// of AVX-512 ([`avx512`]) or 4 of AVX2 ([`avx2`]), 2 lanes of the build's baseline elsewhere
 /// (compiled with the FMA instruction on an x86-64 CPU that has it, [`forces_chunk_fma`]); the
 /// same operations lane by lane, fused multiply-adds included, so the same values (property
-/// tests and CI's bit digest compare them, on aarch64 too). On an x86-64 CPU without FMA the
-/// baseline's fused multiply-adds are the C library's `fma`: the same bits, about 10x slower
+/// tests and CI's bit digest compare them, on aarch64 too; the property tests' generic kernel is
+/// this `Plain` path, which an x86-64 CPU without FMA runs). On such a CPU the baseline's fused
+/// multiply-adds are the C library's `fma`: with glibc (correctly rounded in software) the same
+/// bits, about 10x slower; some other C libraries' `fma` is not correctly rounded there
 /// (measured as calls on this FMA CPU: 98 against 885 ns per point).
 ///
 /// History (one thread, 4,096 points from 4 runs, `examples/identify_points`, ns per point):
@@ -856,7 +863,8 @@ fn forces_chunk_dispatch(p: &IdentProblem, kc: &Consts, start: usize, out: Outs)
             if std::is_x86_feature_detected!("fma") {
                 return unsafe { forces_chunk_fma(p, kc, start, out) };
             }
-            forces_chunk::<2, Plain>(p, kc, start, out)
+            // SAFETY: Plain needs no CPU feature
+            unsafe { forces_chunk::<2, Plain>(p, kc, start, out) }
         }
     }
 }

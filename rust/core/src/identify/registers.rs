@@ -190,7 +190,7 @@ unsafe fn scale<const N: usize, R: Regs<N>>(a: C<R::V>, s: R::V) -> C<R::V> {
 /// j s a = (-(a.im s), a.re s); subtracting it is adding a.im s to the real part (x - (-y) and
 /// x + y are the same IEEE operation).
 #[inline(always)]
-unsafe fn sub_jscale<const N: usize, R: Regs<N>>(x: C<R::V>, a: C<R::V>, s: R::V) -> C<R::V> {
+unsafe fn sub_jscale_unfused<const N: usize, R: Regs<N>>(x: C<R::V>, a: C<R::V>, s: R::V) -> C<R::V> {
     C { re: R::add(x.re, R::mul(a.im, s)), im: R::sub(x.im, R::mul(a.re, s)) }
 }
 /// acc + a s as [`Z::scale_add`].
@@ -203,9 +203,9 @@ unsafe fn scale_add<const N: usize, R: Regs<N>>(a: C<R::V>, s: R::V, acc: C<R::V
 unsafe fn scale_sub<const N: usize, R: Regs<N>>(a: C<R::V>, s: R::V, c: C<R::V>) -> C<R::V> {
     C { re: R::mul_sub(a.re, s, c.re), im: R::mul_sub(a.im, s, c.im) }
 }
-/// x - j s a as [`Z::sub_jscale`] (fused; [`sub_jscale`] is the separate one).
+/// x - j s a as [`Z::sub_jscale`] (fused; [`sub_jscale_unfused`] is the separate one).
 #[inline(always)]
-unsafe fn sub_jscale_fused<const N: usize, R: Regs<N>>(x: C<R::V>, a: C<R::V>, s: R::V) -> C<R::V> {
+unsafe fn sub_jscale<const N: usize, R: Regs<N>>(x: C<R::V>, a: C<R::V>, s: R::V) -> C<R::V> {
     C { re: R::mul_add(a.im, s, x.re), im: R::neg_mul_add(a.re, s, x.im) }
 }
 /// acc + |x|^2 as [`Z::norm_sqr_add`].
@@ -615,13 +615,13 @@ pub(super) unsafe fn forces_chunk<const N: usize, R: Regs<N>, const PLAIN: bool>
             let (g2, g3) = (sub::<N, R>(qa[3], qa[2]), sub::<N, R>(qa[1], qa[0]));
             let mut rv0 = scale_add::<N, R>(m0, a2, scale::<N, R>(e[0], gain));
             let mut rv1 = scale_add::<N, R>(m1, a2, scale::<N, R>(e[1], gain));
-            let mut rv2 = sub_jscale_fused::<N, R>(scale_add::<N, R>(m2, a2, scale::<N, R>(e[2], gain)), g2, wg);
-            let mut rv3 = sub_jscale_fused::<N, R>(scale_add::<N, R>(m3, a2, scale::<N, R>(e[3], gain)), g3, wg);
+            let mut rv2 = sub_jscale::<N, R>(scale_add::<N, R>(m2, a2, scale::<N, R>(e[2], gain)), g2, wg);
+            let mut rv3 = sub_jscale::<N, R>(scale_add::<N, R>(m3, a2, scale::<N, R>(e[3], gain)), g3, wg);
             if windowed {
-                rv0 = sub_jscale::<N, R>(rv0, m0, b2);
-                rv1 = sub_jscale::<N, R>(rv1, m1, b2);
-                rv2 = sub::<N, R>(sub_jscale::<N, R>(rv2, m2, b2), scale::<N, R>(g2, sgg));
-                rv3 = sub::<N, R>(sub_jscale::<N, R>(rv3, m3, b2), scale::<N, R>(g3, sgg));
+                rv0 = sub_jscale_unfused::<N, R>(rv0, m0, b2);
+                rv1 = sub_jscale_unfused::<N, R>(rv1, m1, b2);
+                rv2 = sub::<N, R>(sub_jscale_unfused::<N, R>(rv2, m2, b2), scale::<N, R>(g2, sgg));
+                rv3 = sub::<N, R>(sub_jscale_unfused::<N, R>(rv3, m3, b2), scale::<N, R>(g3, sgg));
             }
             // bearing reaction forces from the four rotor equations (as in super::forces_chunk)
             let f1x = scale::<N, R>(scale_sub::<N, R>(rv0, l2, rv2), il);
@@ -769,7 +769,8 @@ mod tests {
         let kc = Consts { refine_cond, ..Consts::new(&p.rotor) };
         // SAFETY: each kernel is called only when the CPU has its features (see the test)
         let nbad = match kernel {
-            Kernel::Generic => generic_chunk::<2, Plain>(p, &kc, 0, outs),
+            // SAFETY: Plain needs no CPU feature
+            Kernel::Generic => unsafe { generic_chunk::<2, Plain>(p, &kc, 0, outs) },
             Kernel::Avx2 => unsafe { avx2::forces_chunk(p, &kc, 0, outs) },
             Kernel::Avx512 => unsafe { avx512::forces_chunk(p, &kc, 0, outs) },
         };
