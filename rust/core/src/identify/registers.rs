@@ -9,8 +9,8 @@
 //! rows' forces and accumulate the Gram sums, right-hand sides and residuals ([`Z::scale_add`],
 //! [`Z::cmul_add`], [`Z::sub_two_products`], ...): FMA instructions here, `f64::mul_add` in the
 //! generic kernel, correctly rounded either way, so the bits agree. They cut the AVX2 instance's
-//! time by 15 % (44.8 -> 36.8-38.3 ns per point at 4 runs, one thread; AVX-512 32.9 -> 28.1). Property tests in both instantiations and CI's
-//! `examples/bit_digest` compare them. What differs from the generic kernel is the data movement,
+//! time by 15 % (44.8 -> 36.8-38.3 ns per point at 4 runs, one thread; AVX-512 32.9 -> 28.1).
+//! Property tests in both instantiations and CI's `examples/bit_digest` compare them. What differs from the generic kernel is the data movement,
 //! which the generic kernel leaves to LLVM and which cost more instructions than its arithmetic:
 //! - inputs: each point's four complex responses are loaded whole, and a transpose of `N` points
 //!   ([`Regs::load_points`]) turns them into the lane vectors x_re, x_im, ...;
@@ -320,26 +320,10 @@ unsafe fn row_residual<const N: usize, R: Regs<N>>(r: &[C<R::V>; 4], k: usize, z
     C { re, im }
 }
 
-/// The 2 x 2 Hermitian normal equations of a system, kept between [`solve_normal`] and
-/// [`solve_residual`].
-#[derive(Clone, Copy)]
-pub(super) struct Gram<T> {
-    a: T,
-    d: T,
-    gxy: C<T>,
-    gc: C<T>,
-    idet: T,
-}
-
-/// [`super::solve_lanes`] on registers for more than two rows, in two halves: the semi-normal
-/// equations ([`solve_normal`]), then the residuals and, where cond >= `refine_cond`, the
-/// refinement step ([`solve_residual`]). A caller with two systems runs both first halves before
-/// either second half (no faster on AVX2, measured; kept as the order that leaves the out-of-order
-/// core the most independent work).
-/// The first half of the semi-normal solve: the normal equations' solution, cond, and the sums
-/// of squares.
+/// [`super::solve_lanes`] on registers for more than two rows: the semi-normal equations, corrected
+/// where cond >= `refine_cond`.
 #[inline(always)]
-pub(super) unsafe fn solve_normal<const N: usize, R: Regs<N>>(rows: &[[C<R::V>; 4]], out: &mut Sol<R::V>) -> Gram<R::V> {
+pub(super) unsafe fn solve<const N: usize, R: Regs<N>>(rows: &[[C<R::V>; 4]], refine_cond: f64, out: &mut Sol<R::V>) {
     let sp = |x: f64| R::splat(x);
     let zero = sp(0.0);
     let zc0 = C { re: zero, im: zero };
@@ -369,23 +353,11 @@ pub(super) unsafe fn solve_normal<const N: usize, R: Regs<N>>(rows: &[[C<R::V>; 
     let idet = R::div(sp(1.0), det);
     let cond = R::sqrt(R::mul(R::mul(lmax, lmax), idet));
     let gc = conj::<N, R>(gxy);
-    let z = [solve_gram::<N, R>(h[0], a, d, gxy, gc, idet), solve_gram::<N, R>(h[1], a, d, gxy, gc, idet)];
-    let ad = R::add(a, d);
-    let total = R::add(R::add(ad, rhs2[0]), rhs2[1]);
-    *out = Sol { z, g: [R::mul(d, idet), R::mul(a, idet)], cond, res2: [zero; 2], rhs2, total, qq: ad };
-    Gram { a, d, gxy, gc, idet }
-}
-
-/// The second half of the semi-normal solve (after [`solve_normal`]): the residuals' sums of squares, and the refinement step in the
-/// lanes whose cond reaches `refine_cond` (and NaN lanes; see super::REFINE_COND).
-#[inline(always)]
-pub(super) unsafe fn solve_residual<const N: usize, R: Regs<N>>(rows: &[[C<R::V>; 4]], refine_cond: f64, g: &Gram<R::V>, out: &mut Sol<R::V>) {
-    let zero = R::splat(0.0);
-    let zc0 = C { re: zero, im: zero };
-    let Gram { a, d, gxy, gc, idet } = *g;
-    let mut z = out.z;
+    let mut z = [solve_gram::<N, R>(h[0], a, d, gxy, gc, idet), solve_gram::<N, R>(h[1], a, d, gxy, gc, idet)];
     let mut res2 = [zero; 2];
-    let refine = R::not_lt(out.cond, R::splat(refine_cond));
+    // the refinement step only in lanes whose cond reaches refine_cond (and NaN lanes; see
+    // super::REFINE_COND), the residual in every lane
+    let refine = R::not_lt(cond, sp(refine_cond));
     let any = R::m_bits(refine) != 0;
     for k in 0..2 {
         // two loops rather than one with the refinement's sums under a branch: at AVX2 the single
@@ -409,8 +381,9 @@ pub(super) unsafe fn solve_residual<const N: usize, R: Regs<N>>(rows: &[[C<R::V>
             z[k][u] = C { re: R::blend(z[k][u].re, zu.re, refine), im: R::blend(z[k][u].im, zu.im, refine) };
         }
     }
-    out.z = z;
-    out.res2 = res2;
+    let ad = R::add(a, d);
+    let total = R::add(R::add(ad, rhs2[0]), rhs2[1]);
+    *out = Sol { z, g: [R::mul(d, idet), R::mul(a, idet)], cond, res2, rhs2, total, qq: ad };
 }
 
 /// [`super::relative_std_point`] in lanes, on the values just stored as k, c, k_std and c_std
@@ -633,19 +606,12 @@ pub(super) unsafe fn forces_chunk<const N: usize, R: Regs<N>, const PLAIN: bool>
             rows[s2][j1][2] = f2x;
             rows[s2][j1][3] = f2y;
         }
-        // two rows (two runs, the impact case): Cramer's rule inlined here; more: `R::solve`
-        // more: the semi-normal equations, both systems' first halves before either second half
-        let mut grams = [None; 2];
+        // two rows (two runs, the impact case): Cramer's rule; more: the semi-normal equations
         for sb in 0..nsys {
             if nr[sb] == 2 {
                 sols[sb] = solve_square::<N, R>(&rows[sb][0], &rows[sb][1]);
             } else {
-                grams[sb] = Some(solve_normal::<N, R>(&rows[sb][..nr[sb]], &mut sols[sb]));
-            }
-        }
-        for sb in 0..nsys {
-            if let Some(g) = &grams[sb] {
-                solve_residual::<N, R>(&rows[sb][..nr[sb]], kc.refine_cond, g, &mut sols[sb]);
+                solve::<N, R>(&rows[sb][..nr[sb]], kc.refine_cond, &mut sols[sb]);
             }
         }
         // rows of the systems together hold every entry of q and E: a NaN/inf input shows up here
