@@ -1,3 +1,5 @@
+import dataclasses
+
 import numpy as np
 import pytest
 from hypothesis import assume, example, given
@@ -296,6 +298,53 @@ def test_no_two_identifications_share_a_mutable_nan_view():
         second.k_std.flags.writeable = True
 
 
+def test_impact_tests_agree_by_value_within_rounding_and_are_refused_by_name():
+    """Tests are compared cheaply when they share their arrays and values (the common case) and
+    by value otherwise: equal frequencies in another array, speeds within 1e-6 and window decays
+    within 1e-9 relative pass and give the same coefficients; beyond that each is refused, naming
+    the test, as is anything but an ImpactResponse in any place of the list."""
+    rig = rotorid.nsf_rig()
+    f = np.linspace(2, 200, 20)
+    hx, hy = (rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=1000, freq_hz=f, direction=d, name=d)
+              for d in "xy")
+    ref = rotorid.identify_impact(rig.rotor, [hx, hy])
+    near = dataclasses.replace(hy, freq_hz=f.copy(), speed_rpm=1000 * (1 + 1e-8))
+    np.testing.assert_array_equal(rotorid.identify_impact(rig.rotor, [hx, near]).k, ref.k)
+    with pytest.raises(RotoridError, match="freq_hz of test 1 \\('y'\\) differs"):
+        rotorid.identify_impact(rig.rotor, [hx, dataclasses.replace(hy, freq_hz=f * (1 + 1e-6))])
+    with pytest.raises(RotoridError, match="speed_rpm of test 1 \\('y'\\) \\(1001\\) differs"):
+        rotorid.identify_impact(rig.rotor, [hx, dataclasses.replace(hy, speed_rpm=1001.0)])
+    wx, wy = (dataclasses.replace(h, sigma=3.0) for h in (hx, hy))
+    windowed = rotorid.identify_impact(rig.rotor, [wx, dataclasses.replace(wy, sigma=3.0 * (1 + 1e-12))])
+    np.testing.assert_array_equal(windowed.k, rotorid.identify_impact(rig.rotor, [wx, wy]).k)
+    with pytest.raises(RotoridError, match="sigma .* of test 1 \\('y'\\) \\(3.1 1/s\\) differs"):
+        rotorid.identify_impact(rig.rotor, [wx, dataclasses.replace(wy, sigma=3.1)])
+    with pytest.raises(RotoridError, match="sigma .* of test 1 \\('y'\\) \\(3 1/s\\) differs"):
+        rotorid.identify_impact(rig.rotor, [hx, wy])
+    for bad in ([hy.q, hx], [hx, "y"], [hx, hy, None]):
+        i = next(i for i, t in enumerate(bad) if not isinstance(t, ImpactResponse))
+        with pytest.raises(RotoridError, match=f"test {i} must be a rotorid.ImpactResponse"):
+            rotorid.identify_impact(rig.rotor, bad)
+
+
+def test_rotor_core_params_are_made_once_and_read_only():
+    """The rotor's parameters as the core takes them are one read-only array per rotor (every
+    identification passes them), not carried through pickling, and equal to the fields."""
+    import pickle
+
+    rotor = rotorid.nsf_rig().rotor
+    p = rotor.core_params()
+    assert rotor.core_params() is p and not p.flags.writeable
+    np.testing.assert_array_equal(p, [rotor.mass_kg, rotor.it_kgm2, rotor.ip_kgm2, rotor.l1, rotor.l2])
+    with pytest.raises(ValueError, match="read-only"):
+        p[0] = 1.0
+    copy = pickle.loads(pickle.dumps(rotor))
+    assert "_params" not in copy.__dict__ and copy == rotor
+    np.testing.assert_array_equal(copy.core_params(), p)
+    other = dataclasses.replace(rotor, mass_kg=2 * rotor.mass_kg)
+    assert other.core_params()[0] == 2 * rotor.mass_kg
+
+
 def test_impact_layouts_are_read_once_and_changed_tests_are_seen():
     """The excitations and their independence are cached per layout of (plane, direction): a test
     changed after construction is identified with its new layout, a plane or direction set to
@@ -306,7 +355,7 @@ def test_impact_layouts_are_read_once_and_changed_tests_are_seen():
     rig = rotorid.nsf_rig()
     f = np.linspace(2, 200, 20)
     hx, hy = (rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=1000, freq_hz=f, direction=d) for d in "xy")
-    e, rank = ident_mod._test_excitations([hx, hy])
+    e, rank, _ = ident_mod._test_excitations([hx, hy])
     np.testing.assert_array_equal(e, [hx.excitation(), hy.excitation()])
     assert rank == 2 and not e.flags.writeable
     assert ident_mod._test_excitations([hx, hy])[0] is e          # the same layout: read once

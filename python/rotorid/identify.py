@@ -307,6 +307,10 @@ def _diagnose_singular(qs, labels):
             "linearly dependent (one is a complex multiple of another, or the data repeat a run)")
 
 
+#: the values of ``method`` and ``estimator``
+_METHODS = frozenset(("forces", "report"))
+_ESTIMATORS = frozenset(("ls", "bias-corrected"))
+
 #: flag bit "singular" (the core's identify::FLAG_SINGULAR); bit i is reason i of _BASE_REASONS
 _SINGULAR = 1
 _BASE_REASONS = ("singular", "ill-conditioned", "uncertain", "low amplitude")
@@ -451,7 +455,7 @@ def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", ide
     """
     if not isinstance(rotor, RigidRotor):
         raise RotoridError(f"rotor must be a rotorid.RigidRotor, got {type(rotor).__name__}")
-    choice("method", method, {"forces", "report"})
+    choice("method", method, _METHODS)
     _check_bool("identical", identical)
     runs = _as_runs(runs)
     labels = []
@@ -496,8 +500,13 @@ PEDESTAL_RATIO_MAX = 1.0
 
 def _has_pedestal(runs, labels):
     """True when every run carries pedestal motion, False when none does; a mix is an error."""
+    for r in runs:
+        if r.pedestal is not None:
+            break
+    else:
+        return False  # the common case, without the lists below
     have = [r.pedestal is not None for r in runs]
-    if any(have) and not all(have):
+    if not all(have):
         without = [lab for lab, h in zip(labels, have) if not h]
         raise RotoridError(f"{', '.join(without)} carry no pedestal motion while the other runs do: identify with "
                            "pedestal motion on every run (accelerometer channels px1, py1, px2, py2) or on none")
@@ -714,6 +723,11 @@ def _shared(rotor, runs, shared_cov, size: int = 8):
 def _run_covs(runs, labels=None):
     """The runs' covariances, checked again (``run.cov = ...`` after construction skips the check);
     None unless every run has one (a warning says so when only some do)."""
+    for r in runs:
+        if r.cov is not None:
+            break
+    else:
+        return None  # no run carries one: the common case, without the lists below
     n = runs[0].q.shape[0]
     have = [r.cov is not None for r in runs]
     if not all(have):
@@ -770,8 +784,10 @@ def _nan_view(shape):
 
 def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, method, labels, cond_max,
            min_rel_amplitude, what, covs=None, dofs=None, max_rel_std=MAX_REL_STD, extra_flags=None,
-           estimator="ls", shared_cov=None, q_ped=None, calibration=None, planes=None, w_scale=None):
+           estimator="ls", shared_cov=None, q_ped=None, calibration=None, planes=None, w_scale=None, e_core=None):
     """One core call for the whole axis, uncertainty, then flags; shared by both methods.
+    ``e``: the (R, 4) excitations; ``e_core``: the same as the core takes them
+    (:func:`_core_excitations`) when the caller has them at hand, else None.
     ``gain`` None: spin^2 (an imbalance), formed by the core. ``planes``: the (2, 2) eq. 19
     transform when ``qs`` are at the probe planes (no covariances then), else None.
     ``w_scale``: ``w`` is given in the axis' unit and is w_scale times that in rad/s (formed by
@@ -782,13 +798,18 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
     cond_max = _check_threshold("cond_max", cond_max, 1.0)
     min_rel_amplitude = _check_threshold("min_rel_amplitude", min_rel_amplitude, -1e-300, 1.0)
     max_rel_std = _check_threshold("max_rel_std", max_rel_std, 0.0)
+    choice("estimator", estimator, _ESTIMATORS)
+    if estimator == "bias-corrected" and covs is None:
+        raise RotoridError("estimator='bias-corrected' needs the measurement covariance of every run or test (cov=)")
+    if shared_cov is not None and covs is None:
+        raise RotoridError(_SHARED_WITHOUT_COV)
     # standard errors need redundant equations: more rows than the 2 unknowns of each system
     nruns = len(qs)
     redundant = nruns * (2 if identical else 1) > 2
     # the flags come from the same call unless the standard errors change below (propagated
     # covariance, accelerometer calibration)
     k, c, cond, resid, amp, ks, cs, rel_std, code, rel_amp, ok, nbad = _core.identify(
-        rotor.core_params(), np.ascontiguousarray(w), spin, list(qs), np.ascontiguousarray(e[None], dtype=complex),
+        rotor.core_params(), np.ascontiguousarray(w), spin, list(qs), _core_excitations(e) if e_core is None else e_core,
         gain, identical=identical, method=method, with_std=redundant, sigma=sigma, q_ped=q_ped, planes=planes,
         w_scale=w_scale, flag_limits=None if covs is not None or calibration is not None else
         (cond_max, min_rel_amplitude, max_rel_std))
@@ -822,11 +843,6 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
         # one value for every point: a read-only view, not an (n,) array (freed with om, two such
         # arrays made glibc return and fault in the memory on every call)
         dof = _constant_view(2.0 * (nruns * (2 if identical else 1) - 2), (axis.size,))
-    choice("estimator", estimator, {"ls", "bias-corrected"})
-    if estimator == "bias-corrected" and covs is None:
-        raise RotoridError("estimator='bias-corrected' needs the measurement covariance of every run or test (cov=)")
-    if shared_cov is not None and covs is None:
-        raise RotoridError(_SHARED_WITHOUT_COV)
     if covs is not None:
         # the accelerometers' calibration (a systematic error common to all runs) is added to the
         # covariance by the same core call, through the same Jacobian
@@ -897,7 +913,7 @@ def identify_synchronous_batch(rotor: RigidRotor, speed_rpm, q, imbalances, *, m
     """
     if not isinstance(rotor, RigidRotor):
         raise RotoridError(f"rotor must be a rotorid.RigidRotor, got {type(rotor).__name__}")
-    choice("method", method, {"forces", "report"})
+    choice("method", method, _METHODS)
     choice("at", at, {"bearings", "probes"})
     _check_bool("identical", identical)
     _check_bool("with_std", with_std)
@@ -941,6 +957,11 @@ def _for_the_core(rotor, runs, may_use_planes=True):
     planes as they are, with the eq. 19 transform for the core to apply as it loads each point
     (no moved copy of every run), when none carries a covariance (moved with its run in Python);
     else the runs moved to the bearings and None."""
+    for r in runs:
+        if r.at != "bearings":
+            break
+    else:
+        return runs, None  # all at the bearings already (at_bearings would return each as it is)
     if may_use_planes and all(r.at == "probes" and r.cov is None and _q_as_checked(r) for r in runs):
         return runs, _plane_matrix(rotor, "bearings")
     return [r.at_bearings(rotor) for r in runs], None
@@ -979,34 +1000,55 @@ def _excitation_rank(E):
     return _rank_up_to_2(E, 1e-9 * max(1.0, top))
 
 
+def _core_excitations(e):
+    """The runs' or tests' excitations (R, 4) as the core takes them, (1, R, 4) complex and
+    contiguous; an array already in that form as it is."""
+    return e if e.ndim == 3 else np.ascontiguousarray(e[None], dtype=complex)
+
+
+def _excitations(E):
+    """(E, rank, E in the core's form) of the tests' (R, 4) generalized forces, read-only."""
+    E.flags.writeable = False
+    core_form = _core_excitations(E)
+    core_form.flags.writeable = False
+    return E, _excitation_rank(E), core_form
+
+
 @functools.lru_cache(maxsize=64)
 def _layout_excitations(layout):
-    """The (R, 4) generalized forces (read-only) of the impacts ``layout`` = ((plane, direction),
-    ...) and their rank (:func:`_excitation_rank`). A rig is tested in a few layouts, identified
-    many times: read once per layout, the excitations and their independence test cost 2 µs of a
-    call instead of ~25 (measured inside real calls, the core having just evicted the
-    interpreter's data from L2)."""
+    """:func:`_excitations` of the impacts ``layout`` = ((plane, direction), ...). A rig is tested
+    in a few layouts, identified many times: read once per layout, the excitations and their
+    independence test cost 2 µs of a call instead of ~25 (measured inside real calls, the core
+    having just evicted the interpreter's data from L2)."""
     from .simulate import impact_vector
 
-    E = np.array([impact_vector(z, d) for z, d in layout])
-    E.flags.writeable = False
-    return E, _excitation_rank(E)
+    return _excitations(np.array([impact_vector(z, d) for z, d in layout]))
 
 
 def _test_excitations(tests):
-    """(E (R, 4), rank) of the tests' impacts, through the per-layout cache when the tests' planes
-    are floats and directions strings (as the constructor leaves them), else computed afresh
-    (each checked by ``impact_vector`` either way)."""
-    if all(type(t.plane) is float and type(t.direction) is str for t in tests):
-        return _layout_excitations(tuple((t.plane, t.direction) for t in tests))
-    E = np.array([t.excitation() for t in tests])
-    return E, _excitation_rank(E)
+    """(E (R, 4), rank, E as the core takes it) of the tests' impacts (:func:`_excitations`),
+    through the per-layout cache when the tests' planes are floats and directions strings (as the
+    constructor leaves them), else computed afresh (each checked by ``impact_vector`` either
+    way)."""
+    layout = []
+    for t in tests:
+        plane, direction = t.plane, t.direction
+        if type(plane) is not float or type(direction) is not str:
+            return _excitations(np.array([t.excitation() for t in tests]))
+        layout.append((plane, direction))
+    return _layout_excitations(tuple(layout))
 
 
 def check_impact_independence(tests, labels, *, identical=False):
     """Raise IdentifiabilityError when the impacts cannot excite independent responses; else
     return the tests' (R, 4) generalized forces, per unit force (:func:`_test_excitations`)."""
-    E, rank = _test_excitations(tests)
+    return _independent_excitations(tests, labels, identical)[0]
+
+
+def _independent_excitations(tests, labels, identical):
+    """:func:`check_impact_independence`, returning the excitations in both forms: (E, E as the
+    core takes it)."""
+    E, rank, core_form = _test_excitations(tests)
     need = 1 if identical else 2
     if rank < need:
         if len(tests) < need:
@@ -1018,7 +1060,7 @@ def check_impact_independence(tests, labels, *, identical=False):
         raise IdentifiabilityError(
             "the impact tests are not independent (all in the same direction at the same plane, so every test repeats the "
             f"same excitation): {desc}. Add an impact in the orthogonal direction or at another plane (report section 5)")
-    return E
+    return E, core_form
 
 
 def identify_impact(rotor: RigidRotor, tests, *, method: str = "forces", identical: bool = False,
@@ -1039,32 +1081,37 @@ def identify_impact(rotor: RigidRotor, tests, *, method: str = "forces", identic
     """
     if not isinstance(rotor, RigidRotor):
         raise RotoridError(f"rotor must be a rotorid.RigidRotor, got {type(rotor).__name__}")
-    choice("method", method, {"forces", "report"})
+    choice("method", method, _METHODS)
     _check_bool("identical", identical)
     extra_flags = None if extra_flags is None else _flag_list(extra_flags)
     tests = list(tests.values()) if isinstance(tests, dict) else tests
     if not isinstance(tests, (list, tuple)):
         raise RotoridError(f"tests must be a list or dict of ImpactResponse, got {type(tests).__name__}")
+    if not tests:
+        raise IdentifiabilityError("no impact tests given")
+    first = tests[0]
+    if not isinstance(first, ImpactResponse):
+        raise RotoridError(f"test 0 must be a rotorid.ImpactResponse, got {type(first).__name__}")
+    _wake_core_threads(first)
+    f, speed, sigma = first.freq_hz, first.speed_rpm, first.sigma
     labels = []
+    same_f = True
     for i, t in enumerate(tests):
         if not isinstance(t, ImpactResponse):
             raise RotoridError(f"test {i} must be a rotorid.ImpactResponse, got {type(t).__name__}")
         labels.append(f"test {i} ({t.name!r})" if t.name else f"test {i}")
-    if not tests:
-        raise IdentifiabilityError("no impact tests given")
-    _wake_core_threads(tests[0])
-    f = tests[0].freq_hz
-    speed = tests[0].speed_rpm
-    _check_same_axis("freq_hz", [t.freq_hz for t in tests], labels, "tests", "frequencies",
-                     "same record length and sample rate")
-    for i, t in enumerate(tests[1:], 1):
-        if not math.isclose(t.speed_rpm, speed, rel_tol=1e-6, abs_tol=1e-9):  # scalars: not np.isclose (16 µs)
+        same_f = same_f and t.freq_hz is f
+        # scalars: equal, else math.isclose (np.isclose costs 16 µs)
+        if t.speed_rpm != speed and not math.isclose(t.speed_rpm, speed, rel_tol=1e-6, abs_tol=1e-9):
             raise RotoridError(f"speed_rpm of {labels[i]} ({t.speed_rpm:g}) differs from {labels[0]} ({speed:g}): "
                                "impact identification needs all tests at the same running speed")
-        if not math.isclose(t.sigma, tests[0].sigma, rel_tol=1e-9, abs_tol=0.0):
+        if t.sigma != sigma and not math.isclose(t.sigma, sigma, rel_tol=1e-9, abs_tol=0.0):
             raise RotoridError(f"sigma (exponential window decay) of {labels[i]} ({t.sigma:g} 1/s) differs from "
-                               f"{labels[0]} ({tests[0].sigma:g} 1/s): window all tests alike")
-    e = check_impact_independence(tests, labels, identical=identical)  # (R, 4), per unit force
+                               f"{labels[0]} ({sigma:g} 1/s): window all tests alike")
+    if not same_f:  # not the same array: compared by value
+        _check_same_axis("freq_hz", [t.freq_hz for t in tests], labels, "tests", "frequencies",
+                         "same record length and sample rate")
+    e, e_core = _independent_excitations(tests, labels, identical)  # (R, 4), per unit force
     q_ped = cal = planes = None
     if _has_pedestal(tests, labels):
         qs, q_ped, covs, dofs, pflags = _pedestal_inputs(rotor, tests, labels, "freq_hz", f)
@@ -1079,9 +1126,8 @@ def identify_impact(rotor: RigidRotor, tests, *, method: str = "forces", identic
     # one running speed, a unit gain and one window decay, broadcast by the core; w = 2 pi f
     # formed by the core too
     spin = np.array([speed * RPM])
-    sigma = np.array([tests[0].sigma]) if tests[0].sigma else None
-    return _solve(rotor, "freq_hz", f, f, spin, qs, e, _UNIT_GAIN, sigma, w_scale=2 * np.pi, identical=identical,
-                  method=method,
-                  labels=labels, cond_max=cond_max, min_rel_amplitude=min_rel_amplitude, what="impact responses",
-                  covs=covs, dofs=dofs, max_rel_std=max_rel_std, extra_flags=extra_flags, estimator=estimator,
-                  q_ped=q_ped, calibration=cal, planes=planes)
+    return _solve(rotor, "freq_hz", f, f, spin, qs, e, _UNIT_GAIN, np.array([sigma]) if sigma else None,
+                  w_scale=2 * np.pi, identical=identical, method=method, labels=labels, cond_max=cond_max,
+                  min_rel_amplitude=min_rel_amplitude, what="impact responses", covs=covs, dofs=dofs,
+                  max_rel_std=max_rel_std, extra_flags=extra_flags, estimator=estimator, q_ped=q_ped, calibration=cal,
+                  planes=planes, e_core=e_core)
