@@ -858,6 +858,28 @@ fn identification_argument_errors_name_the_argument() {
 }
 
 proptest! {
+    #![proptest_config(cfg(200))]
+    /// The vectorized check of the vibration frequencies refuses a zero, an inf or a NaN wherever
+    /// it is (in a block of eight or in the remainder) and takes negative frequencies.
+    #[test]
+    fn a_bad_frequency_anywhere_is_refused(n in 1usize..40, at in 0usize..40, bad in prop_oneof![
+            Just(0.0), Just(-0.0), Just(f64::NAN), Just(f64::INFINITY), Just(f64::NEG_INFINITY)], negative in proptest::bool::ANY) {
+        let r = nsf_rotor();
+        let mut w: Vec<f64> = (0..n).map(|i| (if negative { -1.0 } else { 1.0 }) * (50.0 + 10.0 * i as f64)).collect();
+        let q = vec![c(1e-6, 2e-7); 2 * n * 4];
+        let qb = blocks(&q, n);
+        let e: Vec<C64> = (0..8).map(|i| c(1e-4 * (1.0 + i as f64), 0.0)).collect();
+        let p = |w: &[f64]| run_identify(&IdentProblem { rotor: r, w, spin: &[100.0], q: &qb, e: &e, gain: &[1.0], sigma: &[], q_ped: &[], planes: None, batch: 1, runs: 2, identical: false }, false).map(|_| ());
+        prop_assert!(p(&w).is_ok());
+        w[at % n] = bad;
+        match p(&w) {
+            Err(err) => prop_assert_eq!(err.name(), "w"),
+            Ok(_) => prop_assert!(false, "a bad w at {} of {} was taken", at % n, n),
+        }
+    }
+}
+
+proptest! {
     /// The one-pass bounds check finds the first value a plain scan finds.
     #[test]
     fn first_outside_is_the_first_value_a_scan_finds(vals in proptest::collection::vec(
