@@ -114,6 +114,19 @@ const START: [[C64; 4]; 2] = [
     [C64::new(-0.29, 0.83), C64::new(0.61, -0.37), C64::new(1.0, 0.0), C64::new(0.19, 0.67)],
 ];
 
+/// |z| as sqrt(re² + im²) where the square neither overflows nor underflows (every eigenvalue of
+/// a physical rotor), else libm's `hypot`. Within an ulp of `hypot`, and 40 calls of it were
+/// ~10 % of a speed's modal analysis; only compared with tolerances of 1e-9 relative here.
+#[inline]
+fn modulus(z: C64) -> f64 {
+    let sq = z.norm_sqr();
+    if sq > 1e-290 && sq < 1e290 {
+        sq.sqrt()
+    } else {
+        z.norm()
+    }
+}
+
 /// Mode shape of eigenvalue `lam` by inverse iteration on D(s) = s^2 M + s (C + Omega G) + K with a
 /// small relative shift (singular to rounding on purpose: each step multiplies the wanted
 /// direction by ~1/shift against the others), starting from `v`; `avoid`: shapes of eigenvalues
@@ -209,7 +222,7 @@ fn modal_kernel(rotor: &Rotor, kb: &[f64], cb: &[f64], spin: &[f64], lam: &mut [
             let mut idx = [0usize; 8];
             let mut nidx = 0;
             for t in 0..8 {
-                if s[t].im > 1e-9 * s[t].norm().max(1e-300) {
+                if s[t].im > 1e-9 * modulus(s[t]).max(1e-300) {
                     idx[nidx] = t;
                     nidx += 1;
                 }
@@ -229,7 +242,7 @@ fn modal_kernel(rotor: &Rotor, kb: &[f64], cb: &[f64], spin: &[f64], lam: &mut [
                 let mut same = [[C64::new(0.0, 0.0); 4]; 4];
                 let mut nsame = 0;
                 for o in 0..mi {
-                    if (lo[o] - s[t]).norm() <= 1e-9 * s[t].norm() {
+                    if modulus(lo[o] - s[t]) <= 1e-9 * modulus(s[t]) {
                         same[nsame] = found[o];
                         nsame += 1;
                     }
@@ -246,10 +259,11 @@ fn modal_kernel(rotor: &Rotor, kb: &[f64], cb: &[f64], spin: &[f64], lam: &mut [
                     }
                 };
                 found[mi] = v;
-                let norms = v.map(|z| z.norm()); // each once (hypot), compared as before
+                // v has unit 2-norm (mode_shape): its squares neither overflow nor lose the largest
+                let norms = v.map(|z| z.norm_sqr());
                 let best = (0..4).fold(0, |b, d| if norms[d] > norms[b] { d } else { b });
                 let piv = v[best];
-                let scale = if piv.norm() > 0.0 { 1.0 / piv } else { C64::new(1.0, 0.0) };
+                let scale = if norms[best] > 0.0 { 1.0 / piv } else { C64::new(1.0, 0.0) };
                 for d in 0..4 {
                     so[4 * mi + d] = v[d] * scale;
                 }
@@ -257,4 +271,32 @@ fn modal_kernel(rotor: &Rotor, kb: &[f64], cb: &[f64], spin: &[f64], lam: &mut [
             0usize
         })
         .sum()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `modulus` is `hypot` to within an ulp where it squares, and `hypot` itself where the
+    /// squares would leave the floating-point range (large, tiny and subnormal parts, inf, NaN).
+    #[test]
+    fn modulus_is_hypot_within_an_ulp_and_hypot_outside_the_squares_range() {
+        let parts = [0.0, 1e-300, 3e-160, 1e-150, 1e-20, 0.5, 1.0, 3.0, 7e5, 1e140, 1e150, 2e160, 1e300, f64::MIN_POSITIVE / 8.0];
+        for &a in &parts {
+            for &b in &parts {
+                for (re, im) in [(a, b), (-a, b), (a, -b)] {
+                    let z = C64::new(re, im);
+                    let (got, want) = (modulus(z), z.norm());
+                    let ulp = want * f64::EPSILON;
+                    assert!((got - want).abs() <= ulp, "|{z}|: {got:e} against hypot {want:e}");
+                    let sq = z.norm_sqr();
+                    if !(sq > 1e-290 && sq < 1e290) {
+                        assert_eq!(got.to_bits(), want.to_bits(), "|{z}| outside the squares' range");
+                    }
+                }
+            }
+        }
+        assert!(modulus(C64::new(f64::NAN, 1.0)).is_nan());
+        assert_eq!(modulus(C64::new(f64::INFINITY, f64::NAN)), f64::INFINITY);
+    }
 }
