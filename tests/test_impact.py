@@ -292,6 +292,7 @@ def test_no_two_identifications_share_a_mutable_nan_view():
     tests = [rotorid.impact_frf(rig.rotor, rig.bearings, speed_rpm=1000, freq_hz=f, direction=d) for d in "xy"]
     first = rotorid.identify_impact(rig.rotor, tests)
     first.k_std.shape = (20, 8)
+    assert first.c_std.shape == (20, 2, 2, 2)  # a view of its own
     second = rotorid.identify_impact(rig.rotor, tests)
     assert second.k_std.shape == second.c_std.shape == (20, 2, 2, 2) and second.rel_std.shape == (20,)
     with pytest.raises(ValueError, match="WRITEABLE"):
@@ -314,6 +315,11 @@ def test_impact_tests_agree_by_value_within_rounding_and_are_refused_by_name():
         rotorid.identify_impact(rig.rotor, [hx, dataclasses.replace(hy, freq_hz=f * (1 + 1e-6))])
     with pytest.raises(RotoridError, match="speed_rpm of test 1 \\('y'\\) \\(1001\\) differs"):
         rotorid.identify_impact(rig.rotor, [hx, dataclasses.replace(hy, speed_rpm=1001.0)])
+    # the frequencies are compared before the speeds, and every test's type before either
+    with pytest.raises(RotoridError, match="freq_hz of test 1"):
+        rotorid.identify_impact(rig.rotor, [hx, dataclasses.replace(hy, freq_hz=f * 1.01, speed_rpm=1001.0)])
+    with pytest.raises(RotoridError, match="test 2 must be"):
+        rotorid.identify_impact(rig.rotor, [hx, dataclasses.replace(hy, speed_rpm=1001.0), "z"])
     wx, wy = (dataclasses.replace(h, sigma=3.0) for h in (hx, hy))
     windowed = rotorid.identify_impact(rig.rotor, [wx, dataclasses.replace(wy, sigma=3.0 * (1 + 1e-12))])
     np.testing.assert_array_equal(windowed.k, rotorid.identify_impact(rig.rotor, [wx, wy]).k)
@@ -338,6 +344,8 @@ def test_rotor_core_params_are_made_once_and_read_only():
     np.testing.assert_array_equal(p, [rotor.mass_kg, rotor.it_kgm2, rotor.ip_kgm2, rotor.l1, rotor.l2])
     with pytest.raises(ValueError, match="read-only"):
         p[0] = 1.0
+    with pytest.raises(ValueError, match="WRITEABLE"):
+        p.flags.writeable = True  # an immutable buffer: the rotor cannot change behind its fields
     copy = pickle.loads(pickle.dumps(rotor))
     assert "_params" not in copy.__dict__ and copy == rotor
     np.testing.assert_array_equal(copy.core_params(), p)
@@ -358,6 +366,8 @@ def test_impact_layouts_are_read_once_and_changed_tests_are_seen():
     e, rank, _ = ident_mod._test_excitations([hx, hy])
     np.testing.assert_array_equal(e, [hx.excitation(), hy.excitation()])
     assert rank == 2 and not e.flags.writeable
+    with pytest.raises(ValueError, match="WRITEABLE"):
+        e.flags.writeable = True  # shared with every later call of this layout
     assert ident_mod._test_excitations([hx, hy])[0] is e          # the same layout: read once
     ref = rotorid.identify_impact(rig.rotor, [hx, hy])
     # the y test turned into a second x test at the same plane: dependent, whatever was cached

@@ -779,7 +779,8 @@ def _unknown_std_bases(n):
 def _unknown_std(n):
     """(k_std = c_std (n, 2, 2, 2), rel_std (n,)) of n points whose standard errors are unknown:
     :func:`_constant_view` of NaN, fresh views (their own shape attributes) of read-only arrays
-    made once per n, in one cached call (two lookups and batch-axis views took ~1 µs of a call)."""
+    made once per n, in one cached call (two lookups and batch-axis views took ~1 µs of a call);
+    ``c_std`` is another view of the first."""
     coef, rel = _unknown_std_bases(n)
     return coef.view(), rel.view()
 
@@ -834,7 +835,7 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
     if ks is None:
         # unknown: read-only NaN views (no memory, no pass over it)
         ks, rel_std = _unknown_std(k.shape[1])
-        cs = ks
+        cs = ks.view()
     else:
         ks, cs = ks[0], cs[0]
         rel_std = None if rel_std is None else rel_std[0]
@@ -1005,16 +1006,21 @@ def _excitation_rank(E):
 
 def _core_excitations(e):
     """The runs' or tests' excitations (R, 4) as the core takes them, (1, R, 4) complex and
-    contiguous; an array already in that form as it is."""
-    return e if e.ndim == 3 else np.ascontiguousarray(e[None], dtype=complex)
+    contiguous."""
+    return np.ascontiguousarray(e[None], dtype=complex)
+
+
+def _frozen(a):
+    """``a`` on an immutable buffer: read-only, and cannot be made writeable (a cached array
+    handed out again on later calls)."""
+    a = np.ascontiguousarray(a)
+    return np.frombuffer(a.tobytes(), dtype=a.dtype).reshape(a.shape)
 
 
 def _excitations(E):
-    """(E, rank, E in the core's form) of the tests' (R, 4) generalized forces, read-only."""
-    E.flags.writeable = False
-    core_form = _core_excitations(E)
-    core_form.flags.writeable = False
-    return E, _excitation_rank(E), core_form
+    """(E, rank, E in the core's form) of the tests' (R, 4) generalized forces, both
+    :func:`_frozen`."""
+    return _frozen(E), _excitation_rank(E), _frozen(_core_excitations(E))
 
 
 @functools.lru_cache(maxsize=64)
@@ -1044,7 +1050,8 @@ def _test_excitations(tests):
 
 def check_impact_independence(tests, labels, *, identical=False):
     """Raise IdentifiabilityError when the impacts cannot excite independent responses; else
-    return the tests' (R, 4) generalized forces, per unit force (:func:`_test_excitations`)."""
+    return the tests' (R, 4) generalized forces, per unit force (:func:`_test_excitations`;
+    read-only: the array may be shared with later calls)."""
     return _independent_excitations(tests, labels, identical)[0]
 
 
@@ -1104,6 +1111,10 @@ def identify_impact(rotor: RigidRotor, tests, *, method: str = "forces", identic
             raise RotoridError(f"test {i} must be a rotorid.ImpactResponse, got {type(t).__name__}")
         labels.append(f"test {i} ({t.name!r})" if t.name else f"test {i}")
         same_f = same_f and t.freq_hz is f
+    if not same_f:  # not the same array: compared by value
+        _check_same_axis("freq_hz", [t.freq_hz for t in tests], labels, "tests", "frequencies",
+                         "same record length and sample rate")
+    for i, t in enumerate(tests[1:], 1):
         # scalars: equal, else math.isclose (np.isclose costs 16 µs)
         if t.speed_rpm != speed and not math.isclose(t.speed_rpm, speed, rel_tol=1e-6, abs_tol=1e-9):
             raise RotoridError(f"speed_rpm of {labels[i]} ({t.speed_rpm:g}) differs from {labels[0]} ({speed:g}): "
@@ -1111,9 +1122,6 @@ def identify_impact(rotor: RigidRotor, tests, *, method: str = "forces", identic
         if t.sigma != sigma and not math.isclose(t.sigma, sigma, rel_tol=1e-9, abs_tol=0.0):
             raise RotoridError(f"sigma (exponential window decay) of {labels[i]} ({t.sigma:g} 1/s) differs from "
                                f"{labels[0]} ({sigma:g} 1/s): window all tests alike")
-    if not same_f:  # not the same array: compared by value
-        _check_same_axis("freq_hz", [t.freq_hz for t in tests], labels, "tests", "frequencies",
-                         "same record length and sample rate")
     e, e_core = _independent_excitations(tests, labels, identical)  # (R, 4), per unit force
     q_ped = cal = planes = None
     if _has_pedestal(tests, labels):

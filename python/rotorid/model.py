@@ -89,12 +89,13 @@ class RigidRotor:
         return {k: v for k, v in self.__dict__.items() if k not in ("_planes", "_params")}
 
     def core_params(self) -> np.ndarray:
-        """[mass, It, Ip, l1, l2] as the core takes them: made once per rotor (frozen) and
-        read-only, since every identification passes it (0.3 µs per call to build afresh)."""
+        """[mass, It, Ip, l1, l2] as the core takes them: made once per rotor (frozen), since every
+        identification passes it (0.3 µs per call to build afresh), on an immutable buffer, so
+        that it cannot be made writeable and change the rotor behind its fields (copy it to
+        change a value)."""
         params = self.__dict__.get("_params")
         if params is None:
-            params = np.array([self.mass_kg, self.it_kgm2, self.ip_kgm2, self.l1, self.l2])
-            params.setflags(write=False)
+            params = np.frombuffer(np.array([self.mass_kg, self.it_kgm2, self.ip_kgm2, self.l1, self.l2]).tobytes())
             object.__setattr__(self, "_params", params)
         return params
 

@@ -860,7 +860,8 @@ fn identification_argument_errors_name_the_argument() {
 proptest! {
     #![proptest_config(cfg(200))]
     /// The vectorized check of the vibration frequencies refuses a zero, an inf or a NaN wherever
-    /// it is (in a block of eight or in the remainder) and takes negative frequencies.
+    /// it is (in a block of eight or in the remainder) and takes negative frequencies and the
+    /// extremes of the finite non-zero values.
     #[test]
     fn a_bad_frequency_anywhere_is_refused(n in 1usize..40, at in 0usize..40, bad in prop_oneof![
             Just(0.0), Just(-0.0), Just(f64::NAN), Just(f64::INFINITY), Just(f64::NEG_INFINITY)], negative in proptest::bool::ANY) {
@@ -871,6 +872,12 @@ proptest! {
         let e: Vec<C64> = (0..8).map(|i| c(1e-4 * (1.0 + i as f64), 0.0)).collect();
         let p = |w: &[f64]| run_identify(&IdentProblem { rotor: r, w, spin: &[100.0], q: &qb, e: &e, gain: &[1.0], sigma: &[], q_ped: &[], planes: None, batch: 1, runs: 2, identical: false }, false).map(|_| ());
         prop_assert!(p(&w).is_ok());
+        // the extremes of the finite non-zero values are taken
+        for good in [5e-324, -f64::MIN_POSITIVE, f64::MAX, -f64::MAX] {
+            let mut edge = w.clone();
+            edge[at % n] = good;
+            prop_assert!(p(&edge).is_ok(), "w = {} refused", good);
+        }
         w[at % n] = bad;
         match p(&w) {
             Err(err) => prop_assert_eq!(err.name(), "w"),
