@@ -101,6 +101,14 @@ def _check(name, a, ndim, shape, positive, nonneg, nonzero, finite=True):
     return a
 
 
+def frozen(a):
+    """``a`` copied onto an immutable buffer: read-only, and it cannot be made writeable (for an
+    array cached and handed out again on later calls, where a restored write flag would let one
+    caller change what the others read)."""
+    a = np.ascontiguousarray(a)
+    return np.frombuffer(a.tobytes(), dtype=a.dtype).reshape(a.shape)
+
+
 def all_finite(a):
     """True when no value (no real or imaginary part) of ``a`` is NaN or inf. A C-contiguous
     float64 or complex128 array (the latter as its float64 pairs) is read by the core in one pass

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._corecall import core as _core
-from ._validate import all_finite, choice, complex_array, real_array
+from ._validate import all_finite, choice, complex_array, frozen, real_array
 from .errors import IdentifiabilityError, RotoridError
 from .model import _REPORT_TO_BIJ, REPORT_ORDER, BearingCoefficients, Imbalance, RigidRotor
 from .simulate import RPM, ImpactResponse, SyncResponse, _plane_matrix, _q_as_checked, probes_to_bearings
@@ -1010,17 +1010,10 @@ def _core_excitations(e):
     return np.ascontiguousarray(e[None], dtype=complex)
 
 
-def _frozen(a):
-    """``a`` on an immutable buffer: read-only, and cannot be made writeable (a cached array
-    handed out again on later calls)."""
-    a = np.ascontiguousarray(a)
-    return np.frombuffer(a.tobytes(), dtype=a.dtype).reshape(a.shape)
-
-
 def _excitations(E):
     """(E, rank, E in the core's form) of the tests' (R, 4) generalized forces, both
-    :func:`_frozen`."""
-    return _frozen(E), _excitation_rank(E), _frozen(_core_excitations(E))
+    :func:`~rotorid._validate.frozen`."""
+    return frozen(E), _excitation_rank(E), frozen(_core_excitations(E))
 
 
 @functools.lru_cache(maxsize=64)

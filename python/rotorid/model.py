@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._validate import finite_scalar, positive_scalar, real_array
+from ._validate import finite_scalar, frozen, positive_scalar, real_array
 from .errors import RotoridError
 
 #: names of the 16 coefficients in report eq. 9 order
@@ -95,7 +95,7 @@ class RigidRotor:
         change a value)."""
         params = self.__dict__.get("_params")
         if params is None:
-            params = np.frombuffer(np.array([self.mass_kg, self.it_kgm2, self.ip_kgm2, self.l1, self.l2]).tobytes())
+            params = frozen(np.array([self.mass_kg, self.it_kgm2, self.ip_kgm2, self.l1, self.l2]))
             object.__setattr__(self, "_params", params)
         return params
 

@@ -127,6 +127,19 @@ pub(crate) fn modulus(z: C64) -> f64 {
     }
 }
 
+/// Whether eigenvalue `s` is a mode's (positive imaginary part, beyond rounding of |s|).
+#[inline]
+pub(crate) fn is_mode(s: C64) -> bool {
+    s.im > 1e-9 * modulus(s).max(1e-300)
+}
+
+/// Whether eigenvalues `a` and `b` are the same to rounding (1e-9 of |b|): their shapes are kept
+/// independent.
+#[inline]
+pub(crate) fn same_eigenvalue(a: C64, b: C64) -> bool {
+    modulus(a - b) <= 1e-9 * modulus(b)
+}
+
 /// The component a mode shape of unit 2-norm is scaled by: the largest, by squared moduli (they
 /// neither overflow nor lose the largest), the first of those within 1e-12 of it, so that
 /// components equal in exact arithmetic (an isotropic rotor's x and y) do not take turns with
@@ -134,6 +147,16 @@ pub(crate) fn modulus(z: C64) -> f64 {
 pub(crate) fn pivot(v: &[C64]) -> usize {
     let top = v.iter().fold(0.0f64, |m, z| m.max(z.norm_sqr()));
     v.iter().position(|z| z.norm_sqr() >= top * (1.0 - 1e-12)).unwrap_or(0)
+}
+
+/// `out` = the mode shape `v` (unit 2-norm) divided by its [`pivot`] component (1 there), `v`
+/// as it is when it is zero.
+pub(crate) fn scale_to_pivot(v: &[C64], out: &mut [C64]) {
+    let piv = v[pivot(v)];
+    let scale = if piv.norm_sqr() > 0.0 { 1.0 / piv } else { C64::new(1.0, 0.0) };
+    for (o, z) in out.iter_mut().zip(v) {
+        *o = z * scale;
+    }
 }
 
 /// Mode shape of eigenvalue `lam` by inverse iteration on D(s) = s^2 M + s (C + Omega G) + K with a
@@ -231,7 +254,7 @@ fn modal_kernel(rotor: &Rotor, kb: &[f64], cb: &[f64], spin: &[f64], lam: &mut [
             let mut idx = [0usize; 8];
             let mut nidx = 0;
             for t in 0..8 {
-                if s[t].im > 1e-9 * modulus(s[t]).max(1e-300) {
+                if is_mode(s[t]) {
                     idx[nidx] = t;
                     nidx += 1;
                 }
@@ -251,7 +274,7 @@ fn modal_kernel(rotor: &Rotor, kb: &[f64], cb: &[f64], spin: &[f64], lam: &mut [
                 let mut same = [[C64::new(0.0, 0.0); 4]; 4];
                 let mut nsame = 0;
                 for o in 0..mi {
-                    if modulus(lo[o] - s[t]) <= 1e-9 * modulus(s[t]) {
+                    if same_eigenvalue(lo[o], s[t]) {
                         same[nsame] = found[o];
                         nsame += 1;
                     }
@@ -268,12 +291,7 @@ fn modal_kernel(rotor: &Rotor, kb: &[f64], cb: &[f64], spin: &[f64], lam: &mut [
                     }
                 };
                 found[mi] = v;
-                let best = pivot(&v);
-                let piv = v[best];
-                let scale = if piv.norm_sqr() > 0.0 { 1.0 / piv } else { C64::new(1.0, 0.0) };
-                for d in 0..4 {
-                    so[4 * mi + d] = v[d] * scale;
-                }
+                scale_to_pivot(&v, &mut so[4 * mi..4 * mi + 4]);
             }
             0usize
         })

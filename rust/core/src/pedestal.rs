@@ -28,7 +28,7 @@ use crate::eig8;
 use crate::error::{expect_len, expect_len_or_broadcast, product, CoreError};
 use crate::forced;
 use crate::model::{assemble, Rotor, C64};
-use crate::modal::{modulus, pivot};
+use crate::modal::{is_mode, same_eigenvalue, scale_to_pivot};
 use crate::series::C2;
 use rayon::prelude::*;
 
@@ -399,13 +399,13 @@ pub fn modal(rotor: &Rotor, kb: &[f64], cb: &[f64], ped: &Pedestals, spin: &[f64
                 Some(s) => s,
                 None => return 1usize,
             };
-            let mut idx: Vec<usize> = (0..NS).filter(|&t| s[t].im > 1e-9 * modulus(s[t]).max(1e-300)).collect();
+            let mut idx: Vec<usize> = (0..NS).filter(|&t| is_mode(s[t])).collect();
             idx.sort_by(|&x, &y| s[x].im.partial_cmp(&s[y].im).unwrap_or(std::cmp::Ordering::Equal).then(x.cmp(&y)));
             let mut found: Vec<[C64; DOF]> = Vec::with_capacity(DOF);
             for (mi, &t) in idx.iter().take(DOF).enumerate() {
                 lo[mi] = s[t];
                 let same: Vec<[C64; DOF]> =
-                    (0..mi).filter(|&o| modulus(lo[o] - s[t]) <= 1e-9 * modulus(s[t])).map(|o| found[o]).collect();
+                    (0..mi).filter(|&o| same_eigenvalue(lo[o], s[t])).map(|o| found[o]).collect();
                 let v = match mode_shape(&mats, s[t], mi, &same) {
                     Some(v) => v,
                     None => {
@@ -416,12 +416,8 @@ pub fn modal(rotor: &Rotor, kb: &[f64], cb: &[f64], ped: &Pedestals, spin: &[f64
                     }
                 };
                 found.push(v);
-                // v has unit 2-norm (mode_shape), scaled by its largest component (crate::modal::pivot)
-                let best = pivot(&v);
-                let scale = if v[best].norm_sqr() > 0.0 { 1.0 / v[best] } else { C64::new(1.0, 0.0) };
-                for d in 0..DOF {
-                    so[DOF * mi + d] = v[d] * scale;
-                }
+                // v has unit 2-norm (mode_shape)
+                scale_to_pivot(&v, &mut so[DOF * mi..DOF * mi + DOF]);
             }
             0usize
         })
