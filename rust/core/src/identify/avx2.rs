@@ -139,10 +139,13 @@ impl Regs<N> for Avx2 {
 pub(super) fn forces_chunk(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize {
     // SAFETY: this function is compiled for and called on AVX2 + FMA CPUs only
     unsafe {
-        if super::registers::is_plain(p) {
-            super::registers::forces_chunk::<N, Avx2, true>(p, kc, start, out)
-        } else {
-            super::registers::forces_chunk::<N, Avx2, false>(p, kc, start, out)
+        use super::registers::{fixed_runs, forces_chunk, is_plain};
+        match fixed_runs(p) {
+            2 => forces_chunk::<N, Avx2, true, 2>(p, kc, start, out),
+            3 => forces_chunk::<N, Avx2, true, 3>(p, kc, start, out),
+            4 => forces_chunk::<N, Avx2, true, 4>(p, kc, start, out),
+            _ if is_plain(p) => forces_chunk::<N, Avx2, true, 0>(p, kc, start, out),
+            _ => forces_chunk::<N, Avx2, false, 0>(p, kc, start, out),
         }
     }
 }
