@@ -30,15 +30,21 @@
 //! The common layouts have instances of their own ([`fixed_runs`]: 2 to 4 runs at the bearings,
 //! one excitation per run, bearings not identical): the rows then sit at fixed places, without
 //! the row counting and bounds checks of the general instance. Instructions per point on AVX2
-//! (callgrind, `examples/identify_points 4096 5 nostd R`) 297 -> 260 at 2 runs and 524 -> 492 at 4;
-//! one thread, in cache, best of 8 interleaved runs on the AMD EPYC of family 26: 16.4 -> 15.0 ns
-//! and 31.2 -> 30.1 ns per point (AVX-512: 11.6 -> 11.1 and 18.9 -> 19.2). At 4 runs the AVX2
+//! (callgrind, `examples/identify_points 4096 5 nostd R`) 297 -> 260 at 2 runs and 524 -> 495 at 4;
+//! one thread, in cache, best of 8 interleaved runs on the AMD EPYC of family 26: 15.8 -> 14.3 ns
+//! and 30.5 -> 29.7 ns per point (AVX-512: 11.3 -> 10.5 and 18.7 -> 18.0; the general instance,
+//! `planes`, 0-5 % faster at both levels). At 4 runs the AVX2
 //! kernel's 170 multiplies and fused multiply-adds per point are ~85 cycles at this CPU's two
 //! per cycle, against ~123 measured: it is bound by the arithmetic, not the bookkeeping.
 //!
 //! Everything here is `#[inline(always)] unsafe fn` without a `#[target_feature]`: it is
 //! compiled only inside the `#[target_feature]` entry points of the instantiating modules, whose
-//! CPU check is what makes the intrinsics sound.
+//! CPU check is what makes the intrinsics sound. Hence plain loops, not library generics such as
+//! `std::array::from_fn` with a closure around the intrinsics: those are inlined or not as LLVM
+//! decides, and where one was not (compiled without the CPU's features, every intrinsic a call)
+//! the kernel took 185 against 16 ns per point at 2 runs (probe planes, AVX-512) and 47 against
+//! 30 at 4 runs (AVX2); `examples/identify_points` with and without `planes` shows either
+//! instance.
 
 use super::{givens_lane, Consts, IdentProblem, LaneSol, Outs, CSNE_COND, SINGULAR_COND};
 use crate::lanes::{V, Z};
@@ -294,16 +300,29 @@ fn as_lane_rows<const N: usize, T>(rows: &[[C<T>; 4]]) -> &[[Z<N>; 4]] {
 #[inline(always)]
 unsafe fn solve_square<const N: usize, R: Regs<N>, const S: usize>(r0: [&[C<R::V>; 4]; S], r1: [&[C<R::V>; 4]; S]) -> [Sol<R::V>; S] {
     let sp = |x: f64| R::splat(x);
-    let det: [C<R::V>; S] = std::array::from_fn(|s| sub::<N, R>(mul::<N, R>(r0[s][0], r1[s][1]), mul::<N, R>(r1[s][0], r0[s][1])));
-    let dn2: [R::V; S] = std::array::from_fn(|s| norm_sqr::<N, R>(det[s]));
-    let idn: [R::V; S] = std::array::from_fn(|s| R::div(sp(1.0), dn2[s]));
-    let a: [R::V; S] = std::array::from_fn(|s| R::add(norm_sqr::<N, R>(r0[s][0]), norm_sqr::<N, R>(r1[s][0])));
-    let d: [R::V; S] = std::array::from_fn(|s| R::add(norm_sqr::<N, R>(r0[s][1]), norm_sqr::<N, R>(r1[s][1])));
-    let fro: [R::V; S] = std::array::from_fn(|s| R::add(a[s], d[s]));
-    let adet: [R::V; S] = std::array::from_fn(|s| R::sqrt(dn2[s]));
-    let disc: [R::V; S] = std::array::from_fn(|s| R::sqrt(R::sub(R::mul(fro[s], fro[s]), R::mul(sp(4.0), dn2[s]))));
     let zero = sp(0.0);
-    std::array::from_fn(|s| {
+    // plain loops over the systems, each step for all of them (see the module's note on generic
+    // helpers around intrinsics)
+    let (mut det, mut dn2, mut idn) = ([C { re: zero, im: zero }; S], [zero; S], [zero; S]);
+    let (mut a, mut d, mut fro, mut adet, mut disc) = ([zero; S], [zero; S], [zero; S], [zero; S], [zero; S]);
+    for s in 0..S {
+        det[s] = sub::<N, R>(mul::<N, R>(r0[s][0], r1[s][1]), mul::<N, R>(r1[s][0], r0[s][1]));
+        dn2[s] = norm_sqr::<N, R>(det[s]);
+    }
+    for s in 0..S {
+        idn[s] = R::div(sp(1.0), dn2[s]);
+    }
+    for s in 0..S {
+        a[s] = R::add(norm_sqr::<N, R>(r0[s][0]), norm_sqr::<N, R>(r1[s][0]));
+        d[s] = R::add(norm_sqr::<N, R>(r0[s][1]), norm_sqr::<N, R>(r1[s][1]));
+        fro[s] = R::add(a[s], d[s]);
+    }
+    for s in 0..S {
+        adet[s] = R::sqrt(dn2[s]);
+        disc[s] = R::sqrt(R::sub(R::mul(fro[s], fro[s]), R::mul(sp(4.0), dn2[s])));
+    }
+    let mut out = [Sol::splat(zero); S];
+    for s in 0..S {
         let (r0, r1) = (r0[s], r1[s]);
         let inv = scale::<N, R>(conj::<N, R>(det[s]), idn[s]);
         let mut z = [[r0[0]; 2]; 2];
@@ -316,8 +335,9 @@ unsafe fn solve_square<const N: usize, R: Regs<N>, const S: usize>(r0: [&[C<R::V
         }
         let cond = R::mul(R::add(fro[s], disc[s]), R::div(sp(1.0), R::mul(sp(2.0), adet[s])));
         let total = R::add(R::add(fro[s], rhs2[0]), rhs2[1]);
-        Sol { z, g: [R::mul(d[s], idn[s]), R::mul(a[s], idn[s])], cond, res2: [zero; 2], rhs2, total, qq: fro[s] }
-    })
+        out[s] = Sol { z, g: [R::mul(d[s], idn[s]), R::mul(a[s], idn[s])], cond, res2: [zero; 2], rhs2, total, qq: fro[s] };
+    }
+    out
 }
 
 /// [`super::solve_gram`] on registers.
@@ -371,12 +391,21 @@ pub(super) unsafe fn solve<const N: usize, R: Regs<N>, const S: usize>(rows: [&[
         }
         (a[s], d[s], gxy[s], h[s], rhs2[s]) = (a_s, d_s, gxy_s, h_s, rhs2_s);
     }
-    let g2: [R::V; S] = std::array::from_fn(|s| norm_sqr::<N, R>(gxy[s]));
-    let det: [R::V; S] = std::array::from_fn(|s| R::sub(R::mul(a[s], d[s]), g2[s]));
-    let idet: [R::V; S] = std::array::from_fn(|s| R::div(sp(1.0), det[s]));
-    let amd: [R::V; S] = std::array::from_fn(|s| R::sub(a[s], d[s]));
-    let lmax: [R::V; S] = std::array::from_fn(|s| R::add(R::mul(R::add(a[s], d[s]), sp(0.5)), R::sqrt(R::add(R::mul(R::mul(amd[s], amd[s]), sp(0.25)), g2[s]))));
-    let cond: [R::V; S] = std::array::from_fn(|s| R::sqrt(R::mul(R::mul(lmax[s], lmax[s]), idet[s])));
+    let (mut g2, mut det, mut idet, mut lmax, mut cond) = ([zero; S], [zero; S], [zero; S], [zero; S], [zero; S]);
+    for s in 0..S {
+        g2[s] = norm_sqr::<N, R>(gxy[s]);
+        det[s] = R::sub(R::mul(a[s], d[s]), g2[s]);
+    }
+    for s in 0..S {
+        idet[s] = R::div(sp(1.0), det[s]);
+    }
+    for s in 0..S {
+        let amd = R::sub(a[s], d[s]);
+        lmax[s] = R::add(R::mul(R::add(a[s], d[s]), sp(0.5)), R::sqrt(R::add(R::mul(R::mul(amd, amd), sp(0.25)), g2[s])));
+    }
+    for s in 0..S {
+        cond[s] = R::sqrt(R::mul(R::mul(lmax[s], lmax[s]), idet[s]));
+    }
     for s in 0..S {
         let (a, d, gxy, idet, cond, rows) = (a[s], d[s], gxy[s], idet[s], cond[s], rows[s]);
         let gc = conj::<N, R>(gxy);
@@ -443,7 +472,8 @@ const PREFETCH: usize = 16;
 /// The excitation e[o..o + 4] in every lane.
 #[inline(always)]
 unsafe fn splat_e<const N: usize, R: Regs<N>>(e: &[C64], o: usize) -> [C<R::V>; 4] {
-    std::array::from_fn(|dd| C { re: R::splat(e[o + dd].re), im: R::splat(e[o + dd].im) })
+    let v = |x: C64| C { re: R::splat(x.re), im: R::splat(x.im) };
+    [v(e[o]), v(e[o + 1]), v(e[o + 2]), v(e[o + 3])]
 }
 
 /// Where the points of a group are: one contiguous run of a batch row, or (b, i) per lane.
@@ -635,10 +665,9 @@ pub(super) unsafe fn forces_chunk<const N: usize, R: Regs<N>, const PLAIN: bool,
                 e_row = splat_e::<N, R>(p.e, (bi[0].0 * runs + r) * 4);
                 &e_row
             } else {
-                e_row = std::array::from_fn(|dd| {
-                    let ev = |l: usize| p.e[(bi[l].0 * runs + r) * 4 + dd];
-                    C { re: R::lanes_of(|l| ev(l).re), im: R::lanes_of(|l| ev(l).im) }
-                });
+                let ev = |l: usize, dd: usize| p.e[(bi[l].0 * runs + r) * 4 + dd];
+                let lanes = |dd: usize| C { re: R::lanes_of(|l| ev(l, dd).re), im: R::lanes_of(|l| ev(l, dd).im) };
+                e_row = [lanes(0), lanes(1), lanes(2), lanes(3)];
                 &e_row
             };
             // the inertia acts on the absolute motion: q + q_ped with flexible pedestals
@@ -737,7 +766,7 @@ pub(super) unsafe fn forces_chunk<const N: usize, R: Regs<N>, const PLAIN: bool,
         let qsum = R::add(s0.qq, if identical { zero } else { s1.qq });
         let rms = R::sqrt(R::mul(qsum, inv_4runs));
         // singular systems and non-finite input give NaN coefficients
-        let sing = [0, 1].map(|sb| R::not_lt(sols[sb].cond, sp(SINGULAR_COND)));
+        let sing = [R::not_lt(sols[0].cond, sp(SINGULAR_COND)), R::not_lt(sols[1].cond, sp(SINGULAR_COND))];
         let nanm = [R::m_or(sing[0], bad), R::m_or(sing[1], bad)];
         for o in 0..8 {
             let m = nanm[o / 4];
@@ -766,10 +795,8 @@ pub(super) unsafe fn forces_chunk<const N: usize, R: Regs<N>, const PLAIN: bool,
             }
         }
         // cond: inf for a singular system, NaN for non-finite input; (points, 2) by interleaving
-        let cnd = [0, 1].map(|sb| {
-            let v = R::blend(sols[sb].cond, sp(f64::INFINITY), R::m_andnot(bad, nanm[sb]));
-            R::blend(v, nanv, bad)
-        });
+        let cnd_of = |sb: usize| R::blend(R::blend(sols[sb].cond, sp(f64::INFINITY), R::m_andnot(bad, nanm[sb])), nanv, bad);
+        let cnd = [cnd_of(0), cnd_of(1)];
         R::put_pairs(cond, g0, nl, cnd[0], cnd[1]);
         let no_rhs = R::not_gt(rhs_tot, zero);
         R::put_lanes(resid, g0, nl, R::blend(rel, nanv, R::m_or(bad, no_rhs)));
