@@ -16,7 +16,7 @@ use std::arch::x86_64::*;
 const N: usize = 4;
 
 /// AVX2 + FMA (the fused multiply-adds of [`super::registers`] are FMA instructions).
-pub(super) struct Avx2;
+pub(crate) struct Avx2;
 
 /// 4 x 4 transpose of doubles: row l of the output is lane l of the inputs.
 #[inline(always)]

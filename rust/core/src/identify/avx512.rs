@@ -16,7 +16,7 @@ use std::arch::x86_64::*;
 const N: usize = 8;
 
 /// AVX-512 F + DQ (DQ for the bitwise `xor` on doubles).
-pub(super) struct Avx512;
+pub(crate) struct Avx512;
 
 /// 8 x 8 transpose of doubles: row l of the output is lane l of the inputs (its own inverse).
 #[inline(always)]

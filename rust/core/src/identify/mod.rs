@@ -23,12 +23,12 @@ use faer::Mat;
 use rayon::prelude::*;
 
 #[cfg(target_arch = "x86_64")]
-mod avx2;
+pub(crate) mod avx2;
 #[cfg(target_arch = "x86_64")]
-mod avx512;
+pub(crate) mod avx512;
 pub mod propagate;
 #[cfg(target_arch = "x86_64")]
-mod registers;
+pub(crate) mod registers;
 
 const SINGULAR_COND: f64 = 1e14;
 

@@ -55,7 +55,7 @@ use std::arch::x86_64::{_mm_prefetch, _MM_HINT_ET0, _MM_HINT_T0};
 ///
 /// # Safety
 /// Every function may only be called on a CPU with the implementation's instruction set.
-pub(super) trait Regs<const N: usize> {
+pub(crate) trait Regs<const N: usize> {
     /// N doubles in one register.
     type V: Copy;
     /// A lane mask (all-ones lanes in a vector for AVX2, a `__mmask8` for AVX-512).
@@ -173,7 +173,7 @@ pub(super) use one_intrinsic_ops;
 /// Write `M` doubles through `store` at `dst[off..off + M]`, or, for a group cut short (`keep` <
 /// `M` of them wanted), into a scratch block whose first `keep` values are copied there.
 #[inline(always)]
-pub(super) fn store_group<const M: usize>(dst: &mut [f64], off: usize, keep: usize, store: impl Fn(*mut f64)) {
+pub(crate) fn store_group<const M: usize>(dst: &mut [f64], off: usize, keep: usize, store: impl Fn(*mut f64)) {
     if keep == M {
         store(dst[off..off + M].as_mut_ptr());
     } else {
@@ -186,9 +186,9 @@ pub(super) fn store_group<const M: usize>(dst: &mut [f64], off: usize, keep: usi
 /// A complex lane vector in registers (`repr(C)`: the layout of a `Z<N>`, more strictly aligned).
 #[derive(Clone, Copy)]
 #[repr(C)]
-pub(super) struct C<T> {
-    pub(super) re: T,
-    pub(super) im: T,
+pub(crate) struct C<T> {
+    pub(crate) re: T,
+    pub(crate) im: T,
 }
 
 // The operations of lanes.rs, in the same order.

@@ -5,6 +5,9 @@ use crate::error::{expect_len, expect_len_or_broadcast, product, CoreError};
 use crate::lanes::L;
 use crate::model::{assemble, planes_point, Rotor, C64};
 
+#[cfg(target_arch = "x86_64")]
+mod registers;
+
 /// Points per group: two sets of [`L`] lanes. Lane loop 1 works on lanes l and l + L together,
 /// step by step in alternation, so that the dependency chain of one matrix (pivot search,
 /// division, update) overlaps the other's. One thread, 4,096 points in cache, best of 400 calls
@@ -950,12 +953,23 @@ macro_rules! chunk_with {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512dq,avx2,fma")]
 fn forced_chunk_avx512(b: &Batch, start: usize, out: &mut [C64]) -> usize {
+    // the common case on registers ([`registers`]): 14.5 -> 12.0 ns per point (imbalance) and
+    // 15.2 -> 12.3 (at the probe planes), `examples/forced_points 4096 2000`, best of 5
+    // interleaved runs, AMD EPYC of family 26
+    if registers::serves(b) {
+        let rest = |first: usize, o: &mut [C64]| chunk_with!(b, first, o, factor_solve_avx512, solve_avx512);
+        // SAFETY: compiled for and called on AVX-512 CPUs only (the register kernel's intrinsics)
+        return unsafe { registers::forced_chunk::<8, crate::identify::avx512::Avx512>(b, start, out, rest) };
+    }
     chunk_with!(b, start, out, factor_solve_avx512, solve_avx512)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 fn forced_chunk_avx2(b: &Batch, start: usize, out: &mut [C64]) -> usize {
+    // not the register kernel: with AVX2's 16 registers its 4 x 4 complex matrix spills, and it
+    // took 18.0 against 16.1 ns per point (the lanes 4 wide; `examples/forced_points 4096 2000
+    // imbalance`, best of 5 interleaved runs, AMD EPYC of family 26)
     chunk_with!(b, start, out, factor_solve_avx2, solve_avx2)
 }
 
@@ -1115,6 +1129,9 @@ mod tests {
         /// exchanges (serial calls only: below SERIAL_BELOW points the caller does all the work).
         pub(super) static SWEEPS: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
         pub(super) static SWEEPS_WITH_EXCHANGES: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
+        /// Whole groups solved on registers ([`registers`]), and those handed to the lane path.
+        pub(super) static REGISTER_GROUPS: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
+        pub(super) static GROUPS_TO_LANES: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
     }
 
     /// (sweeps, sweeps run again with exchanges) of one serial forced response.
@@ -1129,19 +1146,23 @@ mod tests {
     /// speed (rows Fx, Mx, Fy, My), so no sweep runs twice; a bearing with one direct stiffness
     /// far below its cross-coupled ones puts a pivot off the diagonal, so sweeps run again; and
     /// both give the pivoting solve's values to the bit.
+    /// (The bearing coefficients are given per point, all equal, so that the lane path serves
+    /// the points rather than the register kernel, which takes shared ones; see the next test.)
     #[test]
     fn exchange_free_pass_covers_a_rotor_on_bearings_and_falls_back_otherwise() {
         let rotor = Rotor { m: 30.7, it: 0.62, ip: 0.062, l1: 0.146, l2: 0.137 };
         let k = [3.2e6, 4e5, -3e5, 2.9e6, 3.5e6, 2e5, -2e5, 3.1e6];
         let c = [2.1e3, 1e2, 1e2, 2.3e3, 2.2e3, 0.0, 0.0, 2.0e3];
-        let w: Vec<f64> = (0..200).map(|i| 1.0 + 1500.0 * i as f64 / 200.0).collect();
+        let n = 200;
+        let w: Vec<f64> = (0..n).map(|i| 1.0 + 1500.0 * i as f64 / n as f64).collect();
         let force = vec![C64::new(1.0, 0.5); 4];
-        let mut p = Inputs { rotor, kb: k.to_vec(), cb: c.to_vec(), spin: w.clone(), w, force, nrhs: 1 };
+        let per_point = |v: &[f64]| -> Vec<f64> { (0..n).flat_map(|_| v.iter().copied()).collect() };
+        let mut p = Inputs { rotor, kb: per_point(&k), cb: c.to_vec(), spin: w.clone(), w, force, nrhs: 1 };
         let (sweeps, again) = sweep_counts(&p);
         assert!(sweeps > 0 && again == 0, "{again} of {sweeps} sweeps ran again");
         let (diff, equal, same_count, _) = run(&p);
         assert!(diff == 0.0 && equal && same_count);
-        p.kb = vec![1e3, 4e6, -4e6, 1e3, 3.5e6, 2e5, -2e5, 3.1e6];
+        p.kb = per_point(&[1e3, 4e6, -4e6, 1e3, 3.5e6, 2e5, -2e5, 3.1e6]);
         let (sweeps, again) = sweep_counts(&p);
         assert!(again > 0 && again <= sweeps);
         let (diff, equal, same_count, _) = run(&p);
@@ -1367,6 +1388,92 @@ mod tests {
         let p = Inputs { rotor, kb, cb: c.to_vec(), spin: w.clone(), w, force, nrhs: 2 };
         let (diff, equal, same_count, _) = run(&p);
         assert!(diff <= 1e-12 && equal && same_count);
+    }
+
+    /// (groups on registers, groups handed to the lane path) of one serial forced response.
+    fn register_counts(p: &Inputs) -> (usize, usize) {
+        let before = (REGISTER_GROUPS.with(|c| c.get()), GROUPS_TO_LANES.with(|c| c.get()));
+        let mut q = vec![C64::new(0.0, 0.0); p.w.len() * p.nrhs * 4];
+        forced_response(&p.rotor, &p.kb, &p.cb, &p.spin, &p.w, &p.force, p.nrhs, &mut q).unwrap();
+        (REGISTER_GROUPS.with(|c| c.get()) - before.0, GROUPS_TO_LANES.with(|c| c.get()) - before.1)
+    }
+
+    /// The register kernel (one right-hand side, shared bearings, on AVX-512 CPUs) solves
+    /// every whole group of the NSF rotor on its bearings itself, hands the groups that need a row
+    /// exchange to the lane path, and gives the per-point values to the bit either way.
+    #[test]
+    fn register_kernel_serves_a_rotor_on_bearings_and_hands_exchanges_on() {
+        let rotor = Rotor { m: 30.7, it: 0.62, ip: 0.062, l1: 0.146, l2: 0.137 };
+        let k = [3.2e6, 4e5, -3e5, 2.9e6, 3.5e6, 2e5, -2e5, 3.1e6];
+        let c = [2.1e3, 1e2, 1e2, 2.3e3, 2.2e3, 0.0, 0.0, 2.0e3];
+        let w: Vec<f64> = (0..203).map(|i| 1.0 + 1500.0 * i as f64 / 203.0).collect();
+        let force = vec![C64::new(1.0, 0.5); 4];
+        let mut p = Inputs { rotor, kb: k.to_vec(), cb: c.to_vec(), spin: w.clone(), w, force, nrhs: 1 };
+        let lanes = if crate::lanes::simd() == crate::lanes::Simd::Avx512 { 8 } else { 0 };
+        let (on_registers, handed_on) = register_counts(&p);
+        if lanes > 0 {
+            assert_eq!((on_registers, handed_on), (203 / lanes, 0));
+        }
+        let (diff, equal, same_count, _) = run(&p);
+        assert!(diff == 0.0 && equal && same_count);
+        p.kb = vec![1e3, 4e6, -4e6, 1e3, 3.5e6, 2e5, -2e5, 3.1e6];
+        let (on_registers, handed_on) = register_counts(&p);
+        if lanes > 0 {
+            assert!(handed_on > 0 && on_registers + handed_on == 203 / lanes, "{on_registers} + {handed_on}");
+        }
+        let (diff, equal, same_count, _) = run(&p);
+        assert!(diff <= 1e-12 && equal && same_count);
+    }
+
+    /// `forced_response_with` (gain, plane transform) against the per-point path with the same
+    /// gain and transform: (all equal, singular counts equal).
+    fn run_with(p: &Inputs, gain_kind: u8, planes: bool) -> (bool, bool) {
+        let n = p.w.len();
+        let gains: Vec<f64> = (0..n).map(|i| 0.5 + i as f64).collect();
+        let gain = match gain_kind {
+            0 => Gain::One,
+            1 => Gain::PerPoint(&gains),
+            _ => Gain::SpinSquared,
+        };
+        let t = [1.2, -0.2, -0.3, 1.3];
+        let planes = planes.then_some(&t);
+        let mut got = vec![C64::new(0.0, 0.0); n * p.nrhs * 4];
+        let bad = forced_response_with(&p.rotor, &p.kb, &p.cb, &p.spin, &p.w, &p.force, p.nrhs, gain, planes, &mut got).unwrap();
+        let b = Batch::new(&p.rotor, &p.kb, &p.cb, &p.spin, &p.w, &p.force, p.nrhs, gain, planes);
+        let mut reference = vec![C64::new(0.0, 0.0); got.len()];
+        let bad_ref = per_point(&b, &mut reference);
+        (compare(&got, &reference, 4 * p.nrhs).1, bad == bad_ref)
+    }
+
+    proptest! {
+        #![proptest_config(cfg(300))]
+
+        /// The register kernel's case (one right-hand side, shared bearings) with every gain, with
+        /// and without the plane transform, 1 to 80 points (whole groups, tails), shared or
+        /// per-point forces, now and then a NaN, inf or huge value or a bearing that forces row
+        /// exchanges: the per-point values, to the bit.
+        #[test]
+        fn register_kernel_gives_the_per_point_values(
+            p in inputs(81), gain_kind in 0u8..3, planes in any::<bool>(), spoil in 0usize..8, at in 0usize..80,
+        ) {
+            let mut p = p;
+            let n = p.w.len();
+            p.nrhs = 1;
+            p.kb.truncate(8);
+            p.cb.truncate(8);
+            p.force = if p.force.len() >= 4 * n { p.force[..4 * n].to_vec() } else { p.force[..4].to_vec() };
+            let i = at % n;
+            match spoil {
+                0 => p.w[i] = f64::NAN,
+                1 => p.spin[i] = f64::INFINITY,
+                2 => p.w[i] = 1e200,
+                3 => p.kb = vec![1e3, 4e6, -4e6, 1e3, 3.5e6, 2e5, -2e5, 3.1e6],
+                _ => {}
+            }
+            let (equal, same_count) = run_with(&p, gain_kind, planes);
+            prop_assert!(equal);
+            prop_assert!(same_count);
+        }
     }
 
     /// The lane path takes the whole H from `dynamic_stiffness`; this pins down the singular
