@@ -10,8 +10,8 @@
 //! divisions, spilled at AVX-512 too (16.7 against 13.3 ns).
 //!
 //! What bounds it: each group is one chain of dependent steps (four pivots, each a division, then
-//! four back substitutions), ~350 cycles by the latencies of its operations against the ~390
-//! measured per group of 8.
+//! four back substitutions), 280-350 cycles by an estimate from the operations' latencies against
+//! the ~390 measured per group of 8.
 //!
 //! Each lane performs the operations of [`super::dynamic_stiffness`] and of the exchange-free
 //! elimination ([`super::elim_step`] with `EXCHANGE` false, rows in the order (Fx, Mx, Fy, My)),
