@@ -204,8 +204,9 @@ pub fn dynamic_stiffness(rotor: &Rotor, m: &[[f64; 4]; 4], g: &[[f64; 4]; 4], kb
 /// number of singular points (their output is NaN).
 ///
 /// The points are solved 16 at a time in SIMD lanes (AVX2 or AVX-512 chosen at run time), each
-/// lane with its own pivots; the results are those of [`dynamic_stiffness`] + [`solve4`] point by
-/// point.
+/// lane with its own pivots, or, on AVX-512 with one right-hand side and shared bearings, 8 at a
+/// time on registers ([`registers`]); the results are those of [`dynamic_stiffness`] + [`solve4`]
+/// point by point (up to the sign of an exact zero).
 #[allow(clippy::too_many_arguments)]
 pub fn forced_response(
     rotor: &Rotor,
@@ -1134,12 +1135,19 @@ mod tests {
         pub(super) static GROUPS_TO_LANES: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
     }
 
-    /// (sweeps, sweeps run again with exchanges) of one serial forced response.
-    fn sweep_counts(p: &Inputs) -> (usize, usize) {
-        let before = (SWEEPS.with(|c| c.get()), SWEEPS_WITH_EXCHANGES.with(|c| c.get()));
+    type Counter = std::thread::LocalKey<std::cell::Cell<usize>>;
+
+    /// How much two of the counters above grow in one serial forced response.
+    fn counts(p: &Inputs, a: &'static Counter, b: &'static Counter) -> (usize, usize) {
+        let before = (a.with(|c| c.get()), b.with(|c| c.get()));
         let mut q = vec![C64::new(0.0, 0.0); p.w.len() * p.nrhs * 4];
         forced_response(&p.rotor, &p.kb, &p.cb, &p.spin, &p.w, &p.force, p.nrhs, &mut q).unwrap();
-        (SWEEPS.with(|c| c.get()) - before.0, SWEEPS_WITH_EXCHANGES.with(|c| c.get()) - before.1)
+        (a.with(|c| c.get()) - before.0, b.with(|c| c.get()) - before.1)
+    }
+
+    /// (sweeps, sweeps run again with exchanges) of one serial forced response.
+    fn sweep_counts(p: &Inputs) -> (usize, usize) {
+        counts(p, &SWEEPS, &SWEEPS_WITH_EXCHANGES)
     }
 
     /// The exchange-free first pass: the NSF rotor on its bearings needs no row exchange at any
@@ -1388,14 +1396,15 @@ mod tests {
         let p = Inputs { rotor, kb, cb: c.to_vec(), spin: w.clone(), w, force, nrhs: 2 };
         let (diff, equal, same_count, _) = run(&p);
         assert!(diff <= 1e-12 && equal && same_count);
+        // shared bearings and one right-hand side: the register kernel's chunks (on AVX-512)
+        let p = Inputs { kb: k.to_vec(), force: p.force[..4].to_vec(), nrhs: 1, ..p };
+        let (diff, equal, same_count, _) = run(&p);
+        assert!(diff <= 1e-12 && equal && same_count);
     }
 
     /// (groups on registers, groups handed to the lane path) of one serial forced response.
     fn register_counts(p: &Inputs) -> (usize, usize) {
-        let before = (REGISTER_GROUPS.with(|c| c.get()), GROUPS_TO_LANES.with(|c| c.get()));
-        let mut q = vec![C64::new(0.0, 0.0); p.w.len() * p.nrhs * 4];
-        forced_response(&p.rotor, &p.kb, &p.cb, &p.spin, &p.w, &p.force, p.nrhs, &mut q).unwrap();
-        (REGISTER_GROUPS.with(|c| c.get()) - before.0, GROUPS_TO_LANES.with(|c| c.get()) - before.1)
+        counts(p, &REGISTER_GROUPS, &GROUPS_TO_LANES)
     }
 
     /// The register kernel (one right-hand side, shared bearings, on AVX-512 CPUs) solves
@@ -1473,7 +1482,39 @@ mod tests {
             let (equal, same_count) = run_with(&p, gain_kind, planes);
             prop_assert!(equal);
             prop_assert!(same_count);
+            // on AVX-512 CPUs: the register kernel itself, from a point inside the batch on,
+            // against the lane path (no FMA in either: the baseline's bits) bit for bit, zeros'
+            // signs included
+            #[cfg(target_arch = "x86_64")]
+            if crate::lanes::simd_of_cpu() == crate::lanes::Simd::Avx512 {
+                let gains: Vec<f64> = (0..n).map(|i| 0.5 + i as f64).collect();
+                let gain = match gain_kind { 0 => Gain::One, 1 => Gain::PerPoint(&gains), _ => Gain::SpinSquared };
+                let t = [1.2, -0.2, -0.3, 1.3];
+                let b = Batch::new(&p.rotor, &p.kb, &p.cb, &p.spin, &p.w, &p.force, 1, gain, planes.then_some(&t));
+                prop_assume!(registers::serves(&b));
+                let first = at % n;
+                let mut got = vec![C64::new(0.0, 0.0); 4 * (n - first)];
+                let mut lanes = got.clone();
+                // SAFETY: this CPU has AVX-512 F and DQ (checked above)
+                let bad = unsafe { register_chunk(&b, first, &mut got) };
+                let bad_lanes = forced_chunk_baseline(&b, first, &mut lanes);
+                prop_assert_eq!(bad, bad_lanes);
+                for (x, y) in got.iter().zip(&lanes) {
+                    let same = |u: f64, v: f64| u.to_bits() == v.to_bits() || (u.is_nan() && v.is_nan());
+                    prop_assert!(same(x.re, y.re) && same(x.im, y.im), "{x} (registers) vs {y} (lanes)");
+                }
+            }
         }
+    }
+
+    /// [`registers::forced_chunk`] on AVX-512, the lane path for the groups it hands on.
+    ///
+    /// # Safety
+    /// Only on a CPU with AVX-512 F and DQ.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx512dq,avx2,fma")]
+    unsafe fn register_chunk(b: &Batch, start: usize, out: &mut [C64]) -> usize {
+        registers::forced_chunk::<8, crate::identify::avx512::Avx512>(b, start, out, |first, o| forced_chunk_baseline(b, first, o))
     }
 
     /// The lane path takes the whole H from `dynamic_stiffness`; this pins down the singular

@@ -16,16 +16,19 @@
 //! Each lane performs the operations of [`super::dynamic_stiffness`] and of the exchange-free
 //! elimination ([`super::elim_step`] with `EXCHANGE` false, rows in the order (Fx, Mx, Fy, My)),
 //! its substitution and [`super::Batch::finish`], in their order and without fused multiply-adds,
-//! so every lane holds the bits of the per-point solution. A group in which some lane needs a row
-//! exchange (a pivot below the diagonal larger than the diagonal's), or whose matrix holds a
-//! non-finite number, is handed whole to the lane path (`rest`), as is a chunk's last, partial
-//! group: the lane path decides those exactly as before.
+//! so every lane holds the lane path's bits (those of the per-point solution up to the sign of an
+//! exact zero: [`super::solve4`] skips zero multipliers). A group in which some lane needs a row
+//! exchange (a candidate below the diagonal not smaller than the diagonal's pivot), or whose
+//! matrix holds a non-finite number, is handed whole to the lane path (`rest`), as is a chunk's
+//! last, partial group: the lane path decides those exactly as before. (A non-finite point now
+//! sends the 8 points of its register group to the per-point path, where the lane path's groups
+//! are 16: the points between differ from before at most in the sign of an exact zero.)
 //!
 //! Like [`crate::identify::registers`], everything here is `#[inline(always)]` and compiled only
 //! inside the `#[target_feature]` functions of [`super`], with plain loops around the intrinsics.
 
 use super::{Batch, Gain, MAX_SPREAD};
-use crate::identify::registers::{Regs, C};
+use crate::identify::registers::{add, mul as cmul, scale as cscale, sub as csub, Regs, C};
 use crate::model::{assemble, C64};
 
 /// Whether the register kernel serves `b`: one right-hand side, and stiffness and damping shared
@@ -33,18 +36,6 @@ use crate::model::{assemble, C64};
 #[inline(always)]
 pub(super) fn serves(b: &Batch) -> bool {
     b.nrhs == 1 && b.kbc && b.cbc
-}
-
-/// a b as `num_complex`'s product: (a.re b.re - a.im b.im) + j (a.re b.im + a.im b.re).
-#[inline(always)]
-unsafe fn cmul<const N: usize, R: Regs<N>>(a: C<R::V>, b: C<R::V>) -> C<R::V> {
-    C { re: R::sub(R::mul(a.re, b.re), R::mul(a.im, b.im)), im: R::add(R::mul(a.re, b.im), R::mul(a.im, b.re)) }
-}
-
-/// a - b
-#[inline(always)]
-unsafe fn csub<const N: usize, R: Regs<N>>(a: C<R::V>, b: C<R::V>) -> C<R::V> {
-    C { re: R::sub(a.re, b.re), im: R::sub(a.im, b.im) }
 }
 
 /// |re| + |im| (the pivot measure of [`super::solve4`])
@@ -98,8 +89,6 @@ pub(super) unsafe fn forced_chunk<const N: usize, R: Regs<N>>(b: &Batch, start: 
     }
     let planes = b.planes.map(|t| [sp(t[0]), sp(t[1]), sp(t[2]), sp(t[3])]);
     let (tiny_factor, spread, one, nan) = (sp(1e-15), sp(MAX_SPREAD), sp(1.0), sp(f64::NAN));
-    // SAFETY: Complex<f64> is repr(C) {re, im}: out as (points, 8) doubles
-    let out_f = std::slice::from_raw_parts_mut(out.as_mut_ptr() as *mut f64, 2 * out.len());
     let whole = npts - npts % N;
     let mut nbad = 0;
     for g0 in (0..whole).step_by(N) {
@@ -193,13 +182,13 @@ pub(super) unsafe fn forced_chunk<const N: usize, R: Regs<N>>(b: &Batch, start: 
             Gain::SpinSquared => Some(R::mul(spin, spin)),
         };
         if let Some(gv) = gain {
-            for v in x.iter_mut() {
-                *v = C { re: R::mul(v.re, gv), im: R::mul(v.im, gv) };
+            for d in 0..4 {
+                x[d] = cscale::<N, R>(x[d], gv);
             }
         }
         if let Some(t) = &planes {
-            let sc = |v: C<R::V>, s: R::V| C { re: R::mul(v.re, s), im: R::mul(v.im, s) };
-            let ad = |u: C<R::V>, v: C<R::V>| C { re: R::add(u.re, v.re), im: R::add(u.im, v.im) };
+            let sc = |v: C<R::V>, s: R::V| cscale::<N, R>(v, s);
+            let ad = |u: C<R::V>, v: C<R::V>| add::<N, R>(u, v);
             x = [
                 ad(sc(x[0], t[0]), sc(x[1], t[1])),
                 ad(sc(x[0], t[2]), sc(x[1], t[3])),
@@ -212,7 +201,10 @@ pub(super) unsafe fn forced_chunk<const N: usize, R: Regs<N>>(b: &Batch, start: 
             rows[2 * d] = R::blend(x[d].re, nan, bad);
             rows[2 * d + 1] = R::blend(x[d].im, nan, bad);
         }
-        R::put_rows(out_f, g0, N, &rows);
+        let group = &mut out[4 * g0..4 * (g0 + N)];
+        // SAFETY: Complex<f64> is repr(C) {re, im}: the group's points as (N, 8) doubles
+        let group = std::slice::from_raw_parts_mut(group.as_mut_ptr() as *mut f64, 8 * N);
+        R::put_rows(group, 0, N, &rows);
         let bits = R::m_bits(bad);
         if bits != 0 {
             nbad += bits.count_ones() as usize;

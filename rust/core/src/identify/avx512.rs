@@ -79,7 +79,8 @@ impl Regs<N> for Avx512 {
     }
     #[inline(always)]
     unsafe fn load_points(ptr: &[*const f64; N]) -> [C<__m512d>; 4] {
-        let t = transpose(std::array::from_fn(|l| _mm512_loadu_pd(ptr[l])));
+        let ld = |l: usize| _mm512_loadu_pd(ptr[l]);
+        let t = transpose([ld(0), ld(1), ld(2), ld(3), ld(4), ld(5), ld(6), ld(7)]);
         [C { re: t[0], im: t[1] }, C { re: t[2], im: t[3] }, C { re: t[4], im: t[5] }, C { re: t[6], im: t[7] }]
     }
     #[inline(always)]

@@ -32,15 +32,16 @@
 //! the row counting and bounds checks of the general instance. Instructions per point on AVX2
 //! (callgrind, `examples/identify_points 4096 5 nostd R`) 297 -> 260 at 2 runs and 524 -> 495 at 4;
 //! one thread, in cache, best of 8 interleaved runs on the AMD EPYC of family 26: 15.8 -> 14.3 ns
-//! and 30.5 -> 29.7 ns per point (AVX-512: 11.3 -> 10.5 and 18.7 -> 18.0; the general instance,
-//! `planes`, 0-5 % faster at both levels). At 4 runs the AVX2
+//! and 30.5 -> 29.7 ns per point (AVX-512: 11.3 -> 10.5 and 18.7 -> 18.0; with standard errors
+//! 3-14 % faster, the general instance, `planes`, 0-5 %). At 4 runs the AVX2
 //! kernel's 170 multiplies and fused multiply-adds per point are ~85 cycles at this CPU's two
 //! per cycle, against ~123 measured: it is bound by the arithmetic, not the bookkeeping.
 //!
 //! Everything here is `#[inline(always)] unsafe fn` without a `#[target_feature]`: it is
 //! compiled only inside the `#[target_feature]` entry points of the instantiating modules, whose
-//! CPU check is what makes the intrinsics sound. Hence plain loops, not library generics such as
-//! `std::array::from_fn` with a closure around the intrinsics: those are inlined or not as LLVM
+//! CPU check is what makes the intrinsics sound. Hence index loops and this module's own
+//! `#[inline(always)]` helpers, not library generics such as `std::array::from_fn` or iterator
+//! adapters with a closure around the intrinsics: those are inlined or not as LLVM
 //! decides, and where one was not (compiled without the CPU's features, every intrinsic a call)
 //! the kernel took 185 against 16 ns per point at 2 runs (probe planes, AVX-512) and 47 against
 //! 30 at 4 runs (AVX2); `examples/identify_points` with and without `planes` shows either
@@ -193,15 +194,15 @@ pub(crate) struct C<T> {
 
 // The operations of lanes.rs, in the same order.
 #[inline(always)]
-unsafe fn add<const N: usize, R: Regs<N>>(a: C<R::V>, b: C<R::V>) -> C<R::V> {
+pub(crate) unsafe fn add<const N: usize, R: Regs<N>>(a: C<R::V>, b: C<R::V>) -> C<R::V> {
     C { re: R::add(a.re, b.re), im: R::add(a.im, b.im) }
 }
 #[inline(always)]
-unsafe fn sub<const N: usize, R: Regs<N>>(a: C<R::V>, b: C<R::V>) -> C<R::V> {
+pub(crate) unsafe fn sub<const N: usize, R: Regs<N>>(a: C<R::V>, b: C<R::V>) -> C<R::V> {
     C { re: R::sub(a.re, b.re), im: R::sub(a.im, b.im) }
 }
 #[inline(always)]
-unsafe fn scale<const N: usize, R: Regs<N>>(a: C<R::V>, s: R::V) -> C<R::V> {
+pub(crate) unsafe fn scale<const N: usize, R: Regs<N>>(a: C<R::V>, s: R::V) -> C<R::V> {
     C { re: R::mul(a.re, s), im: R::mul(a.im, s) }
 }
 /// j s a = (-(a.im s), a.re s); subtracting it is adding a.im s to the real part (x - (-y) and
@@ -239,9 +240,9 @@ unsafe fn cmul_add<const N: usize, R: Regs<N>>(x: C<R::V>, y: C<R::V>, acc: C<R:
 unsafe fn norm_sqr<const N: usize, R: Regs<N>>(a: C<R::V>) -> R::V {
     R::add(R::mul(a.re, a.re), R::mul(a.im, a.im))
 }
-/// a b
+/// a b (not fused: the product of `num_complex`)
 #[inline(always)]
-unsafe fn mul<const N: usize, R: Regs<N>>(a: C<R::V>, b: C<R::V>) -> C<R::V> {
+pub(crate) unsafe fn mul<const N: usize, R: Regs<N>>(a: C<R::V>, b: C<R::V>) -> C<R::V> {
     C { re: R::sub(R::mul(a.re, b.re), R::mul(a.im, b.im)), im: R::add(R::mul(a.re, b.im), R::mul(a.im, b.re)) }
 }
 #[inline(always)]
@@ -294,8 +295,8 @@ fn as_lane_rows<const N: usize, T>(rows: &[[C<T>; 4]]) -> &[[Z<N>; 4]] {
 /// [`super::solve_square`] on registers: Cramer's rule for two rows [x, y, f_0, f_1], for `S`
 /// independent systems at once (`r0[s]`, `r1[s]`), each step for all of them before the next: the
 /// two bearings' divisions and square roots then overlap instead of each waiting on its own
-/// (2 runs at AVX2, one thread, `examples/identify_points 4096 1500 nostd 2`, best of 8
-/// interleaved runs: 16.6 -> 15.5 ns per point on the AMD EPYC of family 26). The same
+/// (this change alone, 2 runs at AVX2, one thread, `examples/identify_points 4096 1500 nostd 2`,
+/// best of 8 interleaved runs: 16.6 -> 15.5 ns per point on the AMD EPYC of family 26). The same
 /// operations per system.
 #[inline(always)]
 unsafe fn solve_square<const N: usize, R: Regs<N>, const S: usize>(r0: [&[C<R::V>; 4]; S], r1: [&[C<R::V>; 4]; S]) -> [Sol<R::V>; S] {
@@ -543,6 +544,8 @@ pub(super) unsafe fn forces_chunk<const N: usize, R: Regs<N>, const PLAIN: bool,
     let Outs { k, c, cond, resid, amp, mut ks, mut cs, rel: mut rel_out } = out;
     let n = p.w.len();
     let npts = resid.len();
+    // the unchecked reads of the responses below rely on it (one test per chunk)
+    assert!(start + npts <= p.batch * n, "chunk {start}.. of {npts} points beyond the batch's {} points", p.batch * n);
     debug_assert!(!PLAIN || is_plain(p));
     debug_assert!(RUNS == 0 || (PLAIN && fixed_runs(p) == RUNS));
     let runs = if RUNS > 0 { RUNS } else { p.runs };
@@ -1069,7 +1072,7 @@ mod tests {
 
         /// The same for the instances with a fixed number of runs ([`fixed_runs`]: 2 to 4 runs at
         /// the bearings, one excitation per run, no window, bearings not identical), which the
-        /// general draw above reaches in about one case in forty; 5 runs for the boundary.
+        /// general draw above reaches in about one case in thirty; 5 runs for the boundary.
         #[test]
         fn fixed_run_instances_give_the_generic_kernels_bits(
             batch in 1usize..4, n in 1usize..20, runs in 2usize..6,
