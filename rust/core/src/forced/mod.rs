@@ -1434,18 +1434,25 @@ mod tests {
         assert!(diff <= 1e-12 && equal && same_count);
     }
 
+    /// The plane transform of the tests below.
+    const PLANES: [f64; 4] = [1.2, -0.2, -0.3, 1.3];
+
+    /// Gain `kind` of the tests below (0: one, 1: `gains`, else Omega^2).
+    fn test_gain(kind: u8, gains: &[f64]) -> Gain<'_> {
+        match kind {
+            0 => Gain::One,
+            1 => Gain::PerPoint(gains),
+            _ => Gain::SpinSquared,
+        }
+    }
+
     /// `forced_response_with` (gain, plane transform) against the per-point path with the same
     /// gain and transform: (all equal, singular counts equal).
     fn run_with(p: &Inputs, gain_kind: u8, planes: bool) -> (bool, bool) {
         let n = p.w.len();
         let gains: Vec<f64> = (0..n).map(|i| 0.5 + i as f64).collect();
-        let gain = match gain_kind {
-            0 => Gain::One,
-            1 => Gain::PerPoint(&gains),
-            _ => Gain::SpinSquared,
-        };
-        let t = [1.2, -0.2, -0.3, 1.3];
-        let planes = planes.then_some(&t);
+        let gain = test_gain(gain_kind, &gains);
+        let planes = planes.then_some(&PLANES);
         let mut got = vec![C64::new(0.0, 0.0); n * p.nrhs * 4];
         let bad = forced_response_with(&p.rotor, &p.kb, &p.cb, &p.spin, &p.w, &p.force, p.nrhs, gain, planes, &mut got).unwrap();
         let b = Batch::new(&p.rotor, &p.kb, &p.cb, &p.spin, &p.w, &p.force, p.nrhs, gain, planes);
@@ -1488,9 +1495,8 @@ mod tests {
             #[cfg(target_arch = "x86_64")]
             if crate::lanes::simd_of_cpu() == crate::lanes::Simd::Avx512 {
                 let gains: Vec<f64> = (0..n).map(|i| 0.5 + i as f64).collect();
-                let gain = match gain_kind { 0 => Gain::One, 1 => Gain::PerPoint(&gains), _ => Gain::SpinSquared };
-                let t = [1.2, -0.2, -0.3, 1.3];
-                let b = Batch::new(&p.rotor, &p.kb, &p.cb, &p.spin, &p.w, &p.force, 1, gain, planes.then_some(&t));
+                let gain = test_gain(gain_kind, &gains);
+                let b = Batch::new(&p.rotor, &p.kb, &p.cb, &p.spin, &p.w, &p.force, 1, gain, planes.then_some(&PLANES));
                 prop_assume!(registers::serves(&b));
                 let first = at % n;
                 let mut got = vec![C64::new(0.0, 0.0); 4 * (n - first)];

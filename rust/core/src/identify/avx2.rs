@@ -138,14 +138,5 @@ impl Regs<N> for Avx2 {
 #[target_feature(enable = "avx2,fma")]
 pub(super) fn forces_chunk(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize {
     // SAFETY: this function is compiled for and called on AVX2 + FMA CPUs only
-    unsafe {
-        use super::registers::{fixed_runs, forces_chunk, is_plain};
-        match fixed_runs(p) {
-            2 => forces_chunk::<N, Avx2, true, 2>(p, kc, start, out),
-            3 => forces_chunk::<N, Avx2, true, 3>(p, kc, start, out),
-            4 => forces_chunk::<N, Avx2, true, 4>(p, kc, start, out),
-            _ if is_plain(p) => forces_chunk::<N, Avx2, true, 0>(p, kc, start, out),
-            _ => forces_chunk::<N, Avx2, false, 0>(p, kc, start, out),
-        }
-    }
+    unsafe { super::registers::forces_chunk_instance::<N, Avx2>(p, kc, start, out) }
 }

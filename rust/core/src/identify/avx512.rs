@@ -154,14 +154,5 @@ impl Regs<N> for Avx512 {
 #[target_feature(enable = "avx512f,avx512dq,avx2,fma")]
 pub(super) fn forces_chunk(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize {
     // SAFETY: this function is compiled for and called on AVX-512 F + DQ CPUs only
-    unsafe {
-        use super::registers::{fixed_runs, forces_chunk, is_plain};
-        match fixed_runs(p) {
-            2 => forces_chunk::<N, Avx512, true, 2>(p, kc, start, out),
-            3 => forces_chunk::<N, Avx512, true, 3>(p, kc, start, out),
-            4 => forces_chunk::<N, Avx512, true, 4>(p, kc, start, out),
-            _ if is_plain(p) => forces_chunk::<N, Avx512, true, 0>(p, kc, start, out),
-            _ => forces_chunk::<N, Avx512, false, 0>(p, kc, start, out),
-        }
-    }
+    unsafe { super::registers::forces_chunk_instance::<N, Avx512>(p, kc, start, out) }
 }

@@ -530,6 +530,22 @@ pub(super) fn fixed_runs(p: &IdentProblem) -> usize {
     }
 }
 
+/// [`forces_chunk`]'s instance for `p`: a fixed number of runs ([`fixed_runs`]), else `PLAIN`
+/// when [`is_plain`] holds, else the general one.
+///
+/// # Safety
+/// As [`forces_chunk`]: only inside a `#[target_feature]` function of `R`'s instruction set.
+#[inline(always)]
+pub(super) unsafe fn forces_chunk_instance<const N: usize, R: Regs<N>>(p: &IdentProblem, kc: &Consts, start: usize, out: Outs) -> usize {
+    match fixed_runs(p) {
+        2 => forces_chunk::<N, R, true, 2>(p, kc, start, out),
+        3 => forces_chunk::<N, R, true, 3>(p, kc, start, out),
+        4 => forces_chunk::<N, R, true, 4>(p, kc, start, out),
+        _ if is_plain(p) => forces_chunk::<N, R, true, 0>(p, kc, start, out),
+        _ => forces_chunk::<N, R, false, 0>(p, kc, start, out),
+    }
+}
+
 /// [`super::forces_chunk`] on registers (see the module's documentation); `PLAIN` when
 /// [`is_plain`] holds; `RUNS` > 0 when, besides, the bearings are not identical and there are
 /// `RUNS` runs ([`fixed_runs`]): the run loop then unrolls, every row has its place in registers
@@ -632,7 +648,8 @@ pub(super) unsafe fn forces_chunk<const N: usize, R: Regs<N>, const PLAIN: bool,
         let b2 = R::mul(R::mul(sp(2.0), sig), w);
         let wg = R::mul(R::mul(w, spin), ip);
         let sgg = R::mul(R::mul(sig, spin), ip);
-        let mut nr = [0usize; 2];
+        // rows per bearing system: counted in the run loop, or fixed
+        let mut nr = [RUNS; 2];
         let group = Group { contiguous, b0, i0, bi: &bi, runs };
         for r in 0..runs {
             // each pointer is the start of a point's 4 complex values (8 doubles)
@@ -707,22 +724,19 @@ pub(super) unsafe fn forces_chunk<const N: usize, R: Regs<N>, const PLAIN: bool,
             rows[s2][j1][2] = f2x;
             rows[s2][j1][3] = f2y;
         }
-        if RUNS > 0 {
-            nr = [RUNS; 2];
-        }
         // two rows (two runs, the impact case): Cramer's rule; more: the semi-normal equations
-        if RUNS == 2 {
-            sols = solve_square::<N, R, 2>([&rows[0][0], &rows[1][0]], [&rows[0][1], &rows[1][1]]);
-        }
-        if RUNS > 2 {
-            solve::<N, R, 2>([&rows[0][..RUNS], &rows[1][..RUNS]], kc.refine_cond, &mut sols);
-        }
-        for sb in 0..if RUNS > 0 { 0 } else { nsys } {
-            if nr[sb] == 2 {
-                [sols[sb]] = solve_square::<N, R, 1>([&rows[sb][0]], [&rows[sb][1]]);
-            } else {
-                solve::<N, R, 1>([&rows[sb][..nr[sb]]], kc.refine_cond, std::array::from_mut(&mut sols[sb]));
+        match RUNS {
+            0 => {
+                for sb in 0..nsys {
+                    if nr[sb] == 2 {
+                        [sols[sb]] = solve_square::<N, R, 1>([&rows[sb][0]], [&rows[sb][1]]);
+                    } else {
+                        solve::<N, R, 1>([&rows[sb][..nr[sb]]], kc.refine_cond, std::array::from_mut(&mut sols[sb]));
+                    }
+                }
             }
+            2 => sols = solve_square::<N, R, 2>([&rows[0][0], &rows[1][0]], [&rows[0][1], &rows[1][1]]),
+            _ => solve::<N, R, 2>([&rows[0][..RUNS], &rows[1][..RUNS]], kc.refine_cond, &mut sols),
         }
         // rows of the systems together hold every entry of q and E: a NaN/inf input shows up here
         let total = R::add(sols[0].total, if identical { zero } else { sols[1].total });
