@@ -109,6 +109,7 @@ const SMALL: f64 = f64::MIN_POSITIVE * (64.0 / f64::EPSILON);
 /// assert!(ev.iter().any(|z| (z.re - 3.0).abs() < 1e-14 && z.im == 0.0));
 /// assert!(ev.iter().any(|z| z.re.abs() < 1e-14 && (z.im - 2.0).abs() < 1e-14));
 /// ```
+#[inline(always)]
 pub fn eigenvalues<const N: usize>(a: &[[f64; N]; N]) -> Option<[C64; N]> {
     if !a.iter().flatten().all(|v| v.is_finite()) {
         return None;
@@ -120,6 +121,7 @@ pub fn eigenvalues<const N: usize>(a: &[[f64; N]; N]) -> Option<[C64; N]> {
 
 /// Reduce `h` in place to upper Hessenberg form by a similarity of N - 2 Householder reflectors
 /// (not accumulated). Entries below the subdiagonal are set to zero.
+#[inline(always)]
 pub fn hessenberg<const N: usize>(h: &mut [[f64; N]; N]) {
     let mut k = 0;
     while k + 2 < N {
@@ -239,6 +241,7 @@ fn negligible<const N: usize>(h: &[[f64; N]; N], k: usize, en: usize) -> bool {
 /// set to zero) by
 /// the Francis double-shift QR iteration, without accumulating transformations; `h` is
 /// overwritten. None when it has not converged (30 max(N, 10) double steps without a deflation).
+#[inline(always)]
 pub fn hqr<const N: usize>(h: &mut [[f64; N]; N]) -> Option<[C64; N]> {
     let mut ev = [C64::new(0.0, 0.0); N];
     if N == 0 {

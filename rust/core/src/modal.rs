@@ -10,6 +10,7 @@ use rayon::prelude::*;
 pub type StateMatrix = SMatrix<f64, 8, 8>;
 
 /// State matrix of eq. 1 without forcing, x = [q, q'], x' = A x. `minv` is M^-1.
+#[inline(always)]
 pub fn state_matrix(minv: &Matrix4<f64>, k: &[[f64; 4]; 4], c: &[[f64; 4]; 4], g: &[[f64; 4]; 4], spin: f64) -> StateMatrix {
     let mut a = StateMatrix::zeros();
     for r in 0..4 {
@@ -30,6 +31,7 @@ pub fn state_matrix(minv: &Matrix4<f64>, k: &[[f64; 4]; 4], c: &[[f64; 4]; 4], g
 
 /// Balance a state matrix in place by a diagonal similarity D^-1 A D with powers of two (see
 /// [`balance_array`]). Returns D.
+#[inline(always)]
 pub fn balance(a: &mut StateMatrix) -> [f64; 8] {
     let mut rows: [[f64; 8]; 8] = std::array::from_fn(|r| std::array::from_fn(|c| a[(r, c)]));
     let d = balance_array(&mut rows);
@@ -43,6 +45,7 @@ pub fn balance(a: &mut StateMatrix) -> [f64; 8] {
 
 /// Balance a square matrix (row-major) in place by a diagonal similarity D^-1 A D with powers of
 /// two (the scaling loop of LAPACK's dgebal, without permutations). Returns D.
+#[inline(always)]
 pub fn balance_array<const N: usize>(a: &mut [[f64; N]; N]) -> [f64; N] {
     let mut d = [1.0; N];
     let radix = 2.0f64;
@@ -93,6 +96,7 @@ pub fn balance_array<const N: usize>(a: &mut [[f64; N]; N]) -> [f64; N] {
 /// faster than nalgebra's real Schur decomposition, which also forms the orthogonal factor, see
 /// benches/small_algebra.rs), with nalgebra's Schur as the fallback when that QR iteration does
 /// not converge within its budget. None if neither converges.
+#[inline(always)]
 pub fn eigenvalues(a: StateMatrix) -> Option<[C64; 8]> {
     let rows: [[f64; 8]; 8] = std::array::from_fn(|r| std::array::from_fn(|c| a[(r, c)]));
     if let Some(ev) = crate::eig8::eigenvalues(&rows) {
@@ -166,6 +170,7 @@ pub(crate) fn scale_to_pivot(v: &[C64], out: &mut [C64]) {
 /// The shift starts at 1e-12 and grows (1e-10, 1e-8) while the shifted matrix is singular to
 /// working precision (a pivot below 1e-15 of its largest entry: seen for heavily damped modes,
 /// where the mass and stiffness terms cancel). None if no shift gives two steps.
+#[inline(always)]
 fn mode_shape(m: &[[f64; 4]; 4], cg: &[[f64; 4]; 4], k: &[[f64; 4]; 4], lam: C64, start: [C64; 4], avoid: &[[C64; 4]]) -> Option<[C64; 4]> {
     'shift: for shift in [1e-12, 1e-10, 1e-8] {
         let lam_s = lam * (1.0 + shift);
@@ -235,67 +240,81 @@ fn modal_kernel(rotor: &Rotor, kb: &[f64], cb: &[f64], spin: &[f64], lam: &mut [
         .zip(shapes.par_chunks_mut(16))
         .with_min_len(16)
         .enumerate()
-        .map(|(i, (lo, so))| {
-            let k = assemble(&kb[8 * i..8 * i + 8], rotor.l1, rotor.l2);
-            let c = assemble(&cb[8 * i..8 * i + 8], rotor.l1, rotor.l2);
-            for v in lo.iter_mut().chain(so.iter_mut()) {
-                *v = C64::new(f64::NAN, f64::NAN);
-            }
-            let mut a = state_matrix(&minv, &k, &c, &g, spin[i]);
-            // balance (LAPACK-style diagonal similarity with powers of 2): the state matrix of a
-            // stiff, heavily damped rotor spans many decades, and unbalanced eigenvalues came
-            // out ~3e-7 relative off (checked against 40-digit mpmath)
-            balance(&mut a);
-            let s = match eigenvalues(a) {
-                Some(s) => s,
-                None => return 1usize,
-            };
-            // eigenvalues with positive imaginary part, by damped frequency (no allocation per point)
-            let mut idx = [0usize; 8];
-            let mut nidx = 0;
-            for t in 0..8 {
-                if is_mode(s[t]) {
-                    idx[nidx] = t;
-                    nidx += 1;
-                }
-            }
-            let idx = &mut idx[..nidx];
-            idx.sort_unstable_by(|&x, &y| s[x].im.partial_cmp(&s[y].im).unwrap_or(std::cmp::Ordering::Equal).then(x.cmp(&y)));
-            let mut cg = c;
-            for r in 0..4 {
-                for col in 0..4 {
-                    cg[r][col] += spin[i] * g[r][col];
-                }
-            }
-            let mut found = [[C64::new(0.0, 0.0); 4]; 4];
-            for (mi, &t) in idx.iter().take(4).enumerate() {
-                lo[mi] = s[t];
-                // shapes of earlier modes with the same eigenvalue (to rounding) are projected out
-                let mut same = [[C64::new(0.0, 0.0); 4]; 4];
-                let mut nsame = 0;
-                for o in 0..mi {
-                    if same_eigenvalue(lo[o], s[t]) {
-                        same[nsame] = found[o];
-                        nsame += 1;
-                    }
-                }
-                let same = &same[..nsame];
-                let v = match mode_shape(&m, &cg, &k, s[t], START[mi % 2], &same) {
-                    Some(v) => v,
-                    None => {
-                        // no shape: the point is reported as failed, all NaN
-                        for v in lo.iter_mut().chain(so.iter_mut()) {
-                            *v = C64::new(f64::NAN, f64::NAN);
-                        }
-                        return 1usize;
-                    }
-                };
-                found[mi] = v;
-                scale_to_pivot(&v, &mut so[4 * mi..4 * mi + 4]);
-            }
-            0usize
-        })
+        .map(|(i, (lo, so))| modal_point_simd(rotor, &minv, &m, &g, &kb[8 * i..8 * i + 8], &cb[8 * i..8 * i + 8], spin[i], lo, so))
         .sum()
+}
+
+crate::lanes::simd_dispatch! {
+    /// [`modal_point`] compiled for the widest instruction set of this CPU (the same operations
+    /// in the same order at every level, so the same bits: three-operand encodings and wider
+    /// registers for the Hessenberg reduction's rows).
+    #[allow(clippy::too_many_arguments)]
+    fn modal_point_simd(rotor: &Rotor, minv: &Matrix4<f64>, m: &[[f64; 4]; 4], g: &[[f64; 4]; 4], kb: &[f64], cb: &[f64], spin: f64, lo: &mut [C64], so: &mut [C64]) -> usize => modal_point
+}
+
+/// Eigenvalues and mode shapes of one point (`kb`, `cb`: its 8 bearing coefficients; `lo`: its 4
+/// eigenvalues, `so`: its 4 x 4 shapes); 1 when the eigen-solver failed (all NaN), else 0.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn modal_point(rotor: &Rotor, minv: &Matrix4<f64>, m: &[[f64; 4]; 4], g: &[[f64; 4]; 4], kb: &[f64], cb: &[f64], spin: f64, lo: &mut [C64], so: &mut [C64]) -> usize {
+    let k = assemble(kb, rotor.l1, rotor.l2);
+    let c = assemble(cb, rotor.l1, rotor.l2);
+    for v in lo.iter_mut().chain(so.iter_mut()) {
+        *v = C64::new(f64::NAN, f64::NAN);
+    }
+    let mut a = state_matrix(minv, &k, &c, g, spin);
+    // balance (LAPACK-style diagonal similarity with powers of 2): the state matrix of a
+    // stiff, heavily damped rotor spans many decades, and unbalanced eigenvalues came
+    // out ~3e-7 relative off (checked against 40-digit mpmath)
+    balance(&mut a);
+    let s = match eigenvalues(a) {
+        Some(s) => s,
+        None => return 1,
+    };
+    // eigenvalues with positive imaginary part, by damped frequency (no allocation per point)
+    let mut idx = [0usize; 8];
+    let mut nidx = 0;
+    for t in 0..8 {
+        if is_mode(s[t]) {
+            idx[nidx] = t;
+            nidx += 1;
+        }
+    }
+    let idx = &mut idx[..nidx];
+    idx.sort_unstable_by(|&x, &y| s[x].im.partial_cmp(&s[y].im).unwrap_or(std::cmp::Ordering::Equal).then(x.cmp(&y)));
+    let mut cg = c;
+    for r in 0..4 {
+        for col in 0..4 {
+            cg[r][col] += spin * g[r][col];
+        }
+    }
+    let mut found = [[C64::new(0.0, 0.0); 4]; 4];
+    for (mi, &t) in idx.iter().take(4).enumerate() {
+        lo[mi] = s[t];
+        // shapes of earlier modes with the same eigenvalue (to rounding) are projected out
+        let mut same = [[C64::new(0.0, 0.0); 4]; 4];
+        let mut nsame = 0;
+        for o in 0..mi {
+            if same_eigenvalue(lo[o], s[t]) {
+                same[nsame] = found[o];
+                nsame += 1;
+            }
+        }
+        let same = &same[..nsame];
+        let v = match mode_shape(m, &cg, &k, s[t], START[mi % 2], same) {
+            Some(v) => v,
+            None => {
+                // no shape: the point is reported as failed, all NaN
+                for v in lo.iter_mut().chain(so.iter_mut()) {
+                    *v = C64::new(f64::NAN, f64::NAN);
+                }
+                return 1;
+            }
+        };
+        found[mi] = v;
+        scale_to_pivot(&v, &mut so[4 * mi..4 * mi + 4]);
+    }
+    0usize
 }
 
 #[cfg(test)]
