@@ -98,10 +98,25 @@ pub fn balance_array<const N: usize>(a: &mut [[f64; N]; N]) -> [f64; N] {
 /// not converge within its budget. None if neither converges.
 #[inline(always)]
 pub fn eigenvalues(a: StateMatrix) -> Option<[C64; 8]> {
-    let rows: [[f64; 8]; 8] = std::array::from_fn(|r| std::array::from_fn(|c| a[(r, c)]));
-    if let Some(ev) = crate::eig8::eigenvalues(&rows) {
-        return Some(ev);
-    }
+    crate::eig8::eigenvalues(&rows_of(&a)).or_else(|| schur_eigenvalues(a))
+}
+
+/// [`eigenvalues`] of two state matrices, their QR iterations interleaved
+/// ([`crate::eig8::eigenvalues_pair`]; the same results as one by one).
+#[inline(always)]
+pub fn eigenvalues_pair(a: StateMatrix, b: StateMatrix) -> (Option<[C64; 8]>, Option<[C64; 8]>) {
+    let (ea, eb) = crate::eig8::eigenvalues_pair(&rows_of(&a), &rows_of(&b));
+    (ea.or_else(|| schur_eigenvalues(a)), eb.or_else(|| schur_eigenvalues(b)))
+}
+
+#[inline(always)]
+fn rows_of(a: &StateMatrix) -> [[f64; 8]; 8] {
+    std::array::from_fn(|r| std::array::from_fn(|c| a[(r, c)]))
+}
+
+/// The fallback of [`eigenvalues`]: nalgebra's real Schur decomposition.
+#[cold]
+fn schur_eigenvalues(a: StateMatrix) -> Option<[C64; 8]> {
     let schur = Schur::try_new(a, f64::EPSILON, 10_000)?;
     let ev = schur.complex_eigenvalues();
     let mut out = [C64::new(0.0, 0.0); 8];
@@ -236,40 +251,66 @@ fn modal_kernel(rotor: &Rotor, kb: &[f64], cb: &[f64], spin: &[f64], lam: &mut [
             return spin.len();
         }
     };
-    lam.par_chunks_mut(4)
-        .zip(shapes.par_chunks_mut(16))
-        .with_min_len(16)
+    // two points per task: their eigenvalue iterations interleave (eigenvalues_pair)
+    lam.par_chunks_mut(8)
+        .zip(shapes.par_chunks_mut(32))
+        .with_min_len(8)
         .enumerate()
-        .map(|(i, (lo, so))| modal_point_simd(rotor, &minv, &m, &g, &kb[8 * i..8 * i + 8], &cb[8 * i..8 * i + 8], spin[i], lo, so))
+        .map(|(i, (lo, so))| {
+            let np = lo.len() / 4;
+            let pts = 2 * i..2 * i + np;
+            modal_points_simd(rotor, &minv, &m, &g, &kb[8 * pts.start..8 * pts.end], &cb[8 * pts.start..8 * pts.end], &spin[pts], lo, so)
+        })
         .sum()
 }
 
 crate::lanes::simd_dispatch! {
-    /// [`modal_point`] compiled for the widest instruction set of this CPU (the same operations
-    /// in the same order at every level, so the same bits: three-operand encodings and wider
-    /// registers for the Hessenberg reduction's rows).
+    /// [`modal_points`] compiled for the widest instruction set of this CPU (the same operations
+    /// in the same order at every level, so the same bits; three-operand encodings cut the
+    /// instructions by 14 %).
     #[allow(clippy::too_many_arguments)]
-    fn modal_point_simd(rotor: &Rotor, minv: &Matrix4<f64>, m: &[[f64; 4]; 4], g: &[[f64; 4]; 4], kb: &[f64], cb: &[f64], spin: f64, lo: &mut [C64], so: &mut [C64]) -> usize => modal_point
+    fn modal_points_simd(rotor: &Rotor, minv: &Matrix4<f64>, m: &[[f64; 4]; 4], g: &[[f64; 4]; 4], kb: &[f64], cb: &[f64], spin: &[f64], lo: &mut [C64], so: &mut [C64]) -> usize => modal_points
 }
 
-/// Eigenvalues and mode shapes of one point (`kb`, `cb`: its 8 bearing coefficients; `lo`: its 4
-/// eigenvalues, `so`: its 4 x 4 shapes); 1 when the eigen-solver failed (all NaN), else 0.
+/// Eigenvalues and mode shapes of one or two points (`kb`, `cb`: their 8 bearing coefficients
+/// each; `lo`: their 4 eigenvalues each, `so`: their 4 x 4 shapes each); the number of points
+/// where the eigen-solver failed (all NaN).
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-fn modal_point(rotor: &Rotor, minv: &Matrix4<f64>, m: &[[f64; 4]; 4], g: &[[f64; 4]; 4], kb: &[f64], cb: &[f64], spin: f64, lo: &mut [C64], so: &mut [C64]) -> usize {
-    let k = assemble(kb, rotor.l1, rotor.l2);
-    let c = assemble(cb, rotor.l1, rotor.l2);
+fn modal_points(rotor: &Rotor, minv: &Matrix4<f64>, m: &[[f64; 4]; 4], g: &[[f64; 4]; 4], kb: &[f64], cb: &[f64], spin: &[f64], lo: &mut [C64], so: &mut [C64]) -> usize {
+    let point = |p: usize| {
+        let k = assemble(&kb[8 * p..8 * p + 8], rotor.l1, rotor.l2);
+        let c = assemble(&cb[8 * p..8 * p + 8], rotor.l1, rotor.l2);
+        let mut a = state_matrix(minv, &k, &c, g, spin[p]);
+        // balance (LAPACK-style diagonal similarity with powers of 2): the state matrix of a
+        // stiff, heavily damped rotor spans many decades, and unbalanced eigenvalues came
+        // out ~3e-7 relative off (checked against 40-digit mpmath)
+        balance(&mut a);
+        (k, c, a)
+    };
+    if spin.len() == 2 {
+        let ((k0, c0, a0), (k1, c1, a1)) = (point(0), point(1));
+        let (s0, s1) = eigenvalues_pair(a0, a1);
+        let (lo0, lo1) = lo.split_at_mut(4);
+        let (so0, so1) = so.split_at_mut(16);
+        modes(m, g, &k0, &c0, spin[0], s0, lo0, so0) + modes(m, g, &k1, &c1, spin[1], s1, lo1, so1)
+    } else {
+        let (k, c, a) = point(0);
+        modes(m, g, &k, &c, spin[0], eigenvalues(a), lo, so)
+    }
+}
+
+/// The modes of one point from its eigenvalues `s` (None: the eigen-solver failed): the 4 with
+/// positive imaginary part by damped frequency into `lo`, their shapes into `so`; 1 when the
+/// point failed (all NaN), else 0.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn modes(m: &[[f64; 4]; 4], g: &[[f64; 4]; 4], k: &[[f64; 4]; 4], c: &[[f64; 4]; 4], spin: f64, s: Option<[C64; 8]>, lo: &mut [C64], so: &mut [C64]) -> usize {
     for v in lo.iter_mut().chain(so.iter_mut()) {
         *v = C64::new(f64::NAN, f64::NAN);
     }
-    let mut a = state_matrix(minv, &k, &c, g, spin);
-    // balance (LAPACK-style diagonal similarity with powers of 2): the state matrix of a
-    // stiff, heavily damped rotor spans many decades, and unbalanced eigenvalues came
-    // out ~3e-7 relative off (checked against 40-digit mpmath)
-    balance(&mut a);
-    let s = match eigenvalues(a) {
-        Some(s) => s,
-        None => return 1,
+    let Some(s) = s else {
+        return 1;
     };
     // eigenvalues with positive imaginary part, by damped frequency (no allocation per point)
     let mut idx = [0usize; 8];
@@ -282,7 +323,7 @@ fn modal_point(rotor: &Rotor, minv: &Matrix4<f64>, m: &[[f64; 4]; 4], g: &[[f64;
     }
     let idx = &mut idx[..nidx];
     idx.sort_unstable_by(|&x, &y| s[x].im.partial_cmp(&s[y].im).unwrap_or(std::cmp::Ordering::Equal).then(x.cmp(&y)));
-    let mut cg = c;
+    let mut cg = *c;
     for r in 0..4 {
         for col in 0..4 {
             cg[r][col] += spin * g[r][col];
@@ -301,7 +342,7 @@ fn modal_point(rotor: &Rotor, minv: &Matrix4<f64>, m: &[[f64; 4]; 4], g: &[[f64;
             }
         }
         let same = &same[..nsame];
-        let v = match mode_shape(m, &cg, &k, s[t], START[mi % 2], same) {
+        let v = match mode_shape(m, &cg, k, s[t], START[mi % 2], same) {
             Some(v) => v,
             None => {
                 // no shape: the point is reported as failed, all NaN
@@ -342,6 +383,37 @@ mod tests {
         }
         assert!(modulus(C64::new(f64::NAN, 1.0)).is_nan());
         assert_eq!(modulus(C64::new(f64::INFINITY, f64::NAN)), f64::INFINITY);
+    }
+
+    /// Points analysed two at a time (their eigenvalue iterations interleaved) give the bits each
+    /// gets alone, for an odd number of points (the last one alone), points that fail (NaN
+    /// coefficients) next to ones that do not, and different bearings per point.
+    #[test]
+    fn pairs_of_points_give_each_point_its_own_bits() {
+        let rotor = Rotor::from_slice(&[30.7, 0.62, 0.062, 0.146, 0.137]).unwrap();
+        let n = 37;
+        let mut kb = Vec::new();
+        let mut cb = Vec::new();
+        for i in 0..n {
+            let f = 1.0 + 0.37 * ((i * 7) % 11) as f64;
+            kb.extend([3.2e6 * f, 4e5, -3e5 * f, 2.9e6, 3.5e6, 2e5 * f, -2e5, 3.1e6 / f]);
+            cb.extend([2.1e3, 1e2 * f, 1e2, 2.3e3 * f, 2.2e3 / f, 0.0, 0.0, 2.0e3]);
+        }
+        kb[8 * 5 + 2] = f64::NAN;
+        cb[8 * 12] = f64::INFINITY;
+        let spin: Vec<f64> = (0..n).map(|i| 40.0 * i as f64).collect();
+        let nan = C64::new(f64::NAN, f64::NAN);
+        let (mut lam, mut shapes) = (vec![nan; 4 * n], vec![nan; 16 * n]);
+        let failed = modal(&rotor, &kb, &cb, &spin, &mut lam, &mut shapes).unwrap();
+        assert_eq!(failed, 2);
+        let bits = |v: &[C64]| v.iter().map(|z| (z.re.to_bits(), z.im.to_bits())).collect::<Vec<_>>();
+        for i in 0..n {
+            let (mut l1, mut s1) = (vec![nan; 4], vec![nan; 16]);
+            let f1 = modal(&rotor, &kb[8 * i..8 * i + 8], &cb[8 * i..8 * i + 8], &spin[i..i + 1], &mut l1, &mut s1).unwrap();
+            assert_eq!(f1, usize::from(i == 5 || i == 12), "point {i}");
+            assert_eq!(bits(&lam[4 * i..4 * i + 4]), bits(&l1), "eigenvalues of point {i}");
+            assert_eq!(bits(&shapes[16 * i..16 * i + 16]), bits(&s1), "shapes of point {i}");
+        }
     }
 
     /// The pivot is the largest component, the first of those equal to within 1e-12 (not the one
