@@ -18,7 +18,8 @@ from rotorid import _core
 # every dispatched kernel through the public API: time stepping (8 and 16 states with output
 # equations), forward response (SIMD-lane LU), synchronous
 # identification at the probes with redundant runs (forces kernel, eq. 19 on load, standard
-# errors, flags), impact identification with an exponential window, modal analysis, the run-out
+# errors, flags), impact identification with an exponential window, modal analysis (rigid and on
+# pedestals, eigenvalues and shapes, an odd number of speeds: pairs and a last one alone), the run-out
 # filter, the order vectors of signals.track (fused resampling and order sums), a Monte Carlo study (counter-based normals, rotations, histograms), and the pedestal fit
 # (streamed QR and HC3 passes over 2500 speeds: three tasks of points)
 _WORK = r"""
@@ -62,8 +63,10 @@ pruns = [rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], 
 pruns = [rotorid.SyncResponse(r.speed_rpm, r.q * (1 + 0.01 * rng.standard_normal(r.q.shape)), r.imbalance,
                               pedestal=r.pedestal * (1 + 0.01 * rng.standard_normal(r.q.shape))) for r in pruns]
 pfit = rotorid.identify_pedestals(rig.rotor, pruns, cross_coupled=True)
+pmodal = rotorid.modal_analysis(rig.rotor, rig.bearings, speed_rpm=rpm[:23], pedestals=ped)
 out = dict(pk=pfit.k, pm=pfit.mass_kg, pks=pfit.k_std, pcs=pfit.c_std, tq=tr.q, tpq=trp.q, tpp=trp.pedestal, tpa=trp.pedestal_accel, resp=runs[0].q, k=ident.k, c=ident.c, k_std=ident.k_std, cond=ident.cond, code=ident.flag_code,
-           kk=kw.k, kc=kw.c, kstd=kw.k_std, eig=modal.eigenvalues, filt=filt, orders_v=orders_v,
+           kk=kw.k, kc=kw.c, kstd=kw.k_std, eig=modal.eigenvalues, shapes=modal.shapes, peig=pmodal.eigenvalues,
+           pshapes=pmodal.shapes, filt=filt, orders_v=orders_v,
            study=study.pct, study_rms=study.rms)
 np.savez(sys.argv[1], level=_core.SIMD, **out)
 """

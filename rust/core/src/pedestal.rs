@@ -358,68 +358,113 @@ pub fn modal(rotor: &Rotor, kb: &[f64], cb: &[f64], ped: &Pedestals, spin: &[f64
     if ped.m.iter().any(|&m| !(m > 0.0)) {
         return Err(CoreError::value("pedestals", "masses must be > 0 for a modal analysis (a massless pedestal has no mode)"));
     }
-    let nan = C64::new(f64::NAN, f64::NAN);
+    // two points per task: their eigenvalue iterations interleave (eig8::eigenvalues_pair)
     Ok(lam
-        .par_chunks_mut(DOF)
-        .zip(shapes.par_chunks_mut(DOF * DOF))
+        .par_chunks_mut(2 * DOF)
+        .zip(shapes.par_chunks_mut(2 * DOF * DOF))
         .enumerate()
         .map(|(i, (lo, so))| {
-            for v in lo.iter_mut().chain(so.iter_mut()) {
-                *v = nan;
-            }
-            let mats = coupled_matrices(rotor, &kb[8 * i..8 * i + 8], &cb[8 * i..8 * i + 8], ped, spin[i]);
-            let [mm, kk, cc] = &mats;
-            // A = [[0, I], [-M^-1 K, -M^-1 C]]; M is the rotor's (invertible, l1 + l2 != 0) and a
-            // positive diagonal for the pedestals
-            let mut minv_k = [[C64::new(0.0, 0.0); DOF]; DOF];
-            let mut minv_c = [[C64::new(0.0, 0.0); DOF]; DOF];
-            for col in 0..DOF {
-                let mut bk: [C64; DOF] = std::array::from_fn(|r| C64::new(kk[r][col], 0.0));
-                let mut bc: [C64; DOF] = std::array::from_fn(|r| C64::new(cc[r][col], 0.0));
-                let mut m1: [[C64; DOF]; DOF] = std::array::from_fn(|r| std::array::from_fn(|c| C64::new(mm[r][c], 0.0)));
-                let mut m2 = m1;
-                if !solve_n(&mut m1, &mut bk) || !solve_n(&mut m2, &mut bc) {
-                    return 1usize;
-                }
-                for r in 0..DOF {
-                    minv_k[r][col] = bk[r];
-                    minv_c[r][col] = bc[r];
-                }
-            }
-            let mut a = [[0.0; NS]; NS];
-            for r in 0..DOF {
-                a[r][DOF + r] = 1.0;
-                for c in 0..DOF {
-                    a[DOF + r][c] = -minv_k[r][c].re;
-                    a[DOF + r][DOF + c] = -minv_c[r][c].re;
-                }
-            }
-            crate::modal::balance_array(&mut a);
-            let s = match eig8::eigenvalues(&a) {
-                Some(s) => s,
-                None => return 1usize,
-            };
-            let mut idx: Vec<usize> = (0..NS).filter(|&t| is_mode(s[t])).collect();
-            idx.sort_by(|&x, &y| s[x].im.partial_cmp(&s[y].im).unwrap_or(std::cmp::Ordering::Equal).then(x.cmp(&y)));
-            let mut found: Vec<[C64; DOF]> = Vec::with_capacity(DOF);
-            for (mi, &t) in idx.iter().take(DOF).enumerate() {
-                lo[mi] = s[t];
-                let same: Vec<[C64; DOF]> =
-                    (0..mi).filter(|&o| same_eigenvalue(lo[o], s[t])).map(|o| found[o]).collect();
-                let v = match mode_shape(&mats, s[t], mi, &same) {
-                    Some(v) => v,
-                    None => {
-                        for v in lo.iter_mut().chain(so.iter_mut()) {
-                            *v = nan;
-                        }
-                        return 1usize;
-                    }
-                };
-                found.push(v);
-                // v has unit 2-norm (mode_shape)
-                scale_to_pivot(&v, &mut so[DOF * mi..DOF * mi + DOF]);
-            }
-            0usize
+            let pts = 2 * i..2 * i + lo.len() / DOF;
+            modal_points_simd(rotor, &kb[8 * pts.start..8 * pts.end], &cb[8 * pts.start..8 * pts.end], ped, &spin[pts], lo, so)
         })
         .sum())
+}
+
+crate::lanes::simd_dispatch! {
+    /// [`modal_points`] compiled for the widest instruction set of this CPU (no fused operations:
+    /// the same bits at every level).
+    fn modal_points_simd(rotor: &Rotor, kb: &[f64], cb: &[f64], ped: &Pedestals, spin: &[f64], lo: &mut [C64], so: &mut [C64]) -> usize => modal_points
+}
+
+/// Eigenvalues and mode shapes of one or two points of [`modal`] (`kb`, `cb`: 8 coefficients per
+/// point; `lo`: `DOF` eigenvalues per point, `so`: `DOF` x `DOF` shapes per point); the number of
+/// points that failed (all NaN).
+#[inline(always)]
+fn modal_points(rotor: &Rotor, kb: &[f64], cb: &[f64], ped: &Pedestals, spin: &[f64], lo: &mut [C64], so: &mut [C64]) -> usize {
+    let nan = C64::new(f64::NAN, f64::NAN);
+    for v in lo.iter_mut().chain(so.iter_mut()) {
+        *v = nan;
+    }
+    let np = spin.len();
+    let mut mats = [[[[0.0; DOF]; DOF]; 3]; 2];
+    let mut a = [[[0.0; NS]; NS]; 2];
+    let mut ok = [false; 2];
+    for p in 0..np {
+        mats[p] = coupled_matrices(rotor, &kb[8 * p..8 * p + 8], &cb[8 * p..8 * p + 8], ped, spin[p]);
+        ok[p] = state_matrix(&mats[p], &mut a[p]);
+    }
+    let s = if np == 2 && ok[0] && ok[1] {
+        let (s0, s1) = eig8::eigenvalues_pair(&a[0], &a[1]);
+        [s0, s1]
+    } else {
+        [if ok[0] { eig8::eigenvalues(&a[0]) } else { None }, if np == 2 && ok[1] { eig8::eigenvalues(&a[1]) } else { None }]
+    };
+    let (lo0, lo1) = lo.split_at_mut(DOF);
+    let (so0, so1) = so.split_at_mut(DOF * DOF);
+    let mut failed = modes(&mats[0], s[0], lo0, so0);
+    if np == 2 {
+        failed += modes(&mats[1], s[1], lo1, so1);
+    }
+    failed
+}
+
+/// The balanced 16 x 16 state matrix A = [[0, I], [-M^-1 K, -M^-1 C]] of `mats` into `a`; false
+/// when M is singular to the LU's pivoting. M is the rotor's (invertible, l1 + l2 != 0) and a
+/// positive diagonal for the pedestals.
+#[inline(always)]
+fn state_matrix(mats: &[[[f64; DOF]; DOF]; 3], a: &mut [[f64; NS]; NS]) -> bool {
+    let [mm, kk, cc] = mats;
+    let mut minv_k = [[C64::new(0.0, 0.0); DOF]; DOF];
+    let mut minv_c = [[C64::new(0.0, 0.0); DOF]; DOF];
+    for col in 0..DOF {
+        let mut bk: [C64; DOF] = std::array::from_fn(|r| C64::new(kk[r][col], 0.0));
+        let mut bc: [C64; DOF] = std::array::from_fn(|r| C64::new(cc[r][col], 0.0));
+        let mut m1: [[C64; DOF]; DOF] = std::array::from_fn(|r| std::array::from_fn(|c| C64::new(mm[r][c], 0.0)));
+        let mut m2 = m1;
+        if !solve_n(&mut m1, &mut bk) || !solve_n(&mut m2, &mut bc) {
+            return false;
+        }
+        for r in 0..DOF {
+            minv_k[r][col] = bk[r];
+            minv_c[r][col] = bc[r];
+        }
+    }
+    for r in 0..DOF {
+        a[r][DOF + r] = 1.0;
+        for c in 0..DOF {
+            a[DOF + r][c] = -minv_k[r][c].re;
+            a[DOF + r][DOF + c] = -minv_c[r][c].re;
+        }
+    }
+    crate::modal::balance_array(a);
+    true
+}
+
+/// The modes of one point of [`modal`] from its eigenvalues `s` (None: the eigen-solver failed)
+/// into `lo`, `so` (already NaN); 1 when the point failed (all NaN), else 0.
+#[inline(always)]
+fn modes(mats: &[[[f64; DOF]; DOF]; 3], s: Option<[C64; NS]>, lo: &mut [C64], so: &mut [C64]) -> usize {
+    let Some(s) = s else {
+        return 1;
+    };
+    let mut idx: Vec<usize> = (0..NS).filter(|&t| is_mode(s[t])).collect();
+    idx.sort_by(|&x, &y| s[x].im.partial_cmp(&s[y].im).unwrap_or(std::cmp::Ordering::Equal).then(x.cmp(&y)));
+    let mut found: Vec<[C64; DOF]> = Vec::with_capacity(DOF);
+    for (mi, &t) in idx.iter().take(DOF).enumerate() {
+        lo[mi] = s[t];
+        let same: Vec<[C64; DOF]> = (0..mi).filter(|&o| same_eigenvalue(lo[o], s[t])).map(|o| found[o]).collect();
+        let v = match mode_shape(mats, s[t], mi, &same) {
+            Some(v) => v,
+            None => {
+                for v in lo.iter_mut().chain(so.iter_mut()) {
+                    *v = C64::new(f64::NAN, f64::NAN);
+                }
+                return 1;
+            }
+        };
+        found.push(v);
+        // v has unit 2-norm (mode_shape)
+        scale_to_pivot(&v, &mut so[DOF * mi..DOF * mi + DOF]);
+    }
+    0
 }

@@ -798,6 +798,36 @@ fn modal_eigenvalues_are_roots_of_the_coupled_characteristic_equation() {
     assert_eq!(pedestal::modal(&r, &kb, &cb, &ped0, &spin, &mut lam, &mut sh).unwrap_err().name(), "pedestals");
 }
 
+/// Points analysed two at a time (their eigenvalue iterations interleaved) get the bits each
+/// gets alone: an odd number of points (the last alone), different bearings per point, and
+/// failing points (NaN, inf coefficients) next to good ones, in either position of a pair.
+#[test]
+fn modal_pairs_of_points_give_each_point_its_own_bits() {
+    let r = nsf_rotor();
+    let ped = Pedestals::from_slice(&ped_values()).unwrap();
+    let n = 9;
+    let mut kb = Vec::new();
+    let mut cb = Vec::new();
+    for i in 0..n {
+        let f = 0.6 + 0.23 * ((i * 5) % 7) as f64;
+        kb.extend(KB.iter().enumerate().map(|(j, &v)| if j % 3 == 0 { v * f } else { v }));
+        cb.extend(CB.iter().enumerate().map(|(j, &v)| if j % 2 == 1 { v / f } else { v }));
+    }
+    kb[8 * 2 + 1] = f64::NAN;
+    cb[8 * 5 + 6] = f64::INFINITY;
+    let spin: Vec<f64> = (0..n).map(|i| 230.0 * i as f64).collect();
+    let (mut lam, mut sh) = (vec![zero(); 8 * n], vec![zero(); 64 * n]);
+    assert_eq!(pedestal::modal(&r, &kb, &cb, &ped, &spin, &mut lam, &mut sh).unwrap(), 2);
+    let bits = |v: &[C64]| v.iter().map(|z| (z.re.to_bits(), z.im.to_bits())).collect::<Vec<_>>();
+    for i in 0..n {
+        let (mut l1, mut s1) = (vec![zero(); 8], vec![zero(); 64]);
+        let failed = pedestal::modal(&r, &kb[8 * i..8 * i + 8], &cb[8 * i..8 * i + 8], &ped, &spin[i..i + 1], &mut l1, &mut s1).unwrap();
+        assert_eq!(failed, usize::from(i == 2 || i == 5), "point {i}");
+        assert_eq!(bits(&lam[8 * i..8 * i + 8]), bits(&l1), "eigenvalues of point {i}");
+        assert_eq!(bits(&sh[64 * i..64 * i + 64]), bits(&s1), "shapes of point {i}");
+    }
+}
+
 #[test]
 fn stiff_pedestal_modes_approach_the_rigid_modes() {
     let r = nsf_rotor();
