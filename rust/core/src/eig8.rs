@@ -355,8 +355,6 @@ struct Francis<'a, const N: usize> {
     its: usize,
     /// the power of two the matrix was scaled by, undone on the eigenvalues
     unscale: f64,
-    /// N = 0: nothing to do
-    empty: bool,
 }
 
 /// What [`Francis::prepare`] found.
@@ -390,7 +388,7 @@ impl<'a, const N: usize> Francis<'a, N> {
     fn new(h: &'a mut [[f64; N]; N]) -> Self {
         let ev = [C64::new(0.0, 0.0); N];
         if N == 0 {
-            return Francis { h, ev, en: 0, l: 0, its: 0, unscale: 1.0, empty: true };
+            return Francis { h, ev, en: 0, l: 0, its: 0, unscale: 1.0 };
         }
         for (i, row) in h.iter_mut().enumerate().skip(2) {
             row[..i - 1].fill(0.0);
@@ -415,14 +413,14 @@ impl<'a, const N: usize> Francis<'a, N> {
         } else {
             1.0
         };
-        Francis { h, ev, en: N - 1, l: 0, its: 0, unscale, empty: false }
+        Francis { h, ev, en: N - 1, l: 0, its: 0, unscale }
     }
 
     /// The deflation scan of the window ending at `en`, then either the eigenvalues it split off
     /// or the next double step's shifts, starting row and first column.
     #[inline(always)]
     fn prepare(&mut self) -> Next<N> {
-        if self.empty {
+        if N == 0 {
             return Next::Done(Some(self.ev));
         }
         let itmax = Self::BUDGET;
