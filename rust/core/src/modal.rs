@@ -300,22 +300,72 @@ fn modal_points(rotor: &Rotor, minv: &Matrix4<f64>, m: &[[f64; 4]; 4], g: &[[f64
     }
 }
 
-/// The modes of one point from its eigenvalues `s` (None: the eigen-solver failed): the 4 with
-/// positive imaginary part by damped frequency into `lo`, their shapes into `so`; 1 when the
-/// point failed (all NaN), else 0.
+/// The modes of one point of the rigid rotor from its eigenvalues `s` (None: the eigen-solver
+/// failed) into `lo`, `so` ([`modes_of`] with D = 4, the shapes by [`mode_shape`] on C + Omega G).
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn modes(m: &[[f64; 4]; 4], g: &[[f64; 4]; 4], k: &[[f64; 4]; 4], c: &[[f64; 4]; 4], spin: f64, s: Option<[C64; 8]>, lo: &mut [C64], so: &mut [C64]) -> usize {
+    let mut cg = *c;
+    for r in 0..4 {
+        for col in 0..4 {
+            cg[r][col] += spin * g[r][col];
+        }
+    }
+    modes_of(s, lo, so, &RigidShapes { m, cg: &cg, k })
+}
+
+/// The rigid rotor's mode shapes for [`modes_of`]: [`mode_shape`] with C + Omega G, from
+/// [`START`]'s two vectors in turn.
+struct RigidShapes<'a> {
+    m: &'a [[f64; 4]; 4],
+    cg: &'a [[f64; 4]; 4],
+    k: &'a [[f64; 4]; 4],
+}
+
+impl ModeShapes<4> for RigidShapes<'_> {
+    #[inline(always)]
+    fn shape(&self, lam: C64, mi: usize, same: &[[C64; 4]]) -> Option<[C64; 4]> {
+        mode_shape(self.m, self.cg, self.k, lam, START[mi % 2], same)
+    }
+}
+
+/// What [`modes_of`] asks of a model: the shape of its mode `mi` with eigenvalue `lam`, of unit
+/// 2-norm and independent of the shapes `same`, or None.
+///
+/// A trait with `#[inline(always)]` methods rather than a closure: the per-point work is compiled
+/// inside `#[target_feature]` functions ([`crate::lanes::simd_dispatch`]), and a closure that LLVM
+/// does not inline is compiled without the CPU's features (here it was not: 168 -> 178 M
+/// instructions and 3 % more time, `examples/modal_points`).
+pub(crate) trait ModeShapes<const D: usize> {
+    fn shape(&self, lam: C64, mi: usize, same: &[[C64; D]]) -> Option<[C64; D]>;
+}
+
+/// The modes of one point of a model with `D` degrees of freedom from its `S` = 2 `D` eigenvalues
+/// `s` (None: the eigen-solver failed), for the rigid rotor (D = 4) and the rotor on pedestals
+/// (D = 8, [`crate::pedestal`]): the eigenvalues with positive imaginary part ([`is_mode`]) by
+/// damped frequency (ties by index), the first `D` into `lo`, and mode `mi`'s shape
+/// `shapes.shape(s, mi, same)` (unit 2-norm, independent of the shapes `same` of the earlier
+/// modes whose eigenvalue is the same to rounding, [`same_eigenvalue`]) divided by its pivot component
+/// ([`scale_to_pivot`]) into `so[D mi..D mi + D]`. Everything not set is NaN. Returns 1 when the
+/// point failed (no eigenvalues, or some mode without a shape: then all NaN), else 0. No
+/// allocation.
+#[inline(always)]
+pub(crate) fn modes_of<const D: usize, const S: usize>(
+    s: Option<[C64; S]>,
+    lo: &mut [C64],
+    so: &mut [C64],
+    shapes: &impl ModeShapes<D>,
+) -> usize {
+    let nan = C64::new(f64::NAN, f64::NAN);
     for v in lo.iter_mut().chain(so.iter_mut()) {
-        *v = C64::new(f64::NAN, f64::NAN);
+        *v = nan;
     }
     let Some(s) = s else {
         return 1;
     };
-    // eigenvalues with positive imaginary part, by damped frequency (no allocation per point)
-    let mut idx = [0usize; 8];
+    let mut idx = [0usize; S];
     let mut nidx = 0;
-    for t in 0..8 {
+    for t in 0..S {
         if is_mode(s[t]) {
             idx[nidx] = t;
             nidx += 1;
@@ -323,17 +373,11 @@ fn modes(m: &[[f64; 4]; 4], g: &[[f64; 4]; 4], k: &[[f64; 4]; 4], c: &[[f64; 4];
     }
     let idx = &mut idx[..nidx];
     idx.sort_unstable_by(|&x, &y| s[x].im.partial_cmp(&s[y].im).unwrap_or(std::cmp::Ordering::Equal).then(x.cmp(&y)));
-    let mut cg = *c;
-    for r in 0..4 {
-        for col in 0..4 {
-            cg[r][col] += spin * g[r][col];
-        }
-    }
-    let mut found = [[C64::new(0.0, 0.0); 4]; 4];
-    for (mi, &t) in idx.iter().take(4).enumerate() {
+    let mut found = [[C64::new(0.0, 0.0); D]; D];
+    for (mi, &t) in idx.iter().take(D).enumerate() {
         lo[mi] = s[t];
         // shapes of earlier modes with the same eigenvalue (to rounding) are projected out
-        let mut same = [[C64::new(0.0, 0.0); 4]; 4];
+        let mut same = [[C64::new(0.0, 0.0); D]; D];
         let mut nsame = 0;
         for o in 0..mi {
             if same_eigenvalue(lo[o], s[t]) {
@@ -341,21 +385,16 @@ fn modes(m: &[[f64; 4]; 4], g: &[[f64; 4]; 4], k: &[[f64; 4]; 4], c: &[[f64; 4];
                 nsame += 1;
             }
         }
-        let same = &same[..nsame];
-        let v = match mode_shape(m, &cg, k, s[t], START[mi % 2], same) {
-            Some(v) => v,
-            None => {
-                // no shape: the point is reported as failed, all NaN
-                for v in lo.iter_mut().chain(so.iter_mut()) {
-                    *v = C64::new(f64::NAN, f64::NAN);
-                }
-                return 1;
+        let Some(v) = shapes.shape(s[t], mi, &same[..nsame]) else {
+            for v in lo.iter_mut().chain(so.iter_mut()) {
+                *v = nan;
             }
+            return 1;
         };
         found[mi] = v;
-        scale_to_pivot(&v, &mut so[4 * mi..4 * mi + 4]);
+        scale_to_pivot(&v, &mut so[D * mi..D * mi + D]);
     }
-    0usize
+    0
 }
 
 #[cfg(test)]

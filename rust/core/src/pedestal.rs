@@ -28,7 +28,7 @@ use crate::eig8;
 use crate::error::{expect_len, expect_len_or_broadcast, product, CoreError};
 use crate::forced;
 use crate::model::{assemble, Rotor, C64};
-use crate::modal::{is_mode, same_eigenvalue, scale_to_pivot};
+use crate::modal::{modes_of, ModeShapes};
 use crate::series::C2;
 use rayon::prelude::*;
 
@@ -441,30 +441,18 @@ fn state_matrix(mats: &[[[f64; DOF]; DOF]; 3], a: &mut [[f64; NS]; NS]) -> bool 
 }
 
 /// The modes of one point of [`modal`] from its eigenvalues `s` (None: the eigen-solver failed)
-/// into `lo`, `so` (already NaN); 1 when the point failed (all NaN), else 0.
+/// into `lo`, `so` ([`crate::modal::modes_of`] with D = 8, the shapes by [`mode_shape`]).
 #[inline(always)]
 fn modes(mats: &[[[f64; DOF]; DOF]; 3], s: Option<[C64; NS]>, lo: &mut [C64], so: &mut [C64]) -> usize {
-    let Some(s) = s else {
-        return 1;
-    };
-    let mut idx: Vec<usize> = (0..NS).filter(|&t| is_mode(s[t])).collect();
-    idx.sort_by(|&x, &y| s[x].im.partial_cmp(&s[y].im).unwrap_or(std::cmp::Ordering::Equal).then(x.cmp(&y)));
-    let mut found: Vec<[C64; DOF]> = Vec::with_capacity(DOF);
-    for (mi, &t) in idx.iter().take(DOF).enumerate() {
-        lo[mi] = s[t];
-        let same: Vec<[C64; DOF]> = (0..mi).filter(|&o| same_eigenvalue(lo[o], s[t])).map(|o| found[o]).collect();
-        let v = match mode_shape(mats, s[t], mi, &same) {
-            Some(v) => v,
-            None => {
-                for v in lo.iter_mut().chain(so.iter_mut()) {
-                    *v = C64::new(f64::NAN, f64::NAN);
-                }
-                return 1;
-            }
-        };
-        found.push(v);
-        // v has unit 2-norm (mode_shape)
-        scale_to_pivot(&v, &mut so[DOF * mi..DOF * mi + DOF]);
+    modes_of(s, lo, so, &PedestalShapes(mats))
+}
+
+/// The pedestal model's mode shapes for [`modes_of`] ([`mode_shape`]).
+struct PedestalShapes<'a>(&'a [[[f64; DOF]; DOF]; 3]);
+
+impl ModeShapes<DOF> for PedestalShapes<'_> {
+    #[inline(always)]
+    fn shape(&self, lam: C64, mi: usize, same: &[[C64; DOF]]) -> Option<[C64; DOF]> {
+        mode_shape(self.0, lam, mi, same)
     }
-    0
 }
