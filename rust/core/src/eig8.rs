@@ -270,14 +270,20 @@ fn alone<const N: usize>(mut qr: Francis<'_, N>) -> Option<[C64; N]> {
     }
 }
 
+/// Whether every entry of `m` is finite (a function, not a closure: see
+/// [`crate::modal::ModeShapes`]).
+#[inline(always)]
+fn all_finite<const N: usize>(m: &[[f64; N]; N]) -> bool {
+    m.iter().flatten().all(|v| v.is_finite())
+}
+
 /// [`eigenvalues`] of two matrices at once: their QR iterations advance in turn, reflector by
 /// reflector, so that the processor overlaps the two chains of dependent steps (each reflector
 /// waits for the square root and divisions of the one before it). Each matrix goes through the
 /// same operations as alone: the same results, bit for bit.
 #[inline(always)]
 pub fn eigenvalues_pair<const N: usize>(a: &[[f64; N]; N], b: &[[f64; N]; N]) -> (Option<[C64; N]>, Option<[C64; N]>) {
-    let finite = |m: &[[f64; N]; N]| m.iter().flatten().all(|v| v.is_finite());
-    match (finite(a), finite(b)) {
+    match (all_finite(a), all_finite(b)) {
         (true, true) => {}
         (true, false) => return (eigenvalues(a), None),
         (false, true) => return (None, eigenvalues(b)),

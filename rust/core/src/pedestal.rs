@@ -273,6 +273,9 @@ fn coupled_matrices(rotor: &Rotor, kb: &[f64], cb: &[f64], ped: &Pedestals, spin
 }
 
 /// Solve an N x N complex system in place by LU with partial pivoting; false on a zero pivot.
+/// Inlined into its callers, which run at the CPU's SIMD level ([`modal_points_simd`]): out of
+/// line it was compiled for the build's baseline.
+#[inline(always)]
 fn solve_n<const N: usize>(a: &mut [[C64; N]; N], b: &mut [C64; N]) -> bool {
     for k in 0..N {
         let p = (k..N).fold(k, |p, i| if a[i][k].norm() > a[p][k].norm() { i } else { p });
@@ -305,6 +308,7 @@ fn solve_n<const N: usize>(a: &mut [[C64; N]; N], b: &mut [C64; N]) -> bool {
 /// Mode shape of eigenvalue `lam` by two steps of inverse iteration on
 /// D(s) = s^2 M + s C + K shifted by a relative 1e-12 (1e-10, 1e-8 if that is singular to
 /// working precision), projected against `avoid` (shapes of an equal eigenvalue).
+#[inline(always)]
 fn mode_shape(mats: &[[[f64; DOF]; DOF]; 3], lam: C64, seed: usize, avoid: &[[C64; DOF]]) -> Option<[C64; DOF]> {
     let [mm, kk, cc] = mats;
     'shift: for shift in [1e-12, 1e-10, 1e-8] {
