@@ -109,9 +109,7 @@ pub fn effective_coefficients(
     expect_len("k_eff", k_eff, n * 8)?;
     expect_len("c_eff", c_eff, n * 8)?;
     expect_len("transfer", transfer, n * 8)?;
-    if w.iter().any(|&x| !(x.is_finite() && x != 0.0)) {
-        return Err(CoreError::value("w", "(vibration frequency) must be finite and non-zero"));
-    }
+    check_w(w)?;
     // k and c broadcast each on its own: either may be one row for every point
     let (bk, bcc) = (kb.len() == 8, cb.len() == 8);
     let nbad = (k_eff.par_chunks_mut(8), c_eff.par_chunks_mut(8), transfer.par_chunks_mut(8))
@@ -120,36 +118,51 @@ pub fn effective_coefficients(
         .enumerate()
         .map(|(i, (ke, ce, tr))| {
             let (ok, oc) = (if bk { 0 } else { 8 * i }, if bcc { 0 } else { 8 * i });
-            let (k8, c8) = (&kb[ok..ok + 8], &cb[oc..oc + 8]);
-            let mut bad = 0usize;
-            for b in 0..2 {
-                let z = bearing_impedance(k8, c8, b, w[i]);
-                let d = ped.dynamic_stiffness(b, w[i]);
-                match series(&z, &d) {
-                    Some((t, ze)) => {
-                        for r in 0..2 {
-                            for s in 0..2 {
-                                let q = 4 * b + 2 * r + s;
-                                ke[q] = ze[r][s].re;
-                                ce[q] = ze[r][s].im / w[i];
-                                tr[q] = t[r][s];
-                            }
-                        }
-                    }
-                    None => {
-                        bad = 1;
-                        for q in 4 * b..4 * b + 4 {
-                            ke[q] = f64::NAN;
-                            ce[q] = f64::NAN;
-                            tr[q] = C64::new(f64::NAN, f64::NAN);
-                        }
-                    }
-                }
-            }
-            bad
+            effective_point(&kb[ok..ok + 8], &cb[oc..oc + 8], ped, w[i], ke, ce, tr)
         })
         .sum();
     Ok(nbad)
+}
+
+/// The vibration frequencies of [`effective_coefficients`] and [`forced_response`]: finite and
+/// non-zero (C_eff = Im Z_eff / w).
+fn check_w(w: &[f64]) -> Result<(), CoreError> {
+    if w.iter().any(|&x| !(x.is_finite() && x != 0.0)) {
+        return Err(CoreError::value("w", "(vibration frequency) must be finite and non-zero"));
+    }
+    Ok(())
+}
+
+/// [`effective_coefficients`] at one point: `kb`, `cb` its 8 bearing coefficients, `ke`, `ce`,
+/// `tr` its 8 outputs each; 1 when Z + D of a bearing is singular (its outputs NaN), else 0.
+#[inline(always)]
+fn effective_point(kb: &[f64], cb: &[f64], ped: &Pedestals, w: f64, ke: &mut [f64], ce: &mut [f64], tr: &mut [C64]) -> usize {
+    let mut bad = 0usize;
+    for b in 0..2 {
+        let z = bearing_impedance(kb, cb, b, w);
+        let d = ped.dynamic_stiffness(b, w);
+        match series(&z, &d) {
+            Some((t, ze)) => {
+                for r in 0..2 {
+                    for s in 0..2 {
+                        let q = 4 * b + 2 * r + s;
+                        ke[q] = ze[r][s].re;
+                        ce[q] = ze[r][s].im / w;
+                        tr[q] = t[r][s];
+                    }
+                }
+            }
+            None => {
+                bad = 1;
+                for q in 4 * b..4 * b + 4 {
+                    ke[q] = f64::NAN;
+                    ce[q] = f64::NAN;
+                    tr[q] = C64::new(f64::NAN, f64::NAN);
+                }
+            }
+        }
+    }
+    bad
 }
 
 /// Which rotor motion [`forced_response`] writes.
@@ -197,38 +210,88 @@ pub fn forced_response(
         expect_len("gain", g, n)?;
     }
     forced::check_forced(kb, cb, spin, w, force, nrhs, q_rotor)?;
-    let mut ke = vec![0.0; product("k_eff", &[n, 8])?];
-    let mut ce = vec![0.0; n * 8];
-    let mut tr = vec![C64::new(0.0, 0.0); n * 8];
-    effective_coefficients(kb, cb, ped, w, &mut ke, &mut ce, &mut tr)?;
-    let nsing = forced::forced_kernel(rotor, &ke, &ce, spin, w, force, nrhs, gain, None, q_rotor);
-    q_ped
-        .par_chunks_mut(4 * nrhs)
-        .zip(q_rotor.par_chunks_mut(4 * nrhs))
-        .enumerate()
-        .with_min_len(256)
-        .for_each(|(i, (po, qa))| {
-            let t = &tr[8 * i..8 * i + 8];
-            for r in 0..nrhs {
-                let q = &mut qa[4 * r..4 * r + 4];
-                let mut p = [C64::new(0.0, 0.0); 4];
-                for b in 0..2 {
-                    let (x, y) = (q[b], q[2 + b]);
-                    p[b] = t[4 * b] * x + t[4 * b + 1] * y;
-                    p[2 + b] = t[4 * b + 2] * x + t[4 * b + 3] * y;
-                }
-                po[4 * r..4 * r + 4].copy_from_slice(&p);
-                let seen = match motion {
-                    RotorMotion::Absolute => continue,
-                    RotorMotion::Relative => [q[0], q[1], q[2], q[3]],
-                    RotorMotion::RelativeAtPlanes(tp) => crate::model::planes_point(&tp, [q[0], q[1], q[2], q[3]]),
-                };
-                for d in 0..4 {
-                    q[d] = seen[d] - p[d];
-                }
+    check_w(w)?;
+    let args = ForcedArgs { rotor, kb, cb, ped, spin, w, force, nrhs, gain, motion };
+    let size = FORCED_CHUNK * 4 * nrhs;
+    let (qa, qp) = (crate::par::Disjoint::new(q_rotor), crate::par::Disjoint::new(q_ped));
+    // SAFETY: sum_tasks hands each chunk index j to one task
+    Ok(crate::par::sum_tasks(n.div_ceil(FORCED_CHUNK), |j| {
+        forced_chunk_simd(&args, j * FORCED_CHUNK, unsafe { qa.chunk(j, size) }, unsafe { qp.chunk(j, size) })
+    }))
+}
+
+/// Points per task of [`forced_response`]. A task forms its points' effective coefficients in
+/// buffers of its own (256 KB), solves them and turns the solutions into pedestal motion while
+/// they are in cache; the rigid forced response's tasks are as long, so the lane groups and their
+/// bits are those of solving every point's effective coefficients at once.
+const FORCED_CHUNK: usize = 1024;
+
+/// The arguments of [`forced_response`], shared by its tasks.
+struct ForcedArgs<'a> {
+    rotor: &'a Rotor,
+    kb: &'a [f64],
+    cb: &'a [f64],
+    ped: &'a Pedestals,
+    spin: &'a [f64],
+    w: &'a [f64],
+    force: &'a [C64],
+    nrhs: usize,
+    gain: forced::Gain<'a>,
+    motion: RotorMotion,
+}
+
+crate::lanes::simd_dispatch! {
+    /// [`forced_chunk`] compiled for the widest instruction set of this CPU (the same operations
+    /// at every level: the same bits).
+    fn forced_chunk_simd(a: &ForcedArgs, first: usize, q_rotor: &mut [C64], q_ped: &mut [C64]) -> usize => forced_chunk
+}
+
+/// The points `first..` of [`forced_response`] whose outputs are `q_rotor`, `q_ped`: their
+/// effective coefficients ([`effective_point`]), the rigid forced response on them
+/// ([`forced::forced_kernel`], one thread at this size), then p = T q and the motion asked for.
+/// Returns the number of singular points.
+#[inline(always)]
+fn forced_chunk(a: &ForcedArgs, first: usize, q_rotor: &mut [C64], q_ped: &mut [C64]) -> usize {
+    let nrhs = a.nrhs;
+    let np = q_rotor.len() / (4 * nrhs);
+    let pts = first..first + np;
+    let mut ke = vec![0.0; 8 * np];
+    let mut ce = vec![0.0; 8 * np];
+    let mut tr = vec![C64::new(0.0, 0.0); 8 * np];
+    let (bk, bc) = (a.kb.len() == 8, a.cb.len() == 8);
+    for i in 0..np {
+        let (ok, oc) = (if bk { 0 } else { 8 * (first + i) }, if bc { 0 } else { 8 * (first + i) });
+        let o = 8 * i..8 * i + 8;
+        effective_point(&a.kb[ok..ok + 8], &a.cb[oc..oc + 8], a.ped, a.w[first + i], &mut ke[o.clone()], &mut ce[o.clone()], &mut tr[o]);
+    }
+    let force = if a.force.len() == 4 * nrhs { a.force } else { &a.force[4 * nrhs * pts.start..4 * nrhs * pts.end] };
+    let gain = match a.gain {
+        forced::Gain::PerPoint(g) => forced::Gain::PerPoint(&g[pts.clone()]),
+        other => other,
+    };
+    let nsing = forced::forced_kernel(a.rotor, &ke, &ce, &a.spin[pts.clone()], &a.w[pts], force, nrhs, gain, None, q_rotor);
+    for (i, (po, qa)) in q_ped.chunks_mut(4 * nrhs).zip(q_rotor.chunks_mut(4 * nrhs)).enumerate() {
+        let t = &tr[8 * i..8 * i + 8];
+        for r in 0..nrhs {
+            let q = &mut qa[4 * r..4 * r + 4];
+            let mut p = [C64::new(0.0, 0.0); 4];
+            for b in 0..2 {
+                let (x, y) = (q[b], q[2 + b]);
+                p[b] = t[4 * b] * x + t[4 * b + 1] * y;
+                p[2 + b] = t[4 * b + 2] * x + t[4 * b + 3] * y;
             }
-        });
-    Ok(nsing)
+            po[4 * r..4 * r + 4].copy_from_slice(&p);
+            let seen = match a.motion {
+                RotorMotion::Absolute => continue,
+                RotorMotion::Relative => [q[0], q[1], q[2], q[3]],
+                RotorMotion::RelativeAtPlanes(tp) => crate::model::planes_point(&tp, [q[0], q[1], q[2], q[3]]),
+            };
+            for d in 0..4 {
+                q[d] = seen[d] - p[d];
+            }
+        }
+    }
+    nsing
 }
 
 /// Number of degrees of freedom of the coupled system: [x1, x2, y1, y2, xp1, xp2, yp1, yp2].

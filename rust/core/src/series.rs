@@ -21,7 +21,7 @@ use crate::model::C64;
 /// A 2 x 2 complex matrix [i][j] over (x, y).
 pub type C2 = [[C64; 2]; 2];
 
-#[inline]
+#[inline(always)]
 pub(crate) fn mul2(a: &C2, b: &C2) -> C2 {
     let mut o = [[C64::new(0.0, 0.0); 2]; 2];
     for i in 0..2 {
@@ -34,7 +34,9 @@ pub(crate) fn mul2(a: &C2, b: &C2) -> C2 {
 
 /// T = (Z + D)^-1 Z and Z_eq = D T; None when Z + D is singular (|det| at or below 1e-14 of the
 /// squared scale of Z and D: their sum may cancel to rounding, a resonance) or not finite.
-#[inline]
+/// Inlined into its callers, some of which run at the CPU's SIMD level (the pedestal model's
+/// forced response): out of line it was compiled for the build's baseline.
+#[inline(always)]
 pub fn series(z: &C2, d: &C2) -> Option<(C2, C2)> {
     let s = [[z[0][0] + d[0][0], z[0][1] + d[0][1]], [z[1][0] + d[1][0], z[1][1] + d[1][1]]];
     let det = s[0][0] * s[1][1] - s[0][1] * s[1][0];

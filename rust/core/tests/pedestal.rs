@@ -512,6 +512,51 @@ fn forced_response_equals_the_coupled_8dof_solve() {
     assert_eq!(err.name(), "q_ped");
 }
 
+/// A long batch (tasks of 1,024 points, a partial last one) gives every point the bits of that
+/// point solved alone: per-point stiffness, damping, forces and gains, two right-hand sides,
+/// every rotor motion, and a point whose bearing and pedestal cancel (Z + D singular: NaN, and
+/// counted).
+#[test]
+fn long_batches_give_every_point_its_own_bits() {
+    let r = nsf_rotor();
+    let ped = Pedestals::from_slice(&ped_values()).unwrap();
+    let (n, nrhs) = (2_600, 2);
+    let w: Vec<f64> = (0..n).map(|i| 20.0 + 1.7 * i as f64).collect();
+    let spin: Vec<f64> = w.iter().map(|x| 0.8 * x + 5.0).collect();
+    let mut kb: Vec<f64> = (0..n * 8).map(|t| KB[t % 8] * (1.0 + 0.3 * (0.01 * t as f64).sin())).collect();
+    let cb: Vec<f64> = (0..n * 8).map(|t| CB[t % 8] * (1.0 + 0.2 * (0.013 * t as f64).cos())).collect();
+    // point 1500: bearing 1's stiffness the negative of its pedestal's dynamic stiffness, damping
+    // aside: with no damping there, Z + D is the zero matrix
+    let (sing, mut cb) = (1500, cb);
+    let d = ped.dynamic_stiffness(0, w[sing]);
+    for (q, (i, j)) in [(0, 0), (0, 1), (1, 0), (1, 1)].into_iter().enumerate() {
+        kb[8 * sing + q] = -d[i][j].re;
+        cb[8 * sing + q] = -d[i][j].im / w[sing];
+    }
+    let force: Vec<C64> = (0..n * nrhs * 4).map(|t| c((0.37 * t as f64).sin() * 50.0, (1.3 * t as f64).cos() * 20.0)).collect();
+    let gain: Vec<f64> = w.iter().map(|x| 1.0 + 1e-3 * x).collect();
+    let planes = [1.1, -0.1, 0.2, 0.8];
+    for motion in [RotorMotion::Absolute, RotorMotion::Relative, RotorMotion::RelativeAtPlanes(planes)] {
+        let (mut qa, mut qp) = (vec![zero(); n * nrhs * 4], vec![zero(); n * nrhs * 4]);
+        let bad = pedestal::forced_response(&r, &kb, &cb, &ped, &spin, &w, &force, nrhs, Gain::PerPoint(&gain), motion, &mut qa, &mut qp).unwrap();
+        let mut alone_bad = 0;
+        for i in 0..n {
+            let (o, s) = (i * nrhs * 4, nrhs * 4);
+            let (mut a1, mut p1) = (vec![zero(); s], vec![zero(); s]);
+            alone_bad += pedestal::forced_response(&r, &kb[8 * i..8 * i + 8], &cb[8 * i..8 * i + 8], &ped, &spin[i..=i], &w[i..=i], &force[o..o + s], nrhs, Gain::PerPoint(&gain[i..=i]), motion, &mut a1, &mut p1).unwrap();
+            for (what, got, want) in [("q_rotor", &qa[o..o + s], &a1[..]), ("q_ped", &qp[o..o + s], &p1[..])] {
+                for (x, y) in got.iter().zip(want) {
+                    let same = |a: f64, b: f64| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()) || (a == 0.0 && b == 0.0);
+                    assert!(same(x.re, y.re) && same(x.im, y.im), "{motion:?} point {i} {what}: {x} in the batch, {y} alone");
+                }
+            }
+        }
+        assert_eq!(bad, alone_bad, "{motion:?}: singular points");
+        assert_eq!(bad, 1, "{motion:?}: the point where Z + D vanishes");
+        assert!(qa[sing * nrhs * 4].re.is_nan() && qp[sing * nrhs * 4].re.is_nan());
+    }
+}
+
 #[test]
 fn stiff_pedestals_approach_the_rigid_forced_response() {
     let r = nsf_rotor();
