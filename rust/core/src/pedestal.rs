@@ -341,8 +341,16 @@ fn coupled_matrices(rotor: &Rotor, kb: &[f64], cb: &[f64], ped: &Pedestals, spin
 #[inline(always)]
 fn solve_n<const N: usize>(a: &mut [[C64; N]; N], b: &mut [C64; N]) -> bool {
     for k in 0..N {
-        let p = (k..N).fold(k, |p, i| if a[i][k].norm() > a[p][k].norm() { i } else { p });
-        if a[p][k].norm() == 0.0 {
+        // the first row of largest |a_ik|, each modulus taken once (a libm `hypot`: taken twice
+        // per comparison they were a quarter of the pedestal modal analysis' instructions)
+        let (mut p, mut top) = (k, a[k][k].norm());
+        for i in k + 1..N {
+            let m = a[i][k].norm();
+            if m > top {
+                (p, top) = (i, m);
+            }
+        }
+        if top == 0.0 {
             return false;
         }
         a.swap(p, k);
