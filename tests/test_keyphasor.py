@@ -241,3 +241,19 @@ def test_a_fifty_percent_speed_step_is_refused_by_default():
     with pytest.raises(RotoridError, match="3000.0 to 4500.0 rpm"):
         signals.keyphasor_times(v, FS)
     assert signals.keyphasor_times(v, FS, max_speed_step=0.6).times.size == ev.size
+
+
+def test_a_pulse_level_carrying_float_round_off_is_one_state():
+    """A clean pulse whose top alternates between 5.0 and the next float (a calibration's
+    round-off) is one state, not a histogram numpy cannot bin (a bare ValueError before)."""
+    n = np.arange(40000)
+    kp = np.where((n / 100.37) % 1.0 < 0.1, 5.0, 0.0)
+    top = np.flatnonzero(kp > 0)
+    kp[top[::2]] = np.nextafter(5.0, 6.0)
+    k = signals.keyphasor_times(kp, FS)
+    assert k.states == pytest.approx((0.0, 5.0), abs=1e-12)
+    assert k.times.size == 398
+    # ideal steps: each time within a sample of its edge (the first sample above the rest)
+    edges = np.flatnonzero((kp[1:] > 0) & (kp[:-1] == 0)) + 1
+    assert edges.size == 398
+    assert np.abs(k.times * FS - edges).max() <= 1.0

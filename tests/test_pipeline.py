@@ -223,3 +223,19 @@ def test_accuracy_lost_in_compensation_is_said_not_silent(tmp_path):
         res = imbalance_chain(cfg.rotor(), runs, baseline=base, imbalances=imbalances, speed_match_rpm=2.0)
     assert any("accuracy is lost in the compensation" in str(w.message) for w in seen)
     assert not res.identification.ok.any()   # "uncertainty unknown": not passed off as trustworthy
+
+
+def test_tracks_without_their_imbalance_are_an_error_naming_the_run(imbalance_records):
+    """SyncTracks made in Python carry no added imbalance and no source file: the error names the
+    run (an AttributeError before)."""
+    rotor, brg, runs, base, slow = imbalance_records
+    tracks = [rotorid.signals.track(r) for r in runs[:2]]
+    assert not hasattr(tracks[0], "source")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        with pytest.raises(RotoridError, match=r"run 0 \(SyncTrack\) has no added imbalance.*imbalances="):
+            pipeline.imbalance_chain(rotor, tracks)
+        # given as imbalances=, the same tracks are identified
+        imbs = [rotorid.Imbalance(tuple(m * 1e-3 for m in mass_g), ang) for mass_g, ang in list(ex.SETS.values())[:2]]
+        res = pipeline.imbalance_chain(rotor, tracks, imbalances=imbs)
+    assert res.identification.axis.size == 7

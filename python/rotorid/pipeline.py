@@ -21,18 +21,23 @@ from .recording import ACCELEROMETERS, DISPLACEMENTS, Recording, SegmentedRecord
 from .simulate import ImpactResponse, SyncResponse
 
 
-def _imbalance_of(rec, override=None) -> Imbalance:
+def _imbalance_of(rec, override=None, label="") -> Imbalance:
+    """The added imbalance of run ``rec`` (a Recording, SegmentedRecording, SyncTrack or 1X
+    table): ``override`` (an Imbalance or its config dict) or its metadata's; ``label`` names the
+    run where it has no source file (a track or table made in Python)."""
     if isinstance(override, Imbalance):
         return override
-    spec = override if override is not None else (getattr(rec, "meta", None) or {}).get("imbalance")
+    meta = getattr(rec, "meta", None) or {}
+    spec = override if override is not None else meta.get("imbalance")
     if spec is None:
-        raise RotoridError(f"recording {rec.source!r} has no added imbalance: give it in the config "
-                           "(mass_g/mass_kg and angle_deg) or in the file's metadata")
+        what = f"recording {rec.source!r}" if getattr(rec, "source", "") else (label or "a run")
+        raise RotoridError(f"{what} has no added imbalance: give it in the config (mass_g/mass_kg and angle_deg), in "
+                           "the file's metadata, or as imbalances= (one rotorid.Imbalance per run)")
     if "mass_g" in spec:
         mass = [m * 1e-3 for m in spec["mass_g"]]
     else:
         mass = spec["mass_kg"]
-    return Imbalance(tuple(mass), tuple(spec.get("angle_deg", (0.0, 0.0))), name=spec.get("name") or rec.meta.get("name"))
+    return Imbalance(tuple(mass), tuple(spec.get("angle_deg", (0.0, 0.0))), name=spec.get("name") or meta.get("name"))
 
 
 @dataclass
@@ -262,7 +267,7 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
     responses = []
     for i, (r, q, t) in enumerate(zip(runs, qs, comp)):
         cov, dof = _labelled(lambda t=t: t.cov_at_speeds(grid), f"run {i}", "the common speed grid")
-        imb = _imbalance_of(r, None if imbalances is None else imbalances[i])
+        imb = _imbalance_of(r, None if imbalances is None else imbalances[i], f"run {i} ({type(r).__name__})")
         meta = getattr(r, "meta", {}) or {}
         at = meta.get("probes_at", "probes")
         # a name from the file keeps no extension (sync_vectors_0_plain.csv, not ..._plain.csv.csv)
