@@ -134,6 +134,23 @@ def test_impact_detection_flags_double_hits_and_overloads():
     assert abs(imps[0].start / fs - 0.2) < 1e-3
 
 
+def test_hits_closer_than_the_separation_are_flagged_not_merged_silently():
+    """Hits 0.15 s apart (min_separation_s 0.2 s) were one long unflagged impact, and the chain then
+    failed on an index check; a second hit is flagged, a weak ripple after a hit is not."""
+    fs, n = 10000.0, 20000
+    f = np.zeros(n)
+    for t0 in (0.2, 0.35, 0.5):
+        f += rotorid.half_sine_pulse(3000, 2e-3, fs, n, t0_s=t0)
+    f += rotorid.half_sine_pulse(3000, 2e-3, fs, n, t0_s=1.0)
+    f += rotorid.half_sine_pulse(200, 2e-3, fs, n, t0_s=1.1)  # a ripple, under double_hit_fraction
+    imps = signals.detect_impacts(f, fs, threshold_N=100.0)
+    assert len(imps) == 2
+    assert imps[0].flags == ("hits closer than min_separation_s",) and not imps[0].ok
+    assert imps[1].ok
+    # with the separation below the spacing the hits are clean impacts of their own
+    assert [i.ok for i in signals.detect_impacts(f, fs, min_separation_s=0.1)] == [True] * 4
+
+
 def test_h1_frf_and_coherence():
     rng = np.random.default_rng(0)
     fs, n = 1000.0, 1024

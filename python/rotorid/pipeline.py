@@ -611,7 +611,9 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
     tests, frfs, used = [], [], []
     for (plane, direction, at, fs), (fl, rl, ul, rel) in groups.items():
         if not fl:
-            raise RotoridError(f"no clean impact left for the test in {direction} at plane {plane:g} m")
+            why = sorted({w for _, _, w in dropped})
+            raise RotoridError(f"no clean impact left for the test in {direction} at plane {plane:g} m" +
+                               (f" (impacts dropped: {'; '.join(why)})" if why else ""))
         frf = _h1(fl, rl, fs, zero_pad_s)
         sel = (frf.freq_hz >= band_hz[0]) & (frf.freq_hz <= band_hz[1])
         coh = frf.coherence[sel]

@@ -48,8 +48,11 @@ def detect_impacts(force, fs_hz: float, *, threshold_N=None, min_separation_s: f
                    double_hit_window_s: float = 0.02, double_hit_fraction: float = 0.1,
                    overload_N=None) -> list:
     """Impacts on a force channel: contiguous runs above ``threshold_N`` (default: 10 % of the
-    largest peak, at least 8 x the robust noise level). Flags: "double hit" when another pulse of at
-    least ``double_hit_fraction`` of the peak follows within ``double_hit_window_s``; "overload" when
+    largest peak, at least 8 x the robust noise level); pulses less than ``min_separation_s`` apart
+    are one impact. Flags: "double hit" when another pulse of at least ``double_hit_fraction`` of
+    the peak follows within ``double_hit_window_s`` (a bounce); "hits closer than
+    min_separation_s" when such a pulse follows later but within ``min_separation_s`` (a second
+    hit before the response to the first died out); "overload" when
     the signal sits at its maximum (or at ``overload_N``) for 3 or more samples (a clipped
     transducer or DAQ range)."""
     from .._validate import real_array
@@ -89,9 +92,13 @@ def detect_impacts(force, fs_hz: float, *, threshold_N=None, min_separation_s: f
         flags = []
         j = i + 1
         while j < len(pulses) and pulses[j][0] - b <= max(dh, sep):
-            if pulses[j][0] - b <= dh and abs(f[pulses[j][2]]) >= double_hit_fraction * abs(f[pk]):
+            strong = abs(f[pulses[j][2]]) >= double_hit_fraction * abs(f[pk])
+            if pulses[j][0] - b <= dh and strong:
                 if "double hit" not in flags:
                     flags.append("double hit")
+            elif strong and "hits closer than min_separation_s" not in flags:
+                # another hit, not a bounce: the response to the first has not died out
+                flags.append("hits closer than min_separation_s")
             b = max(b, pulses[j][1])
             j += 1
         seg = np.abs(f[a:b])
