@@ -93,6 +93,28 @@ def test_skipping_the_runout_filter_visibly_degrades(impact_records):
     assert max(direct_errors(bad, brg, sel)) > 5 * max(direct_errors(good, brg, sel))
 
 
+def _with_force(recs, fn):
+    import dataclasses
+
+    return [dataclasses.replace(r, channels=dict(r.channels, force=fn(r.channels["force"]))) for r in recs]
+
+
+def test_a_force_transducer_offset_is_removed_and_an_inverted_one_refused(impact_records):
+    """A charge amplifier's offset of 1.5 % of the peak (60 N) cost 10-18 % in K and C with every
+    point ok (found by an independent simulator); it is now the resting level subtracted before
+    the window. A force channel of inverted polarity (impacts peaking negative) is refused."""
+    rotor, brg, recs = impact_records
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        clean = pipeline.impact_chain(rotor, recs, band_hz=(20.0, 120.0)).identification
+        offset = pipeline.impact_chain(rotor, _with_force(recs, lambda f: f + 60.0), band_hz=(20.0, 120.0)).identification
+    ek, ec = direct_errors(offset, brg)
+    assert ek < 0.05 and ec < 0.05, (ek, ec)
+    assert np.allclose(offset.k, clean.k, rtol=2e-3) and np.allclose(offset.c, clean.c, rtol=5e-3)
+    with pytest.raises(RotoridError, match=r"peaks at -\d.* polarity is inverted \(give it scale = -1"):
+        pipeline.impact_chain(rotor, _with_force(recs, lambda f: -f))
+
+
 def test_double_hit_is_dropped_with_a_warning():
     rotor, brg, remnant = rawsim.example_rig()
     recs = [rawsim.impact_recording(rotor, brg, speed_rpm=2000.0, plane=0.0, direction=d, remnant=remnant, seed=41 + i,
