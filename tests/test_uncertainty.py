@@ -237,3 +237,40 @@ def test_slow_probe_drift_does_not_pass_for_1x():
         zs.append(z)
     cover, med = np.mean(hits), np.median(np.abs(zs))
     assert 0.92 <= cover and med <= 0.8, (cover, med)  # measured 0.96 and 0.66 over 12 trials
+
+
+def _runs_disagree(ident):
+    return np.array(["runs disagree beyond their measurement errors" in f for f in ident.flag])
+
+
+def test_runs_that_disagree_beyond_their_errors_are_flagged_and_consistent_ones_are_not():
+    """Four runs with their covariance (0.1 % noise), one of them with a unit mix-up on one channel
+    (y2 read in mil as µm: x25.4) or a 10 % gain error there. Found by an independent simulator: K
+    off by 150-230 % and C by 100 % with every point ok. The residual-based standard errors are then
+    6-30x the propagated ones, and every point is flagged; with consistent noisy runs (2,000 points
+    over 200 trials) the flag is (nearly) never raised."""
+    rng = np.random.default_rng(5)
+    rpm = np.array([3800.0, 4200.0, 4600.0, 5000.0, 6000.0, 7000.0, 8000.0, 9000.0, 10000.0, 11000.0])
+    exact = [rotorid.imbalance_response(RIG.rotor, RIG.bearings, RIG.imbalances[s], speed_rpm=rpm, at="probes")
+             for s in "ABCD"]
+
+    def noisy():
+        out = []
+        for r in exact:
+            sig = 0.001 * np.sqrt(np.mean(np.abs(r.q) ** 2, axis=1))
+            cov = np.eye(8)[None] * (sig ** 2 / 2)[:, None, None]
+            q = r.q + (sig / np.sqrt(2))[:, None] * (rng.standard_normal(r.q.shape) + 1j * rng.standard_normal(r.q.shape))
+            out.append(rotorid.SyncResponse(rpm, q, r.imbalance, "probes", r.name, cov))
+        return out
+
+    flagged = 0
+    for _ in range(200):
+        flagged += _runs_disagree(rotorid.identify_synchronous(RIG.rotor, noisy())).sum()
+    assert flagged <= 0.005 * 200 * rpm.size, flagged
+    for gain in (25.4, 1.1):
+        rs = noisy()
+        mixed = rs[1].q.copy()
+        mixed[:, 3] *= gain
+        rs[1] = rotorid.SyncResponse(rpm, mixed, rs[1].imbalance, "probes", rs[1].name, rs[1].cov)
+        i = rotorid.identify_synchronous(RIG.rotor, rs)
+        assert _runs_disagree(i).all() and not i.ok.any(), gain

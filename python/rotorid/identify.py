@@ -785,6 +785,25 @@ def _unknown_std(n):
     return coef.view(), rel.view()
 
 
+#: redundant runs disagree when their residual-based standard errors exceed those propagated from
+#: the measurement covariance by this factor (median over a point's coefficients): with the 2 (R - 2)
+#: residual degrees of freedom of R runs per bearing system, a chance exceedance has probability
+#: P(chi2_2 > 18) = 1.2e-4 at 3 runs and below 3e-7 at 4 or more
+RUNS_DISAGREE = 3.0
+
+
+def _disagreeing_runs(ks_res, cs_res, ks_meas, cs_meas, n):
+    """[(mask, reason)] for the points whose redundant runs disagree beyond their measurement
+    errors (:data:`RUNS_DISAGREE`); an empty list where none does."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.concatenate([(ks_res / ks_meas).reshape(n, -1), (cs_res / cs_meas).reshape(n, -1)], 1)
+        ratio = np.where(np.isfinite(ratio), ratio, np.nan)
+        bad = np.zeros(n, bool)
+        some = ~np.isnan(ratio).all(axis=1)
+        bad[some] = np.nanmedian(ratio[some], axis=1) > RUNS_DISAGREE
+    return [(bad, "runs disagree beyond their measurement errors")] if bad.any() else []
+
+
 def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, method, labels, cond_max,
            min_rel_amplitude, what, covs=None, dofs=None, max_rel_std=MAX_REL_STD, extra_flags=None,
            estimator="ls", shared_cov=None, q_ped=None, calibration=None, planes=None, w_scale=None, e_core=None):
@@ -873,6 +892,11 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
         source = "measurement covariance"
         dof = np.min(dofs, axis=0) if dofs is not None else np.full(axis.size, np.inf)
         dof = np.where(unknown, np.nan, dof)
+    if covs is not None and not identical and residual_std and ks is not None:
+        # redundant runs checked against their measurement covariance: where the runs' misfit is far
+        # beyond what their errors explain (a unit mix-up on one channel of one run, a run taken at
+        # another condition) the standard errors from the covariance do not cover the truth
+        extra_flags = _flag_list(extra_flags) + _disagreeing_runs(ks_res, cs_res, ks_meas, cs_meas, axis.size)
     if identical and redundant:
         # (before the calibration is added: it is common to both bearings' equations)
         # the identical-bearing hypothesis is testable: the two bearings' equations must agree within
