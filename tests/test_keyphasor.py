@@ -257,3 +257,35 @@ def test_a_pulse_level_carrying_float_round_off_is_one_state():
     edges = np.flatnonzero((kp[1:] > 0) & (kp[:-1] == 0)) + 1
     assert edges.size == 398
     assert np.abs(k.times * FS - edges).max() <= 1.0
+
+
+def _humps(rpm, sigma_samples, n_pulses=600, fs=FS):
+    """Gaussian pulses of ``sigma_samples`` (no flat top) and their events: the crossing of half
+    their peak on the leading flank."""
+    period = 60.0 / rpm
+    t = np.arange(int((n_pulses + 0.5) * period * fs)) / fs
+    ev = 0.01373917 + np.arange(n_pulses) * period
+    sig = sigma_samples / fs
+    lead = sig * np.sqrt(2 * np.log(2))
+    v = np.zeros_like(t)
+    for e in ev:
+        a, b = np.searchsorted(t, [e - 8 * sig, e + 10 * sig])
+        v[a:b] += 5.0 * np.exp(-0.5 * ((t[a:b] - e - lead) / sig) ** 2)
+    return v, ev
+
+
+# measured, not reached (README "Keyphasor timing"): humps of under 3 samples at half their peak
+# (sigma 1.2 samples) are still timed -0.042 samples early (-0.143 before): their sampled peak is
+# too coarse for the parabola, which is then not trusted (it would overshoot a corner)
+@pytest.mark.parametrize("rpm, sigma, bound", [(3457.3, 1.73, 0.01), (2213.9, 2.71, 0.01), (9871.3, 1.2, 0.05)])
+def test_pulses_without_a_flat_top_are_timed_at_half_their_peak_and_noted(rpm, sigma, bound):
+    """Gaussian keyphasor pulses (a narrow key under a wide probe spot) have no top to dwell at:
+    the median of their middle half is 9-12 % below their peak, and mid-height taken there timed
+    them 0.13-0.15 samples early (0.3-0.4 degrees of 1X at these speeds) with no note; found by an
+    independent simulator. Half the peak is the level now, and the note says how much the timing
+    depends on the pulse shape."""
+    v, ev = _humps(rpm, sigma)
+    kp = signals.keyphasor_times(v, FS)
+    e = _errors(kp, ev)
+    assert abs(e.mean()) < bound, e.mean()
+    assert "no flat top" in kp.note and "samples earlier" in kp.note

@@ -364,7 +364,7 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
         side = "up" if float(level) > med else "down"
     rest, pulse = state_levels(x, where=where, pulse_side=side)
     duty = float(np.mean(np.abs(x - pulse) < np.abs(x - rest)))
-    ambiguous, unsettled = "", ""
+    ambiguous, unsettled, hump = "", "", ""
     if edge == "auto":
         if duty > 0.4:
             # a square-ish wave: which state is "resting" is a matter of noise; time the rising edge
@@ -402,7 +402,25 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
         top = _local_top(w, k, base, swing, width)
         ok = np.isfinite(top)
         if ok.sum() >= 3:
-            swing = float(np.median(top[ok] - base[ok]))
+            flat_swing = float(np.median(top[ok] - base[ok]))
+            peak_swing = float(np.median(_local_peak(w, k, base, width)[ok] - base[ok]))
+            tol = max(HUMP_TOL, 3.0 * _noise(w, lo, swing) / swing)
+            if flat_swing < (1 - tol) * peak_swing and flat_swing < (1 - tol) * swing and \
+                    np.mean(_unimodal(w, k[ok], width, tol * swing)) >= 0.5:
+                # no flat top (a Gaussian-like hump, or an edge still rising when the pulse ends): the
+                # middle of the pulse is no state, its median sits below the top and moves mid-height
+                # down the edge (timed 0.03-0.15 samples early); half the peak is the level then
+                k_flat = _last_below_each(w, rises, base + 0.5 * flat_swing, int(full) + 2, k)
+                t_flat = k_flat + _linear_crossing(w, k_flat, base + 0.5 * flat_swing)
+                swing = peak_swing
+                k_peak = _last_below_each(w, rises, base + 0.5 * swing, int(full) + 2, k)
+                shift = float(np.median(k_peak + _linear_crossing(w, k_peak, base + 0.5 * swing) - t_flat))
+                hump = (f"the pulses have no flat top (their middle stays {100 * (1 - flat_swing / peak_swing):.1f} % "
+                        f"below their peak): mid-height is taken at half the peak; a level at half their middle "
+                        f"would time them {abs(shift):.3f} samples {'earlier' if shift > 0 else 'later'}, which is how "
+                        "much the timing depends on the pulse shape here (a phase calibration takes it out)")
+            else:
+                swing = flat_swing
         if ok.mean() < 0.5:
             unsettled = ("most pulses are too short to settle at their upper state: mid-height is taken between the "
                          "histogram states, and the timing depends on the pulse shape")
@@ -419,7 +437,7 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
         t_samples, refined, note = _refine(w, t_samples, base, swing, half, post, rise <= 1.5)
         if smooth and not refined:
             note = ""  # a smooth edge timed by the cubic: the residual interpolation error is small
-    note = "; ".join(x for x in (ambiguous, unsettled, note) if x)
+    note = "; ".join(x for x in (ambiguous, unsettled, hump, note) if x)
     t = t0_s + t_samples / fs_hz
     t, extra, missing = _plausible(t, tolerance, fill_missing, where, max_speed_step)
     times = _to_angle_zero(t, mark_angle_deg, delay_s)
@@ -482,6 +500,48 @@ def _local_top(w, k, base, swing, width):
     idx = np.clip(k[:, None] + offs[None, :], 0, w.size - 1)
     top = np.median(w[idx], axis=1)
     return np.where(top > base + 0.8 * swing, top, np.nan)
+
+
+#: a pulse has no flat top when the median of its middle half is this fraction (or 3 noise widths)
+#: below its peak and below the histogram's pulse state, and it rises to one peak and falls
+#: (:func:`_unimodal`; ringing lifts the peak, not the middle, and rises and falls more than once)
+HUMP_TOL = 0.015
+
+
+def _noise(w, lo, swing):
+    """Robust noise level of the resting state (MAD of the samples within 6 % of the swing of it)."""
+    near = w[np.abs(w - lo) <= 0.06 * swing]
+    return 1.4826 * float(np.median(np.abs(near - np.median(near)))) if near.size else 0.0
+
+
+def _local_peak(w, k, base, width):
+    """Peak of each pulse: its largest sample within the pulse body after the edge at ``k``,
+    refined by the parabola through it and its neighbours where both lie above 60 % of
+    the pulse (a smooth hump, whose sampled maximum lies below its top by up to an eighth of its
+    curvature); not at a corner, where the parabola would overshoot (an RC edge cut off by the
+    trailing edge)."""
+    body = np.arange(1, int(np.ceil(width)) + 2)
+    idx = np.clip(k[:, None] + body[None, :], 1, w.size - 2)
+    m = idx[np.arange(k.size), np.argmax(w[idx], axis=1)]
+    ym, y0, yp = w[m - 1], w[m], w[m + 1]
+    curv = ym - 2.0 * y0 + yp
+    smooth = (curv < 0) & (np.minimum(ym, yp) - base >= 0.6 * (y0 - base))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lift = np.where(smooth, -(yp - ym) ** 2 / (8.0 * curv), 0.0)
+    return y0 + np.clip(lift, 0.0, None)
+
+
+def _unimodal(w, k, width, tol):
+    """Whether each pulse's body (the ``width`` samples after its edge at ``k``) rises to one peak
+    and falls from it, within ``tol``: a hump. Ringing after a flat top's edge rises and falls
+    more than once (its overshoot lifts the peak, not the top's level)."""
+    n = max(int(np.ceil(width)), 2)
+    idx = np.clip(k[:, None] + 1 + np.arange(n)[None, :], 0, w.size - 1)
+    y = w[idx]
+    d = np.diff(y, axis=1)
+    p = np.argmax(y, axis=1)[:, None]
+    col = np.arange(n - 1)[None, :]
+    return np.all(np.where(col < p, d >= -tol, d <= tol), axis=1)
 
 
 def _cubic_crossing(x, k, level):
