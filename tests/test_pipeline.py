@@ -261,3 +261,24 @@ def test_tracks_without_their_imbalance_are_an_error_naming_the_run(imbalance_re
         imbs = [rotorid.Imbalance(tuple(m * 1e-3 for m in mass_g), ang) for mass_g, ang in list(ex.SETS.values())[:2]]
         res = pipeline.imbalance_chain(rotor, tracks, imbalances=imbs)
     assert res.identification.axis.size == 7
+
+
+@pytest.mark.parametrize("dead", ["flat", "gap and noise"])
+def test_a_dead_probe_is_refused_not_fitted(imbalance_records, dead):
+    """A probe that reads nothing (a flat channel, or its gap voltage with noise only) in every run:
+    its 1X is noise, which the identification fitted as a response (an independent simulator:
+    K off by 170-320 %, C by 350-450 %, most points ok, no warning). Now an error naming it."""
+    import dataclasses
+
+    rotor, brg, runs, base, slow = imbalance_records
+    rng = np.random.default_rng(3)
+
+    def kill(r):
+        x = r.channels["y2"]
+        x = np.zeros_like(x) if dead == "flat" else -2e-3 + 0.5e-6 * rng.standard_normal(x.size)
+        return dataclasses.replace(r, channels=dict(r.channels, y2=x))
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        with pytest.raises(RotoridError, match=r"probe channel\(s\) y2 show no 1X response above their noise"):
+            pipeline.imbalance_chain(rotor, [kill(r) for r in runs], baseline=kill(base))

@@ -40,6 +40,39 @@ def _imbalance_of(rec, override=None, label="") -> Imbalance:
     return Imbalance(tuple(mass), tuple(spec.get("angle_deg", (0.0, 0.0))), name=spec.get("name") or meta.get("name"))
 
 
+#: a probe is dead when its 1X stays below this many of its own noise widths at (nearly) every speed
+#: of every run
+DEAD_PROBE_SNR = 3.0
+
+
+def _check_live_probes(tracks, labels):
+    """Refuse a probe channel that shows no 1X above its noise anywhere: a dead or disconnected
+    probe (a flat channel, or a gap voltage with noise only). Its vectors are then noise, which
+    the identification would fit as a response (K and C off by 170-450 % with most points ok, an
+    independent simulator's finding). Live probes read run-out and response together, far above
+    their noise, before any compensation. Tracks without a covariance (1X tables) are not checked."""
+    names = ("x1", "x2", "y1", "y2")
+    above, total = np.zeros(4), 0
+    for t in tracks:
+        if t.cov is None or 1 not in t.orders:
+            continue
+        x = np.abs(t.vectors[:, t.orders.index(1), :])
+        var = np.stack([t.cov[:, c, c] + t.cov[:, c + 4, c + 4] for c in range(4)], axis=1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            snr = np.where(x > 0, x / np.sqrt(var), 0.0)  # a flat channel: 0 / 0
+        # an unknown noise (NaN) counts as live: nothing to say
+        above += np.sum(~(snr < DEAD_PROBE_SNR), axis=0)
+        total += x.shape[0]
+    # noise alone reaches 3 of its widths at a point with probability e^-9; a live probe at most
+    # points (run-out alone puts it far above its noise)
+    live = above >= max(1.0, 0.05 * total)
+    if total and not live.all():
+        dead = [names[c] for c in range(4) if not live[c]]
+        raise RotoridError(f"probe channel(s) {', '.join(dead)} show no 1X response above their noise at any speed of "
+                           f"{', '.join(labels) if len(labels) < 5 else 'any run'}: a dead or disconnected probe (flat, or "
+                           "a gap voltage with noise only)? The identification needs all four probes")
+
+
 @dataclass
 class ImbalanceChainResult:
     responses: list          # SyncResponse per run (compensated, on the common speed grid)
@@ -216,6 +249,7 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
             notes.append(f"run {i} keyphasor: {k.summary()}")
             if k.note:
                 warnings.warn(f"run {i} keyphasor: {k.note}")
+    _check_live_probes(tracks, [f"run {i}" for i in range(len(tracks))])
     orders_of = tracks[0].orders
     if any(t.orders != orders_of for t in tracks):
         raise RotoridError("all runs must carry the same orders (waveforms and 1X tables cannot be mixed)")
