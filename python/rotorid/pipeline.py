@@ -415,8 +415,9 @@ def impact_segments(rec: Recording, *, record_s: float = 0.25, pre_s: float = 0.
             t_end = rec.t0_s + a / fs
             # the signature must hold no strong response to the previous hit: the first half of that
             # hit's record (record_s, in which its response is taken to die out) must end before the
-            # window begins (hits 0.3 s apart at 2000 rpm gave K off by 23 % and C by 43 % with
-            # points ok; 0.5 s apart, 2.8 and 3.1 %, the tail of the record in the window)
+            # window begins (the independent simulator's hits 0.3 s apart gave K off by 23 % and C
+            # by 43 % at 2000 rpm, 153 % and 261 % at 1000 rpm, with points ok; 0.5 s apart at 2000
+            # rpm, 2.8 and 3.1 %, only the tail of the record in the window: kept)
             win = a - int(np.ceil((revs_before + 1) * period * fs))
             if j > 0 and imps[j - 1].start + n_seg // 2 > win:
                 gap = (revs_before + 1) * period + 0.5 * record_s + pre_s
@@ -468,13 +469,18 @@ DECAYED = 0.05
 def _undecayed(responses, pre):
     """How much of a test's response is left at the end of its records: per impact and probe, the
     rms of the record's last tenth (less the noise of its ``pre`` samples before the impact, in
-    quadrature) over the peak; the largest over the probes, the median over the impacts."""
+    quadrature) over the probe's peak (each FRF column leaks in proportion to its own response: an
+    x hit's y response, ~1/8 of the x one on the rig, is the one that rings longest); the largest
+    over the probes whose peak stands 20 noise widths clear (a probe that hardly responds would
+    weigh the noise estimate's own scatter against a small peak), the median over the impacts."""
     y = np.asarray(responses)[:, :4, :]
     n = y.shape[2]
     tail = np.mean(y[:, :, int(0.9 * n):] ** 2, axis=2)
     noise = np.mean((y[:, :, :pre] - y[:, :, :pre].mean(axis=2, keepdims=True)) ** 2, axis=2) if pre >= 8 else 0.0
+    peak = np.abs(y).max(axis=2)
     with np.errstate(divide="ignore", invalid="ignore"):
-        r = np.sqrt(np.maximum(tail - noise, 0.0)) / np.abs(y).max(axis=2)
+        r = np.sqrt(np.maximum(tail - noise, 0.0)) / peak
+    r = np.where(peak ** 2 >= 400.0 * noise, r, 0.0)
     return float(np.median(np.nanmax(r, axis=1)))
 
 
@@ -637,7 +643,7 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
                            [f"impact recording {rec.source or i!r}" for i, rec in enumerate(recordings)])
     channels = DISPLACEMENTS + (ACCELEROMETERS if ped else ())
     groups = {}
-    dropped = []
+    dropped, group_dropped = [], {}
     speeds = []
     for i, rec in enumerate(recordings):
         meta = dict(rec.meta)
@@ -657,6 +663,7 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
                                      points_per_rev=points_per_rev, detect=detect, pedestal=ped)
         dropped += d
         key = (float(meta["plane"]), str(meta["direction"]), meta.get("probes_at", "probes"), rec.fs_hz)
+        group_dropped.setdefault(key, []).extend(d)
         # channel delays (the channel map's delay_s): each response channel relative to the force
         dl = rec.meta.get("channel_delays_s", {}) or {}
         rel = np.array([float(dl.get(c, 0.0)) for c in channels]) - float(dl.get("force", 0.0))
@@ -687,7 +694,8 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
     tests, frfs, used, truncated = [], [], [], []
     for (plane, direction, at, fs), (fl, rl, ul, rel) in groups.items():
         if not fl:
-            why = sorted({w for _, _, w in dropped})
+            # this test's reasons, without their per-impact details (times, counts)
+            why = sorted({w.split(" (")[0] for _, _, w in group_dropped.get((plane, direction, at, fs), [])})
             raise RotoridError(f"no clean impact left for the test in {direction} at plane {plane:g} m" +
                                (f" (impacts dropped: {'; '.join(why)})" if why else ""))
         frf = _h1(fl, rl, fs, zero_pad_s)

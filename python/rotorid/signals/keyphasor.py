@@ -226,9 +226,9 @@ def _fine_mode(v, centre, swing, noise):
     sel = v[np.abs(v - centre) <= 0.06 * swing]
     if sel.size < 3:
         return float(centre)
-    if not sel.max() - sel.min() > 1e-9 * swing:
+    if not sel.max() - sel.min() > max(1e-9 * swing, 64 * np.spacing(np.abs(sel).max())):
         # one level up to rounding (a clean synthetic or digital pulse whose level carries float
-        # round-off): 48 bins cannot divide a range of a few ulp
+        # round-off, on any offset): 48 bins cannot divide a range of a few ulp of the level
         return float(np.median(sel))
     h, e = np.histogram(sel, bins=48)
     m = 0.5 * (e[np.argmax(h)] + e[np.argmax(h) + 1])
@@ -509,9 +509,11 @@ HUMP_TOL = 0.015
 
 
 def _noise(w, lo, swing):
-    """Robust noise level of the resting state (MAD of the samples within 6 % of the swing of it)."""
-    near = w[np.abs(w - lo) <= 0.06 * swing]
-    return 1.4826 * float(np.median(np.abs(near - np.median(near)))) if near.size else 0.0
+    """Robust noise level of the resting state: the MAD of the sample-to-sample differences of the
+    samples within 6 % of the swing of it, over sqrt(2) (a slow offset drift does not count)."""
+    near = np.abs(w - lo) <= 0.06 * swing
+    d = np.diff(w)[near[1:] & near[:-1]]
+    return 1.4826 * float(np.median(np.abs(d - np.median(d)))) / np.sqrt(2.0) if d.size else 0.0
 
 
 def _local_peak(w, k, base, width):
@@ -538,10 +540,15 @@ def _unimodal(w, k, width, tol):
     n = max(int(np.ceil(width)), 2)
     idx = np.clip(k[:, None] + 1 + np.arange(n)[None, :], 0, w.size - 1)
     y = w[idx]
-    d = np.diff(y, axis=1)
     p = np.argmax(y, axis=1)[:, None]
-    col = np.arange(n - 1)[None, :]
-    return np.all(np.where(col < p, d >= -tol, d <= tol), axis=1)
+    col = np.arange(n)[None, :]
+    # before the peak nothing falls more than tol below the highest sample so far, after it nothing
+    # rises more than tol above the lowest so far (a rise spread over several samples counts whole)
+    rising = np.where(col <= p, y, np.inf)
+    falling = np.where(col >= p, y, -np.inf)
+    ok_before = np.all(rising >= np.maximum.accumulate(np.where(col <= p, y, -np.inf), axis=1) - tol, axis=1)
+    ok_after = np.all(falling <= np.minimum.accumulate(np.where(col >= p, y, np.inf), axis=1) + tol, axis=1)
+    return ok_before & ok_after
 
 
 def _cubic_crossing(x, k, level):
