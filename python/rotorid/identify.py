@@ -788,20 +788,21 @@ def _unknown_std(n):
 #: redundant runs disagree when their residual-based standard errors exceed those propagated from
 #: the measurement covariance by this factor (median over a point's coefficients): with the 2 (R - 2)
 #: residual degrees of freedom of R runs per bearing system, a chance exceedance has probability
-#: P(chi2_2 > 18) = 1.2e-4 at 3 runs and below 3e-7 at 4 or more
+#: P(chi2_2 > 18) = 1.2e-4 at 3 runs and below 3e-7 at 4 or more (the same factor tests the
+#: identical-bearing hypothesis)
 RUNS_DISAGREE = 3.0
 
 
-def _disagreeing_runs(ks_res, cs_res, ks_meas, cs_meas, n):
-    """[(mask, reason)] for the points whose redundant runs disagree beyond their measurement
-    errors (:data:`RUNS_DISAGREE`); an empty list where none does."""
+def _misfit_ratio(ks_res, cs_res, ks_meas, cs_meas, n):
+    """(n,) median over each point's coefficients of the residual-based over the propagated standard
+    errors (NaN where no ratio is known; an infinite ratio, a misfit where the covariance gives no
+    error, counts as one)."""
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.concatenate([(ks_res / ks_meas).reshape(n, -1), (cs_res / cs_meas).reshape(n, -1)], 1)
-        ratio = np.where(np.isfinite(ratio), ratio, np.nan)
-        bad = np.zeros(n, bool)
-        some = ~np.isnan(ratio).all(axis=1)
-        bad[some] = np.nanmedian(ratio[some], axis=1) > RUNS_DISAGREE
-    return [(bad, "runs disagree beyond their measurement errors")] if bad.any() else []
+    out = np.full(n, np.nan)
+    some = ~np.isnan(ratio).all(axis=1)
+    out[some] = np.nanmedian(ratio[some], axis=1)
+    return out
 
 
 def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, method, labels, cond_max,
@@ -896,17 +897,16 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
         # redundant runs checked against their measurement covariance: where the runs' misfit is far
         # beyond what their errors explain (a unit mix-up on one channel of one run, a run taken at
         # another condition) the standard errors from the covariance do not cover the truth
-        extra_flags = _flag_list(extra_flags) + _disagreeing_runs(ks_res, cs_res, ks_meas, cs_meas, axis.size)
+        disagree = _misfit_ratio(ks_res, cs_res, ks_meas, cs_meas, axis.size) > RUNS_DISAGREE
+        if disagree.any():
+            extra_flags = _flag_list(extra_flags) + [(disagree, "runs disagree beyond their measurement errors")]
     if identical and redundant:
         # (before the calibration is added: it is common to both bearings' equations)
         # the identical-bearing hypothesis is testable: the two bearings' equations must agree within
         # the measurement errors (residual-based errors no larger than the propagated ones), or, without
         # a covariance, within 1 % of the forces
         if cov is not None:
-            with np.errstate(divide="ignore", invalid="ignore"):
-                ratio = np.nanmedian(np.concatenate([(ks_res / ks_meas).reshape(axis.size, -1),
-                                                     (cs_res / cs_meas).reshape(axis.size, -1)], 1), axis=1)
-            rejected = ratio > 3.0
+            rejected = _misfit_ratio(ks_res, cs_res, ks_meas, cs_meas, axis.size) > RUNS_DISAGREE
         else:
             rejected = resid[0] > 0.01
         if rejected.any():

@@ -410,11 +410,12 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
                 # no flat top (a Gaussian-like hump, or an edge still rising when the pulse ends): the
                 # middle of the pulse is no state, its median sits below the top and moves mid-height
                 # down the edge (timed 0.03-0.15 samples early); half the peak is the level then
-                k_flat = _last_below_each(w, rises, base + 0.5 * flat_swing, int(full) + 2, k)
-                t_flat = k_flat + _linear_crossing(w, k_flat, base + 0.5 * flat_swing)
+                def times_at(level):
+                    at = _last_below_each(w, rises, level, int(full) + 2, k)
+                    return at + _linear_crossing(w, at, level)
+
+                shift = float(np.median(times_at(base + 0.5 * peak_swing) - times_at(base + 0.5 * flat_swing)))
                 swing = peak_swing
-                k_peak = _last_below_each(w, rises, base + 0.5 * swing, int(full) + 2, k)
-                shift = float(np.median(k_peak + _linear_crossing(w, k_peak, base + 0.5 * swing) - t_flat))
                 hump = (f"the pulses have no flat top (their middle stays {100 * (1 - flat_swing / peak_swing):.1f} % "
                         f"below their peak): mid-height is taken at half the peak; a level at half their middle "
                         f"would time them {abs(shift):.3f} samples {'earlier' if shift > 0 else 'later'}, which is how "
@@ -544,11 +545,9 @@ def _unimodal(w, k, width, tol):
     col = np.arange(n)[None, :]
     # before the peak nothing falls more than tol below the highest sample so far, after it nothing
     # rises more than tol above the lowest so far (a rise spread over several samples counts whole)
-    rising = np.where(col <= p, y, np.inf)
-    falling = np.where(col >= p, y, -np.inf)
-    ok_before = np.all(rising >= np.maximum.accumulate(np.where(col <= p, y, -np.inf), axis=1) - tol, axis=1)
-    ok_after = np.all(falling <= np.minimum.accumulate(np.where(col >= p, y, np.inf), axis=1) + tol, axis=1)
-    return ok_before & ok_after
+    before = (col > p) | (y >= np.maximum.accumulate(y, axis=1) - tol)
+    after = (col < p) | (y <= np.minimum.accumulate(np.where(col >= p, y, np.inf), axis=1) + tol)
+    return np.all(before & after, axis=1)
 
 
 def _cubic_crossing(x, k, level):
