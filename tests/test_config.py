@@ -248,6 +248,9 @@ def test_string_boolean_in_keyphasor_override():
     ("method", "Forces", "[imbalance] method must be one of 'forces', 'report', got 'Forces' (did you mean 'forces'?)"),
     ("runs", "run.tdms", "[imbalance] runs must be an array of tables ([[imbalance.runs]]), got the string"),
     ("runs", [], "[imbalance] runs must have at least 1 entry, got 0"),
+    ("keyphasor_delay_std_s", -1e-6, "[imbalance] keyphasor_delay_std_s must be a number >= 0"),
+    ("keyphasor_angle_std_deg", 45.0, "[imbalance] keyphasor_angle_std_deg must be a number >= 0 and < 45, got 45"),
+    ("keyphasor_angle_std_deg", "1 deg", "[imbalance] keyphasor_angle_std_deg must be a number >= 0 and < 45, got the string"),
 ])
 def test_wrong_types_and_ranges_in_imbalance(where, value, fragment):
     msg = error_of(imbalance_cfg(**{where: value}))

@@ -7,6 +7,7 @@ that the statistical error of the mean is well below the tolerance.
 """
 
 import dataclasses
+import re
 import warnings
 
 import numpy as np
@@ -70,8 +71,9 @@ def test_timing_bias_below_5_thousandths_of_a_sample(shape, rpm):
     assert abs(e.mean()) < 0.005, (e.mean(), np.abs(e).max())
     # per pulse: a drifting offset is followed from the samples before each edge (noise-like error)
     assert np.abs(e).max() < (0.35 if shape.drift_v else 0.06)
-    # flat tops (with ringing or drift too) are not taken for humps
+    # flat tops (with ringing or drift too) are not taken for humps, nor timed with a shape uncertainty
     assert "no flat top" not in kp.note
+    assert kp.timing_std_s == 0.0 or "too short to settle" in kp.note
 
 
 @pytest.mark.parametrize("shape", [PulseShape("trapezoid", 2.0, noise_v=0.02), PulseShape("rc", 1.0, noise_v=0.02),
@@ -291,6 +293,11 @@ def test_pulses_without_a_flat_top_are_timed_at_half_their_peak_and_noted(rpm, s
     e = _errors(kp, ev)
     assert abs(e.mean()) < bound, e.mean()
     assert "no flat top" in kp.note and "samples earlier" in kp.note
+    # the shape dependence the note gives is the timing uncertainty the chain propagates
+    shift = float(re.search(r"time them ([0-9.]+) samples earlier", kp.note).group(1))
+    assert kp.timing_std_s * FS == pytest.approx(shift, abs=5e-4) and 0.05 < shift < 0.3
+    # with a trigger level of the user's own, the level is their convention: no shape uncertainty
+    assert signals.keyphasor_times(v, FS, level=2.5).timing_std_s == 0.0
 
 
 @pytest.mark.parametrize("rpm", [347.3, 3456.7])

@@ -64,3 +64,29 @@ def test_bad_calls_are_errors():
         rotorid.calibrate_phase(rig.rotor, runs, offset=False, delay=False)
     with pytest.raises(RotoridError, match="degree"):
         rotorid.calibrate_phase(rig.rotor, runs, degree=-1)
+
+
+def test_an_applied_calibration_keeps_its_uncertainty_in_the_error_bars():
+    """Once applied, the calibration's own uncertainty (offset, delay and their correlation) is a
+    phase-reference uncertainty at each speed: the error bars grow by it and still cover the truth."""
+    rotor, brg, res = _chain(0.5, 10e-6)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cal = rotorid.calibrate_phase(rotor, res.responses, shared_cov=res.shared_cov)
+    rpm = res.responses[0].speed_rpm
+    std = cal.phase_std_deg(rpm)
+    assert -1.0 < cal.offset_delay_corr < 1.0 and np.all(std > 0)
+    # the formula: the variance of theta - Omega tau with the estimates' correlation
+    om = rpm * np.pi / 30
+    s_th, s_tau, r = np.deg2rad(cal.offset_std_deg), cal.delay_std_s, cal.offset_delay_corr
+    np.testing.assert_allclose(np.deg2rad(std) ** 2, s_th ** 2 + (om * s_tau) ** 2 - 2 * om * r * s_th * s_tau,
+                               rtol=1e-12)
+    runs = cal.apply(res.responses)
+    bare = rotorid.identify_synchronous(rotor, runs, shared_cov=res.shared_cov)
+    ident = rotorid.identify_synchronous(rotor, runs, shared_cov=res.shared_cov, keyphasor_angle_std_deg=std)
+    assert np.all(ident.c_std >= bare.c_std) and np.any(ident.c_std > 1.02 * bare.c_std)
+    iv = ident.interval(0.95)
+    for b, i in ((0, 0), (0, 1), (1, 0), (1, 1)):
+        assert np.all((iv.c_lower[:, b, i, i] <= brg.c[b, i, i]) & (brg.c[b, i, i] <= iv.c_upper[:, b, i, i]))
+    with pytest.raises(RotoridError, match="speed_rpm"):
+        cal.phase_std_deg([-3000.0])

@@ -274,3 +274,74 @@ def test_runs_that_disagree_beyond_their_errors_are_flagged_and_consistent_ones_
         rs[1] = rotorid.SyncResponse(rpm, mixed, rs[1].imbalance, "probes", rs[1].name, rs[1].cov)
         i = rotorid.identify_synchronous(RIG.rotor, rs)
         assert _runs_disagree(i).all() and not i.ok.any(), gain
+
+
+def _nsf_runs(rpm, noise=1e-9):
+    rig = rotorid.nsf_rig()
+    runs = [rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=rpm) for s in "ABCD"]
+    for r in runs:
+        r.cov = np.broadcast_to(np.eye(8) * noise ** 2, (rpm.size, 8, 8)).copy()
+    return rig, runs
+
+
+def test_phase_reference_uncertainty_matches_monte_carlo_of_a_common_delay():
+    """A keyphasor timing error is a phase error Omega tau common to every run and channel: it
+    leaves no residual, yet on the NSF rig 2 µs moves the damping by percents. Its propagated
+    standard error (central differences of the estimator) must match the spread of identifications
+    from vectors turned by random delays; and an angle of Omega tau per speed must be the same."""
+    rpm = np.array([3000.0, 4000.0, 5000.0, 6000.0])
+    rig, runs = _nsf_runs(rpm)
+    tau = 2e-6
+    plain = rotorid.identify_synchronous(rig.rotor, runs)
+    ident = rotorid.identify_synchronous(rig.rotor, runs, keyphasor_delay_std_s=tau)
+    assert ident.std_source == "measurement covariance + phase reference" and plain.std_source == \
+        "measurement covariance"
+    np.testing.assert_array_equal(ident.k, plain.k)
+    # the phase reference's part alone
+    part_k = np.sqrt(ident.k_std ** 2 - plain.k_std ** 2)
+    part_c = np.sqrt(ident.c_std ** 2 - plain.c_std ** 2)
+    assert part_c[-1, 0, 0, 0] > 0.02 * 2000.0  # damping: over 2 % at 6,000 rpm
+    rng = np.random.default_rng(3)
+    d = rng.standard_normal(300) * tau
+    ks, cs = [], []
+    for dt in d:
+        turned = [rotorid.SyncResponse(r.speed_rpm, r.q * np.exp(-1j * r.speed_rpm * np.pi / 30 * dt)[:, None],
+                                       r.imbalance) for r in runs]
+        one = rotorid.identify_synchronous(rig.rotor, turned)
+        ks.append(one.k)
+        cs.append(one.c)
+    # linear in the delay: the spread is the delays' spread times |g| exactly, to second order
+    scale = d.std() / tau
+    np.testing.assert_allclose(np.std(ks, axis=0), scale * part_k, rtol=0.02)
+    np.testing.assert_allclose(np.std(cs, axis=0), scale * part_c, rtol=0.02)
+    # the covariance carries it too, and the per-speed angle form is the same uncertainty
+    from rotorid.uncertainty import report_vector
+
+    np.testing.assert_allclose(np.sqrt(np.diagonal(ident.cov, axis1=1, axis2=2)), report_vector(ident.k_std, ident.c_std),
+                               rtol=1e-12)
+    angle = rotorid.identify_synchronous(rig.rotor, runs, keyphasor_angle_std_deg=np.rad2deg(rpm * np.pi / 30 * tau))
+    np.testing.assert_allclose(angle.c_std, ident.c_std, rtol=1e-12)
+
+
+def test_phase_reference_uncertainty_flags_damping_it_leaves_unknown():
+    """A mark angle known to 1 degree: the damping is then uncertain beyond max_rel_std at speeds
+    where it hangs on the phase, and those points are flagged, not ok."""
+    rpm = np.array([3000.0, 6000.0])
+    rig, runs = _nsf_runs(rpm)
+    ident = rotorid.identify_synchronous(rig.rotor, runs, keyphasor_angle_std_deg=1.0)
+    assert not ident.ok.all() and all("uncertain" in f for f in ident.flag[~ident.ok])
+    assert rotorid.identify_synchronous(rig.rotor, runs).ok.all()
+
+
+@pytest.mark.parametrize("kw, match", [
+    (dict(keyphasor_delay_std_s=-1e-6), "keyphasor_delay_std_s"),
+    (dict(keyphasor_delay_std_s="2 us"), "keyphasor_delay_std_s"),
+    (dict(keyphasor_delay_std_s=2.0), "45 degrees or more.*unit error"),
+    (dict(keyphasor_angle_std_deg=[1.0, 2.0, 3.0]), "one per speed"),
+    (dict(keyphasor_angle_std_deg=float("nan")), "keyphasor_angle_std_deg"),
+    (dict(keyphasor_angle_std_deg=50.0), "below 45"),
+])
+def test_phase_reference_uncertainty_bad_inputs(kw, match):
+    rig, runs = _nsf_runs(np.array([3000.0, 6000.0]))
+    with pytest.raises(RotoridError, match=match):
+        rotorid.identify_synchronous(rig.rotor, runs, **kw)

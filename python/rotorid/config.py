@@ -917,6 +917,8 @@ class ImbalanceSection(_Model):
     max_rel_std: _number(gt=0) = 0.1
     estimator: _choice("ls", "bias-corrected") = "ls"
     phase_calibration: _choice("off", "report", "apply") = "report"
+    keyphasor_angle_std_deg: _number(ge=0, lt=45) = 0.0
+    keyphasor_delay_std_s: NonNeg = 0.0
     table: Optional[OneXTable] = None
 
     @model_validator(mode="after")

@@ -413,7 +413,8 @@ def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", ide
                          cond_max: float = COND_MAX, min_rel_amplitude: float = MIN_REL_AMPLITUDE,
                          max_rel_std: float = MAX_REL_STD, estimator: str = "ls",
                          shared_cov=None, accel_gain_std: float = 0.0,
-                         accel_phase_std_deg: float = 0.0) -> Identification:
+                         accel_phase_std_deg: float = 0.0, keyphasor_angle_std_deg=0.0,
+                         keyphasor_delay_std_s: float = 0.0) -> Identification:
     """Synchronous K and C of both bearings at every speed from two or more imbalance runs.
 
     ``runs``: list (or dict name -> run) of SyncResponse, each with its added ``imbalance`` and the
@@ -448,6 +449,17 @@ def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", ide
     the measurement propagation (one core call; without measurement covariances J is formed for
     it alone). The pedestal-compensated coefficients depend strongly on it (docs/pedestals.md).
 
+    ``keyphasor_angle_std_deg`` (a number, or one per speed) and ``keyphasor_delay_std_s``: the
+    uncertainty of the phase reference, a phase error common to every run and channel at a speed,
+    alpha(Omega) = theta + Omega tau (the keyphasor's mark angle known to within theta, its trigger
+    timing or the probe channels' delays to within tau). It leaves no residual, so nothing else in
+    the data reveals it, and damping is very sensitive to it: on the NSF rig a delay of 2.3 µs
+    moves Cxx1 by 7.7 % at 6,000 rpm. The identification is repeated with every run's vectors
+    (and pedestal motion) turned by e^{±j epsilon}; the central difference g = d(K, C)/d alpha
+    adds sigma_alpha² g gᵀ to the covariance and the standard errors (``std_source`` then ends in
+    "+ phase reference"). The imbalance chain sets the delay from the keyphasor's timing when
+    the pulse shape makes it ambiguous (``Keyphasor.timing_std_s``).
+
     ``estimator``: "ls" (least squares, as the report) or "bias-corrected": least squares less its
     second-order errors-in-variables bias, estimated from the measurement covariance (sigma points
     through the estimator; see :mod:`rotorid.uncertainty`). It removes the attenuation bias that
@@ -471,6 +483,7 @@ def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", ide
     check_imbalance_independence(rotor, [r.imbalance for r in runs], labels, identical=identical)
     rpm = runs[0].speed_rpm
     _check_same_axis("speed_rpm", [r.speed_rpm for r in runs], labels, "runs", "speeds", "interpolate the 1X vectors first")
+    phase_std = _phase_reference_std(rpm, keyphasor_angle_std_deg, keyphasor_delay_std_s)
     e = np.array([r.imbalance._generalized(rotor) for r in runs])  # (R, 4), scaled by Omega^2 below
     if _has_pedestal(runs, labels):
         qs, qps, covs, dofs, flags = _pedestal_inputs(rotor, runs, labels, "speed_rpm", rpm)
@@ -479,7 +492,8 @@ def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", ide
         return _solve(rotor, "speed_rpm", rpm, om, om, qs, e, None, None, identical=identical, method=method,
                       labels=labels, cond_max=cond_max, min_rel_amplitude=min_rel_amplitude, what="responses",
                       covs=covs, dofs=dofs, max_rel_std=max_rel_std, estimator=estimator, extra_flags=flags,
-                      q_ped=qps, shared_cov=_shared(rotor, runs, shared_cov, size=16), calibration=cal)
+                      q_ped=qps, shared_cov=_shared(rotor, runs, shared_cov, size=16), calibration=cal,
+                      phase_std=phase_std)
     _no_calibration(accel_gain_std, accel_phase_std_deg)
     at_b, planes = _for_the_core(rotor, runs, may_use_planes=shared_cov is None)
     qs = [np.ascontiguousarray(r.q, dtype=complex) for r in at_b]  # the runs as they are: no copy, no stack
@@ -491,7 +505,49 @@ def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", ide
     return _solve(rotor, "speed_rpm", rpm, rpm, None, qs, e, None, None, identical=identical, method=method,
                   labels=labels, cond_max=cond_max, min_rel_amplitude=min_rel_amplitude, what="responses",
                   covs=covs, dofs=None if covs is None else _run_dofs(at_b), max_rel_std=max_rel_std,
-                  estimator=estimator, shared_cov=_shared(rotor, runs, shared_cov), planes=planes, w_scale=RPM)
+                  estimator=estimator, shared_cov=_shared(rotor, runs, shared_cov), planes=planes, w_scale=RPM,
+                  phase_std=phase_std)
+
+
+def _phase_reference_std(rpm, angle_std_deg, delay_std_s):
+    """(n,) standard uncertainty of the phase reference at each speed (rad), sqrt(theta² + (Omega
+    tau)²), or None when both are zero (the defaults: no pass over the speeds)."""
+    if type(delay_std_s) is float and delay_std_s == 0.0 and type(angle_std_deg) is float and angle_std_deg == 0.0:
+        return None
+    from ._validate import number
+
+    tau = number("keyphasor_delay_std_s", delay_std_s, nonneg=True)
+    theta = real_array("keyphasor_angle_std_deg", angle_std_deg, nonneg=True)
+    if theta.ndim > 1 or theta.size not in (1, rpm.size):
+        raise RotoridError(f"keyphasor_angle_std_deg must be a number or one per speed ({rpm.size}), got shape "
+                           f"{theta.shape}")
+    if np.any(theta >= 45.0):
+        raise RotoridError(f"keyphasor_angle_std_deg must be below 45 degrees, got {float(np.max(theta)):g}")
+    if tau * float(np.max(rpm)) * RPM >= np.pi / 4:
+        raise RotoridError(f"keyphasor_delay_std_s = {tau:g} s is 45 degrees or more of a revolution at "
+                           f"{float(np.max(rpm)):g} rpm: a phase reference that uncertain identifies nothing (a unit "
+                           "error? the delay is in seconds)")
+    std = np.hypot(np.deg2rad(theta), tau * rpm * RPM)
+    return std if np.any(std > 0) else None
+
+
+#: the phase step of the central differences of the phase reference (rad; the estimate is smooth in it)
+_PHASE_STEP = 1e-4
+
+
+def _phase_derivative(rotor, w, spin, qs, e_core, gain, sigma, *, identical, method, q_ped, planes, w_scale):
+    """d(k, c)/d alpha at every point, (n, 2, 2, 2) each: the identification repeated with every
+    run's vectors (and pedestal motion, which shares the keyphasor) turned by e^{±j epsilon}."""
+    out = []
+    for sign in (1.0, -1.0):
+        turn = np.exp(1j * sign * _PHASE_STEP)
+        k, c, *_ = _core.identify(rotor.core_params(), np.ascontiguousarray(w), spin, [q * turn for q in qs], e_core,
+                                  gain, identical=identical, method=method, with_std=False, sigma=sigma,
+                                  q_ped=None if q_ped is None else [p * turn for p in q_ped], planes=planes,
+                                  w_scale=w_scale, flag_limits=None)
+        out.append((k[0], c[0]))
+    (kp, cp), (km, cm) = out
+    return (kp - km) / (2 * _PHASE_STEP), (cp - cm) / (2 * _PHASE_STEP)
 
 
 #: pedestal motion above this multiple of the relative motion: a point is flagged (and warned about)
@@ -807,7 +863,8 @@ def _misfit_ratio(ks_res, cs_res, ks_meas, cs_meas, n):
 
 def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, method, labels, cond_max,
            min_rel_amplitude, what, covs=None, dofs=None, max_rel_std=MAX_REL_STD, extra_flags=None,
-           estimator="ls", shared_cov=None, q_ped=None, calibration=None, planes=None, w_scale=None, e_core=None):
+           estimator="ls", shared_cov=None, q_ped=None, calibration=None, planes=None, w_scale=None, e_core=None,
+           phase_std=None):
     """One core call for the whole axis, uncertainty, then flags; shared by both methods.
     ``e``: the (R, 4) excitations; ``e_core``: the same as the core takes them
     (:func:`_core_excitations`) when the caller has them at hand, else None.
@@ -816,7 +873,8 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
     ``w_scale``: ``w`` is given in the axis' unit and is w_scale times that in rad/s (formed by
     the core: no (n,) temporary). ``spin`` None: the spin speed is w (synchronous runs).
     ``calibration``: the accelerometers' calibration uncertainty (:func:`_calibration_inputs`),
-    added by the core's propagation."""
+    added by the core's propagation. ``phase_std``: (n,) uncertainty of the phase reference (rad,
+    :func:`_phase_reference_std`) or None."""
     assert planes is None or (covs is None and calibration is None and q_ped is None)
     cond_max = _check_threshold("cond_max", cond_max, 1.0)
     min_rel_amplitude = _check_threshold("min_rel_amplitude", min_rel_amplitude, -1e-300, 1.0)
@@ -831,11 +889,12 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
     redundant = nruns * (2 if identical else 1) > 2
     # the flags come from the same call unless the standard errors change below (propagated
     # covariance, accelerometer calibration)
+    e_core = _core_excitations(e) if e_core is None else e_core
     k, c, cond, resid, amp, ks, cs, rel_std, code, rel_amp, ok, nbad = _core.identify(
-        rotor.core_params(), np.ascontiguousarray(w), spin, list(qs), _core_excitations(e) if e_core is None else e_core,
+        rotor.core_params(), np.ascontiguousarray(w), spin, list(qs), e_core,
         gain, identical=identical, method=method, with_std=redundant, sigma=sigma, q_ped=q_ped, planes=planes,
-        w_scale=w_scale, flag_limits=None if covs is not None or calibration is not None else
-        (cond_max, min_rel_amplitude, max_rel_std))
+        w_scale=w_scale, flag_limits=None if covs is not None or calibration is not None or phase_std is not None
+        else (cond_max, min_rel_amplitude, max_rel_std))
     if nbad:
         qs = np.stack(qs)
         if q_ped is not None and not np.isfinite(np.stack(q_ped)).all():
@@ -923,6 +982,19 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
     if calibration is not None and source != "none":
         rel_std = None
         source = f"{source} + accelerometer calibration"
+    if phase_std is not None and source != "none":
+        # the phase reference: one direction common to every run and channel, sigma_alpha² g gᵀ
+        dk, dc = _phase_derivative(rotor, w, spin, qs, e_core, gain, sigma, identical=identical, method=method,
+                                   q_ped=q_ped, planes=planes, w_scale=w_scale)
+        s4 = phase_std[:, None, None, None]
+        ks, cs = np.sqrt(ks ** 2 + (s4 * dk) ** 2), np.sqrt(cs ** 2 + (s4 * dc) ** 2)
+        if cov is not None:
+            from .uncertainty import _report_order
+
+            g = _report_order(dk, dc) * phase_std[:, None]
+            cov = cov + g[:, :, None] * g[:, None, :]
+        rel_std = None
+        source = f"{source} + phase reference"
     return _finish(axis_name, axis, amp[0], k[0], c[0], cond[0], resid[0], ks, cs, cond_max, min_rel_amplitude,
                    method, labels, source, dof, cov, max_rel_std, extra_flags, ks_res, cs_res, bias_k, bias_c,
                    estimator, rel_std, std_known, flags=None if code is None else (code[0], rel_amp[0], ok[0]))

@@ -41,6 +41,28 @@ class PhaseCalibration:
     n_speeds: int
     significant: bool
     message: str
+    offset_delay_corr: float = 0.0
+
+    def phase_std_deg(self, speed_rpm):
+        """Standard uncertainty of the calibrated phase reference at each speed (deg), from the
+        estimate's covariance: sqrt(s_theta² + Omega² s_tau² - 2 Omega r s_theta s_tau), with r the
+        correlation of the two estimates. It stays in the coefficients' uncertainty once the
+        calibration is applied (``keyphasor_angle_std_deg`` of :func:`rotorid.identify_synchronous`).
+
+        Examples
+        --------
+        >>> from rotorid.phasecal import PhaseCalibration
+        >>> cal = PhaseCalibration(0.5, 0.1, 10e-6, 0.0, 1.0, 8, True, "")
+        >>> round(float(cal.phase_std_deg([3000.0])[0]), 3)
+        0.1
+        """
+        from ._validate import real_array
+
+        om = np.atleast_1d(real_array("speed_rpm", speed_rpm, positive=True)) * RPM
+        s_th, s_tau = np.deg2rad(self.offset_std_deg), self.delay_std_s
+        # phase = theta - Omega tau: the covariance term enters with a minus sign
+        var = s_th ** 2 + (om * s_tau) ** 2 - 2.0 * om * self.offset_delay_corr * s_th * s_tau
+        return np.rad2deg(np.sqrt(np.clip(var, 0.0, None)))
 
     def apply(self, runs):
         """The runs corrected (each SyncResponse's q multiplied by e^{-j(theta - Omega tau)})."""
@@ -220,5 +242,6 @@ def calibrate_phase(rotor, runs, *, delay: bool = True, offset: bool = True, deg
     if sig:
         msg += "; significant: correct the keyphasor mark angle / channel delays, or apply this calibration"
         warnings.warn(msg)
+    corr = float(cov[0, 1] / (sd[0] * sd[1])) if offset and delay and sd[0] > 0 and sd[1] > 0 else 0.0
     return PhaseCalibration(float(np.rad2deg(th)), float(np.rad2deg(th_sd)), float(tau), tau_sd, chi2, n, bool(sig),
-                            msg)
+                            msg, corr)

@@ -198,7 +198,10 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
         are ignored. None (default): an error if any run carries accelerometer channels, so they
         are never silently ignored.
     **ident_kw
-        Passed to :func:`rotorid.identify_synchronous` (identical, cond_max, min_rel_amplitude).
+        Passed to :func:`rotorid.identify_synchronous` (identical, cond_max, min_rel_amplitude,
+        keyphasor_angle_std_deg, keyphasor_delay_std_s, ...). Where a keyphasor's pulse shape
+        leaves its timing ambiguous (``Keyphasor.timing_std_s``, the largest over the runs and the
+        baseline), that is added to ``keyphasor_delay_std_s`` (root sum of squares) and noted.
     """
     from ._validate import flag, number, real_array
 
@@ -344,6 +347,18 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
         own = all(r.cov is not None and (not ped or r.pedestal_cov is not None) for r in responses)
         if np.all(np.isfinite(shared)) and own:
             ident_kw = dict(ident_kw, shared_cov=shared)
+    kps = [k for t in tracks + ([bt] if baseline is not None else []) for k in t.keyphasors]
+    shape_std = max((k.timing_std_s for k in kps), default=0.0)
+    if shape_std > 0:
+        # pulses whose mid-height the shape leaves ambiguous: their timing is uncertain by as much,
+        # a delay common to every run (the same sensor), added to the phase reference's uncertainty
+        from ._validate import number
+
+        stated = number("keyphasor_delay_std_s", ident_kw.get("keyphasor_delay_std_s", 0.0), nonneg=True)
+        ident_kw = dict(ident_kw, keyphasor_delay_std_s=float(np.hypot(stated, shape_std)))
+        notes.append(f"keyphasor timing depends on the pulse shape by {shape_std * 1e6:.3g} µs: counted in the "
+                     "uncertainty as a delay of the phase reference (a phase calibration, or a trigger level of "
+                     "your own, takes it out)")
     ident = identify_synchronous(rotor, responses, method=method, **ident_kw)
     return ImbalanceChainResult(responses, tracks, ident, notes, ident_kw.get("shared_cov"),
                                 None if sr is None else np.asarray(sr[0]))
@@ -960,6 +975,8 @@ def _run_config(path, kind, *, out_dir, log, overwrite, plots, report, seen, lin
     if kind == "imbalance":
         ident_kw = dict(identical=sec.identical, cond_max=sec.cond_max, min_rel_amplitude=sec.min_rel_amplitude,
                         max_rel_std=sec.max_rel_std, estimator=sec.estimator, **cal_kw)
+        phase_ref = dict(keyphasor_angle_std_deg=float(sec.keyphasor_angle_std_deg),
+                         keyphasor_delay_std_s=float(sec.keyphasor_delay_std_s))
         if sec.table is not None:
             runs = [_load_table(cfg, r, r.name) for r in sec.runs]
             base = _load_table(cfg, sec.baseline, "baseline") if sec.baseline is not None else None
@@ -977,7 +994,7 @@ def _run_config(path, kind, *, out_dir, log, overwrite, plots, report, seen, lin
         res = imbalance_chain(rotor, runs, baseline=base, slow_roll=slow,
                               speeds_rpm=None if sec.speeds_rpm is None else list(sec.speeds_rpm), steady=sec.steady,
                               imbalances=imbs, orders=tuple(sec.orders), method=sec.method,
-                              pedestal_motion=pedestal_motion, **chain_kw, **ident_kw)
+                              pedestal_motion=pedestal_motion, **chain_kw, **ident_kw, **phase_ref)
         ident = res.identification
         responses = res.responses
         if sec.phase_calibration != "off":
@@ -992,11 +1009,13 @@ def _run_config(path, kind, *, out_dir, log, overwrite, plots, report, seen, lin
                 if sec.phase_calibration == "apply":
                     # the corrected vectors serve everything downstream: the identification (with the
                     # baseline's shared covariance, which a common phase turn leaves as it is to first
-                    # order), the pedestal fit and the written tables
+                    # order), the pedestal fit and the written tables. The calibration's own
+                    # uncertainty replaces the stated and the keyphasor's (it estimated both)
                     responses = cal.apply(res.responses)
                     ident = identify_synchronous(rotor, responses, method=sec.method, shared_cov=res.shared_cov,
+                                                 keyphasor_angle_std_deg=cal.phase_std_deg(responses[0].speed_rpm),
                                                  **ident_kw)
-                    log("  phase calibration applied to the 1X vectors")
+                    log("  phase calibration applied to the 1X vectors (its uncertainty in the error bars)")
         for i, r in enumerate(responses):
             stem = f"sync_vectors_{i}_{_safe(r.name)}"
             write_csv(conv.sync_table(r), f"{stem}.csv", float_format="%.6g")

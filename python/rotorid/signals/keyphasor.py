@@ -67,6 +67,11 @@ class Keyphasor:
     differences of the times, so it includes genuine speed fluctuation); ``rise_samples``: the
     10-90 % edge duration; ``refined``: whether the equivalent-time refinement was used;
     ``note``: anything a user should know about the timing (empty when all is well).
+    ``timing_std_s``: how much the timing depends on the pulse shape (s), where the shape leaves
+    the edge's mid-height ambiguous (pulses without a flat top, or too short to settle): the
+    difference between the two mid-heights in the note, taken as the standard uncertainty of a
+    delay common to every pulse (0 where the pulses settle on a flat top, or with a ``level``).
+    The imbalance chain adds it to the coefficients' uncertainty (``keyphasor_delay_std_s``).
     """
 
     times: np.ndarray
@@ -81,6 +86,7 @@ class Keyphasor:
     refined: bool = False
     note: str = ""
     mark_angle_deg: float = 0.0
+    timing_std_s: float = 0.0
 
     @classmethod
     def from_times(cls, times, *, mark_angle_deg: float = 0.0, delay_s: float = 0.0, source: str = "") -> "Keyphasor":
@@ -365,6 +371,7 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
     rest, pulse = state_levels(x, where=where, pulse_side=side)
     duty = float(np.mean(np.abs(x - pulse) < np.abs(x - rest)))
     ambiguous, unsettled, hump = "", "", ""
+    shape_shift = 0.0  # samples: how much the timing depends on the pulse shape
     if edge == "auto":
         if duty > 0.4:
             # a square-ish wave: which state is "resting" is a matter of noise; time the rising edge
@@ -396,6 +403,11 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
     half = int(min(full, 256, max(0.4 * (per_samples - width) - 8, 3)))      # before the edge
     post = int(min(full, 256, max(0.4 * width, 2)))                          # after it
     base = _local_base(w, k, half, lev, lo) if level is None else np.full(k.size, lo)
+
+    def times_at(level):
+        at = _last_below_each(w, rises, level, int(full) + 2, k)
+        return at + _linear_crossing(w, at, level)
+
     if level is None:
         # the swing from the pulses themselves (top after the edge less the base before it): with a
         # drifting offset the histogram modes sit at the drift's extremes and would misjudge it
@@ -410,11 +422,8 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
                 # no flat top (a Gaussian-like hump, or an edge still rising when the pulse ends): the
                 # middle of the pulse is no state, its median sits below the top and moves mid-height
                 # down the edge (timed 0.03-0.15 samples early); half the peak is the level then
-                def times_at(level):
-                    at = _last_below_each(w, rises, level, int(full) + 2, k)
-                    return at + _linear_crossing(w, at, level)
-
                 shift = float(np.median(times_at(base + 0.5 * peak_swing) - times_at(base + 0.5 * flat_swing)))
+                shape_shift = abs(shift)
                 swing = peak_swing
                 hump = (f"the pulses have no flat top (their middle stays {100 * (1 - flat_swing / peak_swing):.1f} % "
                         f"below their peak): mid-height is taken at half the peak; a level at half their middle "
@@ -423,8 +432,13 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
             else:
                 swing = flat_swing
         if ok.mean() < 0.5:
+            # half of each pulse's own peak would time them otherwise: the shape dependence
+            peak = float(np.median(_local_peak(w, k, base, width) - base))
+            alt = float(np.median(times_at(base + 0.5 * min(peak, swing)) - times_at(base + 0.5 * swing)))
+            shape_shift = max(shape_shift, abs(alt))
             unsettled = ("most pulses are too short to settle at their upper state: mid-height is taken between the "
-                         "histogram states, and the timing depends on the pulse shape")
+                         f"histogram states, and the timing depends on the pulse shape (by {abs(alt):.3f} samples "
+                         "between half the states and half the pulses' peak)")
         # with the local base the mid-height moves with any offset drift: find the straddling pair again
         k = _last_below_each(w, rises, base + 0.5 * swing, int(full) + 2, k)
     mid = base + 0.5 * swing if level is None else np.full(k.size, lev)
@@ -449,7 +463,7 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
         warnings.warn(f"keyphasor{where}: {sum(c for _, c in missing)} missing pulse(s) after t = "
                       f"{[round(m[0], 6) for m in missing[:5]]} s ({what})")
     return Keyphasor(times, extra, missing, sgn * lev, hys, (rest, pulse), edge, _jitter(t), rise, refined, note,
-                     float(mark_angle_deg))
+                     float(mark_angle_deg), shape_shift / fs_hz)
 
 
 def _last_below_each(w, rises, levels, reach, fallback):
