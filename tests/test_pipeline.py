@@ -415,3 +415,21 @@ def test_cli_states_a_phase_reference_uncertainty_in_the_error_bars(tmp_path):
     (d / "bad.toml").write_text(text.replace("[imbalance]\n", "[imbalance]\nkeyphasor_delay_std_s = -1\n", 1))
     assert cli.main(["identify", "imbalance", str(d / "bad.toml")]) == 1
 
+
+def test_a_sample_rate_in_the_wrong_unit_is_refused_not_fitted(imbalance_records):
+    """fs given in kHz (10 instead of 10,000): the keyphasor then gives 3-6 rpm, and the runs
+    describe a similar rotor with coefficients a million times too small, every point ok (found
+    by an independent simulator). Such runs are refused, naming the run, its file and the fix."""
+    rotor, brg, runs, base, slow = imbalance_records
+    khz = [Recording(r.fs_hz / 1000.0, r.channels, r.meta, source="run_S0.csv") for r in runs]
+    with pytest.raises(RotoridError, match=r"run 0 \(run_S0.csv\): its fastest speed is 6 rpm at a sample rate of "
+                                           r"10 Hz: is the sample rate in Hz\?"):
+        pipeline.imbalance_chain(rotor, khz, baseline=base)
+    with pytest.raises(RotoridError, match=r"baseline.*fastest speed is 6 rpm"):
+        pipeline.imbalance_chain(rotor, runs, baseline=Recording(base.fs_hz / 1000.0, base.channels, base.meta))
+    # a 1X table whose speeds are all below 60 rpm (speeds of 25-50 here)
+    tracks = [signals.track(r) for r in runs[:2]]
+    slow = [signals.SyncTrack(t.speed_rpm / 120.0, t.vectors, t.orders, t.n_revs, t.scatter, t.t_mid) for t in tracks]
+    with pytest.raises(RotoridError, match=r"run 0: its fastest speed is 50 rpm in its speed column: are the speeds "
+                                           r"in rpm\?"):
+        pipeline.imbalance_chain(rotor, slow)

@@ -146,14 +146,36 @@ def _labelled(fn, label, what):
         raise RotoridError(f"{label} ({what}): {exc}") from None
 
 
+#: imbalance runs and baselines whose fastest speed is below this (rpm) are refused: an added
+#: imbalance's force m u Omega^2 is then negligible, and such speeds come from a unit error (a
+#: sample rate in kHz, a speed column in Hz) that would otherwise give a similar rotor with
+#: coefficients a million times too small and every point ok
+MIN_RUN_RPM = 60.0
+
+
+def _plausible_speeds(track, run, label):
+    """A RotoridError when a run's speeds are too slow to be an imbalance run (a unit error)."""
+    fastest = float(np.nanmax(track.speed_rpm)) if track.speed_rpm.size else float("nan")
+    if not fastest >= MIN_RUN_RPM:
+        fs = getattr(run.blocks[0] if isinstance(run, SegmentedRecording) else run, "fs_hz", None)
+        src = getattr(run, "source", "")
+        label = f"{label} ({src})" if src else label
+        how = (f"at a sample rate of {fs:g} Hz: is the sample rate in Hz? (one in kHz gives speeds 1000 times too "
+               "low)") if fs is not None else "in its speed column: are the speeds in rpm? (Hz gives 60 times too low)"
+        raise RotoridError(f"{label}: its fastest speed is {fastest:.3g} rpm {how}; imbalance runs below "
+                           f"{MIN_RUN_RPM:g} rpm give no usable imbalance force")
+    return track
+
+
 def _track_of(run, label, *, orders, steady, track_kw, keyphasor, pedestal=False):
     """A run as a SyncTrack: tracked from a (segmented) recording, or a SyncTrack already (a DAQ
     1X table, see rotorid.tables)."""
     if isinstance(run, signals.SyncTrack):
-        return run
+        return _plausible_speeds(run, run, label)
     if isinstance(run, (Recording, SegmentedRecording)):
-        return _labelled(lambda: signals.track(run, orders=orders, steady=steady, keyphasor=keyphasor,
-                                               pedestal=pedestal, **track_kw), label, "order tracking")
+        return _plausible_speeds(_labelled(lambda: signals.track(run, orders=orders, steady=steady, keyphasor=keyphasor,
+                                                                 pedestal=pedestal, **track_kw), label, "order tracking"),
+                                 run, label)
     raise RotoridError(f"{label} must be a Recording, SegmentedRecording or SyncTrack (1X table), got "
                        f"{type(run).__name__}")
 
