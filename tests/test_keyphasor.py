@@ -311,3 +311,75 @@ def test_ringing_on_a_drifting_offset_is_not_taken_for_a_hump(rpm):
     kp = signals.keyphasor_times(v, FS)
     assert "no flat top" not in kp.note
     assert abs(_errors(kp, ev).mean()) < 0.005
+
+
+def _pulses(kind, rpm, fs, frac, seconds=3.0, seed=0):
+    """Pulses of ``kind`` ("triangle": rising linearly over frac of a revolution and falling as
+    long; "narrow": a rectangle frac of a revolution wide) and their events (the triangle's half
+    height on its rising flank, the rectangle's leading edge)."""
+    t = np.arange(int(seconds * fs)) / fs
+    per = 60.0 / rpm
+    ev = 0.0123 + np.arange(int(seconds / per) - 1) * per
+    v = np.zeros_like(t)
+    width = frac * per
+    for e in ev:
+        a, b = np.searchsorted(t, [e - width, e + 2 * width])
+        u = t[a:b] - (e - width / 2)  # the triangle starts half a rise before its event
+        if kind == "triangle":
+            v[a:b] += 5.0 * np.clip(1 - np.abs(u - width) / width, 0, None)
+        else:
+            v[a:b] += 5.0 * ((t[a:b] >= e) & (t[a:b] < e + width))
+    return v + 0.01 * np.random.default_rng(seed).standard_normal(t.size), ev
+
+
+@pytest.mark.parametrize("frac", [0.08, 0.02])
+def test_triangular_pulses_are_timed_not_refused(frac):
+    """Pulses that rise to a peak and fall at once have no upper state to dwell at: they were
+    refused as "no two distinct states", even with a level given (found by an independent
+    simulator). The median of their peaks is the pulse level now; they are timed at half of it,
+    noted, and the shape's ambiguity is their timing uncertainty; with a level of the user's they
+    are timed at it."""
+    v, ev = _pulses("triangle", 3000.3, FS, frac)
+    kp = signals.keyphasor_times(v, FS)
+    assert kp.times.size == ev.size and abs(_errors(kp, ev).mean()) < 0.2
+    assert "no flat top" in kp.note and kp.timing_std_s * FS > abs(_errors(kp, ev).mean())
+    mine = signals.keyphasor_times(v, FS, level=2.5)
+    assert abs(_errors(mine, ev).mean()) < 0.01 and mine.timing_std_s == 0.0
+
+
+@pytest.mark.parametrize("make", [
+    lambda rng, t: rng.standard_normal(t.size),                                  # noise
+    lambda rng, t: 3 + 0.1 * rng.standard_normal(t.size),                        # noise on an offset
+    lambda rng, t: np.sin(2 * np.pi * 50 * t) + 0.3 * rng.standard_normal(t.size),  # a noisy 1X signal
+    lambda rng, t: rng.standard_normal(t.size) ** 3,                             # spiky noise
+    lambda rng, t: _pulses("triangle", 3000.3, FS, 0.05)[0] - _pulses("triangle", 3000.3, FS, 0.05, seed=2)[0][
+        np.arange(t.size) - 100],                                                # triangles both ways
+    lambda rng, t: _pulses("triangle", 3000.3, FS, 0.3)[0],                      # a triangle wave, not pulses
+], ids=["noise", "offset", "noisy-1X", "spiky", "bipolar", "triangle-wave"])
+def test_noise_is_not_taken_for_a_train_of_peaked_pulses(make):
+    t = np.arange(30000) / FS
+    with pytest.raises(RotoridError, match="no two distinct states.*no train of like pulses"):
+        signals.keyphasor_times(make(np.random.default_rng(1), t), FS)
+
+
+def test_pulses_narrower_than_a_sample_are_noted_and_their_timing_uncertain():
+    """Pulses a third of a sample wide at 5 kHz: only the pulses a sample happens to fall in are
+    seen. Before, 50 of 149 were timed 0.25 samples early without a note and the rest of the
+    record silently went unused, or the gaps were reported as a speed jump at half speed."""
+    fs = 5000.0
+    v, ev = _pulses("narrow", 3000.3, fs, 0.0033)
+    with pytest.warns(UserWarning, match=r"pulses only from t = 1.0[0-9]* to 1.6[0-9]* s of the record's 0 to 3 s"):
+        kp = signals.keyphasor_times(v, fs)
+    assert "sample(s) wide: their edges fall between samples" in kp.note
+    assert kp.timing_std_s == pytest.approx(1 / np.sqrt(3) / fs)
+    e = _errors(kp, ev)  # measured -0.98 to -0.33 samples
+    assert np.all(np.abs(e) < 1.0) and abs(e.mean()) < 1.5 * kp.timing_std_s * fs
+    v, ev = _pulses("narrow", 2713.3, fs, 0.005)
+    with pytest.raises(RotoridError, match=r"running median period.*sampling misses some of them: record the "
+                                           r"keyphasor at a higher rate"):
+        signals.keyphasor_times(v, fs)
+    # pulses 2 samples wide are not narrow
+    v, ev = _pulses("narrow", 3000.3, FS, 0.02)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert signals.keyphasor_times(v, FS).timing_std_s == 0.0

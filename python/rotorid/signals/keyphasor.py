@@ -208,10 +208,19 @@ def state_levels(v, *, where: str = "", pulse_side: str | None = None) -> tuple:
     lo_i, hi_i = sorted((r, p))
     mid_band = h[lo_i + (hi_i - lo_i) * 2 // 5: lo_i + (hi_i - lo_i) * 3 // 5 + 1]
     near_pulse = h[max(p - 3, 0): p + 4]
-    if not (near_pulse.max() >= 2 and mid_band.mean() < 0.5 * near_pulse.max()):
-        raise KeyphasorError(f"no keyphasor pulses{where}: the channel shows no two distinct states (resting near "
-                             f"{rest:.4g}, no second level it dwells at; noise or an analog signal?)")
     other = dn if pside is up else up
+    if not (near_pulse.max() >= 2 and mid_band.mean() < 0.5 * near_pulse.max()):
+        peak = _peaked_pulses(v, rest, h[pside].sum(), h[other].sum(), 1.0 if pside is up else -1.0)
+        if peak is None:
+            raise KeyphasorError(f"no keyphasor pulses{where}: the channel shows no two distinct states (resting near "
+                                 f"{rest:.4g}, no second level it dwells at, and no train of like pulses on one side "
+                                 "of it; noise or an analog signal?)")
+        # pulses that rise to a peak and fall (triangles, narrow humps) have no state to dwell at:
+        # the median of their peaks is the pulse level (the detection then times them at half of it)
+        swing = abs(peak - rest)
+        near_rest = v[np.abs(v - rest) <= 0.06 * swing]
+        noise = 1.4826 * np.median(np.abs(near_rest - np.median(near_rest))) if near_rest.size else 0.0
+        return _fine_mode(v, rest, swing, noise), peak
     if pulse_side is None and other.any() and h[other].sum() >= 0.25 * h[pside].sum() and \
             h[other].max() >= 0.5 * near_pulse.max():
         o = int(np.flatnonzero(other)[np.argmax(h[other])])
@@ -226,6 +235,32 @@ def state_levels(v, *, where: str = "", pulse_side: str | None = None) -> tuple:
     rest = _fine_mode(v, rest, swing, noise)
     pulse = _fine_mode(v, pulse, swing, noise)
     return rest, pulse
+
+
+def _peaked_pulses(v, rest, n_side, n_other, sgn):
+    """The median peak of a train of pulses without a flat top, or None when the samples away from
+    ``rest`` are not such a train. ``n_side``, ``n_other``: samples beyond 35 % of the range on the
+    pulses' side and on the other; ``sgn``: +1 for pulses above the rest. A train: excursions on one
+    side only (noise leaves the rest both ways alike), filling under a quarter of the record (not an
+    analog signal's half waves), at least three of them, their peaks within 10 % of each other
+    (noise spikes reach any height)."""
+    if n_other > 0.05 * n_side:
+        return None
+    w = sgn * (v - rest)
+    top = float(w.max())
+    above = w > 0.5 * top
+    if above.mean() >= 0.25:
+        return None
+    edges = np.flatnonzero(np.diff(above.astype(np.int8)))
+    starts = edges[::2] + 1 if above[0] == 0 else np.r_[0, edges[1::2] + 1]
+    ends = np.r_[edges[1::2] + 1, v.size] if above[0] == 0 else np.r_[edges[::2] + 1, v.size]
+    n = min(starts.size, ends.size)
+    if n < 3:
+        return None
+    peaks = np.maximum.reduceat(w, starts[:n])
+    if np.subtract(*np.percentile(peaks, [75, 25])) > 0.1 * np.median(peaks):
+        return None
+    return float(rest + sgn * np.median(peaks))
 
 
 def _fine_mode(v, centre, swing, noise):
@@ -452,9 +487,33 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
         t_samples, refined, note = _refine(w, t_samples, base, swing, half, post, rise <= 1.5)
         if smooth and not refined:
             note = ""  # a smooth edge timed by the cubic: the residual interpolation error is small
-    note = "; ".join(x for x in (ambiguous, unsettled, hump, note) if x)
+    narrow = ""
+    # samples in the pulse state per pulse found (not duty x period: a period counts the pulses the
+    # sampling missed too)
+    seen = duty * w.size / rises.size
+    if seen < NARROW_SAMPLES:
+        # a pulse this narrow is seen in one or two samples: its edge lies anywhere within a sample
+        # of where it is timed (measured: errors of -0.98 to -0.33 samples for pulses a third of a
+        # sample wide), a standard uncertainty of 1/sqrt(3) sample (uniform over +-1 sample); some
+        # pulses may not be sampled at all
+        shape_shift = max(shape_shift, 1.0 / np.sqrt(3.0))
+        narrow = (f"the pulses are only {seen:.2g} sample(s) wide: their edges fall between samples and are timed only to "
+                  "within a sample (record the keyphasor at a higher rate, or widen the mark)")
+    note = "; ".join(x for x in (ambiguous, unsettled, hump, narrow, note) if x)
     t = t0_s + t_samples / fs_hz
-    t, extra, missing = _plausible(t, tolerance, fill_missing, where, max_speed_step)
+    span_s = (t0_s, t0_s + (w.size - 1) / fs_hz)
+    try:
+        t, extra, missing = _plausible(t, tolerance, fill_missing, where, max_speed_step)
+    except KeyphasorError as exc:
+        if not narrow:
+            raise
+        raise KeyphasorError(f"{exc}. The pulses are only {seen:.2g} sample(s) wide, so the sampling misses some of "
+                             "them: record the keyphasor at a higher rate, or widen the mark") from None
+    period = float(np.median(np.diff(t))) if t.size > 1 else np.inf
+    if t.size > 1 and (t[0] - span_s[0] > UNUSED_PERIODS * period or span_s[1] - t[-1] > UNUSED_PERIODS * period):
+        warnings.warn(f"keyphasor{where}: pulses only from t = {t[0]:.4g} to {t[-1]:.4g} s of the record's "
+                      f"{span_s[0]:.4g} to {span_s[1]:.4g} s: the rest of the record has no revolutions to analyse "
+                      f"(the keyphasor stopped, or pulses {seen:.2g} sample(s) wide fell between samples)")
     times = _to_angle_zero(t, mark_angle_deg, delay_s)
     if extra.size:
         warnings.warn(f"keyphasor{where}: dropped {extra.size} extra pulse(s) at t = {np.round(extra[:5], 6)} s")
@@ -464,6 +523,13 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
                       f"{[round(m[0], 6) for m in missing[:5]]} s ({what})")
     return Keyphasor(times, extra, missing, sgn * lev, hys, (rest, pulse), edge, _jitter(t), rise, refined, note,
                      float(mark_angle_deg), shape_shift / fs_hz)
+
+
+#: pulses narrower than this (samples above mid-height) are timed only to within a sample
+NARROW_SAMPLES = 1.5
+#: a record whose first pulse comes later, or last pulse earlier, than this many periods from its
+#: ends is warned about (the revolutions there are not analysed)
+UNUSED_PERIODS = 2.5
 
 
 def _last_below_each(w, rises, levels, reach, fallback):
