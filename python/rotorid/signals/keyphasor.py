@@ -209,12 +209,24 @@ def state_levels(v, *, where: str = "", pulse_side: str | None = None) -> tuple:
     mid_band = h[lo_i + (hi_i - lo_i) * 2 // 5: lo_i + (hi_i - lo_i) * 3 // 5 + 1]
     near_pulse = h[max(p - 3, 0): p + 4]
     other = dn if pside is up else up
-    if not (near_pulse.max() >= 2 and mid_band.mean() < 0.5 * near_pulse.max()):
+    two_states = near_pulse.max() >= 2 and mid_band.mean() < 0.5 * near_pulse.max()
+    peak = None
+    if two_states:
+        # a state is a level the pulses dwell at. Pulses without one, sampled at the same phases
+        # every revolution (a speed commensurate with the sample rate), pile their samples into
+        # modes too, about one sample per pulse each: such a mode was taken for the pulse state
+        # (a hump's flank at 37 % of its peak, timed 0.27 samples early at exactly 6,000 rpm)
+        inside = ((v > 0.5 * (rest + pulse)) == (pulse > rest)).astype(np.int8)
+        crossings = np.count_nonzero(np.diff(inside) == 1)
+        if near_pulse.sum() < DWELL_SAMPLES * max(crossings, 1):
+            peak = _peaked_pulses(v, rest, h[pside].sum(), h[other].sum(), 1.0 if pside is up else -1.0)
+    else:
         peak = _peaked_pulses(v, rest, h[pside].sum(), h[other].sum(), 1.0 if pside is up else -1.0)
         if peak is None:
             raise KeyphasorError(f"no keyphasor pulses{where}: the channel shows no two distinct states (resting near "
                                  f"{rest:.4g}, no second level it dwells at, and no train of like pulses on one side "
                                  "of it; noise or an analog signal?)")
+    if peak is not None:
         # pulses that rise to a peak and fall (triangles, narrow humps) have no state to dwell at:
         # the median of their peaks is the pulse level (the detection then times them at half of it)
         swing = abs(peak - rest)
@@ -235,6 +247,10 @@ def state_levels(v, *, where: str = "", pulse_side: str | None = None) -> tuple:
     rest = _fine_mode(v, rest, swing, noise)
     pulse = _fine_mode(v, pulse, swing, noise)
     return rest, pulse
+
+
+#: samples per pulse below which a histogram mode is no state the pulses dwell at
+DWELL_SAMPLES = 2.5
 
 
 def _peaked_pulses(v, rest, n_side, n_other, sgn):
