@@ -283,7 +283,7 @@ def _humps(rpm, sigma_samples, n_pulses=600, fs=FS):
 # too coarse for the parabola, which is then not trusted (it would overshoot a corner)
 # exactly 6,000 and 5,000 rpm at 10 kHz: every pulse sampled at the same phases, whose samples
 # pile into histogram modes; one such mode on the flank was taken for the pulse state (timed
-# -0.27 samples, no note) until a state had to hold 2.5 samples per pulse
+# -0.27 samples, no note) until a state had to hold 3.5 samples per pulse
 @pytest.mark.parametrize("rpm, sigma, bound", [(3457.3, 1.73, 0.01), (2213.9, 2.71, 0.01), (9871.3, 1.2, 0.05),
                                                (6000.0, 1.73, 0.025), (5000.0, 2.71, 0.01)])
 def test_pulses_without_a_flat_top_are_timed_at_half_their_peak_and_noted(rpm, sigma, bound):
@@ -299,7 +299,11 @@ def test_pulses_without_a_flat_top_are_timed_at_half_their_peak_and_noted(rpm, s
     assert "no flat top" in kp.note and "samples earlier" in kp.note
     # the shape dependence the note gives is the timing uncertainty the chain propagates
     shift = float(re.search(r"time them ([0-9.]+) samples earlier", kp.note).group(1))
-    assert kp.timing_std_s * FS == pytest.approx(shift, abs=5e-4) and 0.05 < shift < 0.3
+    # (at a speed commensurate with the sample rate the apex's sampling is unknowable: a third of a
+    # sample at least, and said so)
+    stuck = 1 / np.sqrt(12) if "fall at the same phases of the sampling" in kp.note else 0.0
+    assert (stuck > 0) == (rpm in (5000.0, 6000.0))
+    assert kp.timing_std_s * FS == pytest.approx(max(shift, stuck), abs=5e-4) and 0.05 < shift < 0.3
     # with a trigger level of the user's own, the level is their convention: no shape uncertainty
     assert signals.keyphasor_times(v, FS, level=2.5).timing_std_s == 0.0
 
@@ -366,6 +370,20 @@ def test_noise_is_not_taken_for_a_train_of_peaked_pulses(make):
         signals.keyphasor_times(make(np.random.default_rng(1), t), FS)
 
 
+@pytest.mark.parametrize("rise", [1.0, 1.5, 2.0, 2.5, 3.0])
+@pytest.mark.parametrize("rpm", [2345.6, 3456.7, 6000.3, 3000.0])
+def test_steep_triangles_are_timed_within_their_stated_uncertainty(rise, rpm):
+    """Triangles rising over 1-3 samples: their sampled peaks vary with the sampling phase, and a
+    first version refused them as a train (peaks within 10 %), then took a flank's histogram
+    mode for the pulse state: 0.22-0.38 samples early with no note and no uncertainty (review).
+    Now within max(2 timing_std_s, 0.05 samples) at every speed, never silently."""
+    v, ev = _pulses("triangle", rpm, FS, rise * rpm / 60.0 / FS)
+    kp = signals.keyphasor_times(v, FS)
+    e = _errors(kp, ev)
+    assert kp.times.size >= 0.95 * ev.size
+    assert abs(e.mean()) <= max(2 * kp.timing_std_s * FS, 0.05), (e.mean(), kp.timing_std_s * FS, kp.note)
+
+
 def test_pulses_narrower_than_a_sample_are_noted_and_their_timing_uncertain():
     """Pulses a third of a sample wide at 5 kHz: only the pulses a sample happens to fall in are
     seen. Before, 50 of 149 were timed 0.25 samples early without a note and the rest of the
@@ -382,8 +400,30 @@ def test_pulses_narrower_than_a_sample_are_noted_and_their_timing_uncertain():
     with pytest.raises(RotoridError, match=r"running median period.*sampling misses some of them: record the "
                                            r"keyphasor at a higher rate"):
         signals.keyphasor_times(v, fs)
+    # Gaussian pulses of sigma 0.4 sample: the equivalent-time correction, which finds no edge to
+    # overlay in them, moved them 1.55 samples late; it does not apply to pulses this narrow now
+    v, ev = _humps(4800.37, 0.4, n_pulses=160)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        kp = signals.keyphasor_times(v, FS)
+    assert np.all(np.abs(_errors(kp, ev)) < 1.0) and kp.timing_std_s == pytest.approx(1 / np.sqrt(3) / FS)
     # pulses 2 samples wide are not narrow
     v, ev = _pulses("narrow", 3000.3, FS, 0.02)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert signals.keyphasor_times(v, FS).timing_std_s == 0.0
+
+
+def test_a_pulse_that_never_settles_nor_forms_a_train_is_refused_not_timed_at_its_tail():
+    """RC pulses of tau = 4 samples cut at 3 samples, at 61 samples per revolution: the pulse
+    reaches half its step and decays over the revolution, so its samples spread over every level
+    without dwelling anywhere (the histogram's far mode holds 3 samples per pulse). It was timed
+    16.8 samples late (at its tail) with only a "no flat top" note; now a state must hold 3.5
+    samples per pulse, and without one or a train of like peaks the channel is refused, naming
+    the fix."""
+    v, ev = _record(PulseShape("rc", 4.0), 9871.3)
+    with pytest.raises(RotoridError, match=r"holds 3 sample\(s\) per pulse, no state the pulses dwell at.*give a "
+                                           r"trigger level and edge"):
+        signals.keyphasor_times(v, FS)
+    # and with them it is timed at that level
+    assert abs(_errors(signals.keyphasor_times(v, FS, level=2.5, edge="rising"), ev).mean()) < 0.1

@@ -382,13 +382,19 @@ def test_a_keyphasor_timing_the_pulse_shape_leaves_ambiguous_widens_the_error_ba
         truth_c, truth_k = brg.c[b, i, j], brg.k[b, i, j]
         assert np.all((iv.c_lower[:, b, i, j] <= truth_c) & (truth_c <= iv.c_upper[:, b, i, j]))
         assert np.all((iv.k_lower[:, b, i, j] <= truth_k) & (truth_k <= iv.k_upper[:, b, i, j]))
-    # a delay the user states adds to it (root sum of squares), and the sum is what is propagated
+    # at each speed: Omega times the pulses' own timing uncertainty there (not one delay for all)
+    shape_deg = pipeline._keyphasor_phase_std(kps, ident.axis, 2.0)
+    expect = np.rad2deg(ident.axis * np.pi / 30 * np.array([
+        max(np.median(0.5 * (k.timing_std_each_s[1:] + k.timing_std_each_s[:-1])[np.abs(k.speed_rpm - g) <= 0.005 * g])
+            for k in kps) for g in ident.axis]))
+    np.testing.assert_allclose(shape_deg, expect, rtol=1e-12)
+    # an angle the user states adds to it (root sum of squares), and the sum is what is propagated
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         more = pipeline.imbalance_chain(rotor, humps, baseline=_with_hump_keyphasor(base),
-                                        keyphasor_delay_std_s=shape_std).identification
+                                        keyphasor_angle_std_deg=0.1).identification
     direct = rotorid.identify_synchronous(rotor, res.responses, shared_cov=res.shared_cov,
-                                         keyphasor_delay_std_s=np.sqrt(2) * shape_std)
+                                         keyphasor_angle_std_deg=np.hypot(0.1, shape_deg))
     np.testing.assert_allclose(more.c_std, direct.c_std, rtol=1e-9)
 
 

@@ -531,23 +531,22 @@ def _phase_reference_std(rpm, angle_std_deg, delay_std_s):
     return std if np.any(std > 0) else None
 
 
-#: the phase step of the central differences of the phase reference (rad; the estimate is smooth in it)
-_PHASE_STEP = 1e-4
-
-
-def _phase_derivative(rotor, w, spin, qs, e_core, gain, sigma, *, identical, method, q_ped, planes, w_scale):
-    """d(k, c)/d alpha at every point, (n, 2, 2, 2) each: the identification repeated with every
-    run's vectors (and pedestal motion, which shares the keyphasor) turned by e^{±j epsilon}."""
+def _phase_sigma_points(rotor, w, spin, qs, e_core, gain, sigma, phase_std, *, identical, method, q_ped, planes,
+                        w_scale):
+    """The identification with every run's vectors (and pedestal motion, which shares the
+    keyphasor) turned by e^{+j s} and e^{-j s}, s the phase reference's standard uncertainty at
+    each point (sigma points: exact for the linear part, and the second difference captures the
+    curvature where a coefficient hardly moves to first order). Returns ((k+, c+), (k-, c-)),
+    (n, 2, 2, 2) each."""
     out = []
     for sign in (1.0, -1.0):
-        turn = np.exp(1j * sign * _PHASE_STEP)
+        turn = np.exp(1j * sign * phase_std)[:, None]
         k, c, *_ = _core.identify(rotor.core_params(), np.ascontiguousarray(w), spin, [q * turn for q in qs], e_core,
                                   gain, identical=identical, method=method, with_std=False, sigma=sigma,
                                   q_ped=None if q_ped is None else [p * turn for p in q_ped], planes=planes,
                                   w_scale=w_scale, flag_limits=None)
         out.append((k[0], c[0]))
-    (kp, cp), (km, cm) = out
-    return (kp - km) / (2 * _PHASE_STEP), (cp - cm) / (2 * _PHASE_STEP)
+    return out
 
 
 #: pedestal motion above this multiple of the relative motion: a point is flagged (and warned about)
@@ -895,6 +894,7 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
         gain, identical=identical, method=method, with_std=redundant, sigma=sigma, q_ped=q_ped, planes=planes,
         w_scale=w_scale, flag_limits=None if covs is not None or calibration is not None or phase_std is not None
         else (cond_max, min_rel_amplitude, max_rel_std))
+    k_ls, c_ls = k[0], c[0]  # the least-squares estimate (before any bias correction)
     if nbad:
         qs = np.stack(qs)
         if q_ped is not None and not np.isfinite(np.stack(q_ped)).all():
@@ -983,16 +983,33 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
         rel_std = None
         source = f"{source} + accelerometer calibration"
     if phase_std is not None and source != "none":
-        # the phase reference: one direction common to every run and channel, sigma_alpha² g gᵀ
-        dk, dc = _phase_derivative(rotor, w, spin, qs, e_core, gain, sigma, identical=identical, method=method,
-                                   q_ped=q_ped, planes=planes, w_scale=w_scale)
-        s4 = phase_std[:, None, None, None]
-        ks, cs = np.sqrt(ks ** 2 + (s4 * dk) ** 2), np.sqrt(cs ** 2 + (s4 * dc) ** 2)
+        # the phase reference: one direction common to every run and channel. With the sigma points
+        # p± at ±sigma_alpha: g = (p+ - p-)/2, h = p+ + p- - 2 p, and for a normal alpha the
+        # variance g gᵀ + h hᵀ/2 (first order alone missed K by 2x at 2 degrees near 6,500 rpm on
+        # the NSF rig, where dK/dalpha nearly vanishes). Of the least-squares estimate, also with
+        # estimator="bias-corrected" (its derivative measured 1.00-1.11 times that at usable points)
+        (kp, cp), (km, cm) = _phase_sigma_points(rotor, w, spin, qs, e_core, gain, sigma, phase_std,
+                                                 identical=identical, method=method, q_ped=q_ped, planes=planes,
+                                                 w_scale=w_scale)
+        gk, gc = 0.5 * (kp - km), 0.5 * (cp - cm)
+        hk, hc = kp + km - 2.0 * k_ls, cp + cm - 2.0 * c_ls
+        var_k, var_c = ks ** 2, cs ** 2
+        ks, cs = np.sqrt(var_k + gk ** 2 + 0.5 * hk ** 2), np.sqrt(var_c + gc ** 2 + 0.5 * hc ** 2)
         if cov is not None:
             from .uncertainty import _report_order
 
-            g = _report_order(dk, dc) * phase_std[:, None]
-            cov = cov + g[:, :, None] * g[:, None, :]
+            g, h = _report_order(gk, gc), _report_order(hk, hc)
+            cov = cov + g[:, :, None] * g[:, None, :] + 0.5 * h[:, :, None] * h[:, None, :]
+        if dof is not None:
+            # Welch-Satterthwaite: the stated phase uncertainty has infinite degrees of freedom, so
+            # the estimated part's dof grow by (total / estimated variance)² (the smallest over the
+            # point's coefficients); residual-based errors of 3 runs (2 dof) made the intervals
+            # 2.2 times too wide where the phase term dominates
+            with np.errstate(divide="ignore", invalid="ignore"):
+                grow = np.concatenate([(ks ** 2 / var_k).reshape(axis.size, -1),
+                                       (cs ** 2 / var_c).reshape(axis.size, -1)], axis=1) ** 2
+            grow = np.nanmin(np.where(np.isfinite(grow), grow, np.nan), axis=1, initial=np.inf)
+            dof = np.asarray(dof, dtype=float) * np.where(np.isfinite(grow), grow, 1.0)
         rel_std = None
         source = f"{source} + phase reference"
     return _finish(axis_name, axis, amp[0], k[0], c[0], cond[0], resid[0], ks, cs, cond_max, min_rel_amplitude,

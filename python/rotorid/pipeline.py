@@ -167,6 +167,28 @@ def _plausible_speeds(track, run, label):
     return track
 
 
+def _keyphasor_phase_std(keyphasors, grid_rpm, tol_rpm):
+    """(n,) phase uncertainty (degrees) at the grid speeds from the keyphasors' per-pulse timing
+    uncertainty (``Keyphasor.timing_std_each_s``), or None when every pulse's is 0. At each speed:
+    Omega times the median over the pulses of a keyphasor within max(tol_rpm, 0.5 %) of it (a pulse
+    shape's timing in seconds changes with speed), the largest over the keyphasors that reach it;
+    a speed no keyphasor reaches takes the largest median of all."""
+    each = [k for k in keyphasors if k.timing_std_each_s is not None and k.times.size > 1]
+    if not each:
+        return None
+    grid_rpm = np.asarray(grid_rpm, dtype=float)
+    out = np.full(grid_rpm.size, np.nan)
+    for k in each:
+        rpm = k.speed_rpm
+        s = 0.5 * (k.timing_std_each_s[1:] + k.timing_std_each_s[:-1])
+        for i, g in enumerate(grid_rpm):
+            near = np.abs(rpm - g) <= max(tol_rpm, 0.005 * g)
+            if near.any():
+                out[i] = np.fmax(out[i], float(np.median(s[near])))
+    out = np.where(np.isnan(out), max(k.timing_std_s for k in each), out)
+    return np.rad2deg(grid_rpm * np.pi / 30.0 * out)
+
+
 def _track_of(run, label, *, orders, steady, track_kw, keyphasor, pedestal=False):
     """A run as a SyncTrack: tracked from a (segmented) recording, or a SyncTrack already (a DAQ
     1X table, see rotorid.tables)."""
@@ -222,8 +244,9 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
     **ident_kw
         Passed to :func:`rotorid.identify_synchronous` (identical, cond_max, min_rel_amplitude,
         keyphasor_angle_std_deg, keyphasor_delay_std_s, ...). Where a keyphasor's pulse shape
-        leaves its timing ambiguous (``Keyphasor.timing_std_s``, the largest over the runs and the
-        baseline), that is added to ``keyphasor_delay_std_s`` (root sum of squares) and noted.
+        leaves its timing uncertain (``Keyphasor.timing_std_each_s``), Omega times it, at each
+        speed the largest over the runs and the baseline, is added to ``keyphasor_angle_std_deg``
+        (root sum of squares) and noted.
     """
     from ._validate import flag, number, real_array
 
@@ -370,17 +393,18 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
         if np.all(np.isfinite(shared)) and own:
             ident_kw = dict(ident_kw, shared_cov=shared)
     kps = [k for t in tracks + ([bt] if baseline is not None else []) for k in t.keyphasors]
-    shape_std = max((k.timing_std_s for k in kps), default=0.0)
-    if shape_std > 0:
-        # pulses whose mid-height the shape leaves ambiguous: their timing is uncertain by as much,
-        # a delay common to every run (the same sensor), added to the phase reference's uncertainty
-        from ._validate import number
-
-        stated = number("keyphasor_delay_std_s", ident_kw.get("keyphasor_delay_std_s", 0.0), nonneg=True)
-        ident_kw = dict(ident_kw, keyphasor_delay_std_s=float(np.hypot(stated, shape_std)))
-        notes.append(f"keyphasor timing depends on the pulse shape by {shape_std * 1e6:.3g} µs: counted in the "
-                     "uncertainty as a delay of the phase reference (a phase calibration, or a trigger level of "
-                     "your own, takes it out)")
+    shape_deg = _keyphasor_phase_std(kps, grid, tol)
+    if shape_deg is not None:
+        # pulses whose timing their shape leaves uncertain: a phase error common to every run (the
+        # same sensor and convention), added to the phase reference's uncertainty at each speed
+        stated = real_array("keyphasor_angle_std_deg", ident_kw.get("keyphasor_angle_std_deg", 0.0), nonneg=True)
+        if stated.ndim > 1 or stated.size not in (1, grid.size):
+            raise RotoridError(f"keyphasor_angle_std_deg must be a number or one per speed ({grid.size}), got shape "
+                               f"{stated.shape}")
+        ident_kw = dict(ident_kw, keyphasor_angle_std_deg=np.hypot(stated, shape_deg))
+        notes.append(f"keyphasor timing depends on the pulse shape by {shape_deg.min():.3g}-{shape_deg.max():.3g} "
+                     "degrees of 1X phase at these speeds: counted in the uncertainty as a phase reference error "
+                     "(a phase calibration, or a trigger level of your own, takes it out)")
     ident = identify_synchronous(rotor, responses, method=method, **ident_kw)
     return ImbalanceChainResult(responses, tracks, ident, notes, ident_kw.get("shared_cov"),
                                 None if sr is None else np.asarray(sr[0]))

@@ -67,11 +67,13 @@ class Keyphasor:
     differences of the times, so it includes genuine speed fluctuation); ``rise_samples``: the
     10-90 % edge duration; ``refined``: whether the equivalent-time refinement was used;
     ``note``: anything a user should know about the timing (empty when all is well).
-    ``timing_std_s``: how much the timing depends on the pulse shape (s), where the shape leaves
-    the edge's mid-height ambiguous (pulses without a flat top, or too short to settle): the
-    difference between the two mid-heights in the note, taken as the standard uncertainty of a
-    delay common to every pulse (0 where the pulses settle on a flat top, or with a ``level``).
-    The imbalance chain adds it to the coefficients' uncertainty (``keyphasor_delay_std_s``).
+    ``timing_std_s``: the standard uncertainty of the timing that the pulse shape leaves (s), the
+    median over the pulses of ``timing_std_each_s`` (per pulse; None when 0 for all). Where the
+    shape leaves mid-height ambiguous (pulses without a flat top, or too short to settle): the
+    larger of the difference between the two mid-heights in the note and of how far the spread of
+    the sampled peaks moves half of them along the edge; 1/sqrt(3) sample for pulses too narrow to
+    show their edges (also with a ``level``); 0 for flat tops and otherwise with a ``level``. The
+    imbalance chain turns it into a phase uncertainty at each speed (``keyphasor_angle_std_deg``).
     """
 
     times: np.ndarray
@@ -87,6 +89,7 @@ class Keyphasor:
     note: str = ""
     mark_angle_deg: float = 0.0
     timing_std_s: float = 0.0
+    timing_std_each_s: np.ndarray | None = None
 
     @classmethod
     def from_times(cls, times, *, mark_angle_deg: float = 0.0, delay_s: float = 0.0, source: str = "") -> "Keyphasor":
@@ -165,7 +168,23 @@ def state_levels(v, *, where: str = "", pulse_side: str | None = None) -> tuple:
 
     Raises KeyphasorError for a flat channel, a channel without two distinct states (noise, an
     analog signal) or pulses on both sides of the resting state, unless ``pulse_side`` ("up" or
-    "down") says which pulses to use."""
+    "down") says which pulses to use. A train of pulses that dwell at no level (triangles, narrow
+    humps) gives the median of their peaks as the pulse level.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from rotorid import signals
+    >>> v = np.zeros(1000)
+    >>> v[5::100] = v[6::100] = v[7::100] = v[8::100] = 5.0   # 4-sample pulses every 100 samples
+    >>> [round(x, 3) for x in signals.state_levels(v)]
+    [0.0, 5.0]
+    """
+    return _state_levels(v, where=where, pulse_side=pulse_side)[:2]
+
+
+def _state_levels(v, *, where: str = "", pulse_side: str | None = None) -> tuple:
+    """:func:`state_levels` and whether the pulse level is the peaks' (no state the pulses dwell at)."""
     from .._validate import real_array, text
 
     try:
@@ -209,19 +228,31 @@ def state_levels(v, *, where: str = "", pulse_side: str | None = None) -> tuple:
     mid_band = h[lo_i + (hi_i - lo_i) * 2 // 5: lo_i + (hi_i - lo_i) * 3 // 5 + 1]
     near_pulse = h[max(p - 3, 0): p + 4]
     other = dn if pside is up else up
+    sgn = 1.0 if pside is up else -1.0
     two_states = near_pulse.max() >= 2 and mid_band.mean() < 0.5 * near_pulse.max()
     peak = None
     if two_states:
-        # a state is a level the pulses dwell at. Pulses without one, sampled at the same phases
-        # every revolution (a speed commensurate with the sample rate), pile their samples into
-        # modes too, about one sample per pulse each: such a mode was taken for the pulse state
-        # (a hump's flank at 37 % of its peak, timed 0.27 samples early at exactly 6,000 rpm)
+        # a state is a level the pulses dwell at (counted within 3 noise widths of the mode). Pulses
+        # without one, sampled at the same phases every revolution (a speed commensurate with the
+        # sample rate), pile their samples into modes too, about one sample per pulse each: such a
+        # mode was taken for the pulse state (a hump's flank at 37 % of its peak, timed 0.27 samples
+        # early at exactly 6,000 rpm)
+        near_r = v[np.abs(v - rest) <= 0.06 * abs(pulse - rest)]
+        noise_r = 1.4826 * float(np.median(np.abs(near_r - np.median(near_r)))) if near_r.size else 0.0
+        reach = max(3, int(np.ceil(3.0 * noise_r / (e[1] - e[0]))))
+        dwelling = h[max(p - reach, 0): p + reach + 1].sum()
         inside = ((v > 0.5 * (rest + pulse)) == (pulse > rest)).astype(np.int8)
         crossings = np.count_nonzero(np.diff(inside) == 1)
-        if near_pulse.sum() < DWELL_SAMPLES * max(crossings, 1):
-            peak = _peaked_pulses(v, rest, h[pside].sum(), h[other].sum(), 1.0 if pside is up else -1.0)
+        if dwelling < DWELL_SAMPLES * max(crossings, 1):
+            peak = _peaked_pulses(v, rest, h[pside].sum(), h[other].sum(), sgn)
+            if peak is None and pulse_side is None:
+                # (with a level and an edge the caller times the pulses: the mode serves as it is)
+                raise KeyphasorError(f"no keyphasor pulses{where}: the channel's level {pulse:.4g} holds "
+                                     f"{dwelling / max(crossings, 1):.2g} sample(s) per pulse, no state the pulses "
+                                     f"dwell at, and the samples away from its rest at {rest:.4g} form no train of "
+                                     "like pulses (give a trigger level and edge)")
     else:
-        peak = _peaked_pulses(v, rest, h[pside].sum(), h[other].sum(), 1.0 if pside is up else -1.0)
+        peak = _peaked_pulses(v, rest, h[pside].sum(), h[other].sum(), sgn)
         if peak is None:
             raise KeyphasorError(f"no keyphasor pulses{where}: the channel shows no two distinct states (resting near "
                                  f"{rest:.4g}, no second level it dwells at, and no train of like pulses on one side "
@@ -232,7 +263,7 @@ def state_levels(v, *, where: str = "", pulse_side: str | None = None) -> tuple:
         swing = abs(peak - rest)
         near_rest = v[np.abs(v - rest) <= 0.06 * swing]
         noise = 1.4826 * np.median(np.abs(near_rest - np.median(near_rest))) if near_rest.size else 0.0
-        return _fine_mode(v, rest, swing, noise), peak
+        return _fine_mode(v, rest, swing, noise), peak, True
     if pulse_side is None and other.any() and h[other].sum() >= 0.25 * h[pside].sum() and \
             h[other].max() >= 0.5 * near_pulse.max():
         o = int(np.flatnonzero(other)[np.argmax(h[other])])
@@ -246,11 +277,12 @@ def state_levels(v, *, where: str = "", pulse_side: str | None = None) -> tuple:
     noise = 1.4826 * np.median(np.abs(near_rest - np.median(near_rest))) if near_rest.size else 0.0
     rest = _fine_mode(v, rest, swing, noise)
     pulse = _fine_mode(v, pulse, swing, noise)
-    return rest, pulse
+    return rest, pulse, False
 
 
-#: samples per pulse below which a histogram mode is no state the pulses dwell at
-DWELL_SAMPLES = 2.5
+#: samples per pulse below which a histogram mode is no state the pulses dwell at (a symmetric
+#: pulse sampled at the same phases every revolution puts two samples per pulse at one level)
+DWELL_SAMPLES = 3.5
 
 
 def _peaked_pulses(v, rest, n_side, n_other, sgn):
@@ -258,8 +290,10 @@ def _peaked_pulses(v, rest, n_side, n_other, sgn):
     ``rest`` are not such a train. ``n_side``, ``n_other``: samples beyond 35 % of the range on the
     pulses' side and on the other; ``sgn``: +1 for pulses above the rest. A train: excursions on one
     side only (noise leaves the rest both ways alike), filling under a quarter of the record (not an
-    analog signal's half waves), at least three of them, their peaks within 10 % of each other
-    (noise spikes reach any height)."""
+    analog signal's half waves), resting in between, at least three of them, most at steady intervals (each within 15 %
+    of the one before, or a whole multiple of it where a pulse was not sampled: random spikes come
+    at any interval), their sampled peaks within a factor of about two (a pulse of one or two samples
+    is sampled anywhere on its peak)."""
     if n_other > 0.05 * n_side:
         return None
     w = sgn * (v - rest)
@@ -267,16 +301,27 @@ def _peaked_pulses(v, rest, n_side, n_other, sgn):
     above = w > 0.5 * top
     if above.mean() >= 0.25:
         return None
-    edges = np.flatnonzero(np.diff(above.astype(np.int8)))
-    starts = edges[::2] + 1 if above[0] == 0 else np.r_[0, edges[1::2] + 1]
-    ends = np.r_[edges[1::2] + 1, v.size] if above[0] == 0 else np.r_[edges[::2] + 1, v.size]
-    n = min(starts.size, ends.size)
-    if n < 3:
+    starts = np.flatnonzero(np.diff(above.astype(np.int8)) == 1) + 1
+    if above[0]:
+        starts = np.r_[0, starts]
+    if starts.size < 3:
         return None
-    peaks = np.maximum.reduceat(w, starts[:n])
-    if np.subtract(*np.percentile(peaks, [75, 25])) > 0.1 * np.median(peaks):
+    gaps = np.diff(starts).astype(float)
+    if gaps.size >= 2:
+        ratio = gaps[1:] / gaps[:-1]
+        ratio = np.where(ratio < 1.0, 1.0 / ratio, ratio)
+        steady = np.abs(ratio - np.round(ratio)) <= 0.15 * np.round(ratio)
+        if steady.mean() < 0.6:
+            return None
+    peaks = np.maximum.reduceat(w, starts)
+    tall = float(np.median(peaks))
+    if np.subtract(*np.percentile(peaks, [75, 25])) > 0.5 * tall:
         return None
-    return float(rest + sgn * np.median(peaks))
+    # between pulses the channel rests: most samples within 10 % of the pulses' height of the rest
+    # (a noisy analog signal, resting nowhere, does not)
+    if np.mean(np.abs(w) <= 0.1 * tall) < 0.5:
+        return None
+    return float(rest + sgn * tall)
 
 
 def _fine_mode(v, centre, swing, noise):
@@ -419,10 +464,10 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
         # both polarities): the resting state lies on the far side of the level from the pulses
         med = float(np.median(x))
         side = "up" if float(level) > med else "down"
-    rest, pulse = state_levels(x, where=where, pulse_side=side)
+    rest, pulse, peaked = _state_levels(x, where=where, pulse_side=side)
     duty = float(np.mean(np.abs(x - pulse) < np.abs(x - rest)))
     ambiguous, unsettled, hump = "", "", ""
-    shape_shift = 0.0  # samples: how much the timing depends on the pulse shape
+    shape_each = 0.0  # samples, per pulse: how much its timing depends on the pulse shape
     if edge == "auto":
         if duty > 0.4:
             # a square-ish wave: which state is "resting" is a matter of noise; time the rising edge
@@ -459,22 +504,31 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
         at = _last_below_each(w, rises, level, int(full) + 2, k)
         return at + _linear_crossing(w, at, level)
 
+    def peak_sampling(heights):
+        # where a peak is sampled moves it (a corner more than a smooth top, which the parabola
+        # lifts): the tallest sampled peaks against the median, as time along the edge at mid-height
+        spread = float(np.percentile(heights, 90) - np.median(heights))
+        slope = float(np.median(w[k + 1] - w[k]))
+        return spread / slope if slope > 0 else 0.0
+
     if level is None:
         # the swing from the pulses themselves (top after the edge less the base before it): with a
         # drifting offset the histogram modes sit at the drift's extremes and would misjudge it
         top = _local_top(w, k, base, swing, width)
         ok = np.isfinite(top)
+        heights = _local_peak(w, k, base, width) - base
         if ok.sum() >= 3:
             flat_swing = float(np.median(top[ok] - base[ok]))
-            peak_swing = float(np.median(_local_peak(w, k, base, width)[ok] - base[ok]))
+            peak_swing = float(np.median(heights[ok]))
             tol = max(HUMP_TOL, 3.0 * _noise(w, lo, swing) / swing)
             if flat_swing < (1 - tol) * peak_swing and flat_swing < (1 - tol) * swing and \
                     np.mean(_unimodal(w, k[ok], width, tol * swing)) >= 0.5:
                 # no flat top (a Gaussian-like hump, or an edge still rising when the pulse ends): the
                 # middle of the pulse is no state, its median sits below the top and moves mid-height
                 # down the edge (timed 0.03-0.15 samples early); half the peak is the level then
-                shift = float(np.median(times_at(base + 0.5 * peak_swing) - times_at(base + 0.5 * flat_swing)))
-                shape_shift = abs(shift)
+                each = times_at(base + 0.5 * peak_swing) - times_at(base + 0.5 * flat_swing)
+                shift = float(np.median(each))
+                shape_each = np.maximum(np.abs(each), peak_sampling(heights[ok]))
                 swing = peak_swing
                 hump = (f"the pulses have no flat top (their middle stays {100 * (1 - flat_swing / peak_swing):.1f} % "
                         f"below their peak): mid-height is taken at half the peak; a level at half their middle "
@@ -484,9 +538,10 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
                 swing = flat_swing
         if ok.mean() < 0.5:
             # half of each pulse's own peak would time them otherwise: the shape dependence
-            peak = float(np.median(_local_peak(w, k, base, width) - base))
-            alt = float(np.median(times_at(base + 0.5 * min(peak, swing)) - times_at(base + 0.5 * swing)))
-            shape_shift = max(shape_shift, abs(alt))
+            peak = float(np.median(heights))
+            each = times_at(base + 0.5 * min(peak, swing)) - times_at(base + 0.5 * swing)
+            alt = float(np.median(each))
+            shape_each = np.maximum(shape_each, np.maximum(np.abs(each), peak_sampling(heights)))
             unsettled = ("most pulses are too short to settle at their upper state: mid-height is taken between the "
                          f"histogram states, and the timing depends on the pulse shape (by {abs(alt):.3f} samples "
                          "between half the states and half the pulses' peak)")
@@ -499,24 +554,41 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
     frac = _cubic_crossing(w, k, mid) if smooth else _linear_crossing(w, k, mid)
     t_samples = k + frac
     refined, note = False, ""
-    if refine and level is None:
+    # samples in the pulse state per pulse found (not duty x period: a period counts the pulses the
+    # sampling missed too)
+    seen = duty * w.size / rises.size
+    # (pulses this narrow show no edge to overlay: the equivalent-time correction moved pulses a
+    # third of a sample wide by up to 2.9 samples)
+    if refine and level is None and seen >= NARROW_SAMPLES:
         t_samples, refined, note = _refine(w, t_samples, base, swing, half, post, rise <= 1.5)
         if smooth and not refined:
             note = ""  # a smooth edge timed by the cubic: the residual interpolation error is small
     narrow = ""
-    # samples in the pulse state per pulse found (not duty x period: a period counts the pulses the
-    # sampling missed too)
-    seen = duty * w.size / rises.size
     if seen < NARROW_SAMPLES:
         # a pulse this narrow is seen in one or two samples: its edge lies anywhere within a sample
         # of where it is timed (measured: errors of -0.98 to -0.33 samples for pulses a third of a
         # sample wide), a standard uncertainty of 1/sqrt(3) sample (uniform over +-1 sample); some
         # pulses may not be sampled at all
-        shape_shift = max(shape_shift, 1.0 / np.sqrt(3.0))
+        shape_each = np.maximum(shape_each, 1.0 / np.sqrt(3.0))
         narrow = (f"the pulses are only {seen:.2g} sample(s) wide: their edges fall between samples and are timed only to "
                   "within a sample (record the keyphasor at a higher rate, or widen the mark)")
-    note = "; ".join(x for x in (ambiguous, unsettled, hump, narrow, note) if x)
+    fixed = ""
+    if level is None and (hump or unsettled or peaked) and not narrow:
+        # pulses without a flat top are timed at half their peak; at a speed commensurate with the
+        # sample rate every pulse is sampled at the same phases, so where between two samples the
+        # apex lies, and how far the sampled peak falls short of it, cannot be seen: uniform over a
+        # sample (a triangle rising over 3 samples was timed 0.23 samples early at exactly 3,000
+        # rpm and 10 kHz, its peak sampled at 83 %, with no note)
+        stuck = _commensurate(t_samples)
+        if stuck.any():
+            shape_each = np.where(stuck, np.maximum(shape_each, 1.0 / np.sqrt(12.0)), shape_each)
+            fixed = ("the pulses have no flat top and fall at the same phases of the sampling every revolution "
+                     f"(a speed commensurate with the sample rate, {100 * stuck.mean():.0f} % of them): their peak "
+                     "is sampled short of its apex by an amount that cannot be seen, and their timing is uncertain "
+                     "by a third of a sample")
+    note = "; ".join(x for x in (ambiguous, unsettled, hump, narrow, fixed, note) if x)
     t = t0_s + t_samples / fs_hz
+    found = t.copy()
     span_s = (t0_s, t0_s + (w.size - 1) / fs_hz)
     try:
         t, extra, missing = _plausible(t, tolerance, fill_missing, where, max_speed_step)
@@ -531,6 +603,8 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
                       f"{span_s[0]:.4g} to {span_s[1]:.4g} s: the rest of the record has no revolutions to analyse "
                       f"(the keyphasor stopped, or pulses {seen:.2g} sample(s) wide fell between samples)")
     times = _to_angle_zero(t, mark_angle_deg, delay_s)
+    # each pulse's shape uncertainty, carried to the pulses kept (and filled in) by time
+    each_s = np.interp(t, found, np.broadcast_to(shape_each, found.shape)) / fs_hz if np.any(shape_each) else None
     if extra.size:
         warnings.warn(f"keyphasor{where}: dropped {extra.size} extra pulse(s) at t = {np.round(extra[:5], 6)} s")
     if missing:
@@ -538,7 +612,23 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
         warnings.warn(f"keyphasor{where}: {sum(c for _, c in missing)} missing pulse(s) after t = "
                       f"{[round(m[0], 6) for m in missing[:5]]} s ({what})")
     return Keyphasor(times, extra, missing, sgn * lev, hys, (rest, pulse), edge, _jitter(t), rise, refined, note,
-                     float(mark_angle_deg), shape_shift / fs_hz)
+                     float(mark_angle_deg), 0.0 if each_s is None else float(np.median(each_s)), each_s)
+
+
+def _commensurate(t):
+    """Per pulse (edge times ``t`` in samples): whether it lies in a steady stretch of at least 16
+    pulses whose edges fall at fewer than half of TEMPLATE_BINS positions within a sample interval
+    (the stretches as :func:`_refine` forms them: the period steady to 1 %)."""
+    out = np.zeros(t.size, dtype=bool)
+    if t.size < 16:
+        return out
+    per = np.diff(t)
+    cut = np.flatnonzero(np.abs(np.diff(per)) > 0.01 * per[1:]) + 2
+    for a, b in zip(np.r_[0, cut], np.r_[cut, t.size]):
+        if b - a >= 16:
+            occupied = np.unique(np.floor(np.mod(t[a:b], 1.0) * TEMPLATE_BINS).astype(int)).size
+            out[a:b] = occupied < TEMPLATE_BINS // 2
+    return out
 
 
 #: pulses narrower than this (samples above mid-height) are timed only to within a sample
