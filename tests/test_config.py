@@ -921,3 +921,13 @@ def test_random_deletions_give_a_config_or_a_one_line_error(data):
     except ConfigError as exc:
         msg = check_message(exc)
         assert re.match(r"rig\.toml: ", msg)
+
+
+def test_override_file_unit_in_a_channel_map():
+    cfg = imbalance_cfg()
+    cfg["channels"] = {"Prox DE X": {"to": "x1", "unit": "um", "override_file_unit": True}}
+    assert parse_config(cfg).channels_for()["Prox DE X"]["override_file_unit"] is True
+    cfg["channels"] = {"Prox DE X": {"to": "x1", "override_file_unit": True}}
+    assert "override_file_unit = true needs the unit that replaces the file's" in error_of(cfg)
+    cfg["channels"] = {"Prox DE X": {"to": "x1", "unit": "um", "override_file_unit": "yes"}}
+    assert "override_file_unit must be true or false, got the string 'yes'" in error_of(cfg)

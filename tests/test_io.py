@@ -140,8 +140,9 @@ def test_lab_units_and_names_through_channel_map(tmp_path, fmt):
     save(rec, path, names=LAB_NAMES, units=LAB_UNITS)
     # the file really holds mils and lbf under the lab names
     with pytest.warns(UserWarning, match="dropped 3 channel"):
-        raw = rio.load_recording(path, channel_map={"Prox DE X": {"to": "x1", "unit": "m"}, "Hammer": {"to": "force", "unit": "N"}})
-    np.testing.assert_allclose(raw.channels["x1"], rec.channels["x1"] / MIL, rtol=1e-9)
+        raw = rio.load_recording(path, channel_map={"Prox DE X": {"to": "x1", "unit": "um", "override_file_unit": True},
+                                                    "Hammer": {"to": "force", "unit": "N", "override_file_unit": True}})
+    np.testing.assert_allclose(raw.channels["x1"], rec.channels["x1"] / MIL * 1e-6, rtol=1e-9)
     np.testing.assert_allclose(raw.channels["force"], rec.channels["force"] / LBF, rtol=1e-9)
 
     got = quiet_load(path, channel_map=LAB_MAP)
@@ -489,3 +490,65 @@ def test_load_checks_clipping(tmp_path):
     rio.save_tdms(Recording(FS, dict(rec.channels, force=f)), path)
     with pytest.warns(UserWarning, match=r"'force' possibly clipped.*from sample 402"):
         rio.load_recording(path)
+
+
+@pytest.mark.parametrize("fmt", list(WRITERS))
+def test_a_channel_map_unit_that_contradicts_the_file_is_an_error(tmp_path, fmt):
+    """The file states mil, the channel map says um (or the other way): the map used to win
+    silently, and an independent lab's probes stated in um but mapped as mil came out 25.4 times
+    too large, K off by hundreds of percent, every point ok. Same-size synonyms, another quantity
+    converted by scale, and an explicit override_file_unit pass."""
+    save, ext = WRITERS[fmt]
+    rec = make_rec()
+    path = tmp_path / f"lab{ext}"
+    save(rec, path, names=LAB_NAMES, units=LAB_UNITS)
+    with pytest.raises(RotoridError, match=r"Prox DE X' \(-> x1\) is stated in the file as 'mil', but channel_map gives "
+                                           r"unit = 'um'.*override_file_unit = true"):
+        quiet_load(path, channel_map={"Prox DE X": {"to": "x1", "unit": "um"}})
+    got = quiet_load(path, channel_map={**LAB_MAP, "Prox DE X": {"to": "x1", "unit": "MILS"}})
+    assert_channels(got, rec, max(RTOL[fmt], 1e-9))
+    # the label is wrong and the user says so: the map's unit is used
+    over = quiet_load(path, channel_map={**LAB_MAP, "Prox DE X": {"to": "x1", "unit": "mm", "override_file_unit": True}})
+    np.testing.assert_allclose(over.channels["x1"], rec.channels["x1"] / MIL * 1e-3, rtol=1e-9)
+    with pytest.raises(RotoridError, match="override_file_unit' needs the 'unit'"):
+        quiet_load(path, channel_map={"Prox DE X": {"to": "x1", "override_file_unit": True}})
+
+
+def test_ni_unit_names_and_probe_values_without_a_unit(tmp_path):
+    """NI DAQmx writes unit_string "Volts" (refused as unknown before); a file that states no
+    unit for probes holding µm is read as metres, 1e6 times too large: refused, saying how."""
+    rec = make_rec()
+    path = tmp_path / "ni.tdms"
+    with TdmsWriter(path) as w:
+        w.write_segment([ChannelObject("Measured Data", "kp", rec.channels["kp"],
+                                       properties={"unit_string": "Volts", "wf_increment": 1 / FS}),
+                         ChannelObject("Measured Data", "x1", rec.channels["x1"] * 1e6,
+                                       properties={"unit_string": "", "wf_increment": 1 / FS})])
+    with pytest.raises(RotoridError, match=r"'Measured Data/x1' \(-> x1\) spans 81.1 m peak to peak as read in 'm' "
+                                           r"\(unit from assumed SI\).*unit = \"um\""):
+        quiet_load(path)
+    got = quiet_load(path, channel_map={"x1": {"to": "x1", "unit": "um"}, "kp": {"to": "kp"}})
+    np.testing.assert_allclose(got.channels["kp"], rec.channels["kp"])
+    np.testing.assert_allclose(got.channels["x1"], rec.channels["x1"], rtol=1e-12)
+
+
+def test_uff_abscissa_in_milliseconds_and_a_rate_that_e13_5_rounds(tmp_path):
+    """A UFF 58 abscissa labelled ms was read as seconds (a sample rate 1000 times too low, the
+    keyphasor at 3 rpm instead of 3013); 51.2 kHz, stored as 1.95313e-05 s, was not snapped to
+    whole hertz (51199.87 Hz). A label that is no time unit is refused."""
+    rec = make_rec(fs=51200.0)
+    path = tmp_path / "s.uff"
+    rio.save_uff58(rec, path)
+    assert quiet_load(path).fs_hz == 51200.0
+    text = path.read_text()
+    assert "1.95313e-05" in text
+    ms = tmp_path / "ms.uff"
+    ms.write_text(text.replace("1.95313e-05", "1.95313e-02").replace("Time                 s   ",
+                                                                      "Time                 ms  "))
+    got = quiet_load(ms)
+    assert got.fs_hz == 51200.0
+    assert_channels(got, rec, 1e-9)
+    hz = tmp_path / "hz.uff"
+    hz.write_text(text.replace("Time                 s   ", "Time                 Hz  "))
+    with pytest.raises(RotoridError, match="abscissa units label is 'Hz', not a time unit"):
+        quiet_load(hz)

@@ -595,6 +595,14 @@ class RotorSection(_Model):
                           d=self.d, r=self.r, s=self.s)
 
 
+def _map_entry(spec) -> dict:
+    """A ChannelSpec as ``rotorid.io`` takes it (``override_file_unit`` only when set)."""
+    d = spec.model_dump()
+    if not d["override_file_unit"]:
+        del d["override_file_unit"]
+    return d
+
+
 class ChannelSpec(_Model):
     """One entry of a channel map: lab channel -> canonical channel, unit and calibration."""
 
@@ -603,6 +611,7 @@ class ChannelSpec(_Model):
     scale: _number(nonzero=True) = 1.0
     offset: Finite = 0.0
     delay_s: _number(abs_lt=1) = 0.0
+    override_file_unit: bool = False
 
     @model_validator(mode="before")
     @classmethod
@@ -613,6 +622,8 @@ class ChannelSpec(_Model):
 
     @model_validator(mode="after")
     def _unit_matches(self):
+        if self.override_file_unit and self.unit is None:
+            raise _err("override_file_unit = true needs the unit that replaces the file's", table=True)
         if self.unit is not None:
             q = QUANTITY[self.to]
             problem = _unit_problem(self.unit, q, f"{self.to} is {_article(q)}")
@@ -1232,7 +1243,7 @@ class Config(_Model):
         """
         m = entry.channels if entry is not None and entry.channels is not None else self.channels
         keep = None if only is None else set(only)
-        return {lab: spec.model_dump() for lab, spec in m.items() if keep is None or spec.to in keep}
+        return {lab: _map_entry(spec) for lab, spec in m.items() if keep is None or spec.to in keep}
 
     def files_for(self, entry=None) -> dict:
         """Reading options for ``entry``: ``[files]`` with the entry's overrides, "auto" -> None.

@@ -34,8 +34,15 @@ _UNITS = {
     "n": ("force", 1.0), "kn": ("force", 1e3), "lbf": ("force", 4.4482216152605), "klbf": ("force", 4448.2216152605),
     # acceleration -> m/s^2
     "m/s^2": ("acceleration", 1.0), "m/s2": ("acceleration", 1.0), "g": ("acceleration", 9.80665),
-    # voltage (keyphasor) -> V
-    "v": ("voltage", 1.0),
+    # voltage (keyphasor) -> V ("Volts" is what NI DAQmx and LabVIEW write)
+    "v": ("voltage", 1.0), "volt": ("voltage", 1.0), "volts": ("voltage", 1.0),
+    "millivolt": ("voltage", 1e-3), "millivolts": ("voltage", 1e-3),
+    # spelled-out names other DAQ software writes
+    "meter": ("length", 1.0), "meters": ("length", 1.0), "metre": ("length", 1.0), "metres": ("length", 1.0),
+    "millimeter": ("length", 1e-3), "millimeters": ("length", 1e-3), "millimetre": ("length", 1e-3),
+    "millimetres": ("length", 1e-3), "micrometer": ("length", 1e-6), "micrometers": ("length", 1e-6),
+    "micrometre": ("length", 1e-6), "micrometres": ("length", 1e-6), "inch": ("length", 0.0254),
+    "inches": ("length", 0.0254), "newton": ("force", 1.0), "newtons": ("force", 1.0),
     # mass -> kg
     "kg": ("mass", 1.0), "g_mass": ("mass", 1e-3), "gram": ("mass", 1e-3), "grams": ("mass", 1e-3),
     "oz": ("mass", 0.028349523125), "lb": ("mass", 0.45359237),

@@ -13,8 +13,12 @@ from ..errors import RotoridError
 from ..recording import KNOWN, SI_UNITS, Recording
 from ._common import QUANTITY, _Raw, _Read, _same_rate, _warn
 
-_MAP_KEYS = ("to", "unit", "scale", "offset", "delay_s")
+_MAP_KEYS = ("to", "unit", "scale", "offset", "delay_s", "override_file_unit")
 _MAX_DELAY_S = 1.0  # |delay_s| must stay below this: a larger "delay" is a misread of the unit
+#: a displacement channel spanning more than this (m, peak to peak) is refused: proximity probes
+#: read 2-4 mm at most, and values in µm or mil read as metres (a file that states no unit) are
+#: 1e6 or 4e4 times too large
+MAX_PROBE_SPAN_M = 0.01
 
 
 @dataclass
@@ -28,6 +32,7 @@ class _Use:
     scale: float = 1.0
     offset: float = 0.0
     delay: float = 0.0            # s by which the channel lags the true quantity
+    override: bool = False        # the map's unit replaces a different one the file states
 
 
 def _number(spec, key, default, where):
@@ -76,7 +81,12 @@ def _parse_channel_map(channel_map, path) -> dict:
         if not (ok and math.isfinite(float(v)) and abs(float(v)) < _MAX_DELAY_S):
             raise RotoridError(f"{where}: 'delay_s' must be a finite number of seconds with |delay_s| < "
                                f"{_MAX_DELAY_S:g} (the lag of channel {to!r} behind the true quantity), got {v!r}")
-        out[lab] = _Use(to, None, unit, "channel_map", scale, offset, float(v))  # raw found later
+        override = spec.get("override_file_unit", False)
+        if not isinstance(override, (bool, np.bool_)):
+            raise RotoridError(f"{where}: 'override_file_unit' must be true or false, got {override!r}")
+        if override and unit is None:
+            raise RotoridError(f"{where}: 'override_file_unit' needs the 'unit' that replaces the file's")
+        out[lab] = _Use(to, None, unit, "channel_map", scale, offset, float(v), bool(override))  # raw found later
     return out
 
 
@@ -104,6 +114,27 @@ def _find(read: _Read, name: str, path) -> _Raw:
                        f"{[r.key for r in raws]}")
 
 
+def _check_stated_unit(use: _Use, path):
+    """A RotoridError when channel_map gives a channel a unit of the same quantity as the unit the
+    file states for it, but another size (the map would silently win: a probe the file states in
+    µm read as mil is 25.4 times too large, and the coefficients off by hundreds of percent with
+    every point ok). A file unit rotorid does not know, of another quantity (volts from a probe's
+    driver, converted with ``scale``), any ``scale`` other than 1, or ``override_file_unit`` (the
+    file's label is known to be wrong), is the map's to convert."""
+    stated = use.raw.unit
+    if not stated or use.name not in QUANTITY or use.scale != 1.0 or use.override:
+        return
+    try:
+        from_file = _units.factor(stated, QUANTITY[use.name])
+    except RotoridError:
+        return
+    mapped = _units.factor(use.unit, QUANTITY[use.name])
+    if not math.isclose(from_file, mapped, rel_tol=1e-9):
+        raise RotoridError(f"{path}: channel {use.raw.key!r} (-> {use.name}) is stated in the file as {stated!r}, "
+                           f"but channel_map gives unit = {use.unit!r}: remove the unit from channel_map to use the "
+                           "file's, or, if the file's label is wrong, add override_file_unit = true")
+
+
 def _select(read: _Read, entries: dict, path, keep_other: bool) -> list[_Use]:
     """Decide which file channels are used (mapped or canonically named); warn about the rest."""
     raws = read.raws
@@ -116,6 +147,8 @@ def _select(read: _Read, entries: dict, path, keep_other: bool) -> list[_Use]:
         use.raw = raw
         if use.unit is None:
             use.unit, use.unit_from = (raw.unit, "file") if raw.unit else (SI_UNITS[use.name], "assumed SI")
+        else:
+            _check_stated_unit(use, path)
         uses.append(use)
     taken = {u.name for u in uses}
     shadowed, dropped, canonical = [], [], {}
@@ -172,6 +205,12 @@ def _convert(use: _Use, path) -> np.ndarray:
     if bad.any():
         raise RotoridError(f"{path}: channel {raw.key!r} has {int(bad.sum())} NaN/inf or empty value(s) "
                            f"(first at sample {int(np.argmax(bad))})")
+    if QUANTITY.get(use.name) == "length" and a.size:
+        span = float(a.max() - a.min())
+        if span > MAX_PROBE_SPAN_M:
+            raise RotoridError(f"{path}: channel {raw.key!r} (-> {use.name}) spans {span:.3g} m peak to peak as read in "
+                               f"{use.unit!r} (unit from {use.unit_from}): no displacement probe reads more than a few "
+                               "mm; state its unit (e.g. unit = \"um\" in channel_map)")
     return a
 
 

@@ -127,7 +127,9 @@ def _same_rate(a: float, b: float, rtol: float = _RATE_RTOL) -> bool:
 def _snap_rate(fs: float, rel_uncertainty: float) -> float:
     """The nearest whole-hertz rate if ``fs`` is that rate within the precision it was stored with."""
     k = round(fs)
-    if k > 0 and abs(fs - k) <= rel_uncertainty * fs * (1 + 1e-9):
+    # (a margin of 1e-5 of the uncertainty: 51.2 kHz stored as 1.95313e-05 s lies exactly half a
+    # last digit from 1/51200, 1.0000026 times the bound as computed from the stored value)
+    if k > 0 and abs(fs - k) <= rel_uncertainty * fs * (1 + 1e-5):
         return float(k)
     return fs
 

@@ -10,8 +10,9 @@ listed under their ``"<node>:<dir>"`` names. A ``-X``/``-Y`` data set mapped ont
 is *not* negated: give ``"scale": -1`` in its channel_map entry if the sensor points the other way.
 
 The sample rate comes from the abscissa increment (or the abscissa values when the spacing is
-uneven), snapped to whole hertz when that fits the E13.5 precision of the abscissa; the start time
-from the abscissa minimum; the unit from the ordinate axis units label.
+uneven), in the abscissa units label's time unit (s, ms, us; none is s; another label is refused),
+snapped to whole hertz when that fits the E13.5 precision of the abscissa; the start time from the
+abscissa minimum; the unit from the ordinate axis units label.
 """
 
 from __future__ import annotations
@@ -25,8 +26,8 @@ import numpy as np
 
 from ..errors import RotoridError
 from ..recording import KNOWN, Recording
-from ._common import QUANTITY, _TIME_RTOL, _atomic_write, _cannot, _describe, _lab_columns, _Raw, _Read, \
-    _snap_rate, _warn
+from ._common import QUANTITY, _TIME_RTOL, _TIME_UNITS, _atomic_write, _cannot, _describe, _lab_columns, _Raw, \
+    _Read, _snap_rate, _warn
 
 __all__ = ["save_uff58"]
 
@@ -106,14 +107,31 @@ def _read_uff58(path: Path) -> _Read:
     return _Read(raws, address="'<node>:<dir>' (e.g. '3:+X')")
 
 
+def _abscissa_seconds(ds, raw: _Raw) -> float | None:
+    """Seconds per abscissa unit from the abscissa units label ('s', 'ms', 'us'; none or NONE
+    is seconds), or None with ``raw.problem`` set when the label is no time unit (a file in ms
+    read as seconds gave a sample rate 1000 times too low)."""
+    label = str(ds.get("abscissa_axis_units_lab") or "").strip()
+    if not label or label.upper() == "NONE":
+        return 1.0
+    f = _TIME_UNITS.get(label.lower())
+    if f is None:
+        raw.problem = (f"its abscissa units label is {label!r}, not a time unit ({', '.join(_TIME_UNITS)}): it is "
+                       "no time series")
+    return f
+
+
 def _uff_time_base(ds, raw: _Raw) -> None:
+    per = _abscissa_seconds(ds, raw)
+    if per is None:
+        return
     # the abscissa is stored as E13.5 (6 significant digits): snap to whole hertz when that fits
     inc = float(ds.get("abscissa_inc") or 0.0)
     if ds.get("abscissa_spacing") == 1 and inc > 0:
-        raw.fs = _snap_rate(1.0 / inc, 0.5e-5 * 10.0 ** math.floor(math.log10(inc)) / inc)
-        raw.t0 = float(ds.get("abscissa_min", 0.0))
+        raw.fs = _snap_rate(1.0 / (inc * per), 0.5e-5 * 10.0 ** math.floor(math.log10(inc)) / inc)
+        raw.t0 = float(ds.get("abscissa_min", 0.0)) * per
         return
-    x = np.asarray(ds.get("x"), dtype=np.float64)
+    x = np.asarray(ds.get("x"), dtype=np.float64) * per
     span = x[-1] - x[0] if x.size >= 2 else 0.0
     if not span > 0:
         raw.problem = "its abscissa gives no sample interval"
