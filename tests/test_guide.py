@@ -142,11 +142,13 @@ def test_guide_runs(tmp_path, monkeypatch):
     assert namespace["exact"].std_source == "none" and np.isnan(namespace["exact"].k_std).all()
     assert namespace["with_cov"].std_source == "measurement covariance"
     assert np.isfinite(namespace["with_cov"].k_std).all()
-    # section 10: low speeds are ill-conditioned, ignored pedestals are wrong while "ok"
+    # section 10: low speeds are ill-conditioned; ignored pedestals are wrong, which only the
+    # negative direct damping they give away flags
     assert namespace["check"].cond[0].max() > 10 * namespace["check"].cond[-1].max()
     measured, ignored = namespace["measured"], namespace["ignored"]
     assert np.abs(measured.k[:, 0, 0, 0] / 3e6 - 1).max() < 1e-6
-    assert np.abs(ignored.k[:, 0, 0, 0] / 3e6 - 1).max() > 0.5 and ignored.ok.all()
+    assert np.abs(ignored.k[:, 0, 0, 0] / 3e6 - 1).max() > 0.5
+    assert set(ignored.flag) == {"negative direct damping"} and measured.ok.all()
     if HAVE_ROSS:   # section 9: the identified bearings as ROSS elements, over rad/s
         assert np.allclose(namespace["brg1"].frequency, ident.speed_rpm[ident.ok] * np.pi / 30)
     if skipped:

@@ -437,3 +437,27 @@ def test_imbalance_forcing_is_the_numpy_formula_to_the_bit():
         d1, d2 = rig.rotor.d
         g = np.array([f1 + f2, -1j * (f1 + f2), -f1 * d1 + f2 * d2, -1j * (f1 * d1 - f2 * d2)])
         np.testing.assert_array_equal(imb.generalized(rig.rotor), g)
+
+
+def test_a_probe_reversed_in_every_run_is_flagged_by_its_negative_direct_damping():
+    """x1 reversed in every run (and its baseline) leaves no residual: the runs still span the
+    same two imbalance patterns. An independent lab's recordings gave K off by 136-440 % and
+    Cxx1 = -2560, Cxx2 = -12900 N·s/m with every point ok; a passive support dissipates, so
+    significantly negative direct damping flags the point."""
+    import rotorid
+
+    rig = rotorid.nsf_rig()
+    rpm = np.array([3000.0, 4000.0, 5000.0, 6000.0])
+    runs = [rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=rpm, at="probes")
+            for s in "ABCD"]
+    for r in runs:
+        r.cov = np.broadcast_to(np.eye(8) * (0.05e-6) ** 2, (rpm.size, 8, 8)).copy()
+    clean = rotorid.identify_synchronous(rig.rotor, runs)
+    assert rotorid.identify.NEGATIVE_DAMPING not in clean.flag_reasons
+    for r in runs:
+        r.q = r.q * np.array([-1.0, 1.0, 1.0, 1.0])
+    flipped = rotorid.identify_synchronous(rig.rotor, runs)
+    negative = (flipped.c[:, :, [0, 1], [0, 1]] + 2 * flipped.c_std[:, :, [0, 1], [0, 1]] < 0).any(axis=(1, 2))
+    assert negative.any()
+    assert np.array_equal(np.array(["negative direct damping" in f for f in flipped.flag]), negative)
+    assert not flipped.ok[negative].any()

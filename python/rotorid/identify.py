@@ -326,6 +326,24 @@ def _flag_strings(code, reasons):
     return out
 
 
+#: the flag of a point whose direct damping is significantly negative
+NEGATIVE_DAMPING = "negative direct damping"
+
+
+def _negative_direct_damping(c, cs):
+    """(n,) points where a direct damping coefficient (Cxx or Cyy of either bearing) lies more than
+    two standard errors below zero (below zero where the error is unknown), or None when there is
+    none. A passive support dissipates: such a value points at the data, e.g. a probe whose sign is
+    reversed in every run, which leaves no residual (an independent lab's runs gave Cxx1 = -2560
+    and Cxx2 = -12900 N·s/m, every point ok, K off by 136-440 %)."""
+    d = c[:, :, [0, 1], [0, 1]]                          # (n, bearing, direction)
+    sd = cs[:, :, [0, 1], [0, 1]]
+    with np.errstate(invalid="ignore"):
+        low = np.where(np.isnan(sd), d < 0.0, d + 2.0 * sd < 0.0)
+    bad = low.reshape(c.shape[0], -1).any(axis=1)
+    return bad if bad.any() else None
+
+
 def _finish(axis_name, axis, amp, k, c, cond, resid, ks, cs, cond_max, min_rel_amplitude, method, labels,
             std_source="none", dof=None, cov=None, max_rel_std=MAX_REL_STD, extra_flags=None, ks_res=None, cs_res=None,
             bias_k=None, bias_c=None, estimator="ls", rel_std=None, std_known=True, flags=None):
@@ -344,6 +362,9 @@ def _finish(axis_name, axis, amp, k, c, cond, resid, ks, cs, cond_max, min_rel_a
                                          np.ascontiguousarray(rel_std, dtype=float) if std_known else None,
                                          float(cond_max), float(min_rel_amplitude), float(max_rel_std))
     reasons = list(_BASE_REASONS)
+    negative = _negative_direct_damping(c, cs)
+    if negative is not None:
+        extra_flags = _flag_list(extra_flags) + [(negative, NEGATIVE_DAMPING)]
     if extra_flags is not None:
         try:
             extra = [(np.asarray(m, dtype=bool), str(why)) for m, why in extra_flags if isinstance(why, str)]

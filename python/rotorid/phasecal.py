@@ -168,7 +168,14 @@ def calibrate_phase(rotor, runs, *, delay: bool = True, offset: bool = True, deg
     # the misfit between runs that the phase reference is estimated from
     ident_kw = {k: v for k, v in ident_kw.items() if k not in ("accel_gain_std", "accel_phase_std_deg")}
     base = identify_synchronous(rotor, runs, **ident_kw)
-    sel = base.ok & np.all(np.isfinite(base.k.reshape(base.axis.size, -1)), axis=1)
+    # points flagged only for negative direct damping count: a phase reference far off is one way
+    # to get it, and is what this estimates
+    from .identify import NEGATIVE_DAMPING
+
+    code = base.flag_code.astype(np.int64)
+    if NEGATIVE_DAMPING in base.flag_reasons:
+        code = code & ~(1 << base.flag_reasons.index(NEGATIVE_DAMPING))
+    sel = (code == 0) & np.all(np.isfinite(base.k.reshape(base.axis.size, -1)), axis=1)
     n = int(sel.sum())
     if n < degree + 3:
         raise RotoridError(f"calibrate_phase needs at least {degree + 3} trustworthy speeds (ok points) to separate a "
