@@ -366,18 +366,20 @@ def test_core_flags_in_the_identify_call_equal_the_separate_flag_pass(with_std):
     limits = (50.0, 0.2, 0.05)
     *_, rel_std, code, rel_amp, ok, nbad = _core.identify(rig.rotor.core_params(), om, om, q, e, om ** 2,
                                                            with_std=with_std, flag_limits=limits)
-    k, c, cond, resid, amp, *_ = _core.identify(rig.rotor.core_params(), om, om, q, e, om ** 2, with_std=with_std)
+    k, c, cond, resid, amp, ks, cs, *_ = _core.identify(rig.rotor.core_params(), om, om, q, e, om ** 2,
+                                                        with_std=with_std)
     assert nbad == 1 and code.dtype == np.uint8 and code.shape == rel_amp.shape == ok.shape == (3, rpm.size)
     assert ok.dtype == bool
     np.testing.assert_array_equal(ok, code == 0)
     for b in range(3):
-        want_code, want_rel, want_ok = _core.flag_codes(cond[b], amp[b], rel_std[b] if with_std else None, *limits)
+        want_code, want_rel, want_ok = _core.flag_codes(cond[b], amp[b], rel_std[b] if with_std else None, *limits,
+                                                        c[b], cs[b] if with_std else None)
         np.testing.assert_array_equal(code[b], want_code)
         np.testing.assert_array_equal(rel_amp[b], want_rel)
         assert want_ok.dtype == bool
         np.testing.assert_array_equal(want_ok, want_code == 0)
     # every reason occurs somewhere, so the comparison covers each bit
-    for bit in (1, 2, 8) + ((4,) if with_std else ()):
+    for bit in (1, 2, 8, 16) + ((4,) if with_std else ()):
         assert (code & bit).any(), bit
     assert code[0, 90] & 1 and not code[1, 90] & 1
     # a row with a NaN point has no peak amplitude: relative amplitude 0 (the API refuses NaN input)
@@ -453,7 +455,7 @@ def test_a_probe_reversed_in_every_run_is_flagged_by_its_negative_direct_damping
     for r in runs:
         r.cov = np.broadcast_to(np.eye(8) * (0.05e-6) ** 2, (rpm.size, 8, 8)).copy()
     clean = rotorid.identify_synchronous(rig.rotor, runs)
-    assert rotorid.identify.NEGATIVE_DAMPING not in clean.flag_reasons
+    assert not any(rotorid.identify.NEGATIVE_DAMPING in f for f in clean.flag)
     for r in runs:
         r.q = r.q * np.array([-1.0, 1.0, 1.0, 1.0])
     flipped = rotorid.identify_synchronous(rig.rotor, runs)

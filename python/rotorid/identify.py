@@ -313,7 +313,7 @@ _ESTIMATORS = frozenset(("ls", "bias-corrected"))
 
 #: flag bit "singular" (the core's identify::FLAG_SINGULAR); bit i is reason i of _BASE_REASONS
 _SINGULAR = 1
-_BASE_REASONS = ("singular", "ill-conditioned", "uncertain", "low amplitude")
+_BASE_REASONS = ("singular", "ill-conditioned", "uncertain", "low amplitude", "negative direct damping")
 
 
 def _flag_strings(code, reasons):
@@ -326,22 +326,11 @@ def _flag_strings(code, reasons):
     return out
 
 
-#: the flag of a point whose direct damping is significantly negative
+#: the flag of a point whose direct damping is significantly negative (the core's
+#: identify::FLAG_NEGATIVE_DAMPING): a passive support dissipates, and a channel reversed in every
+#: run leaves no residual but this (an independent lab's reversed x1 gave Cxx1 = -2560 and Cxx2 =
+#: -12900 N·s/m, every point ok, K off by 136-440 %)
 NEGATIVE_DAMPING = "negative direct damping"
-
-
-def _negative_direct_damping(c, cs):
-    """(n,) points where a direct damping coefficient (Cxx or Cyy of either bearing) lies more than
-    two standard errors below zero (below zero where the error is unknown), or None when there is
-    none. A passive support dissipates: such a value points at the data, e.g. a probe whose sign is
-    reversed in every run, which leaves no residual (an independent lab's runs gave Cxx1 = -2560
-    and Cxx2 = -12900 N·s/m, every point ok, K off by 136-440 %)."""
-    d = c[:, :, [0, 1], [0, 1]]                          # (n, bearing, direction)
-    sd = cs[:, :, [0, 1], [0, 1]]
-    with np.errstate(invalid="ignore"):
-        low = np.where(np.isnan(sd), d < 0.0, d + 2.0 * sd < 0.0)
-    bad = low.reshape(c.shape[0], -1).any(axis=1)
-    return bad if bad.any() else None
 
 
 def _finish(axis_name, axis, amp, k, c, cond, resid, ks, cs, cond_max, min_rel_amplitude, method, labels,
@@ -360,11 +349,10 @@ def _finish(axis_name, axis, amp, k, c, cond, resid, ks, cs, cond_max, min_rel_a
         # ok = code == 0 (no (n,) pass and temporary here: 0.3-1.7 ms at a million points)
         code, rel, ok = _core.flag_codes(np.ascontiguousarray(cond), np.ascontiguousarray(amp),
                                          np.ascontiguousarray(rel_std, dtype=float) if std_known else None,
-                                         float(cond_max), float(min_rel_amplitude), float(max_rel_std))
+                                         float(cond_max), float(min_rel_amplitude), float(max_rel_std),
+                                         np.ascontiguousarray(c, dtype=float),
+                                         np.ascontiguousarray(cs, dtype=float) if std_known else None)
     reasons = list(_BASE_REASONS)
-    negative = _negative_direct_damping(c, cs)
-    if negative is not None:
-        extra_flags = _flag_list(extra_flags) + [(negative, NEGATIVE_DAMPING)]
     if extra_flags is not None:
         try:
             extra = [(np.asarray(m, dtype=bool), str(why)) for m, why in extra_flags if isinstance(why, str)]
@@ -373,7 +361,7 @@ def _finish(axis_name, axis, amp, k, c, cond, resid, ks, cs, cond_max, min_rel_a
         if len(extra) != len(list(extra_flags)) or any(m.shape != (axis.size,) for m, _ in extra):
             raise RotoridError(f"extra_flags must be a list of (mask of {axis.size} points, reason) pairs")
         if len(reasons) + len(extra) > 16:
-            raise RotoridError("extra_flags: at most 12 extra reasons")
+            raise RotoridError(f"extra_flags: at most {16 - len(_BASE_REASONS)} extra reasons")
         code = code.astype(np.uint16)
         for mask, why in extra:
             code |= mask.astype(np.uint16) << len(reasons)

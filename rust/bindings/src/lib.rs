@@ -501,7 +501,8 @@ fn py_identify<'py>(
                     for (b, ((oc, ra), okb)) in code.chunks_mut(row).zip(rel_amp.chunks_mut(row)).zip(ok.chunks_mut(row)).enumerate() {
                         let rows = b * n..(b + 1) * n;
                         let rs = if want_std { &rel[rows.clone()] } else { &[][..] };
-                        identify::flag_codes(&cond[2 * rows.start..2 * rows.end], &amp[rows], rs, cond_max, min_rel_amplitude, max_rel_std, ra, oc, okb)?;
+                        let cst = if want_std { &cs[8 * rows.start..8 * rows.end] } else { &[][..] };
+                        identify::flag_codes(&cond[2 * rows.start..2 * rows.end], &amp[rows.clone()], rs, &c[8 * rows.start..8 * rows.end], cst, cond_max, min_rel_amplitude, max_rel_std, ra, oc, okb)?;
                     }
                     Some((code, rel_amp, ok))
                 }
@@ -846,8 +847,10 @@ fn relative_std<'py>(
 }
 
 /// Flag codes of an identification in one pass (see identify::flag_codes): cond (n, 2), amp (n,),
-/// rel_std (n,) or None (unknown) -> (code uint8 (n,), amp / max amp (n,), ok = code == 0 (n,)).
+/// rel_std (n,) or None (unknown), c and c_std (n, 2, 2, 2) or None (no damping test; unknown
+/// errors) -> (code uint8 (n,), amp / max amp (n,), ok = code == 0 (n,)).
 #[pyfunction]
+#[pyo3(signature = (cond, amp, rel_std, cond_max, min_rel_amplitude, max_rel_std, c=None, c_std=None))]
 #[allow(clippy::too_many_arguments)]
 fn flag_codes<'py>(
     py: Python<'py>,
@@ -857,14 +860,29 @@ fn flag_codes<'py>(
     cond_max: f64,
     min_rel_amplitude: f64,
     max_rel_std: f64,
+    c: Option<PyReadonlyArrayDyn<'py, f64>>,
+    c_std: Option<PyReadonlyArrayDyn<'py, f64>>,
 ) -> PyResult<(Bound<'py, PyArrayDyn<u8>>, Bound<'py, PyArrayDyn<f64>>, Bound<'py, PyArrayDyn<bool>>)> {
     let n = amp.len();
     check_shape("cond", cond.shape(), &[n, 2])?;
     if let Some(r) = &rel_std {
         check_shape("rel_std", r.shape(), &[n])?;
     }
+    for (name, a) in [("c", &c), ("c_std", &c_std)] {
+        if let Some(a) = a {
+            check_shape(name, a.shape(), &[n, 2, 2, 2])?;
+        }
+    }
     let rs: &[f64] = match &rel_std {
         Some(r) => slice(r, "rel_std")?,
+        None => &[],
+    };
+    let cd: &[f64] = match &c {
+        Some(a) => slice(a, "c")?,
+        None => &[],
+    };
+    let cds: &[f64] = match &c_std {
+        Some(a) => slice(a, "c_std")?,
         None => &[],
     };
     let (cs, am) = (slice(&cond, "cond")?, slice(&amp, "amp")?);
@@ -873,7 +891,7 @@ fn flag_codes<'py>(
             let mut code = vec![0u8; n];
             let mut rel = out_buf(n);
             let mut ok = vec![false; n];
-            identify::flag_codes(cs, am, rs, cond_max, min_rel_amplitude, max_rel_std, &mut rel, &mut code, &mut ok).map(|_| (code, rel, ok))
+            identify::flag_codes(cs, am, rs, cd, cds, cond_max, min_rel_amplitude, max_rel_std, &mut rel, &mut code, &mut ok).map(|_| (code, rel, ok))
         })
     })?
     .map_err(core_err)?;

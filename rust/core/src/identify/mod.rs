@@ -1241,6 +1241,7 @@ pub const FLAG_SINGULAR: u8 = 1;
 pub const FLAG_ILL_CONDITIONED: u8 = 2;
 pub const FLAG_UNCERTAIN: u8 = 4;
 pub const FLAG_LOW_AMPLITUDE: u8 = 8;
+pub const FLAG_NEGATIVE_DAMPING: u8 = 16;
 
 /// Thresholds of [`flag_codes`] and the peak amplitude.
 struct FlagLimits {
@@ -1287,6 +1288,31 @@ fn flag_pass(lim: &FlagLimits, cond: &[f64], amp: &[f64], rs: Option<&[f64]>, re
     }
 }
 
+/// The "negative direct damping" bit over a run of points: C_xx or C_yy of either bearing (flat
+/// positions 0, 3, 4, 7 of a point's [bearing, i, j]) below -2 standard errors, or below zero
+/// where the error is unknown (NaN, or `c_std` None); false for NaN coefficients.
+#[inline(always)]
+fn damping_pass(c: &[f64], c_std: Option<&[f64]>, code: &mut [u8], ok: &mut [bool]) {
+    let neg = |d: f64, s: f64| if s.is_nan() { d < 0.0 } else { d + 2.0 * s < 0.0 };
+    let one = |cc: &[f64], ss: [f64; 4], o: &mut u8, k: &mut bool| {
+        let bad = neg(cc[0], ss[0]) | neg(cc[3], ss[1]) | neg(cc[4], ss[2]) | neg(cc[7], ss[3]);
+        *o |= (bad as u8) * FLAG_NEGATIVE_DAMPING;
+        *k = *o == 0;
+    };
+    match c_std {
+        Some(cs) => {
+            for (((cc, ss), o), k) in c.chunks_exact(8).zip(cs.chunks_exact(8)).zip(code.iter_mut()).zip(ok.iter_mut()) {
+                one(cc, [ss[0], ss[3], ss[4], ss[7]], o, k);
+            }
+        }
+        None => {
+            for ((cc, o), k) in c.chunks_exact(8).zip(code.iter_mut()).zip(ok.iter_mut()) {
+                one(cc, [f64::NAN; 4], o, k);
+            }
+        }
+    }
+}
+
 crate::lanes::simd_dispatch! {
     /// [`flag_pass`] at the widest SIMD level of this CPU.
     fn flag_pass_dispatch(lim: &FlagLimits, cond: &[f64], amp: &[f64], rs: Option<&[f64]>, rel: &mut [f64], code: &mut [u8], ok: &mut [bool]) -> () => flag_pass
@@ -1294,15 +1320,21 @@ crate::lanes::simd_dispatch! {
 
 /// Why each point should not be trusted, as bits, in one pass: singular (a condition number that
 /// is inf or NaN), ill-conditioned (cond > `cond_max`), uncertain (`rel_std` > `max_rel_std`),
-/// low amplitude (amp / max(amp) < `min_rel_amplitude`). `cond`: (n, 2); `amp`: (n,); `rel_std`:
-/// (n,), or empty when the standard errors are unknown (no point is then "uncertain");
-/// `rel_amp` receives amp / max(amp) (0 when every amplitude is 0); `code`: (n,); `ok` (n,)
-/// receives code == 0 (the points to trust), in the same pass.
+/// low amplitude (amp / max(amp) < `min_rel_amplitude`), negative direct damping (with `c`: a
+/// direct damping coefficient more than two standard errors `c_std` below zero, or below zero
+/// where they are unknown: a passive support dissipates, and a channel reversed in every run
+/// leaves no residual but this). `cond`: (n, 2); `amp`: (n,); `rel_std`: (n,), or empty when the
+/// standard errors are unknown (no point is then "uncertain"); `c`, `c_std`: (n, 2, 2, 2) damping
+/// and its standard errors, or empty (no damping test; unknown errors); `rel_amp` receives
+/// amp / max(amp) (0 when every amplitude is 0); `code`: (n,); `ok` (n,) receives code == 0 (the
+/// points to trust).
 #[allow(clippy::too_many_arguments)]
 pub fn flag_codes(
     cond: &[f64],
     amp: &[f64],
     rel_std: &[f64],
+    c: &[f64],
+    c_std: &[f64],
     cond_max: f64,
     min_rel_amplitude: f64,
     max_rel_std: f64,
@@ -1316,13 +1348,23 @@ pub fn flag_codes(
     if !rel_std.is_empty() {
         expect_len("rel_std", rel_std, n)?;
     }
+    if !c.is_empty() {
+        expect_len("c", c, product("c", &[n, 8])?)?;
+    }
+    if !c_std.is_empty() {
+        expect_len("c_std", c_std, product("c_std", &[n, 8])?)?;
+    }
     expect_len("rel_amp", rel_amp, n)?;
     expect_len("ok", ok, n)?;
     let rel_std = if rel_std.is_empty() { None } else { Some(rel_std) };
+    let c_std = if c_std.is_empty() { None } else { Some(c_std) };
     if n < PAR_FROM {
         // waking the pool costs more than the pass
         let lim = FlagLimits { peak: max_propagating_nan(amp), cond_max, min_rel_amplitude, max_rel_std };
         flag_pass_dispatch(&lim, cond, amp, rel_std, rel_amp, code, ok);
+        if !c.is_empty() {
+            damping_pass(c, c_std, code, ok);
+        }
         return Ok(());
     }
     // the peak in parallel too: a serial pass over amp was a third of the time at 100,000 points
@@ -1339,6 +1381,9 @@ pub fn flag_codes(
         let (oc, rc, ok) = unsafe { (code.chunk(j, PAR_CHUNK), rel_amp.chunk(j, PAR_CHUNK), ok.chunk(j, PAR_CHUNK)) };
         let (lo, hi) = (j * PAR_CHUNK, j * PAR_CHUNK + oc.len());
         flag_pass_dispatch(&lim, &cond[2 * lo..2 * hi], &amp[lo..hi], rel_std.map(|r| &r[lo..hi]), rc, oc, ok);
+        if !c.is_empty() {
+            damping_pass(&c[8 * lo..8 * hi], c_std.map(|s| &s[8 * lo..8 * hi]), oc, ok);
+        }
     });
     Ok(())
 }
