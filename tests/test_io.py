@@ -502,6 +502,9 @@ def test_a_channel_map_unit_that_contradicts_the_file_is_an_error(tmp_path, fmt)
     rec = make_rec()
     path = tmp_path / f"lab{ext}"
     save(rec, path, names=LAB_NAMES, units=LAB_UNITS)
+    # (also for a reversed sensor, scale = -1)
+    with pytest.raises(RotoridError, match="is stated in the file as 'mil'"):
+        quiet_load(path, channel_map={"Prox DE X": {"to": "x1", "unit": "um", "scale": -1.0}})
     with pytest.raises(RotoridError, match=r"Prox DE X' \(-> x1\) is stated in the file as 'mil', but channel_map gives "
                                            r"unit = 'um'.*override_file_unit = true"):
         quiet_load(path, channel_map={"Prox DE X": {"to": "x1", "unit": "um"}})
@@ -548,7 +551,14 @@ def test_uff_abscissa_in_milliseconds_and_a_rate_that_e13_5_rounds(tmp_path):
     got = quiet_load(ms)
     assert got.fs_hz == 51200.0
     assert_channels(got, rec, 1e-9)
+    # labels as other software writes them (all loaded before the ms conversion; review)
+    for label in ("Seconds", "sec.", "[s]", "t"):
+        other = tmp_path / "other.uff"
+        other.write_text(text.replace("Time                 s   ", "Time                 " + label.ljust(4)))
+        assert quiet_load(other).fs_hz == 51200.0, label
+    # a label that is no time unit, on a data set whose abscissa is time (type 17): seconds, said
     hz = tmp_path / "hz.uff"
     hz.write_text(text.replace("Time                 s   ", "Time                 Hz  "))
-    with pytest.raises(RotoridError, match="abscissa units label is 'Hz', not a time unit"):
-        quiet_load(hz)
+    with pytest.warns(UserWarning, match="abscissa units label 'Hz' is no time unit rotorid knows; its abscissa is "
+                                         "time"):
+        assert rio.load_recording(hz).fs_hz == 51200.0

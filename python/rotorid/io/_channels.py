@@ -119,10 +119,10 @@ def _check_stated_unit(use: _Use, path):
     file states for it, but another size (the map would silently win: a probe the file states in
     µm read as mil is 25.4 times too large, and the coefficients off by hundreds of percent with
     every point ok). A file unit rotorid does not know, of another quantity (volts from a probe's
-    driver, converted with ``scale``), any ``scale`` other than 1, or ``override_file_unit`` (the
+    driver, converted with ``scale``), any ``scale`` other than +-1 (-1 reverses a sensor), or ``override_file_unit`` (the
     file's label is known to be wrong), is the map's to convert."""
     stated = use.raw.unit
-    if not stated or use.name not in QUANTITY or use.scale != 1.0 or use.override:
+    if not stated or use.name not in QUANTITY or abs(use.scale) != 1.0 or use.override:
         return
     try:
         from_file = _units.factor(stated, QUANTITY[use.name])

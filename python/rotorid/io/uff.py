@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 from collections import Counter
 from pathlib import Path
 
@@ -114,11 +115,24 @@ def _abscissa_seconds(ds, raw: _Raw) -> float | None:
     label = str(ds.get("abscissa_axis_units_lab") or "").strip()
     if not label or label.upper() == "NONE":
         return 1.0
-    f = _TIME_UNITS.get(label.lower())
+    # "Time (s)", "[s]", "sec.", "Seconds", "msec": the unit word, singular, without brackets
+    word = re.sub(r"^.*[(\[]\s*|\s*[)\]].*$", "", label).strip().rstrip(".").lower()
+    word = _TIME_WORDS.get(word, word)
+    f = _TIME_UNITS.get(word)
+    if f is None and ds.get("abscissa_spec_data_type") == 17:
+        # the data set says its abscissa is time: seconds, as the format's default
+        _warn(f"UFF data set {raw.key!r}: abscissa units label {label!r} is no time unit rotorid knows; its abscissa "
+              "is time (specific data type 17): read as seconds")
+        return 1.0
     if f is None:
         raw.problem = (f"its abscissa units label is {label!r}, not a time unit ({', '.join(_TIME_UNITS)}): it is "
                        "no time series")
     return f
+
+
+#: spelled-out time units of UFF abscissa labels, as the keys of _TIME_UNITS
+_TIME_WORDS = {"t": "s", "second": "s", "seconds": "s", "secs": "s", "msec": "ms", "msecs": "ms", "millisecond": "ms",
+               "milliseconds": "ms", "usec": "us", "usecs": "us", "microsecond": "us", "microseconds": "us"}
 
 
 def _uff_time_base(ds, raw: _Raw) -> None:
