@@ -237,9 +237,7 @@ def _state_levels(v, *, where: str = "", pulse_side: str | None = None) -> tuple
         # sample rate), pile their samples into modes too, about one sample per pulse each: such a
         # mode was taken for the pulse state (a hump's flank at 37 % of its peak, timed 0.27 samples
         # early at exactly 6,000 rpm)
-        near_r = v[np.abs(v - rest) <= 0.06 * abs(pulse - rest)]
-        noise_r = 1.4826 * float(np.median(np.abs(near_r - np.median(near_r)))) if near_r.size else 0.0
-        reach = max(3, int(np.ceil(3.0 * noise_r / (e[1] - e[0]))))
+        reach = max(3, int(np.ceil(3.0 * _rest_noise(v, rest, abs(pulse - rest)) / (e[1] - e[0]))))
         dwelling = h[max(p - reach, 0): p + reach + 1].sum()
         inside = ((v > 0.5 * (rest + pulse)) == (pulse > rest)).astype(np.int8)
         crossings = np.count_nonzero(np.diff(inside) == 1)
@@ -261,9 +259,7 @@ def _state_levels(v, *, where: str = "", pulse_side: str | None = None) -> tuple
         # pulses that rise to a peak and fall (triangles, narrow humps) have no state to dwell at:
         # the median of their peaks is the pulse level (the detection then times them at half of it)
         swing = abs(peak - rest)
-        near_rest = v[np.abs(v - rest) <= 0.06 * swing]
-        noise = 1.4826 * np.median(np.abs(near_rest - np.median(near_rest))) if near_rest.size else 0.0
-        return _fine_mode(v, rest, swing, noise), peak, True
+        return _fine_mode(v, rest, swing, _rest_noise(v, rest, swing)), peak, True
     if pulse_side is None and other.any() and h[other].sum() >= 0.25 * h[pside].sum() and \
             h[other].max() >= 0.5 * near_pulse.max():
         o = int(np.flatnonzero(other)[np.argmax(h[other])])
@@ -273,8 +269,7 @@ def _state_levels(v, *, where: str = "", pulse_side: str | None = None) -> tuple
     # refine each state: the mode of a finer histogram of the samples near it, then the mean of the
     # samples within a few noise widths of that mode (edge samples must not pull a state level)
     swing = abs(pulse - rest)
-    near_rest = v[np.abs(v - rest) <= 0.06 * swing]
-    noise = 1.4826 * np.median(np.abs(near_rest - np.median(near_rest))) if near_rest.size else 0.0
+    noise = _rest_noise(v, rest, swing)
     rest = _fine_mode(v, rest, swing, noise)
     pulse = _fine_mode(v, pulse, swing, noise)
     return rest, pulse, False
@@ -283,6 +278,13 @@ def _state_levels(v, *, where: str = "", pulse_side: str | None = None) -> tuple
 #: samples per pulse below which a histogram mode is no state the pulses dwell at (a symmetric
 #: pulse sampled at the same phases every revolution puts two samples per pulse at one level)
 DWELL_SAMPLES = 3.5
+
+
+def _rest_noise(v, rest, swing):
+    """Robust noise of the resting state: the MAD (as a standard deviation) of the samples within
+    6 % of ``swing`` of ``rest`` (0 when there are none)."""
+    near = v[np.abs(v - rest) <= 0.06 * swing]
+    return 1.4826 * float(np.median(np.abs(near - np.median(near)))) if near.size else 0.0
 
 
 def _peaked_pulses(v, rest, n_side, n_other, sgn):
