@@ -363,7 +363,7 @@ def test_core_flags_in_the_identify_call_equal_the_separate_flag_pass(with_std):
     q[2, 1, 40, 2] = np.nan
     q[0, :, 90] = 0.0  # a singular point
     e = np.stack([rig.imbalances[n].generalized(rig.rotor) for n in "ABC"])[None]
-    limits = (50.0, 0.2, 0.05)
+    limits = (50.0, 0.2, 0.05, 2.0)  # thresholds, and the residual dof of 3 runs
     *_, rel_std, code, rel_amp, ok, nbad = _core.identify(rig.rotor.core_params(), om, om, q, e, om ** 2,
                                                            with_std=with_std, flag_limits=limits)
     k, c, cond, resid, amp, ks, cs, *_ = _core.identify(rig.rotor.core_params(), om, om, q, e, om ** 2,
@@ -372,8 +372,8 @@ def test_core_flags_in_the_identify_call_equal_the_separate_flag_pass(with_std):
     assert ok.dtype == bool
     np.testing.assert_array_equal(ok, code == 0)
     for b in range(3):
-        want_code, want_rel, want_ok = _core.flag_codes(cond[b], amp[b], rel_std[b] if with_std else None, *limits,
-                                                        c[b], cs[b] if with_std else None)
+        want_code, want_rel, want_ok = _core.flag_codes(cond[b], amp[b], rel_std[b] if with_std else None, *limits[:3],
+                                                        c[b], cs[b] if with_std else None, np.array([2.0]))
         np.testing.assert_array_equal(code[b], want_code)
         np.testing.assert_array_equal(rel_amp[b], want_rel)
         assert want_ok.dtype == bool
@@ -388,7 +388,7 @@ def test_core_flags_in_the_identify_call_equal_the_separate_flag_pass(with_std):
     assert no_flags[8] is None and no_flags[9] is None and no_flags[10] is None
     from rotorid._corecall import core
 
-    for bad in ((50.0, 0.2), "abc", (50.0, None, 0.1)):
+    for bad in ((50.0, 0.2), "abc", (50.0, None, 0.1, 2.0), (50.0, 0.2, 0.1)):
         with pytest.raises(RotoridError, match="flag_limits"):
             core.identify(rig.rotor.core_params(), om, om, q, e, om ** 2, flag_limits=bad)
 
@@ -463,3 +463,80 @@ def test_a_probe_reversed_in_every_run_is_flagged_by_its_negative_direct_damping
     assert negative.any()
     assert np.array_equal(np.array(["negative direct damping" in f for f in flipped.flag]), negative)
     assert not flipped.ok[negative].any()
+
+
+@pytest.mark.parametrize("sets, phase_std", [("ABC", 0.0), ("ABCD", 0.0), ("ABC", 1e-4)])
+def test_negative_damping_flags_zero_damping_at_the_same_rate_whatever_the_runs_dof(sets, phase_std):
+    """A bearing with zero direct damping Cxx1 (the other coefficients as the NSF rig), runs with
+    random noise, residual-based standard errors (3 runs: 2 dof; 4 runs: 4 dof): the flag is a
+    one-sided test at Phi(-2) = 2.3 %, so zero damping is flagged at that rate whatever the dof.
+    Two standard errors regardless of the dof flagged 9.2 % (2 dof) and 6.0 % (4 dof). With a
+    (negligible) phase-reference uncertainty the flags come from the separate pass with each
+    point's own (Welch-Satterthwaite) dof."""
+    import warnings
+
+    from rotorid import BearingCoefficients
+    from rotorid.identify import NEGATIVE_DAMPING
+
+    rig = rotorid.nsf_rig()
+    rpm = np.arange(2000.0, 9001.0, 250.0)
+    c = np.array(rig.bearings.c, dtype=float)
+    c[0, 0, 0] = 0.0
+    bearings = BearingCoefficients(k=np.array(rig.bearings.k), c=c)
+    clean = {s: rotorid.imbalance_response(rig.rotor, bearings, rig.imbalances[s], speed_rpm=rpm) for s in sets}
+    rng = np.random.default_rng(3)
+    bits, z = [], []
+    for _ in range(400):
+        runs = []
+        for s in sets:
+            r = rotorid.imbalance_response(rig.rotor, bearings, rig.imbalances[s], speed_rpm=rpm)
+            r.q = clean[s].q + 0.05e-6 * (rng.standard_normal(r.q.shape) + 1j * rng.standard_normal(r.q.shape))
+            runs.append(r)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            ident = rotorid.identify_synchronous(rig.rotor, runs, keyphasor_angle_std_deg=phase_std)
+        assert ident.std_source == "residual" + (" + phase reference" if phase_std else "")
+        bit = ident.flag_reasons.index(NEGATIVE_DAMPING)
+        bits.append((ident.flag_code.astype(int) >> bit) & 1)
+        z.append(ident.c[:, 0, 0, 0] / ident.c_std[:, 0, 0, 0])
+    bits, z = np.concatenate(bits), np.concatenate(z)
+    assert np.allclose(ident.dof, 2.0 * (len(sets) - 2), rtol=1e-3)
+    assert np.mean(z < -2) > 0.055  # what a fixed 2 standard errors would flag
+    assert 0.015 < bits.mean() < 0.035, bits.mean()
+
+
+def test_negative_damping_threshold_is_students_t_at_each_points_dof():
+    """The core's test F_t(c / std; dof) < Phi(-2) against scipy's t distribution: dampings 1e-9
+    on either side of scipy's threshold, for real dof from 0.3 to 1e7 (one value for every point
+    and one per point), +inf and NaN (the normal: -2 standard errors), NaN standard errors (below
+    zero is enough)."""
+    from scipy import stats
+
+    from rotorid import _core
+
+    dofs = np.concatenate([np.geomspace(0.3, 1e7, 57), [2.0, 4.0, 99_999.0, 100_001.0]])
+    level = stats.norm.cdf(-2.0)
+    x = stats.t.ppf(level, dofs)  # the threshold in standard errors
+    n = dofs.size
+    cond, amp = np.ones((n, 2)), np.ones(n)
+    for side, flagged in ((1 - 1e-9, False), (1 + 1e-9, True)):
+        c = np.full((n, 2, 2, 2), 100.0)
+        c[:, 1, 1, 1] = x * side * 3.0  # Cyy of bearing 2, standard error 3
+        std = np.full((n, 2, 2, 2), 3.0)
+        code, _, ok = _core.flag_codes(cond, amp, None, 1e9, 0.0, 1e9, c, std, dofs)
+        assert (code == 16).tolist() == [flagged] * n, side
+        for i in (0, 17, n - 1):  # one dof for every point
+            code1, *_ = _core.flag_codes(cond[i:i + 1], amp[i:i + 1], None, 1e9, 0.0, 1e9, c[i:i + 1], std[i:i + 1],
+                                         dofs[i:i + 1])
+            assert code1[0] == (16 if flagged else 0)
+    c = np.full((3, 2, 2, 2), 100.0)
+    c[:, 0, 0, 0] = [-1.99, -2.01, -0.01]
+    std = np.ones((3, 2, 2, 2))
+    std[2] = np.nan
+    for dof in (np.array([np.inf]), np.array([np.nan]), None):
+        code, *_ = _core.flag_codes(np.ones((3, 2)), np.ones(3), None, 1e9, 0.0, 1e9, c, std, dof)
+        assert code.tolist() == [0, 16, 16]
+    from rotorid._corecall import core
+
+    with pytest.raises(RotoridError, match="dof has shape"):
+        core.flag_codes(np.ones((3, 2)), np.ones(3), None, 1e9, 0.0, 1e9, c, std, np.ones(2))

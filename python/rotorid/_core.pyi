@@ -59,7 +59,7 @@ def identify(
     q_ped: npt.NDArray[np.complex128] | None = None,  # as q: pedestal motion at the bearings (inertia sees q + q_ped)
     planes: npt.NDArray[np.float64] | None = None,  # (2, 2): q is at the probe planes, eq. 19 moves it to the bearings
     w_scale: float | None = None,  # w is given in another unit: w_scale * w rad/s (e.g. Hz and 2 pi)
-    flag_limits: tuple[float, float, float] | None = None,  # (cond_max, min_rel_amplitude, max_rel_std)
+    flag_limits: tuple[float, float, float, float] | None = None,  # (cond_max, min_rel_amplitude, max_rel_std, dof of the standard errors)
     refine_all: bool = False,  # the semi-normal equations' refinement step at every point, not only from cond 1e3 on
 ) -> tuple[
     npt.NDArray[np.float64],  # k (batch, n, 2, 2, 2)

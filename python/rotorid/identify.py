@@ -351,7 +351,8 @@ def _finish(axis_name, axis, amp, k, c, cond, resid, ks, cs, cond_max, min_rel_a
                                          np.ascontiguousarray(rel_std, dtype=float) if std_known else None,
                                          float(cond_max), float(min_rel_amplitude), float(max_rel_std),
                                          np.ascontiguousarray(c, dtype=float),
-                                         np.ascontiguousarray(cs, dtype=float) if std_known else None)
+                                         np.ascontiguousarray(cs, dtype=float) if std_known else None,
+                                         _flag_dof(dof))
     reasons = list(_BASE_REASONS)
     if extra_flags is not None:
         try:
@@ -369,6 +370,17 @@ def _finish(axis_name, axis, amp, k, c, cond, resid, ks, cs, cond_max, min_rel_a
         ok = code == 0
     return Identification(axis_name, axis, k, c, cond, resid, rel, ks, cs, ok, code, method, labels, std_source, dof,
                           cov, rel_std, ks_res, cs_res, bias_k, bias_c, estimator, tuple(reasons))
+
+
+def _flag_dof(dof):
+    """The degrees of freedom of the standard errors as the core's negative-damping test takes
+    them: None (+inf), one value (a constant view: no (n,) copy) or one per point."""
+    if dof is None:
+        return None
+    dof = np.asarray(dof, dtype=float)
+    if dof.ndim == 1 and dof.size and dof.strides == (0,):
+        return np.array(dof[:1])
+    return np.ascontiguousarray(dof)
 
 
 #: the fewest points for which an API call wakes the core's threads before its own checks (the
@@ -898,11 +910,13 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
     # the flags come from the same call unless the standard errors change below (propagated
     # covariance, accelerometer calibration)
     e_core = _core_excitations(e) if e_core is None else e_core
+    # residual dof per bearing system: R complex equations (2R real) for 2 complex unknowns
+    residual_dof = 2.0 * (nruns * (2 if identical else 1) - 2)
     k, c, cond, resid, amp, ks, cs, rel_std, code, rel_amp, ok, nbad = _core.identify(
         rotor.core_params(), np.ascontiguousarray(w), spin, list(qs), e_core,
         gain, identical=identical, method=method, with_std=redundant, sigma=sigma, q_ped=q_ped, planes=planes,
         w_scale=w_scale, flag_limits=None if covs is not None or calibration is not None or phase_std is not None
-        else (cond_max, min_rel_amplitude, max_rel_std))
+        else (cond_max, min_rel_amplitude, max_rel_std, residual_dof if redundant else np.inf))
     k_ls, c_ls = k[0], c[0]  # the least-squares estimate (before any bias correction)
     if nbad:
         qs = np.stack(qs)
@@ -931,10 +945,9 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
     bias_k = bias_c = None
     source, dof, cov = ("residual" if residual_std else "none"), None, None
     if residual_std:
-        # residual dof per bearing system: R complex equations (2R real) for 2 complex unknowns
         # one value for every point: a read-only view, not an (n,) array (freed with om, two such
         # arrays made glibc return and fault in the memory on every call)
-        dof = _constant_view(2.0 * (nruns * (2 if identical else 1) - 2), (axis.size,))
+        dof = _constant_view(residual_dof, (axis.size,))
     if covs is not None:
         # the accelerometers' calibration (a systematic error common to all runs) is added to the
         # covariance by the same core call, through the same Jacobian

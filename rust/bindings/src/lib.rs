@@ -426,7 +426,8 @@ fn report_method(method: &str) -> PyResult<bool> {
 /// formulation). Returns (k, c, cond, resid, amp, k_std, c_std, rel_std, flag_code, rel_amp, ok,
 /// n_nonfinite) with k, c: (B, n, 2, 2, 2), cond (B, n, 2), resid, amp (rms response amplitude)
 /// and rel_std (largest standard error relative to the bearing's direct coefficients, see
-/// identify::relative_std) (B, n). `flag_limits` (cond_max, min_rel_amplitude, max_rel_std):
+/// identify::relative_std) (B, n). `flag_limits` (cond_max, min_rel_amplitude, max_rel_std, dof)
+/// (dof: the degrees of freedom of the standard errors, for the negative-damping test):
 /// also the flag codes (uint8), amp / max amp and ok = (code == 0) of each batch row (B, n), as
 /// `flag_codes` gives them, computed in the same call (None otherwise); "uncertain" only when standard errors are
 /// computed. `refine_all`: the refinement step of the semi-normal equations in every point, not
@@ -453,9 +454,9 @@ fn py_identify<'py>(
     refine_all: bool,
 ) -> PyResult<IdentTuple<'py>> {
     let flag_limits = flag_limits
-        .map(|f| f.extract::<(f64, f64, f64)>())
+        .map(|f| f.extract::<(f64, f64, f64, f64)>())
         .transpose()
-        .map_err(|e| PyValueError::new_err(format!("flag_limits must be (cond_max, min_rel_amplitude, max_rel_std): {e}")))?;
+        .map_err(|e| PyValueError::new_err(format!("flag_limits must be (cond_max, min_rel_amplitude, max_rel_std, dof): {e}")))?;
     let rot = rotor_of(&rotor)?;
     let resp = responses(q)?;
     let (batch, n) = (resp.batch, resp.n);
@@ -493,7 +494,7 @@ fn py_identify<'py>(
             // the flags of each batch row while its outputs are still in cache (and the pool's
             // threads awake): no second call from Python
             let flags = match flag_limits {
-                Some((cond_max, min_rel_amplitude, max_rel_std)) => {
+                Some((cond_max, min_rel_amplitude, max_rel_std, dof)) => {
                     let mut code = vec![0u8; npts];
                     let mut rel_amp = out_buf(npts);
                     let mut ok = vec![false; npts];
@@ -502,7 +503,7 @@ fn py_identify<'py>(
                         let rows = b * n..(b + 1) * n;
                         let rs = if want_std { &rel[rows.clone()] } else { &[][..] };
                         let cst = if want_std { &cs[8 * rows.start..8 * rows.end] } else { &[][..] };
-                        identify::flag_codes(&cond[2 * rows.start..2 * rows.end], &amp[rows.clone()], rs, &c[8 * rows.start..8 * rows.end], cst, cond_max, min_rel_amplitude, max_rel_std, ra, oc, okb)?;
+                        identify::flag_codes(&cond[2 * rows.start..2 * rows.end], &amp[rows.clone()], rs, &c[8 * rows.start..8 * rows.end], cst, &[dof], cond_max, min_rel_amplitude, max_rel_std, ra, oc, okb)?;
                     }
                     Some((code, rel_amp, ok))
                 }
@@ -848,9 +849,10 @@ fn relative_std<'py>(
 
 /// Flag codes of an identification in one pass (see identify::flag_codes): cond (n, 2), amp (n,),
 /// rel_std (n,) or None (unknown), c and c_std (n, 2, 2, 2) or None (no damping test; unknown
-/// errors) -> (code uint8 (n,), amp / max amp (n,), ok = code == 0 (n,)).
+/// errors), dof (1,) or (n,) the degrees of freedom of c_std or None (+inf) -> (code uint8 (n,),
+/// amp / max amp (n,), ok = code == 0 (n,)).
 #[pyfunction]
-#[pyo3(signature = (cond, amp, rel_std, cond_max, min_rel_amplitude, max_rel_std, c=None, c_std=None))]
+#[pyo3(signature = (cond, amp, rel_std, cond_max, min_rel_amplitude, max_rel_std, c=None, c_std=None, dof=None))]
 #[allow(clippy::too_many_arguments)]
 fn flag_codes<'py>(
     py: Python<'py>,
@@ -862,8 +864,18 @@ fn flag_codes<'py>(
     max_rel_std: f64,
     c: Option<PyReadonlyArrayDyn<'py, f64>>,
     c_std: Option<PyReadonlyArrayDyn<'py, f64>>,
+    dof: Option<PyReadonlyArrayDyn<'py, f64>>,
 ) -> PyResult<(Bound<'py, PyArrayDyn<u8>>, Bound<'py, PyArrayDyn<f64>>, Bound<'py, PyArrayDyn<bool>>)> {
     let n = amp.len();
+    if let Some(d) = &dof {
+        if d.shape() != [1] {
+            check_shape("dof", d.shape(), &[n])?;
+        }
+    }
+    let dofs: &[f64] = match &dof {
+        Some(d) => slice(d, "dof")?,
+        None => &[],
+    };
     check_shape("cond", cond.shape(), &[n, 2])?;
     if let Some(r) = &rel_std {
         check_shape("rel_std", r.shape(), &[n])?;
@@ -891,7 +903,7 @@ fn flag_codes<'py>(
             let mut code = vec![0u8; n];
             let mut rel = out_buf(n);
             let mut ok = vec![false; n];
-            identify::flag_codes(cs, am, rs, cd, cds, cond_max, min_rel_amplitude, max_rel_std, &mut rel, &mut code, &mut ok).map(|_| (code, rel, ok))
+            identify::flag_codes(cs, am, rs, cd, cds, dofs, cond_max, min_rel_amplitude, max_rel_std, &mut rel, &mut code, &mut ok).map(|_| (code, rel, ok))
         })
     })?
     .map_err(core_err)?;

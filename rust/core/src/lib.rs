@@ -41,6 +41,7 @@ pub mod par;
 pub mod pedestal_fit;
 pub mod revolution_blocks;
 pub mod series;
+pub mod student_t;
 pub mod study;
 pub mod timesim;
 

@@ -965,18 +965,22 @@ fn flag_codes_match_their_definition() {
     // standard error (unknown) flags nothing
     let rel_std = [0.01, 0.5, 0.01, 0.01, f64::NAN];
     let (mut rel, mut code, mut ok) = ([0.0; 5], [0u8; 5], [false; 5]);
-    flag_codes(&cond, &amp, &rel_std, &[], &[], 1e4, 0.08, 0.1, &mut rel, &mut code, &mut ok).unwrap();
+    flag_codes(&cond, &amp, &rel_std, &[], &[], &[], 1e4, 0.08, 0.1, &mut rel, &mut code, &mut ok).unwrap();
     assert_eq!(rel, [0.25, 0.5, 1.0, 0.025, 0.75]);
     assert_eq!(code, [0, FLAG_SINGULAR, FLAG_ILL_CONDITIONED, FLAG_SINGULAR | FLAG_LOW_AMPLITUDE, 0]);
     assert_eq!(ok, [true, false, false, false, true]);
     let (mut rel0, mut code0, mut ok0) = ([9.0; 2], [9u8; 2], [true; 2]);
-    flag_codes(&[1.0; 4], &[0.0, 0.0], &[0.0; 2], &[], &[], 1e4, 0.08, 0.1, &mut rel0, &mut code0, &mut ok0).unwrap();
+    flag_codes(&[1.0; 4], &[0.0, 0.0], &[0.0; 2], &[], &[], &[], 1e4, 0.08, 0.1, &mut rel0, &mut code0, &mut ok0).unwrap();
     assert_eq!((rel0, code0, ok0), ([0.0; 2], [FLAG_LOW_AMPLITUDE; 2], [false; 2]));
-    assert!(flag_codes(&cond[..9], &amp, &rel_std, &[], &[], 1e4, 0.08, 0.1, &mut rel, &mut code, &mut ok).is_err());
-    assert!(flag_codes(&cond, &amp, &rel_std, &[0.0; 39], &[], 1e4, 0.08, 0.1, &mut rel, &mut code, &mut ok).is_err());
+    assert!(flag_codes(&cond[..9], &amp, &rel_std, &[], &[], &[], 1e4, 0.08, 0.1, &mut rel, &mut code, &mut ok).is_err());
+    assert!(flag_codes(&cond, &amp, &rel_std, &[0.0; 39], &[], &[], 1e4, 0.08, 0.1, &mut rel, &mut code, &mut ok).is_err());
     assert_eq!(
-        flag_codes(&cond, &amp, &rel_std, &[], &[], 1e4, 0.08, 0.1, &mut rel, &mut code, &mut [false; 4]).unwrap_err().to_string(),
+        flag_codes(&cond, &amp, &rel_std, &[], &[], &[], 1e4, 0.08, 0.1, &mut rel, &mut code, &mut [false; 4]).unwrap_err().to_string(),
         "ok has 4 elements, expected 5"
+    );
+    assert_eq!(
+        flag_codes(&cond, &amp, &rel_std, &[], &[], &[1.0; 3], 1e4, 0.08, 0.1, &mut rel, &mut code, &mut ok).unwrap_err().to_string(),
+        "dof has 3 elements, expected 5"
     );
 }
 
@@ -991,7 +995,7 @@ fn flag_codes_peak_propagates_nan_like_numpy() {
             }
             let top = amp.iter().cloned().fold(0.0f64, f64::max);
             let (mut rel, mut code, mut ok) = (vec![0.0; n], vec![0u8; n], vec![false; n]);
-            flag_codes(&vec![1.0; 2 * n], &amp, &[], &[], &[], 1e4, 0.0, 0.1, &mut rel, &mut code, &mut ok).unwrap();
+            flag_codes(&vec![1.0; 2 * n], &amp, &[], &[], &[], &[], 1e4, 0.0, 0.1, &mut rel, &mut code, &mut ok).unwrap();
             for i in 0..n {
                 let want = if nan_at.is_some() { 0.0 } else { amp[i] / top };
                 assert_eq!(rel[i], want, "n {n}, NaN at {nan_at:?}, point {i}");
@@ -1002,7 +1006,9 @@ fn flag_codes_peak_propagates_nan_like_numpy() {
 
 /// The parallel pass (from 32,768 points, in chunks of 8,192) gives what the definition gives
 /// point by point: the peak is reduced over chunks (a NaN in the last chunk reaches the first),
-/// with and without standard errors, at sizes around the chunk boundaries.
+/// with and without standard errors, at sizes around the chunk boundaries, with no degrees of
+/// freedom (+inf), one for every point and one per point (1, 2 or +inf: Student's t of 1 and 2
+/// degrees of freedom has closed forms, F(x; 1) = 1/2 + atan(x)/pi, F(x; 2) = 1/2 + x/(2 sqrt(2 + x^2))).
 #[test]
 fn flag_codes_in_parallel_match_the_definition_point_by_point() {
     use rotorid_core::identify::{flag_codes, FLAG_ILL_CONDITIONED, FLAG_LOW_AMPLITUDE, FLAG_NEGATIVE_DAMPING, FLAG_SINGULAR, FLAG_UNCERTAIN};
@@ -1012,15 +1018,17 @@ fn flag_codes_in_parallel_match_the_definition_point_by_point() {
             let cond: Vec<f64> = (0..2 * n).map(|j| match j % 13 { 0 => f64::INFINITY, 5 => 2e4, 9 => f64::NAN, _ => 3.0 }).collect();
             let rel_std: Vec<f64> = (0..n).map(|i| ((i % 17) as f64) / 50.0).collect();
             // damping: every 29th value negative, every 31st standard error unknown, NaN among them
-            let c: Vec<f64> = (0..8 * n).map(|j| match j % 29 { 0 => -3.0, 7 => -0.5, 11 => f64::NAN, _ => 100.0 }).collect();
+            // (-3, -6 and -50 standard errors: flagged at +inf; at 2 dof from -4.5; at 1 dof from -14)
+            let c: Vec<f64> = (0..8 * n).map(|j| match j % 29 { 0 => -3.0, 7 => -0.5, 11 => f64::NAN, 13 => -6.0, 17 => -50.0, _ => 100.0 }).collect();
             let c_std: Vec<f64> = (0..8 * n).map(|j| if j % 31 == 0 { f64::NAN } else { 1.0 }).collect();
             let peak = if nan_last { f64::NAN } else { 999.0 };
-            for with_std in [false, true] {
+            let per_point: Vec<f64> = (0..n).map(|i| [f64::INFINITY, 1.0, 2.0][i % 3]).collect();
+            for (with_std, dof) in [(false, &[][..]), (true, &[][..]), (true, &[2.0][..]), (true, &per_point[..])] {
                 // ok starts as the opposite of what it must become: every value is written
                 let (mut rel, mut code) = (vec![0.0; n], vec![0u8; n]);
                 let mut ok: Vec<bool> = (0..n).map(|i| i % 2 == 0).collect();
                 let (cs, ss) = if with_std { (&c[..], &c_std[..]) } else { (&c[..], &[][..]) };
-                flag_codes(&cond, &amp, if with_std { &rel_std } else { &[] }, cs, ss, 1e4, 0.05, 0.2, &mut rel, &mut code, &mut ok).unwrap();
+                flag_codes(&cond, &amp, if with_std { &rel_std } else { &[] }, cs, ss, dof, 1e4, 0.05, 0.2, &mut rel, &mut code, &mut ok).unwrap();
                 for i in 0..n {
                     let (c0, c1) = (cond[2 * i], cond[2 * i + 1]);
                     let finite = c0.is_finite() && c1.is_finite();
@@ -1038,11 +1046,25 @@ fn flag_codes_in_parallel_match_the_definition_point_by_point() {
                     if ra < 0.05 {
                         want |= FLAG_LOW_AMPLITUDE;
                     }
-                    // the direct terms (Cxx, Cyy of both bearings) below -2 standard errors, or
-                    // below 0 where the error is unknown
+                    // the direct terms (Cxx, Cyy of both bearings) with F_t(d / s; dof) below
+                    // Phi(-2) = 0.02275 (d < -2 s at +inf dof), or below 0 where the error is unknown
+                    let v = match dof.len() {
+                        0 => f64::INFINITY,
+                        1 => dof[0],
+                        _ => dof[i],
+                    };
                     if [0, 3, 4, 7].iter().any(|&t| {
                         let (d, s) = (c[8 * i + t], if with_std { c_std[8 * i + t] } else { f64::NAN });
-                        if s.is_nan() { d < 0.0 } else { d + 2.0 * s < 0.0 }
+                        let x = d / s;
+                        if s.is_nan() {
+                            d < 0.0
+                        } else if v == 1.0 {
+                            0.5 + x.atan() / std::f64::consts::PI < 0.022_750_131_948_179_2
+                        } else if v == 2.0 {
+                            0.5 + x / (2.0 * (2.0 + x * x).sqrt()) < 0.022_750_131_948_179_2
+                        } else {
+                            d + 2.0 * s < 0.0
+                        }
                     }) {
                         want |= FLAG_NEGATIVE_DAMPING;
                     }
