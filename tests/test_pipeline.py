@@ -439,3 +439,30 @@ def test_a_sample_rate_in_the_wrong_unit_is_refused_not_fitted(imbalance_records
     with pytest.raises(RotoridError, match=r"run 0: its fastest speed is 50 rpm in its speed column: are the speeds "
                                            r"in rpm\?"):
         pipeline.imbalance_chain(rotor, slow)
+
+
+def test_keyphasor_phase_uncertainty_of_a_coast_down_speed_no_revolution_is_near():
+    """A coast-down 6000 -> 1000 rpm in 8 s whose per-pulse timing uncertainty grows as the speed
+    falls (a mark of fixed angular width: 10 µs at 6000 rpm, 60 µs at 1000 rpm, 0.36 degrees at
+    every speed). Near 1000 rpm the revolutions are 10-40 rpm apart, beyond the 5 rpm tolerance:
+    those grid speeds take the angle of the revolutions nearest in speed (the median over all
+    pulses in seconds gave 1000 rpm 0.23 of its uncertainty, the nearest in seconds 0.87), and a
+    grid speed beyond the record the angle at its end."""
+    from rotorid.signals.keyphasor import Keyphasor
+
+    t = np.linspace(0.0, 8.0, 200_001)
+    rpm_t = 6000.0 - 5000.0 * t / 8.0
+    rev = np.cumsum(rpm_t / 60.0) * (t[1] - t[0])
+    times = np.interp(np.arange(1, int(rev[-1])), rev, t)
+    kp = Keyphasor.from_times(times)
+    kp.timing_std_each_s = 1e-5 * 6000.0 / np.interp(times, t, rpm_t)
+    kp.timing_std_s = float(np.median(kp.timing_std_each_s))
+    grid = np.arange(1000.0, 6001.0, 50.0)
+    reached = np.array([np.any(np.abs(kp.speed_rpm - g) <= max(2.0, 0.005 * g)) for g in grid])
+    assert 3 <= (~reached).sum() <= 20 and not reached[0]
+    got = pipeline._keyphasor_phase_std([kp], grid, 2.0)
+    want = np.rad2deg(grid * np.pi / 30.0 * 1e-5 * 6000.0 / grid)  # 0.36 degrees at every speed
+    np.testing.assert_allclose(got, want, rtol=0.02)
+    # beyond either end of the record: the angle of the revolutions at that end
+    beyond = pipeline._keyphasor_phase_std([kp], np.array([800.0, 7000.0]), 2.0)
+    np.testing.assert_allclose(beyond, [0.36, 0.36], rtol=0.02)

@@ -167,25 +167,40 @@ def _plausible_speeds(track, run, label):
     return track
 
 
+#: revolutions whose timing uncertainty a grid speed takes when no revolution is within the
+#: speed tolerance of it: the nearest in speed (a coast-down's last revolutions are far apart)
+NEAREST_REVOLUTIONS = 5
+
+
 def _keyphasor_phase_std(keyphasors, grid_rpm, tol_rpm):
     """(n,) phase uncertainty (degrees) at the grid speeds from the keyphasors' per-pulse timing
     uncertainty (``Keyphasor.timing_std_each_s``), or None when every pulse's is 0. At each speed:
     Omega times the median over the pulses of a keyphasor within max(tol_rpm, 0.5 %) of it (a pulse
     shape's timing in seconds changes with speed), the largest over the keyphasors that reach it;
-    a speed no keyphasor reaches takes the largest median of all."""
+    a speed no keyphasor reaches takes, from each keyphasor, the median angle Omega times sigma_t of
+    the ``NEAREST_REVOLUTIONS`` nearest to it in speed, the largest of these (the median over all
+    pulses, in seconds, gave the end of a coast-down to 1000 rpm, where the revolutions are 10-40
+    rpm apart, 0.23 of its uncertainty)."""
     each = [k for k in keyphasors if k.timing_std_each_s is not None and k.times.size > 1]
     if not each:
         return None
     grid_rpm = np.asarray(grid_rpm, dtype=float)
     out = np.full(grid_rpm.size, np.nan)
+    nearest = np.full(grid_rpm.size, np.nan)
     for k in each:
         rpm = k.speed_rpm
         s = 0.5 * (k.timing_std_each_s[1:] + k.timing_std_each_s[:-1])
         for i, g in enumerate(grid_rpm):
-            near = np.abs(rpm - g) <= max(tol_rpm, 0.005 * g)
+            gap = np.abs(rpm - g)
+            near = gap <= max(tol_rpm, 0.005 * g)
             if near.any():
                 out[i] = np.fmax(out[i], float(np.median(s[near])))
-    out = np.where(np.isnan(out), max(k.timing_std_s for k in each), out)
+            else:
+                # as an angle (a fixed-angle feature's timing in seconds scales with 1/speed), moved
+                # to this speed: the nearest revolutions may be 100 rpm or more away
+                closest = np.argsort(gap, kind="stable")[:NEAREST_REVOLUTIONS]
+                nearest[i] = np.fmax(nearest[i], float(np.median(s[closest] * rpm[closest])) / g)
+    out = np.where(np.isnan(out), nearest, out)
     return np.rad2deg(grid_rpm * np.pi / 30.0 * out)
 
 
