@@ -931,3 +931,19 @@ def test_override_file_unit_in_a_channel_map():
     assert "override_file_unit = true needs the unit that replaces the file's" in error_of(cfg)
     cfg["channels"] = {"Prox DE X": {"to": "x1", "unit": "um", "override_file_unit": "yes"}}
     assert "override_file_unit must be true or false, got the string 'yes'" in error_of(cfg)
+
+
+def test_angle_deg_of_probes_in_a_channel_map():
+    cfg = imbalance_cfg()
+    cfg["channels"] = {"DE L": {"to": "x1", "unit": "um", "angle_deg": 45.0},
+                       "DE R": {"to": "y1", "unit": "um", "angle_deg": 135}}
+    chans = parse_config(cfg).channels_for()
+    assert chans["DE L"]["angle_deg"] == 45.0 and chans["DE R"]["angle_deg"] == 135.0
+    cfg["channels"] = {"Prox DE X": {"to": "x1", "unit": "mil"}}
+    assert "angle_deg" not in parse_config(cfg).channels_for()["Prox DE X"]
+    cfg["channels"] = {"KP": {"to": "kp", "angle_deg": 10.0}}
+    assert "angle_deg is the measuring direction of a probe or housing accelerometer" in error_of(cfg)
+    cfg["channels"] = {"DE L": {"to": "x1", "angle_deg": "45"}}
+    assert "angle_deg" in error_of(cfg)
+    cfg["channels"] = {"DE L": {"to": "x1", "angle_deg": float("nan")}}
+    assert "angle_deg" in error_of(cfg)

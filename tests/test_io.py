@@ -562,3 +562,79 @@ def test_uff_abscissa_in_milliseconds_and_a_rate_that_e13_5_rounds(tmp_path):
     with pytest.warns(UserWarning, match="abscissa units label 'Hz' is no time unit rotorid knows; its abscissa is "
                                          "time"):
         assert rio.load_recording(hz).fs_hz == 51200.0
+
+
+def _angled(rec, angles):
+    """The probes of ``rec`` as if mounted at ``angles`` {channel: deg from +x toward +y}: each
+    reads the plane's motion along its direction."""
+    ch = dict(rec.channels)
+    for xn, yn in (("x1", "y1"), ("x2", "y2")):
+        x, y = rec.channels[xn], rec.channels[yn]
+        for name in (xn, yn):
+            a = np.radians(angles.get(name, 0.0 if name == xn else 90.0))
+            ch[name] = np.cos(a) * x + np.sin(a) * y
+    return Recording(rec.fs_hz, ch, dict(rec.meta), t0_s=rec.t0_s, source=rec.source)
+
+
+@pytest.mark.parametrize("fmt", list(WRITERS))
+def test_probes_mounted_at_angles_are_resolved_into_x_and_y(tmp_path, fmt):
+    """Probes at 45° either side of vertical (API 670; 45° and 135° from +x) at plane 1 and a
+    horizontal probe with one at 60° at plane 2: ``angle_deg`` in the channel map gives back the
+    x and y motion of each plane. Before, such probes could only be mapped as if they were x and
+    y (the coefficients in a rotated frame, with the imbalance angles off by the rotation)."""
+    save, ext = WRITERS[fmt]
+    rec = make_rec()
+    angles = {"x1": 45.0, "y1": 135.0, "y2": 60.0}
+    path = tmp_path / f"angled{ext}"
+    save(_angled(rec, angles), path, names=LAB_NAMES, units=LAB_UNITS)
+    cmap = {**LAB_MAP}
+    for c, a in angles.items():
+        cmap[LAB_NAMES[c]] = {**cmap[LAB_NAMES[c]], "angle_deg": a}
+    got = quiet_load(path, channel_map=cmap)
+    for c in ("x1", "x2", "y1", "y2"):
+        np.testing.assert_allclose(got.channels[c], rec.channels[c], rtol=0, atol=1e-15 + RTOL[fmt] * 4e-5, err_msg=c)
+    np.testing.assert_array_equal(got.channels["force"], quiet_load(path, channel_map=LAB_MAP).channels["force"])
+    src = got.meta["channel_sources"]
+    assert (src["x1"]["angle_deg"], src["y1"]["angle_deg"], src["x2"]["angle_deg"], src["y2"]["angle_deg"]) == (
+        45.0, 135.0, 0.0, 60.0)
+    assert "angle_deg" not in quiet_load(path, channel_map=LAB_MAP).meta["channel_sources"]["x1"]
+    # without the angles the same file reads as if the probes were x and y: not the plane's motion
+    plain = quiet_load(path, channel_map=LAB_MAP)
+    assert np.abs(plain.channels["x1"] - rec.channels["x1"]).max() > 1e-5
+
+
+def test_angled_probes_that_cannot_be_resolved_are_refused(tmp_path):
+    rec = make_rec()
+    path = tmp_path / "angled.csv"
+    rio.save_csv(rec, path, names=LAB_NAMES, units=LAB_UNITS)
+
+    def load(**changes):
+        cmap = {k: dict(v) for k, v in LAB_MAP.items()}
+        for lab, extra in changes.items():
+            cmap[LAB_NAMES[lab]].update(extra)
+        return quiet_load(path, channel_map=cmap)
+
+    with pytest.raises(RotoridError, match=r"Prox DE X' \(-> x1, angle_deg 45\) and 'Prox DE Y' \(-> y1, angle_deg 215\) are within 20° of parallel"):
+        load(x1={"angle_deg": 45.0}, y1={"angle_deg": 225.0 - 10.0})
+    with pytest.raises(RotoridError, match="have different delay_s"):
+        load(x1={"angle_deg": 45.0, "delay_s": 1e-4})
+    with pytest.raises(RotoridError, match=r"'angle_deg' must be a finite number, got nan"):
+        load(x1={"angle_deg": float("nan")})
+    with pytest.raises(RotoridError, match=r"'angle_deg' must be a finite number, got '45'"):
+        load(x1={"angle_deg": "45"})
+    with pytest.raises(RotoridError, match=r"'angle_deg' is the measuring direction of a probe.*not of 'force'"):
+        load(force={"angle_deg": 10.0})
+    # a probe at an angle whose partner is missing
+    only = {LAB_NAMES["x1"]: {"to": "x1", "unit": "mil", "angle_deg": 45.0}}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        with pytest.raises(RotoridError, match=r"has angle_deg = 45, but there is no y1 channel.*map that probe to 'y1'"):
+            rio.load_recording(path, channel_map=only)
+    # resolved motion beyond any probe's range (a unit or angle mistake)
+    big = Recording(rec.fs_hz, {**rec.channels, "x1": rec.channels["x1"] * 100, "y1": -rec.channels["x1"] * 100})
+    path2 = tmp_path / "big.csv"
+    rio.save_csv(big, path2, names=LAB_NAMES, units={**LAB_UNITS, "x1": "m", "y1": "m"})
+    cmap = {**LAB_MAP, "Prox DE X": {"to": "x1", "unit": "m", "angle_deg": 0.0},
+            "Prox DE Y": {"to": "y1", "unit": "m", "angle_deg": 25.0}}
+    with pytest.raises(RotoridError, match="resolved from the angled probes spans"):
+        quiet_load(path2, channel_map=cmap)

@@ -466,3 +466,48 @@ def test_keyphasor_phase_uncertainty_of_a_coast_down_speed_no_revolution_is_near
     # beyond either end of the record: the angle of the revolutions at that end
     beyond = pipeline._keyphasor_phase_std([kp], np.array([800.0, 7000.0]), 2.0)
     np.testing.assert_allclose(beyond, [0.36, 0.36], rtol=0.02)
+
+
+def test_imbalance_chain_on_probes_mounted_at_angles(imbalance_records, tmp_path):
+    """The same runs recorded by probes at 45° either side of vertical (45° and 135° from +x) at
+    plane 1 and at 30° and 120° at plane 2, saved as lab TDMS files in µm: with ``angle_deg`` in
+    the channel map the chain identifies what it identifies from x and y probes (to 2e-12);
+    without it, as if the probes were x and y, the coefficients are those of a rotated frame."""
+    from rotorid import io as rio
+    from rotorid.recording import Recording
+
+    rotor, brg, runs, base, slow = imbalance_records
+    angles = {"x1": 45.0, "y1": 135.0, "x2": 30.0, "y2": 120.0}
+    names = {"x1": "DE L", "y1": "DE R", "x2": "FE L", "y2": "FE R", "kp": "KP"}
+    cmap = {names[c]: {"to": c, "angle_deg": angles[c]} for c in angles} | {"KP": {"to": "kp"}}
+
+    def angled(rec, i):
+        ch = {"kp": rec.channels["kp"]}
+        for xn, yn in (("x1", "y1"), ("x2", "y2")):
+            for c in (xn, yn):
+                a = np.radians(angles[c])
+                ch[c] = np.cos(a) * rec.channels[xn] + np.sin(a) * rec.channels[yn]  # SI: saved in µm
+        path = tmp_path / f"run{i}.tdms"
+        rio.save_tdms(Recording(rec.fs_hz, ch, {}), path, names=names,
+                      units={c: "um" for c in angles} | {"kp": "V"})
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return rio.load_recording(path, channel_map=cmap), rio.load_recording(
+                path, channel_map={k: {kk: vv for kk, vv in v.items() if kk != "angle_deg"} for k, v in cmap.items()})
+
+    loaded = [angled(r, i) for i, r in enumerate(runs + [base])]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        want = pipeline.imbalance_chain(rotor, runs, baseline=base).identification
+        # (the lab files carry no imbalance metadata: given as the config would give it)
+        imbs = [rotorid.Imbalance(tuple(m * 1e-3 for m in mass_g), ang, name=name)
+                for name, (mass_g, ang) in ex.SETS.items()]
+        got = pipeline.imbalance_chain(rotor, [a for a, _ in loaded[:-1]], baseline=loaded[-1][0],
+                                       imbalances=imbs).identification
+        rotated = pipeline.imbalance_chain(rotor, [b for _, b in loaded[:-1]], baseline=loaded[-1][1],
+                                           imbalances=imbs).identification
+    np.testing.assert_allclose(got.k, want.k, rtol=1e-10, atol=1e-10 * np.abs(want.k).max())
+    np.testing.assert_allclose(got.c, want.c, rtol=1e-10, atol=1e-10 * np.abs(want.c).max())
+    assert got.ok.all() == want.ok.all()
+    ek, _ = direct_errors(rotated, brg)
+    assert ek > 1.0, ek  # 26 (2,600 %)

@@ -50,6 +50,8 @@ QUANTITY = {"x1": "length", "x2": "length", "y1": "length", "y2": "length", "kp"
             "px1": "acceleration", "py1": "acceleration", "px2": "acceleration", "py2": "acceleration"}
 #: canonical channel names a lab channel may be mapped to
 CANONICAL = tuple(QUANTITY)
+#: the channels that may be mounted at an angle (``angle_deg``; rotorid.io's PLANE_PAIRS)
+ANGLED = ("x1", "y1", "x2", "y2", "px1", "py1", "px2", "py2")
 #: how many problems one ConfigError message spells out
 MAX_REPORTED = 3
 
@@ -596,10 +598,13 @@ class RotorSection(_Model):
 
 
 def _map_entry(spec) -> dict:
-    """A ChannelSpec as ``rotorid.io`` takes it (``override_file_unit`` only when set)."""
+    """A ChannelSpec as ``rotorid.io`` takes it (``override_file_unit`` and ``angle_deg`` only when
+    set)."""
     d = spec.model_dump()
     if not d["override_file_unit"]:
         del d["override_file_unit"]
+    if d["angle_deg"] is None:
+        del d["angle_deg"]
     return d
 
 
@@ -612,6 +617,7 @@ class ChannelSpec(_Model):
     offset: Finite = 0.0
     delay_s: _number(abs_lt=1) = 0.0
     override_file_unit: bool = False
+    angle_deg: Optional[Finite] = None
 
     @model_validator(mode="before")
     @classmethod
@@ -624,6 +630,9 @@ class ChannelSpec(_Model):
     def _unit_matches(self):
         if self.override_file_unit and self.unit is None:
             raise _err("override_file_unit = true needs the unit that replaces the file's", table=True)
+        if self.angle_deg is not None and self.to not in ANGLED:
+            raise _err(f"angle_deg is the measuring direction of a probe or housing accelerometer "
+                       f"({', '.join(ANGLED)}), not of {self.to}", table=True)
         if self.unit is not None:
             q = QUANTITY[self.to]
             problem = _unit_problem(self.unit, q, f"{self.to} is {_article(q)}")

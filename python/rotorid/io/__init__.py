@@ -66,6 +66,11 @@ correct. Channels the file names canonically (``x1``, ...) are used without an e
 file's unit or SI. Every other channel is dropped with one warning that lists them all; a mapped
 channel missing from the file raises, naming it and what the file has. The Recording's meta then
 records, under ``"channel_sources"``, which file channel, unit, scale and offset fed each channel.
+``angle_deg`` (probes mounted at an angle; degrees from +x toward +y the probe measures along, x
+0 and y 90 by default; API 670's 45° either side of vertical are 45 and 135) resolves the two
+channels of a plane (x1/y1, x2/y2, px1/py1, px2/py2) into its x and y motion:
+``x = (sin b u_a - sin a u_b) / sin(b - a)``, ``y = (cos a u_b - cos b u_a) / sin(b - a)``; both
+channels must be mapped, at least 20° from parallel, with the same ``delay_s``.
 
 Any file that cannot be parsed raises ``RotoridError("cannot read <path> as <format>: <reason>")``;
 every error about a file names it. Options that do not apply to a file's format (e.g. ``group=``

@@ -13,12 +13,18 @@ from ..errors import RotoridError
 from ..recording import KNOWN, SI_UNITS, Recording
 from ._common import QUANTITY, _Raw, _Read, _same_rate, _warn
 
-_MAP_KEYS = ("to", "unit", "scale", "offset", "delay_s", "override_file_unit")
+_MAP_KEYS = ("to", "unit", "scale", "offset", "delay_s", "override_file_unit", "angle_deg")
 _MAX_DELAY_S = 1.0  # |delay_s| must stay below this: a larger "delay" is a misread of the unit
 #: a displacement channel spanning more than this (m, peak to peak) is refused: proximity probes
 #: read 2-4 mm at most, and values in µm or mil read as metres (a file that states no unit) are
 #: 1e6 or 4e4 times too large
 MAX_PROBE_SPAN_M = 0.01
+#: the x and y channels of each measurement plane: a probe mounted at an angle (``angle_deg``) is
+#: resolved into x and y with the other probe of its plane
+PLANE_PAIRS = (("x1", "y1"), ("x2", "y2"), ("px1", "py1"), ("px2", "py2"))
+#: the least angle between the two probes of a plane: closer to parallel, the plane's motion along
+#: their common normal is amplified beyond use (1 / sin 20° = 2.9 times the probes' noise)
+MIN_PROBE_SEPARATION_DEG = 20.0
 
 
 @dataclass
@@ -33,6 +39,7 @@ class _Use:
     offset: float = 0.0
     delay: float = 0.0            # s by which the channel lags the true quantity
     override: bool = False        # the map's unit replaces a different one the file states
+    angle: float | None = None    # deg from +x toward +y the probe measures along (None: x 0, y 90)
 
 
 def _number(spec, key, default, where):
@@ -86,7 +93,14 @@ def _parse_channel_map(channel_map, path) -> dict:
             raise RotoridError(f"{where}: 'override_file_unit' must be true or false, got {override!r}")
         if override and unit is None:
             raise RotoridError(f"{where}: 'override_file_unit' needs the 'unit' that replaces the file's")
-        out[lab] = _Use(to, None, unit, "channel_map", scale, offset, float(v), bool(override))  # raw found later
+        angle = spec.get("angle_deg")
+        if angle is not None:
+            angle = _number(spec, "angle_deg", None, where)
+            if not any(to in pair for pair in PLANE_PAIRS):
+                raise RotoridError(f"{where}: 'angle_deg' is the measuring direction of a probe or housing "
+                                   f"accelerometer (x1, y1, x2, y2, px1, py1, px2, py2), not of {to!r}")
+        out[lab] = _Use(to, None, unit, "channel_map", scale, offset, float(v), bool(override),
+                        angle)  # raw found later
     return out
 
 
@@ -214,6 +228,53 @@ def _convert(use: _Use, path) -> np.ndarray:
     return a
 
 
+def _resolve_angled_probes(channels: dict, uses: list, sources: dict, path):
+    """Probes mounted at angles (``angle_deg``; API 670's are at 45° either side of vertical)
+    resolved into the plane's x and y motion, sample by sample. With ``a``, ``b`` the measuring
+    directions of the plane's "x" and "y" channels (degrees from +x toward +y; 0 and 90 when not
+    given) the probes read ``u_a = cos a x + sin a y`` and ``u_b = cos b x + sin b y``, so
+
+        x = (sin b u_a - sin a u_b) / sin(b - a),   y = (cos a u_b - cos b u_a) / sin(b - a).
+
+    Both channels of the plane must be there, at least ``MIN_PROBE_SEPARATION_DEG`` from parallel,
+    with the same ``delay_s`` (the chain compensates a delay per channel; mixing two would leave
+    neither)."""
+    by_name = {u.name: u for u in uses}
+    for xn, yn in PLANE_PAIRS:
+        ux, uy = by_name.get(xn), by_name.get(yn)
+        angled = [u for u in (ux, uy) if u is not None and u.angle is not None]
+        if not angled:
+            continue
+        if ux is None or uy is None:
+            u = angled[0]
+            other = yn if u is ux else xn
+            raise RotoridError(f"{path}: channel {u.raw.key!r} (-> {u.name}) has angle_deg = {u.angle:g}, but there "
+                               f"is no {other} channel: a probe at an angle is resolved into x and y with the other "
+                               f"probe of its plane; map that probe to {other!r}")
+        a = 0.0 if ux.angle is None else ux.angle
+        b = 90.0 if uy.angle is None else uy.angle
+        det = math.sin(math.radians(b - a))
+        if abs(det) < math.sin(math.radians(MIN_PROBE_SEPARATION_DEG)):
+            raise RotoridError(f"{path}: the probes of channels {ux.raw.key!r} (-> {xn}, angle_deg {a:g}) and "
+                               f"{uy.raw.key!r} (-> {yn}, angle_deg {b:g}) are within {MIN_PROBE_SEPARATION_DEG:g}° "
+                               "of parallel: the plane's motion cannot be resolved from them (check angle_deg)")
+        if ux.delay != uy.delay:
+            raise RotoridError(f"{path}: the angled probes {ux.raw.key!r} (-> {xn}) and {uy.raw.key!r} (-> {yn}) have "
+                               f"different delay_s ({ux.delay:g}, {uy.delay:g} s): resolving them into x and y mixes "
+                               "the two channels, so they must share one delay")
+        ua, ub = channels[xn], channels[yn]
+        sa, ca = math.sin(math.radians(a)), math.cos(math.radians(a))
+        sb, cb = math.sin(math.radians(b)), math.cos(math.radians(b))
+        channels[xn] = (sb * ua - sa * ub) / det
+        channels[yn] = (ca * ub - cb * ua) / det
+        sources[xn]["angle_deg"], sources[yn]["angle_deg"] = a, b
+        for name, ch in ((xn, channels[xn]), (yn, channels[yn])):
+            if QUANTITY.get(name) == "length" and ch.size and float(ch.max() - ch.min()) > MAX_PROBE_SPAN_M:
+                raise RotoridError(f"{path}: channel {name} resolved from the angled probes spans "
+                                   f"{float(ch.max() - ch.min()):.3g} m peak to peak: no displacement probe reads "
+                                   "more than a few mm (check the probes' units and angle_deg)")
+
+
 def _assemble(path, read: _Read, channel_map, fs_hz, meta, *, source, keep_other=False,
               provenance=True) -> tuple[Recording, bool]:
     """The Recording, and whether the file stated its start time (False: t0 = 0 by default)."""
@@ -264,6 +325,7 @@ def _assemble(path, read: _Read, channel_map, fs_hz, meta, *, source, keep_other
         units[u.name] = SI_UNITS[u.name] if u.name in QUANTITY else (u.unit or "")
         sources[u.name] = {"file_channel": u.raw.key, "unit": u.unit, "unit_from": u.unit_from,
                            "scale": u.scale, "offset": u.offset}
+    _resolve_angled_probes(channels, uses, sources, path)
     merged = dict(read.meta)
     if provenance:
         merged["channel_sources"] = sources
