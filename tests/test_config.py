@@ -947,3 +947,14 @@ def test_angle_deg_of_probes_in_a_channel_map():
     assert "angle_deg" in error_of(cfg)
     cfg["channels"] = {"DE L": {"to": "x1", "angle_deg": float("nan")}}
     assert "angle_deg" in error_of(cfg)
+
+
+def test_angle_deg_of_probes_in_1x_table_columns():
+    cfg = table_cfg()
+    cfg["imbalance"]["table"]["columns"]["x1"]["angle_deg"] = 45
+    cfg["imbalance"]["table"]["columns"]["y1"]["angle_deg"] = 135.0
+    kw = parse_config(cfg).imbalance.table.reader_kwargs()
+    assert kw["columns"]["x1"] == {"amplitude": "x1 amp", "phase": "x1 phase", "angle_deg": 45.0}
+    assert "angle_deg" not in kw["columns"]["x2"]
+    cfg["imbalance"]["table"]["columns"]["y1"]["angle_deg"] = "135"
+    assert "angle_deg must be a number" in error_of(cfg)

@@ -488,3 +488,55 @@ def test_example_end_to_end_identification():
 def test_docstring_examples():
     res = doctest.testmod(tb, optionflags=doctest.NORMALIZE_WHITESPACE)
     assert res.attempted >= 10 and res.failed == 0
+
+
+# ---------------------------------------------------------------------------------------------
+# probes mounted at an angle
+
+
+def _angled_q(q, angles):
+    """The 1X phasors probes at ``angles`` {channel: deg from +x toward +y} read from the planes'
+    x and y motion q (n, 4) [x1, x2, y1, y2] (each reads the motion along its direction)."""
+    out = q.copy()
+    for ix, iy, xn, yn in ((0, 2, "x1", "y1"), (1, 3, "x2", "y2")):
+        for j, c in ((ix, xn), (iy, yn)):
+            a = np.radians(angles.get(c, 0.0 if c == xn else 90.0))
+            out[:, j] = np.cos(a) * q[:, ix] + np.sin(a) * q[:, iy]
+    return out
+
+
+def test_a_1x_table_of_probes_mounted_at_angles(tmp_path):
+    """API 670 probes (45° and 135° from +x) at plane 1, one horizontal and one at 60° at plane 2,
+    as a DAQ prints their 1X: ``angle_deg`` in ``columns`` gives back each plane's x and y motion
+    (to the printed resolution, amplified at most 1/sin(60°) at plane 2), and the stated accuracy's
+    covariance is that of the readings moved to x and y (T C Tᵀ)."""
+    rotor, brg, remnant = rawsim.example_rig()
+    sp = np.arange(3000.0, 6001.0, 250.0)
+    q = rotorid.imbalance_response(rotor, brg, remnant, speed_rpm=sp, at="probes").q
+    angles = {"x1": 45.0, "y1": 135.0, "y2": 60.0}
+    p = tmp_path / "angled.csv"
+    cols = tb.save_1x_table(fake_track(sp, _angled_q(q, angles)), p)
+    plain = tb.load_1x_table(p, columns=cols)
+    for c, a in angles.items():
+        cols[c] = {**cols[c], "angle_deg": a}
+    got = tb.load_1x_table(p, columns=cols, amplitude_std=0.05, phase_std_deg=1.0)
+    step = 0.001 * MIL / 2 + np.abs(q).max() * np.deg2rad(0.05)   # half a printed step, 0-pk, and 0.05 deg
+    assert np.abs(got.order(1) - q).max() < 2.0 / np.sin(np.radians(60.0)) * step
+    assert np.abs(plain.order(1) - q).max() > 100 * step            # read as x and y: another motion
+    assert got.meta["table"]["columns"]["x1"]["angle_deg"] == 45.0
+    # the covariance: the readings' (amplitude and phase errors of each probe) moved to x and y
+    reads = tb.polar_covariance(plain.order(1), 0.05 * MIL / 2, np.deg2rad(1.0))
+    t = np.eye(4)
+    for (i, j), (a, b) in (((0, 2), (45.0, 135.0)), ((1, 3), (0.0, 60.0))):
+        m = np.array([[np.cos(np.radians(a)), np.sin(np.radians(a))], [np.cos(np.radians(b)), np.sin(np.radians(b))]])
+        t[np.ix_([i, j], [i, j])] = np.linalg.inv(m)
+    t8 = np.kron(np.eye(2), t)
+    np.testing.assert_allclose(got.cov, t8 @ reads @ t8.T, rtol=1e-9, atol=1e-12 * np.abs(reads).max())
+    # refused: probes within 20 degrees of parallel, an angle that is no number, an unknown key
+    cols_par = {**cols, "y1": {**cols["y1"], "angle_deg": 55.0}}
+    raises(["angled.csv", "x1 (angle_deg 45) and y1 (angle_deg 55)", "within 20° of parallel"],
+           tb.load_1x_table, p, columns=cols_par)
+    raises(["columns['x1']['angle_deg'] must be a finite number"], tb.load_1x_table, p,
+           columns={**cols, "x1": {**cols["x1"], "angle_deg": "45"}})
+    raises(["columns['x1'] must be", "'angle_deg' for a probe mounted at an angle"], tb.load_1x_table, p,
+           columns={**cols, "x1": {**cols["x1"], "angle": 45.0}})

@@ -378,3 +378,26 @@ def test_tables_with_accelerometers_identify_the_bearings(tmp_path):
     dk = max(ek[:, b, i, i].max() for b in range(2) for i in range(2))
     # exact tables, only the ±0.3 rpm speed offsets interpolated away: well under 1 %
     assert dk < 0.01, dk
+
+
+def test_housing_accelerometers_mounted_at_angles(tmp_path):
+    """Accelerometers at 45° and 135° on housing 1 (probes x and y): with ``angle_deg`` in their
+    ``columns`` entries the housing's x and y displacement comes back (full-precision cells), and
+    the stated accuracy's pedestal covariance is the readings' moved to x and y."""
+    r = response()
+    c, s = np.cos(np.radians(45.0)), np.sin(np.radians(45.0))
+    p_read = r.pedestal.copy()                                  # [xp1, xp2, yp1, yp2]
+    p_read[:, 0] = c * r.pedestal[:, 0] + s * r.pedestal[:, 2]
+    p_read[:, 2] = -c * r.pedestal[:, 0] + s * r.pedestal[:, 2]
+    path = write(tmp_path / "acc.csv", cells_of(SPEEDS, r.q, p_read))
+    cols = {**PLAIN, "px1": {**PLAIN["px1"], "angle_deg": 45.0}, "py1": {**PLAIN["py1"], "angle_deg": 135}}
+    got = tb.load_1x_table(path, columns=cols, amplitude_std=0.01, phase_std_deg=0.5, accel_amplitude_std=1e-4)
+    np.testing.assert_allclose(got.pedestal[:, 0], r.pedestal, rtol=0, atol=1e-12 * np.abs(r.pedestal).max())
+    np.testing.assert_allclose(got.order(1), r.q, rtol=0, atol=1e-12 * np.abs(r.q).max())
+    plain = tb.load_1x_table(path, columns=PLAIN, amplitude_std=0.01, phase_std_deg=0.5, accel_amplitude_std=1e-4)
+    t = np.eye(4)
+    t[np.ix_([0, 2], [0, 2])] = np.linalg.inv(np.array([[c, s], [-c, s]]))
+    t8 = np.kron(np.eye(2), t)
+    np.testing.assert_allclose(got.pedestal_cov, t8 @ plain.pedestal_cov @ t8.T, rtol=1e-9,
+                               atol=1e-12 * np.abs(plain.pedestal_cov).max())
+    np.testing.assert_array_equal(got.cov, plain.cov)

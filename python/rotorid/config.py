@@ -50,8 +50,6 @@ QUANTITY = {"x1": "length", "x2": "length", "y1": "length", "y2": "length", "kp"
             "px1": "acceleration", "py1": "acceleration", "px2": "acceleration", "py2": "acceleration"}
 #: canonical channel names a lab channel may be mapped to
 CANONICAL = tuple(QUANTITY)
-#: the channels that may be mounted at an angle (``angle_deg``; rotorid.io's PLANE_PAIRS)
-ANGLED = ("x1", "y1", "x2", "y2", "px1", "py1", "px2", "py2")
 #: how many problems one ConfigError message spells out
 MAX_REPORTED = 3
 
@@ -630,6 +628,8 @@ class ChannelSpec(_Model):
     def _unit_matches(self):
         if self.override_file_unit and self.unit is None:
             raise _err("override_file_unit = true needs the unit that replaces the file's", table=True)
+        from .probe_angles import ANGLED
+
         if self.angle_deg is not None and self.to not in ANGLED:
             raise _err(f"angle_deg is the measuring direction of a probe or housing accelerometer "
                        f"({', '.join(ANGLED)}), not of {self.to}", table=True)
@@ -849,6 +849,8 @@ class OneXColumn(_Model):
 
     amplitude: Text = Field(description="name of the amplitude column")
     phase: Text = Field(description="name of the phase column")
+    angle_deg: Optional[Finite] = Field(None, description="direction the probe measures along, degrees from +x "
+                                                          "toward +y (default x 0, y 90)")
 
 
 class OneXColumns(_Model):

@@ -39,6 +39,7 @@ import numpy as np
 
 from . import units
 from .errors import RotoridError
+from .probe_angles import plane_transform
 from .recording import ACCELEROMETERS
 from .signals import SyncTrack
 
@@ -199,10 +200,17 @@ def _check_columns_arg(columns) -> dict:
     out = {}
     for ch in chans:
         spec = columns[ch]
-        if not isinstance(spec, dict) or set(spec) != {"amplitude", "phase"}:
-            raise RotoridError(f"columns[{ch!r}] must be {{'amplitude': <column name>, 'phase': <column name>}}, "
-                               f"got {spec!r}")
+        if not isinstance(spec, dict) or not {"amplitude", "phase"} <= set(spec) <= {"amplitude", "phase", "angle_deg"}:
+            raise RotoridError(f"columns[{ch!r}] must be {{'amplitude': <column name>, 'phase': <column name>}} "
+                               f"(and 'angle_deg' for a probe mounted at an angle), got {spec!r}")
         out[ch] = {k: str(spec[k]) for k in ("amplitude", "phase")}
+        angle = spec.get("angle_deg")
+        if angle is not None:
+            if isinstance(angle, bool) or not isinstance(angle, (int, float, np.integer, np.floating)) \
+                    or not math.isfinite(float(angle)):
+                raise RotoridError(f"columns[{ch!r}]['angle_deg'] must be a finite number of degrees (the direction "
+                                   f"the probe measures along, from +x toward +y), got {angle!r}")
+            out[ch]["angle_deg"] = float(angle)
     names = [_key(out[c][k]) for c in chans for k in ("amplitude", "phase")]
     dup = sorted({out[c][k] for c in chans for k in ("amplitude", "phase") if names.count(_key(out[c][k])) > 1})
     if dup:
@@ -607,7 +615,11 @@ def load_1x_table(path, *, columns, speed_column="auto", amplitude="pk-pk", unit
         probe plane). All four are required. With flexible pedestals also ``"px1"``, ``"px2"``,
         ``"py1"``, ``"py2"`` (same form): the 1X acceleration of the bearing-housing
         accelerometers (housing 1 = drive end, x and y), all four or none. Column names are matched
-        ignoring case and repeated blanks; other columns of the file are ignored.
+        ignoring case and repeated blanks; other columns of the file are ignored. A probe mounted
+        at an angle adds ``"angle_deg"``: the direction it measures along, in degrees from +x
+        toward +y (x probes 0 and y probes 90 by default; API 670's 45° either side of vertical
+        are 45 for the one mapped to x and 135 for the one mapped to y); each plane's two phasors
+        (and their covariance) are resolved into its x and y motion (``rotorid.probe_angles``).
     speed_column : str
         Column of the speed in rpm. ``"auto"``: the one column (not used in ``columns``) whose
         name contains "speed" or "rpm", case-insensitive.
@@ -835,17 +847,27 @@ def load_1x_table(path, *, columns, speed_column="auto", amplitude="pk-pk", unit
     ph_rad = np.deg2rad(ph) if angle_kind == "deg" else ph
     sign = -1.0 if phase_kind == "lag" else 1.0
     z = a_si * np.exp(1j * sign * ph_rad)
+    # probes (and accelerometers) mounted at an angle: the readings' map to each plane's x and y
+    # motion, for the phasors and, below, for their covariance (the errors are the readings')
+    angles = {c: cols[c]["angle_deg"] for c in chans if "angle_deg" in cols[c]}
+    try:
+        t_probe = plane_transform({c: a for c, a in angles.items() if c in CHANNELS}, CHANNELS)
+        t_acc = plane_transform({c: a for c, a in angles.items() if c in ACCELEROMETERS}, ACCELEROMETERS)
+    except ValueError as exc:
+        raise RotoridError(f"{where}: {exc}") from None
     order = np.argsort(speed, kind="stable")
     z = z[order]
     speed = speed[order]
-    q = z[:, :4]
+    q_read = z[:, :4]
+    q = q_read if t_probe is None else q_read @ t_probe.T
     info = {"columns": cols, "speed_column": speed_col, "amplitude": amp_kind, "unit": str(unit),
             "phase": phase_kind, "phase_unit": angle_kind, "rows": [int(r) for r in rownum[order]]}
     ped = {}
     if has_ped:
         # housing displacement from its 1X acceleration at the row's speed: a = -Ω² x
         om2 = (speed * units.factor("rpm", "speed")) ** 2
-        ped["pedestal"] = (-z[:, 4:] / om2[:, None])[:, None, :]
+        acc = z[:, 4:] if t_acc is None else z[:, 4:] @ t_acc.T
+        ped["pedestal"] = (-acc / om2[:, None])[:, None, :]
         info.update(accel_unit=str(accel_unit), accel_amplitude=acc_amp_kind)
     if ext in _TEXT_EXT:
         info["preamble"] = _preamble(path, first_row - 2)
@@ -861,16 +883,25 @@ def load_1x_table(path, *, columns, speed_column="auto", amplitude="pk-pk", unit
         if not (np.isfinite(sa) and np.isfinite(sp) and sa >= 0 and sp >= 0) or (sa == 0 and sp == 0 and sa_acc == 0):
             raise RotoridError(f"{where}: amplitude_std and phase_std_deg must be finite and >= 0 (one > 0), got "
                                f"{amplitude_std!r}, {phase_std_deg!r}")
-        cov = polar_covariance(q, sa, sp)
+        cov = _resolved_cov(polar_covariance(q_read, sa, sp), t_probe)
         dof = np.full(n, np.inf)
         if has_ped:
             # the acceleration's covariance scaled by 1/Ω⁴ (P = -A/Ω²: the sign leaves it unchanged);
             # every channel's reading has its own error: no cross-covariance with the probes
-            ped["pedestal_cov"] = polar_covariance(z[:, 4:], sa_acc, sp) / (om2 ** 2)[:, None, None]
+            ped["pedestal_cov"] = _resolved_cov(polar_covariance(z[:, 4:], sa_acc, sp), t_acc) / (om2 ** 2)[:, None, None]
             ped["pedestal_cross"] = np.zeros((n, 8, 8))
     return TableTrack(speed.astype(float), q[:, None, :], (1,), np.full(n, np.nan), np.full((n, 4), np.nan),
                       np.full(n, np.nan), [], cov, dof, name=name if name is not None else path.stem,
                       source=str(path), meta=m, **ped)
+
+
+def _resolved_cov(cov, t):
+    """The covariance (n, 8, 8) of [Re u, Im u] moved with u -> T u (``t`` (4, 4) real, or None)."""
+    if t is None:
+        return cov
+    t8 = np.zeros((8, 8))
+    t8[:4, :4] = t8[4:, 4:] = t
+    return t8 @ cov @ t8.T
 
 
 def polar_covariance(q, amplitude_std_m: float, phase_std_rad: float) -> np.ndarray:

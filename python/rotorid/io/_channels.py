@@ -10,6 +10,7 @@ import numpy as np
 
 from .. import units as _units
 from ..errors import RotoridError
+from ..probe_angles import ANGLED, MIN_PROBE_SEPARATION_DEG, PLANE_PAIRS, default_angle, resolution
 from ..recording import KNOWN, SI_UNITS, Recording
 from ._common import QUANTITY, _Raw, _Read, _same_rate, _warn
 
@@ -19,12 +20,6 @@ _MAX_DELAY_S = 1.0  # |delay_s| must stay below this: a larger "delay" is a misr
 #: read 2-4 mm at most, and values in µm or mil read as metres (a file that states no unit) are
 #: 1e6 or 4e4 times too large
 MAX_PROBE_SPAN_M = 0.01
-#: the x and y channels of each measurement plane: a probe mounted at an angle (``angle_deg``) is
-#: resolved into x and y with the other probe of its plane
-PLANE_PAIRS = (("x1", "y1"), ("x2", "y2"), ("px1", "py1"), ("px2", "py2"))
-#: the least angle between the two probes of a plane: closer to parallel, the plane's motion along
-#: their common normal is amplified beyond use (1 / sin 20° = 2.9 times the probes' noise)
-MIN_PROBE_SEPARATION_DEG = 20.0
 
 
 @dataclass
@@ -96,7 +91,7 @@ def _parse_channel_map(channel_map, path) -> dict:
         angle = spec.get("angle_deg")
         if angle is not None:
             angle = _number(spec, "angle_deg", None, where)
-            if not any(to in pair for pair in PLANE_PAIRS):
+            if to not in ANGLED:
                 raise RotoridError(f"{where}: 'angle_deg' is the measuring direction of a probe or housing "
                                    f"accelerometer (x1, y1, x2, y2, px1, py1, px2, py2), not of {to!r}")
         out[lab] = _Use(to, None, unit, "channel_map", scale, offset, float(v), bool(override),
@@ -230,14 +225,9 @@ def _convert(use: _Use, path) -> np.ndarray:
 
 def _resolve_angled_probes(channels: dict, uses: list, sources: dict, path):
     """Probes mounted at angles (``angle_deg``; API 670's are at 45° either side of vertical)
-    resolved into the plane's x and y motion, sample by sample. With ``a``, ``b`` the measuring
-    directions of the plane's "x" and "y" channels (degrees from +x toward +y; 0 and 90 when not
-    given) the probes read ``u_a = cos a x + sin a y`` and ``u_b = cos b x + sin b y``, so
-
-        x = (sin b u_a - sin a u_b) / sin(b - a),   y = (cos a u_b - cos b u_a) / sin(b - a).
-
-    Both channels of the plane must be there, at least ``MIN_PROBE_SEPARATION_DEG`` from parallel,
-    with the same ``delay_s`` (the chain compensates a delay per channel; mixing two would leave
+    resolved into the plane's x and y motion, sample by sample (``rotorid.probe_angles``). Both
+    channels of the plane must be there, at least ``MIN_PROBE_SEPARATION_DEG`` from parallel, with
+    the same ``delay_s`` (the chain compensates a delay per channel; mixing two would leave
     neither)."""
     by_name = {u.name: u for u in uses}
     for xn, yn in PLANE_PAIRS:
@@ -251,10 +241,10 @@ def _resolve_angled_probes(channels: dict, uses: list, sources: dict, path):
             raise RotoridError(f"{path}: channel {u.raw.key!r} (-> {u.name}) has angle_deg = {u.angle:g}, but there "
                                f"is no {other} channel: a probe at an angle is resolved into x and y with the other "
                                f"probe of its plane; map that probe to {other!r}")
-        a = 0.0 if ux.angle is None else ux.angle
-        b = 90.0 if uy.angle is None else uy.angle
-        det = math.sin(math.radians(b - a))
-        if abs(det) < math.sin(math.radians(MIN_PROBE_SEPARATION_DEG)):
+        a = default_angle(xn) if ux.angle is None else ux.angle
+        b = default_angle(yn) if uy.angle is None else uy.angle
+        r = resolution(a, b)
+        if r is None:
             raise RotoridError(f"{path}: the probes of channels {ux.raw.key!r} (-> {xn}, angle_deg {a:g}) and "
                                f"{uy.raw.key!r} (-> {yn}, angle_deg {b:g}) are within {MIN_PROBE_SEPARATION_DEG:g}° "
                                "of parallel: the plane's motion cannot be resolved from them (check angle_deg)")
@@ -263,10 +253,8 @@ def _resolve_angled_probes(channels: dict, uses: list, sources: dict, path):
                                f"different delay_s ({ux.delay:g}, {uy.delay:g} s): resolving them into x and y mixes "
                                "the two channels, so they must share one delay")
         ua, ub = channels[xn], channels[yn]
-        sa, ca = math.sin(math.radians(a)), math.cos(math.radians(a))
-        sb, cb = math.sin(math.radians(b)), math.cos(math.radians(b))
-        channels[xn] = (sb * ua - sa * ub) / det
-        channels[yn] = (ca * ub - cb * ua) / det
+        channels[xn] = r[0, 0] * ua + r[0, 1] * ub
+        channels[yn] = r[1, 0] * ua + r[1, 1] * ub
         sources[xn]["angle_deg"], sources[yn]["angle_deg"] = a, b
         for name, ch in ((xn, channels[xn]), (yn, channels[yn])):
             if QUANTITY.get(name) == "length" and ch.size and float(ch.max() - ch.min()) > MAX_PROBE_SPAN_M:
