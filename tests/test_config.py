@@ -958,3 +958,23 @@ def test_angle_deg_of_probes_in_1x_table_columns():
     assert "angle_deg" not in kw["columns"]["x2"]
     cfg["imbalance"]["table"]["columns"]["y1"]["angle_deg"] = "135"
     assert "angle_deg must be a number" in error_of(cfg)
+
+
+def test_probe_angles_that_cannot_be_resolved_are_refused_by_the_config_check():
+    """``rotorid check`` said "valid" for probes within 20° of parallel, which only failed when
+    the files were read (review); angles beyond one turn and out-of-range integers are refused."""
+    cfg = imbalance_cfg()
+    cfg["channels"] = {"DE A": {"to": "x1", "angle_deg": 45}, "DE B": {"to": "y1", "angle_deg": 55}}
+    assert "[channels] x1 (angle_deg 45) and y1 (angle_deg 55) are within 20° of parallel" in error_of(cfg)
+    cfg["channels"] = {"DE A": {"to": "x1", "angle_deg": 80}, "y1": {"to": "y1"}}   # y1 at its default 90°
+    assert "x1 (angle_deg 80) and y1 (angle_deg 90) are within 20° of parallel" in error_of(cfg)
+    cfg["channels"] = {"DE A": {"to": "x1", "angle_deg": 45}}                        # no partner here: the files say
+    parse_config(cfg)
+    for bad in (400, -361, 10 ** 400):
+        cfg["channels"] = {"DE A": {"to": "x1", "angle_deg": bad}}
+        assert "angle_deg must be a number >= -360 and <= 360" in error_of(cfg)
+    tab = table_cfg()
+    tab["imbalance"]["table"]["columns"]["x2"]["angle_deg"] = 100.0
+    tab["imbalance"]["table"]["columns"]["y2"]["angle_deg"] = 270.0
+    assert "[imbalance.table.columns] x2 (angle_deg 100) and y2 (angle_deg 270) are within 20° of parallel" in \
+        error_of(tab)

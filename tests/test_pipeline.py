@@ -468,40 +468,53 @@ def test_keyphasor_phase_uncertainty_of_a_coast_down_speed_no_revolution_is_near
     np.testing.assert_allclose(beyond, [0.36, 0.36], rtol=0.02)
 
 
+ANGLES = {"x1": 45.0, "y1": 135.0, "x2": 30.0, "y2": 120.0}
+ANGLED_NAMES = {"x1": "DE A", "y1": "DE B", "x2": "FE A", "y2": "FE B", "kp": "KP"}
+ANGLED_MAP = {ANGLED_NAMES[c]: {"to": c, "angle_deg": ANGLES[c]} for c in ANGLES} | {"KP": {"to": "kp"}}
+
+
+def _angled_lab_file(rec, path, dead=None, rng=None):
+    """``rec`` as probes at ``ANGLES`` would have recorded it, saved as a lab TDMS file in µm; the
+    probe mapped to ``dead`` reads a 2 mm gap and 0.5 µm noise only (a dead probe). Returns the
+    recording loaded with ``angle_deg`` and without it (as if the probes were x and y)."""
+    from rotorid import io as rio
+    from rotorid.recording import Recording
+
+    ch = {"kp": rec.channels["kp"]}
+    for xn, yn in (("x1", "y1"), ("x2", "y2")):
+        for c in (xn, yn):
+            a = np.radians(ANGLES[c])
+            ch[c] = np.cos(a) * rec.channels[xn] + np.sin(a) * rec.channels[yn]  # SI: saved in µm
+    if dead is not None:
+        ch[dead] = -2e-3 + 0.5e-6 * rng.standard_normal(ch[dead].size)
+    rio.save_tdms(Recording(rec.fs_hz, ch, {}), path, names=ANGLED_NAMES,
+                  units={c: "um" for c in ANGLES} | {"kp": "V"})
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return rio.load_recording(path, channel_map=ANGLED_MAP), rio.load_recording(
+            path, channel_map={k: {kk: vv for kk, vv in v.items() if kk != "angle_deg"} for k, v in ANGLED_MAP.items()})
+
+
+def _example_imbalances():
+    """The runs' added imbalances as a config gives them (lab files carry no such metadata)."""
+    return [rotorid.Imbalance(tuple(m * 1e-3 for m in mass_g), ang, name=name) for name, (mass_g, ang) in ex.SETS.items()]
+
+
 def test_imbalance_chain_on_probes_mounted_at_angles(imbalance_records, tmp_path):
     """The same runs recorded by probes at 45° either side of vertical (45° and 135° from +x) at
     plane 1 and at 30° and 120° at plane 2, saved as lab TDMS files in µm: with ``angle_deg`` in
     the channel map the chain identifies what it identifies from x and y probes (to 2e-12);
     without it, as if the probes were x and y, the coefficients are those of a rotated frame."""
-    from rotorid import io as rio
-    from rotorid.recording import Recording
-
     rotor, brg, runs, base, slow = imbalance_records
-    angles = {"x1": 45.0, "y1": 135.0, "x2": 30.0, "y2": 120.0}
-    names = {"x1": "DE L", "y1": "DE R", "x2": "FE L", "y2": "FE R", "kp": "KP"}
-    cmap = {names[c]: {"to": c, "angle_deg": angles[c]} for c in angles} | {"KP": {"to": "kp"}}
 
     def angled(rec, i):
-        ch = {"kp": rec.channels["kp"]}
-        for xn, yn in (("x1", "y1"), ("x2", "y2")):
-            for c in (xn, yn):
-                a = np.radians(angles[c])
-                ch[c] = np.cos(a) * rec.channels[xn] + np.sin(a) * rec.channels[yn]  # SI: saved in µm
-        path = tmp_path / f"run{i}.tdms"
-        rio.save_tdms(Recording(rec.fs_hz, ch, {}), path, names=names,
-                      units={c: "um" for c in angles} | {"kp": "V"})
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            return rio.load_recording(path, channel_map=cmap), rio.load_recording(
-                path, channel_map={k: {kk: vv for kk, vv in v.items() if kk != "angle_deg"} for k, v in cmap.items()})
+        return _angled_lab_file(rec, tmp_path / f"run{i}.tdms")
 
     loaded = [angled(r, i) for i, r in enumerate(runs + [base])]
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         want = pipeline.imbalance_chain(rotor, runs, baseline=base).identification
-        # (the lab files carry no imbalance metadata: given as the config would give it)
-        imbs = [rotorid.Imbalance(tuple(m * 1e-3 for m in mass_g), ang, name=name)
-                for name, (mass_g, ang) in ex.SETS.items()]
+        imbs = _example_imbalances()
         got = pipeline.imbalance_chain(rotor, [a for a, _ in loaded[:-1]], baseline=loaded[-1][0],
                                        imbalances=imbs).identification
         rotated = pipeline.imbalance_chain(rotor, [b for _, b in loaded[:-1]], baseline=loaded[-1][1],
@@ -511,3 +524,19 @@ def test_imbalance_chain_on_probes_mounted_at_angles(imbalance_records, tmp_path
     assert got.ok.all() == want.ok.all()
     ek, _ = direct_errors(rotated, brg)
     assert ek > 1.0, ek  # 26 (2,600 %)
+
+
+@pytest.mark.parametrize("dead", ["x1", "y2"])
+def test_a_dead_probe_mounted_at_an_angle_is_refused(imbalance_records, tmp_path, dead):
+    """A dead probe (gap voltage and noise) among probes mounted at angles: its partner fills both
+    the x and the y resolved from them, so the x/y vectors alone looked alive (an independent
+    review: K and C off 40-240 % with the run accepted). The check now looks at what each probe
+    reads."""
+    rotor, brg, runs, base, slow = imbalance_records
+    rng = np.random.default_rng(4)
+    loaded = [_angled_lab_file(r, tmp_path / f"run{i}.tdms", dead, rng)[0] for i, r in enumerate(runs + [base])]
+    with pytest.raises(RotoridError, match=rf"probe channel\(s\) {dead} \(the probe at {ANGLES[dead]:g}°\) show no 1X "
+                                           "response above their noise"):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            pipeline.imbalance_chain(rotor, loaded[:-1], baseline=loaded[-1], imbalances=_example_imbalances())

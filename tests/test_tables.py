@@ -536,7 +536,7 @@ def test_a_1x_table_of_probes_mounted_at_angles(tmp_path):
     cols_par = {**cols, "y1": {**cols["y1"], "angle_deg": 55.0}}
     raises(["angled.csv", "x1 (angle_deg 45) and y1 (angle_deg 55)", "within 20° of parallel"],
            tb.load_1x_table, p, columns=cols_par)
-    raises(["columns['x1']['angle_deg'] must be a finite number"], tb.load_1x_table, p,
+    raises(["columns['x1']['angle_deg'] must be a number of degrees within ±360"], tb.load_1x_table, p,
            columns={**cols, "x1": {**cols["x1"], "angle_deg": "45"}})
     raises(["columns['x1'] must be", "'angle_deg' for a probe mounted at an angle"], tb.load_1x_table, p,
            columns={**cols, "x1": {**cols["x1"], "angle": 45.0}})

@@ -615,7 +615,7 @@ class ChannelSpec(_Model):
     offset: Finite = 0.0
     delay_s: _number(abs_lt=1) = 0.0
     override_file_unit: bool = False
-    angle_deg: Optional[Finite] = None
+    angle_deg: Optional[_number(ge=-360, le=360)] = None
 
     @model_validator(mode="before")
     @classmethod
@@ -641,6 +641,21 @@ class ChannelSpec(_Model):
         return self
 
 
+def _check_probe_pairs(angles: dict, present, where: str):
+    """A ConfigError when the two channels of a plane in ``present`` (one of them at an angle,
+    ``angles`` {channel: deg}) are within the least separation of parallel (found here rather
+    than when the files are read)."""
+    from .probe_angles import MIN_PROBE_SEPARATION_DEG, PLANE_PAIRS, default_angle, resolution
+
+    for xn, yn in PLANE_PAIRS:
+        if xn in present and yn in present and (xn in angles or yn in angles):
+            a, b = angles.get(xn, default_angle(xn)), angles.get(yn, default_angle(yn))
+            if resolution(a, b) is None:
+                raise _err(f"{where}{xn} (angle_deg {_fmt(a)}) and {yn} (angle_deg {_fmt(b)}) are within "
+                           f"{_fmt(MIN_PROBE_SEPARATION_DEG)}° of parallel: the plane's motion cannot be resolved "
+                           "from them", table=True)
+
+
 def _check_channel_map(v):
     seen = {}
     for lab, spec in v.items():
@@ -649,6 +664,7 @@ def _check_channel_map(v):
         if spec.to in seen:
             raise _err(f"{seen[spec.to]!r} and {lab!r} both map to {spec.to}", table=True)
         seen[spec.to] = lab
+    _check_probe_pairs({s.to: s.angle_deg for s in v.values() if s.angle_deg is not None}, seen, "")
     return v
 
 
@@ -849,8 +865,8 @@ class OneXColumn(_Model):
 
     amplitude: Text = Field(description="name of the amplitude column")
     phase: Text = Field(description="name of the phase column")
-    angle_deg: Optional[Finite] = Field(None, description="direction the probe measures along, degrees from +x "
-                                                          "toward +y (default x 0, y 90)")
+    angle_deg: Optional[_number(ge=-360, le=360)] = Field(None, description="direction the probe measures along, "
+                                                                          "degrees from +x toward +y (default x 0, y 90)")
 
 
 class OneXColumns(_Model):
@@ -874,6 +890,9 @@ class OneXColumns(_Model):
             missing = [n for n in names if n not in have]
             raise _err(f"gives accelerometer columns {', '.join(have)} but not {', '.join(missing)}: give all four "
                        "housing accelerometers or none", missing[0])
+        present = [n for n in ("x1", "x2", "y1", "y2", *names) if getattr(self, n) is not None]
+        _check_probe_pairs({n: getattr(self, n).angle_deg for n in present if getattr(self, n).angle_deg is not None},
+                           present, "")
         return self
 
 

@@ -45,19 +45,31 @@ def _imbalance_of(rec, override=None, label="") -> Imbalance:
 DEAD_PROBE_SNR = 3.0
 
 
-def _check_live_probes(tracks, labels):
+def _check_live_probes(tracks, labels, runs=None):
     """Refuse a probe channel that shows no 1X above its noise anywhere: a dead or disconnected
     probe (a flat channel, or a gap voltage with noise only). Its vectors are then noise, which
     the identification would fit as a response (K and C off by 170-450 % with most points ok, an
     independent simulator's finding). Live probes read run-out and response together, far above
-    their noise, before any compensation. Tracks without a covariance (1X tables) are not checked."""
+    their noise, before any compensation. Tracks without a covariance (1X tables) are not checked.
+    Probes mounted at an angle (``runs``: the runs as loaded, whose meta says so) are checked on
+    what they read, not on the x and y resolved from them: a dead probe's partner fills both."""
+    from .probe_angles import reading_map, recorded_angles
+
     names = ("x1", "x2", "y1", "y2")
     above, total = np.zeros(4), 0
-    for t in tracks:
+    angles = {}
+    for i, t in enumerate(tracks):
         if t.cov is None or 1 not in t.orders:
             continue
-        x = np.abs(t.vectors[:, t.orders.index(1), :])
-        var = np.stack([t.cov[:, c, c] + t.cov[:, c + 4, c + 4] for c in range(4)], axis=1)
+        v, cov = t.vectors[:, t.orders.index(1), :], t.cov
+        run_angles = recorded_angles(runs[i]) if runs is not None else {}
+        m = reading_map({c: a for c, a in run_angles.items() if c in names}, names)
+        if m is not None:
+            angles.update(run_angles)
+            m8 = np.kron(np.eye(2), m)
+            v, cov = v @ m.T, m8 @ cov @ m8.T
+        x = np.abs(v)
+        var = np.stack([cov[:, c, c] + cov[:, c + 4, c + 4] for c in range(4)], axis=1)
         with np.errstate(divide="ignore", invalid="ignore"):
             snr = np.where(x > 0, x / np.sqrt(var), 0.0)  # a flat channel: 0 / 0
         # an unknown noise (NaN) counts as live: nothing to say
@@ -67,7 +79,8 @@ def _check_live_probes(tracks, labels):
     # points (run-out alone puts it far above its noise)
     live = above >= max(1.0, 0.05 * total)
     if total and not live.all():
-        dead = [names[c] for c in range(4) if not live[c]]
+        dead = [names[c] + (f" (the probe at {angles[names[c]]:g}°)" if names[c] in angles else "")
+                for c in range(4) if not live[c]]
         raise RotoridError(f"probe channel(s) {', '.join(dead)} show no 1X response above their noise at any speed of "
                            f"{', '.join(labels) if len(labels) < 5 else 'any run'}: a dead or disconnected probe (flat, or "
                            "a gap voltage with noise only)? The identification needs all four probes")
@@ -312,7 +325,7 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
             notes.append(f"run {i} keyphasor: {k.summary()}")
             if k.note:
                 warnings.warn(f"run {i} keyphasor: {k.note}")
-    _check_live_probes(tracks, [f"run {i}" for i in range(len(tracks))])
+    _check_live_probes(tracks, [f"run {i}" for i in range(len(tracks))], runs)
     orders_of = tracks[0].orders
     if any(t.orders != orders_of for t in tracks):
         raise RotoridError("all runs must carry the same orders (waveforms and 1X tables cannot be mixed)")

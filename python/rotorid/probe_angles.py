@@ -1,8 +1,11 @@
 """Probes mounted at an angle: the x and y motion of a measurement plane from two probes that
 measure along other directions (API 670 mounts them 45° either side of vertical).
 
-A probe measuring along the direction at angle ``a`` (degrees from +x, horizontal, toward +y,
-vertical) reads ``u = cos a x + sin a y``. With the plane's "x" probe at ``a`` and its "y" probe
+Angles are in degrees from +x (horizontal) toward +y (vertical), which is the direction of
+rotation: rotorid's forward whirl goes from +x to +y (y lags x by 90°). Seen from the end where
+the rotor turns counterclockwise, +x points right and +y up, so API 670's probes are at 45°
+(upper right) and 135° (upper left). A probe measuring along the direction at angle ``a`` reads
+``u = cos a x + sin a y``. With the plane's "x" probe at ``a`` and its "y" probe
 at ``b``::
 
     [x, y] = R [u_a, u_b],   R = 1/sin(b - a) [[sin b, -sin a], [-cos b, cos a]]
@@ -24,6 +27,8 @@ ANGLED = tuple(c for pair in PLANE_PAIRS for c in pair)
 #: the least angle between the two probes of a plane: closer to parallel, the plane's motion along
 #: their common normal is amplified beyond use (1 / sin 20° = 2.9 times the probes' noise)
 MIN_PROBE_SEPARATION_DEG = 20.0
+#: the largest |angle_deg| accepted (one turn either way)
+MAX_ANGLE_DEG = 360.0
 
 
 def default_angle(channel: str) -> float:
@@ -74,3 +79,38 @@ def plane_transform(angles: dict, channels: tuple) -> np.ndarray | None:
         i, j = channels.index(xn), channels.index(yn)
         t[np.ix_([i, j], [i, j])] = r
     return t
+
+
+def reading_map(angles: dict, channels: tuple) -> np.ndarray | None:
+    """The (C, C) real map from the planes' x and y motion to what the probes of ``channels`` read
+    (the inverse of :func:`plane_transform`: ``[u_a, u_b] = [[cos a, sin a], [cos b, sin b]] [x, y]``),
+    given ``angles`` {channel: deg}; None when no channel is angled. For checks that belong to the
+    readings themselves (a dead probe's 1X is noise, a clipped probe sits at its rail)."""
+    if not angles:
+        return None
+    m = np.eye(len(channels))
+    for xn, yn in PLANE_PAIRS:
+        if xn not in channels or (xn not in angles and yn not in angles):
+            continue
+        a, b = (math.radians(angles.get(c, default_angle(c))) for c in (xn, yn))
+        i, j = channels.index(xn), channels.index(yn)
+        m[np.ix_([i, j], [i, j])] = [[math.cos(a), math.sin(a)], [math.cos(b), math.sin(b)]]
+    return m
+
+
+def recorded_angles(run) -> dict:
+    """{channel: angle_deg} of a run's angled probes and accelerometers as it was loaded: a lab
+    file's channel map (``meta["channel_sources"]``) or a 1X table's ``columns``
+    (``meta["table"]["columns"]``); {} when none is angled or the run says nothing."""
+    meta = getattr(run, "meta", None) or {}
+    out = {}
+    sources = meta.get("channel_sources")
+    if isinstance(sources, dict):
+        out.update({c: float(s["angle_deg"]) for c, s in sources.items()
+                    if c in ANGLED and isinstance(s, dict) and s.get("angle_deg") is not None})
+    table = meta.get("table")
+    columns = table.get("columns") if isinstance(table, dict) else None
+    if isinstance(columns, dict):
+        out.update({c: float(s["angle_deg"]) for c, s in columns.items()
+                    if c in ANGLED and isinstance(s, dict) and s.get("angle_deg") is not None})
+    return out

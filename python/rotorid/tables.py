@@ -39,7 +39,7 @@ import numpy as np
 
 from . import units
 from .errors import RotoridError
-from .probe_angles import plane_transform
+from .probe_angles import MAX_ANGLE_DEG, plane_transform
 from .recording import ACCELEROMETERS
 from .signals import SyncTrack
 
@@ -206,10 +206,14 @@ def _check_columns_arg(columns) -> dict:
         out[ch] = {k: str(spec[k]) for k in ("amplitude", "phase")}
         angle = spec.get("angle_deg")
         if angle is not None:
-            if isinstance(angle, bool) or not isinstance(angle, (int, float, np.integer, np.floating)) \
-                    or not math.isfinite(float(angle)):
-                raise RotoridError(f"columns[{ch!r}]['angle_deg'] must be a finite number of degrees (the direction "
-                                   f"the probe measures along, from +x toward +y), got {angle!r}")
+            ok = not isinstance(angle, bool) and isinstance(angle, (int, float, np.integer, np.floating))
+            try:
+                ok = ok and abs(float(angle)) <= MAX_ANGLE_DEG
+            except OverflowError:
+                ok = False
+            if not ok:
+                raise RotoridError(f"columns[{ch!r}]['angle_deg'] must be a number of degrees within ±{MAX_ANGLE_DEG:g} "
+                                   f"(the direction the probe measures along, from +x toward +y), got {angle!r}")
             out[ch]["angle_deg"] = float(angle)
     names = [_key(out[c][k]) for c in chans for k in ("amplitude", "phase")]
     dup = sorted({out[c][k] for c in chans for k in ("amplitude", "phase") if names.count(_key(out[c][k])) > 1})

@@ -10,7 +10,7 @@ import numpy as np
 
 from .. import units as _units
 from ..errors import RotoridError
-from ..probe_angles import ANGLED, MIN_PROBE_SEPARATION_DEG, PLANE_PAIRS, default_angle, resolution
+from ..probe_angles import ANGLED, MAX_ANGLE_DEG, MIN_PROBE_SEPARATION_DEG, PLANE_PAIRS, default_angle, resolution
 from ..recording import KNOWN, SI_UNITS, Recording
 from ._common import QUANTITY, _Raw, _Read, _same_rate, _warn
 
@@ -39,7 +39,11 @@ class _Use:
 
 def _number(spec, key, default, where):
     v = spec.get(key, default)
-    if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not math.isfinite(float(v)):
+    try:
+        finite = math.isfinite(float(v))
+    except (TypeError, ValueError, OverflowError):  # (an int beyond float's range)
+        finite = False
+    if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not finite:
         raise RotoridError(f"{where}: {key!r} must be a finite number, got {v!r}")
     return float(v)
 
@@ -91,6 +95,9 @@ def _parse_channel_map(channel_map, path) -> dict:
         angle = spec.get("angle_deg")
         if angle is not None:
             angle = _number(spec, "angle_deg", None, where)
+            if abs(angle) > MAX_ANGLE_DEG:
+                raise RotoridError(f"{where}: 'angle_deg' must be within ±{MAX_ANGLE_DEG:g} degrees (the direction the "
+                                   f"probe measures along, from +x in the direction of rotation), got {angle:g}")
             if to not in ANGLED:
                 raise RotoridError(f"{where}: 'angle_deg' is the measuring direction of a probe or housing "
                                    f"accelerometer (x1, y1, x2, y2, px1, py1, px2, py2), not of {to!r}")
@@ -223,12 +230,15 @@ def _convert(use: _Use, path) -> np.ndarray:
     return a
 
 
-def _resolve_angled_probes(channels: dict, uses: list, sources: dict, path):
+def _resolve_angled_probes(channels: dict, uses: list, sources: dict, path, fs: float):
     """Probes mounted at angles (``angle_deg``; API 670's are at 45° either side of vertical)
     resolved into the plane's x and y motion, sample by sample (``rotorid.probe_angles``). Both
     channels of the plane must be there, at least ``MIN_PROBE_SEPARATION_DEG`` from parallel, with
     the same ``delay_s`` (the chain compensates a delay per channel; mixing two would leave
-    neither)."""
+    neither). Clipping is looked for in what each probe reads (a probe at its rail leaves no flat
+    top in the x and y resolved from it)."""
+    from .clipping import check_clipping
+
     by_name = {u.name: u for u in uses}
     for xn, yn in PLANE_PAIRS:
         ux, uy = by_name.get(xn), by_name.get(yn)
@@ -253,6 +263,8 @@ def _resolve_angled_probes(channels: dict, uses: list, sources: dict, path):
                                f"different delay_s ({ux.delay:g}, {uy.delay:g} s): resolving them into x and y mixes "
                                "the two channels, so they must share one delay")
         ua, ub = channels[xn], channels[yn]
+        check_clipping(Recording(fs, {xn: ua, yn: ub}, source=f"{path} (the probes {ux.raw.key!r} at {a:g}° -> {xn} "
+                                                               f"and {uy.raw.key!r} at {b:g}° -> {yn}, as read)"))
         channels[xn] = r[0, 0] * ua + r[0, 1] * ub
         channels[yn] = r[1, 0] * ua + r[1, 1] * ub
         sources[xn]["angle_deg"], sources[yn]["angle_deg"] = a, b
@@ -313,7 +325,7 @@ def _assemble(path, read: _Read, channel_map, fs_hz, meta, *, source, keep_other
         units[u.name] = SI_UNITS[u.name] if u.name in QUANTITY else (u.unit or "")
         sources[u.name] = {"file_channel": u.raw.key, "unit": u.unit, "unit_from": u.unit_from,
                            "scale": u.scale, "offset": u.offset}
-    _resolve_angled_probes(channels, uses, sources, path)
+    _resolve_angled_probes(channels, uses, sources, path, fs)
     merged = dict(read.meta)
     if provenance:
         merged["channel_sources"] = sources

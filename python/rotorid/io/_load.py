@@ -110,7 +110,8 @@ def load_recording(path, *, channel_map=None, fs_hz=None, meta=None, fmt=None, g
         unless ``fmt`` is given.
     channel_map : dict, optional
         {lab channel: {"to": canonical name, "unit": ..., "scale": ..., "offset": ...,
-        "delay_s": ...}}.
+        "delay_s": ..., "angle_deg": ...}}; ``angle_deg`` for a probe mounted at an angle (see
+        ``rotorid.probe_angles``).
     fs_hz : float, optional
         Sample rate for files (or channels) that state none; ignored, with a warning if it
         differs, where the file states one.
