@@ -466,6 +466,9 @@ def test_keyphasor_phase_uncertainty_of_a_coast_down_speed_no_revolution_is_near
     # beyond either end of the record: the angle of the revolutions at that end
     beyond = pipeline._keyphasor_phase_std([kp], np.array([800.0, 7000.0]), 2.0)
     np.testing.assert_allclose(beyond, [0.36, 0.36], rtol=0.02)
+    # pulses whose timing uncertainty is unknown (NaN) are left out, not spread as NaN
+    kp.timing_std_each_s[-3:] = np.nan
+    np.testing.assert_allclose(pipeline._keyphasor_phase_std([kp], grid[:3], 2.0), want[:3], rtol=0.02)
 
 
 ANGLES = {"x1": 45.0, "y1": 135.0, "x2": 30.0, "y2": 120.0}

@@ -335,11 +335,13 @@ NEGATIVE_DAMPING = "negative direct damping"
 
 def _finish(axis_name, axis, amp, k, c, cond, resid, ks, cs, cond_max, min_rel_amplitude, method, labels,
             std_source="none", dof=None, cov=None, max_rel_std=MAX_REL_STD, extra_flags=None, ks_res=None, cs_res=None,
-            bias_k=None, bias_c=None, estimator="ls", rel_std=None, std_known=True, flags=None):
+            bias_k=None, bias_c=None, estimator="ls", rel_std=None, std_known=True, flags=None, flag_dof=None):
     """Result object with per-point flags. ``amp``: rms response amplitude over runs and coordinates;
     ``rel_std``: the relative standard error of ``ks``, ``cs`` when the core computed it;
     ``std_known=False``: there are no standard errors (no point can be "uncertain");
-    ``flags``: (code, amp / max amp, code == 0) when the core computed them with the identification."""
+    ``flags``: (code, amp / max amp, code == 0) when the core computed them with the identification;
+    ``flag_dof``: the dof of each damping's standard error (n, 2, 2, 2) for the negative-damping
+    test when they differ from the point's ``dof``."""
     if rel_std is None:
         rel_std = _core.relative_std(*(np.ascontiguousarray(a, dtype=float).reshape(-1, 8) for a in (k, c, ks, cs)))
     if flags is not None:
@@ -352,7 +354,7 @@ def _finish(axis_name, axis, amp, k, c, cond, resid, ks, cs, cond_max, min_rel_a
                                          float(cond_max), float(min_rel_amplitude), float(max_rel_std),
                                          np.ascontiguousarray(c, dtype=float),
                                          np.ascontiguousarray(cs, dtype=float) if std_known else None,
-                                         _flag_dof(dof))
+                                         _flag_dof(dof if flag_dof is None else flag_dof))
     reasons = list(_BASE_REASONS)
     if extra_flags is not None:
         try:
@@ -374,7 +376,8 @@ def _finish(axis_name, axis, amp, k, c, cond, resid, ks, cs, cond_max, min_rel_a
 
 def _flag_dof(dof):
     """The degrees of freedom of the standard errors as the core's negative-damping test takes
-    them: None (+inf), one value (a constant view: no (n,) copy) or one per point."""
+    them: None (+inf), one value (a constant view: no (n,) copy), one per point, or one per
+    coefficient (n, 2, 2, 2)."""
     if dof is None:
         return None
     dof = np.asarray(dof, dtype=float)
@@ -992,6 +995,12 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
             rejected = resid[0] > 0.01
         if rejected.any():
             extra_flags = _flag_list(extra_flags) + [(rejected, "identical bearings rejected by the data")]
+    # the estimated part of the variances (the residual's, or the measurement covariance's, with
+    # the dof of the runs) before any stated uncertainty (accelerometer calibration, phase
+    # reference; infinite dof) is added below
+    estimated = None
+    if dof is not None and source != "none":
+        estimated = (ks ** 2, cs ** 2) if covs is None else (ks_meas ** 2, cs_meas ** 2)
     if calibration is not None and covs is None and source != "none":
         # residual-based errors (redundant runs) plus the calibration's (without any estimate of
         # the random errors the standard errors stay unknown)
@@ -1015,28 +1024,40 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
                                                  w_scale=w_scale)
         gk, gc = 0.5 * (kp - km), 0.5 * (cp - cm)
         hk, hc = kp + km - 2.0 * k_ls, cp + cm - 2.0 * c_ls
-        var_k, var_c = ks ** 2, cs ** 2
-        ks, cs = np.sqrt(var_k + gk ** 2 + 0.5 * hk ** 2), np.sqrt(var_c + gc ** 2 + 0.5 * hc ** 2)
+        ks, cs = np.sqrt(ks ** 2 + gk ** 2 + 0.5 * hk ** 2), np.sqrt(cs ** 2 + gc ** 2 + 0.5 * hc ** 2)
         if cov is not None:
             from .uncertainty import _report_order
 
             g, h = _report_order(gk, gc), _report_order(hk, hc)
             cov = cov + g[:, :, None] * g[:, None, :] + 0.5 * h[:, :, None] * h[:, None, :]
-        if dof is not None:
-            # Welch-Satterthwaite: the stated phase uncertainty has infinite degrees of freedom, so
-            # the estimated part's dof grow by (total / estimated variance)² (the smallest over the
-            # point's coefficients); residual-based errors of 3 runs (2 dof) made the intervals
-            # 2.2 times too wide where the phase term dominates
-            with np.errstate(divide="ignore", invalid="ignore"):
-                grow = np.concatenate([(ks ** 2 / var_k).reshape(axis.size, -1),
-                                       (cs ** 2 / var_c).reshape(axis.size, -1)], axis=1) ** 2
-            grow = np.nanmin(np.where(np.isfinite(grow), grow, np.nan), axis=1, initial=np.inf)
-            dof = np.asarray(dof, dtype=float) * np.where(np.isfinite(grow), grow, 1.0)
         rel_std = None
         source = f"{source} + phase reference"
+    flag_dof = None
+    if estimated is not None and (calibration is not None or phase_std is not None):
+        dof, flag_dof = _welch_satterthwaite(dof, estimated, (ks ** 2, cs ** 2), axis.size)
     return _finish(axis_name, axis, amp[0], k[0], c[0], cond[0], resid[0], ks, cs, cond_max, min_rel_amplitude,
                    method, labels, source, dof, cov, max_rel_std, extra_flags, ks_res, cs_res, bias_k, bias_c,
-                   estimator, rel_std, std_known, flags=None if code is None else (code[0], rel_amp[0], ok[0]))
+                   estimator, rel_std, std_known, flags=None if code is None else (code[0], rel_amp[0], ok[0]),
+                   flag_dof=flag_dof)
+
+
+def _welch_satterthwaite(dof, estimated, total, n):
+    """Degrees of freedom once stated uncertainties (infinite dof: the accelerometers' calibration,
+    the phase reference) are added to estimated ones: each coefficient's grow by (total /
+    estimated variance)², Welch-Satterthwaite. Returns (per point, the smallest over its 16
+    coefficients: the intervals'; per damping coefficient (n, 2, 2, 2): the negative-damping
+    flag's). Residual-based errors of 3 runs (2 dof) made the intervals 2.2 times too wide where the
+    phase term dominates; the point's smallest dof flagged 0.5 % of zero dampings (its damping's
+    own gives the intended 2.3 %), and without any growth the calibration's case flagged none."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        grow_k, grow_c = ((t / e) ** 2 for t, e in zip(total, estimated))
+    grow_k, grow_c = (np.where(np.isfinite(g), g, np.nan) for g in (grow_k, grow_c))
+    grow = np.nanmin(np.concatenate([grow_k.reshape(n, -1), grow_c.reshape(n, -1)], axis=1), axis=1,
+                     initial=np.inf)
+    base = np.asarray(dof, dtype=float)
+    per_point = base * np.where(np.isfinite(grow), grow, 1.0)
+    per_damping = base.reshape(n, 1, 1, 1) * np.where(np.isnan(grow_c), 1.0, grow_c)
+    return per_point, per_damping
 
 
 def identify_synchronous_batch(rotor: RigidRotor, speed_rpm, q, imbalances, *, method: str = "forces",

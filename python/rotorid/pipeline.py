@@ -204,14 +204,15 @@ def _keyphasor_phase_std(keyphasors, grid_rpm, tol_rpm):
         rpm = k.speed_rpm
         s = 0.5 * (k.timing_std_each_s[1:] + k.timing_std_each_s[:-1])
         for i, g in enumerate(grid_rpm):
-            gap = np.abs(rpm - g)
+            # (revolutions whose timing uncertainty is unknown, NaN, are left out)
+            gap = np.where(np.isfinite(s), np.abs(rpm - g), np.nan)
             near = gap <= max(tol_rpm, 0.005 * g)
             if near.any():
                 out[i] = np.fmax(out[i], float(np.median(s[near])))
-            else:
+            elif np.isfinite(gap).any():
                 # as an angle (a fixed-angle feature's timing in seconds scales with 1/speed), moved
                 # to this speed: the nearest revolutions may be 100 rpm or more away
-                closest = np.argsort(gap, kind="stable")[:NEAREST_REVOLUTIONS]
+                closest = np.argsort(gap, kind="stable")[:min(NEAREST_REVOLUTIONS, int(np.isfinite(gap).sum()))]
                 nearest[i] = np.fmax(nearest[i], float(np.median(s[closest] * rpm[closest])) / g)
     out = np.where(np.isnan(out), nearest, out)
     return np.rad2deg(grid_rpm * np.pi / 30.0 * out)

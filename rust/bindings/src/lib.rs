@@ -849,7 +849,7 @@ fn relative_std<'py>(
 
 /// Flag codes of an identification in one pass (see identify::flag_codes): cond (n, 2), amp (n,),
 /// rel_std (n,) or None (unknown), c and c_std (n, 2, 2, 2) or None (no damping test; unknown
-/// errors), dof (1,) or (n,) the degrees of freedom of c_std or None (+inf) -> (code uint8 (n,),
+/// errors), dof (1,), (n,) or (n, 2, 2, 2) the degrees of freedom of c_std or None (+inf) -> (code uint8 (n,),
 /// amp / max amp (n,), ok = code == 0 (n,)).
 #[pyfunction]
 #[pyo3(signature = (cond, amp, rel_std, cond_max, min_rel_amplitude, max_rel_std, c=None, c_std=None, dof=None))]
@@ -868,7 +868,7 @@ fn flag_codes<'py>(
 ) -> PyResult<(Bound<'py, PyArrayDyn<u8>>, Bound<'py, PyArrayDyn<f64>>, Bound<'py, PyArrayDyn<bool>>)> {
     let n = amp.len();
     if let Some(d) = &dof {
-        if d.shape() != [1] {
+        if d.shape() != [1] && d.shape() != [n, 2, 2, 2] {
             check_shape("dof", d.shape(), &[n])?;
         }
     }

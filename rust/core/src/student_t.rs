@@ -132,28 +132,66 @@ pub fn student_t_cdf(x: f64, dof: f64) -> f64 {
         return if x > 0.0 { 1.0 } else { 0.0 };
     }
     if dof > LARGE_DOF {
+        let tail = 0.5 * erfc(-x / std::f64::consts::SQRT_2);
+        let density = (-0.5 * x * x).exp() / (2.0 * std::f64::consts::PI).sqrt();
+        if density == 0.0 {
+            // |x| > 38: the corrections vanish with the density (their polynomials would overflow)
+            return tail;
+        }
         // Fisher's expansion F(x; ν) = Φ(x) − φ(x) [g₁(x)/ν + g₂(x)/ν² + O(ν⁻³)],
         // g₁ = (x³ + x)/4, g₂ = (3x⁷ − 7x⁵ − 5x³ − 3x)/96: the continued fraction near its switch
         // point needs ~√ν terms here, and the ν⁻³ term is below 1e-15
         let x2 = x * x;
         let g1 = (x2 + 1.0) * x / 4.0;
         let g2 = (((3.0 * x2 - 7.0) * x2 - 5.0) * x2 - 3.0) * x / 96.0;
-        let density = (-0.5 * x2).exp() / (2.0 * std::f64::consts::PI).sqrt();
-        return 0.5 * erfc(-x / std::f64::consts::SQRT_2) - density * (g1 + g2 / dof) / dof;
+        return tail - density * (g1 + g2 / dof) / dof;
     }
-    // z = ν / (ν + x²) and 1 − z = x² / (ν + x²), each without cancellation or overflow of x²
-    let (z, zc) = if x.abs() > 1e150 {
-        (0.0, 1.0)
+    let lower = if x.abs() > 1e150 {
+        // z = ν / x² may underflow (a tiny ν keeps a heavy tail there): the leading term of the
+        // series, I_z(a, b) = z^a / (a B(a, b)) (1 + O(z)), in logarithms
+        let a = 0.5 * dof;
+        let ln_z = dof.ln() - 2.0 * x.abs().ln();
+        0.5 * (a * ln_z - ln_beta(a, 0.5)).exp() / a
     } else {
+        // z = ν / (ν + x²) and 1 − z = x² / (ν + x²), each without cancellation
         let x2 = x * x;
-        (dof / (dof + x2), x2 / (dof + x2))
+        0.5 * incomplete_beta_split(0.5 * dof, 0.5, dof / (dof + x2), x2 / (dof + x2))
     };
-    let lower = 0.5 * incomplete_beta_split(0.5 * dof, 0.5, z, zc);
     if x <= 0.0 {
         lower
     } else {
         1.0 - lower
     }
+}
+
+/// The `p` quantile of Student's t for `p < ½` (a lower tail, negative): the `x` with
+/// `F(x; dof) = p`, by bisection on [`student_t_cdf`] (to the last bits of `x`; ~100 evaluations).
+/// −inf where it lies beyond −1e300 (a tiny `dof`); NaN for `p` outside (0, ½) or `dof ≤ 0`.
+pub fn student_t_quantile(p: f64, dof: f64) -> f64 {
+    if !(p > 0.0 && p < 0.5) || dof.is_nan() || dof <= 0.0 {
+        return f64::NAN;
+    }
+    let (mut lo, mut hi) = (-1.0f64, 0.0f64);
+    while student_t_cdf(lo, dof) > p {
+        hi = lo;
+        lo *= 2.0;
+        if lo < -1e300 {
+            return f64::NEG_INFINITY;
+        }
+    }
+    // F(lo) <= p < F(hi)
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if mid <= lo || mid >= hi {
+            break;
+        }
+        if student_t_cdf(mid, dof) > p {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    hi
 }
 
 /// The complementary error function, `erfc(x) = Q(½, x²)` for `x ≥ 0`: the regularized upper
@@ -164,6 +202,9 @@ fn erfc(x: f64) -> f64 {
     }
     if x < 0.0 {
         return 2.0 - erfc(-x);
+    }
+    if x > 40.0 {
+        return 0.0; // below the smallest subnormal (erfc(27) is 5e-319)
     }
     // erfc(x) = Q(½, x²) (the regularized upper incomplete gamma function)
     let s = x * x;
@@ -250,6 +291,41 @@ mod tests {
             let got = student_t_cdf(-2.0, nu);
             assert!((got - want).abs() < 1e-13 + 1.0 / (nu * nu), "dof {nu}: {got:e} against {want:e}");
         }
+    }
+
+    #[test]
+    fn quantile_inverts_the_cdf_and_known_values() {
+        // closed forms: dof 1 tan(pi (p - 1/2)) = -cot(pi p), dof 2 (2p - 1) / sqrt(2 p (1 - p))
+        for &p in &[1e-6, 0.001, 0.022_750_131_948_179_2, 0.1, 0.4] {
+            let one = -1.0 / (PI * p).tan(); // tan(pi (p - 1/2)) without the rounding near its pole
+            let two = (2.0 * p - 1.0) / (2.0 * p * (1.0 - p)).sqrt();
+            let (q1, q2) = (student_t_quantile(p, 1.0), student_t_quantile(p, 2.0));
+            assert!((q1 / one - 1.0).abs() < 1e-13, "p {p}: {q1:e} against {one:e}");
+            assert!((q2 / two - 1.0).abs() < 1e-13, "p {p}: {q2:e} against {two:e}");
+            for &dof in &[0.3, 3.7, 50.0, 99_999.0, 1e5 * 1.5, 1e9] {
+                let x = student_t_quantile(p, dof);
+                assert!((student_t_cdf(x, dof) / p - 1.0).abs() < 1e-10, "p {p} dof {dof}");
+            }
+        }
+        assert_eq!(student_t_quantile(0.01, 1e-4), f64::NEG_INFINITY);
+        assert!(student_t_quantile(0.5, 3.0).is_nan() && student_t_quantile(0.1, 0.0).is_nan());
+    }
+
+    #[test]
+    fn no_nan_far_in_the_tails() {
+        // the expansion above 1e5 dof and tiny dof with |x| beyond 1e150 (x² would overflow)
+        for &dof in &[1e-3, 0.5, 3.0, 1e5 * 1.0001, 1e9] {
+            for &x in &[-1e300, -1e151, -1e45, -40.0] {
+                let f = student_t_cdf(x, dof);
+                assert!(f.is_finite() && (0.0..0.5).contains(&f), "dof {dof} x {x}: {f}");
+            }
+        }
+        // dof 1: F(x) = 1/2 + atan(x)/pi, still 0.318/|x| at x = -1e151
+        assert!((student_t_cdf(-1e151, 1.0) * PI * 1e151 - 1.0).abs() < 1e-12);
+        // dof 1e-3 keeps a heavy tail: F(-1e151) is far from 0 (scipy 0.3525), and the two
+        // sides of the switch at |x| = 1e150 agree
+        let (inner, outer) = (student_t_cdf(-0.999_999e150, 1e-3), student_t_cdf(-1.000_001e150, 1e-3));
+        assert!((inner - outer).abs() < 1e-9 && (student_t_cdf(-1e151, 1e-3) - 0.3525).abs() < 1e-3, "{inner} {outer}");
     }
 
     #[test]

@@ -980,7 +980,7 @@ fn flag_codes_match_their_definition() {
     );
     assert_eq!(
         flag_codes(&cond, &amp, &rel_std, &[], &[], &[1.0; 3], 1e4, 0.08, 0.1, &mut rel, &mut code, &mut ok).unwrap_err().to_string(),
-        "dof has 3 elements, expected 5"
+        "dof has 3 elements, expected 40"
     );
 }
 

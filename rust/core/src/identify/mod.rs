@@ -1295,52 +1295,92 @@ pub const NEGATIVE_DAMPING_LEVEL: f64 = 0.022_750_131_948_179_2;
 /// Whether a direct damping `d` with standard error `s` estimated with `dof` degrees of freedom is
 /// significantly below zero: `F_t(d / s; dof) < Φ(−2)` (Student's t; the normal, d < −2 s, where
 /// `dof` is +inf, NaN or ≤ 0, i.e. known or of unknown quality), or `d < 0` where `s` is unknown
-/// (NaN). With 2 dof the threshold is 4.5 standard errors, with 4 dof 3.0: a fixed 2 flagged 9 % and
-/// 6 % of zero dampings there instead of 2.3 %. False for NaN `d`.
-#[inline(always)]
+/// (NaN). With 2 dof the threshold is 4.50 standard errors, with 4 dof 2.87: a fixed 2 flagged
+/// 9 % and 6 % of zero dampings there instead of 2.3 %. False for NaN `d`. Where the same dof
+/// comes twice in a row the threshold `t = F⁻¹(Φ(−2); dof)` is found (~100 evaluations of F) and
+/// kept, so a pass where every point is a candidate (a probe reversed in every run) costs a
+/// comparison per point; dof that change from point to point cost one evaluation of F each.
+#[derive(Clone, Copy, Debug)]
+pub struct NegativeDampingTest {
+    dof: f64,
+    threshold: f64,
+    seen: f64,
+}
+
+impl Default for NegativeDampingTest {
+    fn default() -> Self {
+        NegativeDampingTest { dof: f64::INFINITY, threshold: -2.0, seen: f64::NAN }
+    }
+}
+
+impl NegativeDampingTest {
+    /// The test's threshold in standard errors at `dof` (−2 at +inf, NaN or ≤ 0).
+    pub fn threshold(dof: f64) -> f64 {
+        if !(dof > 0.0 && dof < f64::INFINITY) {
+            return -2.0;
+        }
+        crate::student_t::student_t_quantile(NEGATIVE_DAMPING_LEVEL, dof)
+    }
+
+    /// Whether `d` (standard error `s`, `dof` degrees of freedom) is significantly below zero.
+    #[inline(always)]
+    pub fn is_negative(&mut self, d: f64, s: f64, dof: f64) -> bool {
+        if s.is_nan() {
+            return d < 0.0;
+        }
+        // Student's t quantile is never above the normal's: points within 2 standard errors pass
+        // without the threshold
+        let margin = d + 2.0 * s;
+        if margin.is_nan() || margin >= 0.0 {
+            return false;
+        }
+        let dof = if dof > 0.0 && dof < f64::INFINITY { dof } else { f64::INFINITY };
+        if dof != self.dof {
+            if dof != self.seen {
+                self.seen = dof;
+                return crate::student_t::student_t_cdf(d / s, dof) < NEGATIVE_DAMPING_LEVEL;
+            }
+            self.dof = dof;
+            self.threshold = Self::threshold(dof);
+        }
+        d / s < self.threshold
+    }
+}
+
+/// [`NegativeDampingTest::is_negative`] for a single value (finds the threshold each call).
 pub fn significantly_negative(d: f64, s: f64, dof: f64) -> bool {
-    if s.is_nan() {
-        return d < 0.0;
-    }
-    // Student's t quantile is never below the normal's: points within 2 standard errors pass
-    // without evaluating the distribution
-    let margin = d + 2.0 * s;
-    if margin.is_nan() || margin >= 0.0 {
-        return false;
-    }
-    if !(dof > 0.0 && dof < f64::INFINITY) {
-        return true;
-    }
-    crate::student_t::student_t_cdf(d / s, dof) < NEGATIVE_DAMPING_LEVEL
+    NegativeDampingTest::default().is_negative(d, s, dof)
 }
 
 /// The "negative direct damping" bit over a run of points: C_xx or C_yy of either bearing (flat
 /// positions 0, 3, 4, 7 of a point's [bearing, i, j]) significantly below zero
-/// ([`significantly_negative`]) with the point's degrees of freedom (`dof`: empty = +inf, one value
-/// for every point, or one per point), or below zero where the error is unknown (NaN, or `c_std`
-/// None); false for NaN coefficients.
+/// ([`NegativeDampingTest`]) with the degrees of freedom of its standard error (`dof`: empty =
+/// +inf, one value for every point, one per point, or one per coefficient (n, 2, 2, 2)), or below
+/// zero where the error is unknown (NaN, or `c_std` None); false for NaN coefficients.
 #[inline(always)]
 fn damping_pass(c: &[f64], c_std: Option<&[f64]>, dof: &[f64], code: &mut [u8], ok: &mut [bool]) {
-    let dof_at = |i: usize| match dof.len() {
+    const DIRECT: [usize; 4] = [0, 3, 4, 7];
+    let n = code.len();
+    let dof_at = |i: usize, t: usize| match dof.len() {
         0 => f64::INFINITY,
         1 => dof[0],
-        _ => dof[i],
+        len if len == n => dof[i],
+        _ => dof[8 * i + t],
     };
-    let one = |cc: &[f64], ss: [f64; 4], v: f64, o: &mut u8, k: &mut bool| {
-        let neg = |d: f64, s: f64| significantly_negative(d, s, v);
-        let bad = neg(cc[0], ss[0]) | neg(cc[3], ss[1]) | neg(cc[4], ss[2]) | neg(cc[7], ss[3]);
-        *o |= (bad as u8) * FLAG_NEGATIVE_DAMPING;
-        *k = *o == 0;
-    };
+    let mut test = NegativeDampingTest::default();
     match c_std {
         Some(cs) => {
             for (i, (((cc, ss), o), k)) in c.chunks_exact(8).zip(cs.chunks_exact(8)).zip(code.iter_mut()).zip(ok.iter_mut()).enumerate() {
-                one(cc, [ss[0], ss[3], ss[4], ss[7]], dof_at(i), o, k);
+                let bad = DIRECT.iter().any(|&t| test.is_negative(cc[t], ss[t], dof_at(i, t)));
+                *o |= (bad as u8) * FLAG_NEGATIVE_DAMPING;
+                *k = *o == 0;
             }
         }
         None => {
             for ((cc, o), k) in c.chunks_exact(8).zip(code.iter_mut()).zip(ok.iter_mut()) {
-                one(cc, [f64::NAN; 4], f64::INFINITY, o, k);
+                let bad = DIRECT.iter().any(|&t| cc[t] < 0.0);
+                *o |= (bad as u8) * FLAG_NEGATIVE_DAMPING;
+                *k = *o == 0;
             }
         }
     }
@@ -1360,7 +1400,8 @@ crate::lanes::simd_dispatch! {
 /// leaves no residual but this). `cond`: (n, 2); `amp`: (n,); `rel_std`: (n,), or empty when the
 /// standard errors are unknown (no point is then "uncertain"); `c`, `c_std`: (n, 2, 2, 2) damping
 /// and its standard errors, or empty (no damping test; unknown errors); `dof`: the degrees of
-/// freedom of `c_std`, empty (+inf), one for every point, or (n,); `rel_amp` receives
+/// freedom of `c_std`, empty (+inf), one for every point, (n,), or (n, 2, 2, 2) one per
+/// coefficient; `rel_amp` receives
 /// amp / max(amp) (0 when every amplitude is 0); `code`: (n,); `ok` (n,) receives code == 0 (the
 /// points to trust).
 #[allow(clippy::too_many_arguments)]
@@ -1390,8 +1431,8 @@ pub fn flag_codes(
     if !c_std.is_empty() {
         expect_len("c_std", c_std, product("c_std", &[n, 8])?)?;
     }
-    if dof.len() > 1 {
-        expect_len("dof", dof, n)?;
+    if dof.len() > 1 && dof.len() != n {
+        expect_len("dof", dof, product("dof", &[n, 8])?)?;
     }
     expect_len("rel_amp", rel_amp, n)?;
     expect_len("ok", ok, n)?;
@@ -1421,7 +1462,11 @@ pub fn flag_codes(
         let (lo, hi) = (j * PAR_CHUNK, j * PAR_CHUNK + oc.len());
         flag_pass_dispatch(&lim, &cond[2 * lo..2 * hi], &amp[lo..hi], rel_std.map(|r| &r[lo..hi]), rc, oc, ok);
         if !c.is_empty() {
-            let dof = if dof.len() > 1 { &dof[lo..hi] } else { dof };
+            let dof = match dof.len() {
+                0 | 1 => dof,
+                len if len == n => &dof[lo..hi],
+                _ => &dof[8 * lo..8 * hi],
+            };
             damping_pass(&c[8 * lo..8 * hi], c_std.map(|s| &s[8 * lo..8 * hi]), dof, oc, ok);
         }
     });
