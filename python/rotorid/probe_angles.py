@@ -59,26 +59,36 @@ def resolution(a_deg: float, b_deg: float) -> np.ndarray | None:
     return np.array([[math.sin(b), -math.sin(a)], [-math.cos(b), math.cos(a)]]) / det
 
 
+def _per_plane(angles: dict, channels: tuple, block) -> np.ndarray | None:
+    """The (C, C) map over ``channels`` with ``block(a, b, xn, yn)`` (2, 2) on each plane that has
+    an angled channel (the other at its default angle), the identity elsewhere; None without
+    angles."""
+    if not angles:
+        return None
+    m = np.eye(len(channels))
+    for xn, yn in PLANE_PAIRS:
+        if xn not in channels or (xn not in angles and yn not in angles):
+            continue
+        a, b = angles.get(xn, default_angle(xn)), angles.get(yn, default_angle(yn))
+        i, j = channels.index(xn), channels.index(yn)
+        m[np.ix_([i, j], [i, j])] = block(a, b, xn, yn)
+    return m
+
+
 def plane_transform(angles: dict, channels: tuple) -> np.ndarray | None:
     """The (C, C) real map from the readings of ``channels`` (names, e.g. [x1, x2, y1, y2]) to the
     planes' x and y motion, given ``angles`` {channel: deg} for the angled ones; None when no
     channel is angled. Raises ValueError naming the pair when one is within
     ``MIN_PROBE_SEPARATION_DEG`` of parallel."""
-    if not angles:
-        return None
-    t = np.eye(len(channels))
-    for xn, yn in PLANE_PAIRS:
-        if xn not in channels or (xn not in angles and yn not in angles):
-            continue
-        a, b = angles.get(xn, default_angle(xn)), angles.get(yn, default_angle(yn))
+    def block(a, b, xn, yn):
         r = resolution(a, b)
         if r is None:
             raise ValueError(f"{xn} (angle_deg {a:g}) and {yn} (angle_deg {b:g}) are within "
                              f"{MIN_PROBE_SEPARATION_DEG:g}° of parallel: the plane's motion cannot be resolved "
                              "from them (check angle_deg)")
-        i, j = channels.index(xn), channels.index(yn)
-        t[np.ix_([i, j], [i, j])] = r
-    return t
+        return r
+
+    return _per_plane(angles, channels, block)
 
 
 def reading_map(angles: dict, channels: tuple) -> np.ndarray | None:
@@ -86,16 +96,11 @@ def reading_map(angles: dict, channels: tuple) -> np.ndarray | None:
     (the inverse of :func:`plane_transform`: ``[u_a, u_b] = [[cos a, sin a], [cos b, sin b]] [x, y]``),
     given ``angles`` {channel: deg}; None when no channel is angled. For checks that belong to the
     readings themselves (a dead probe's 1X is noise, a clipped probe sits at its rail)."""
-    if not angles:
-        return None
-    m = np.eye(len(channels))
-    for xn, yn in PLANE_PAIRS:
-        if xn not in channels or (xn not in angles and yn not in angles):
-            continue
-        a, b = (math.radians(angles.get(c, default_angle(c))) for c in (xn, yn))
-        i, j = channels.index(xn), channels.index(yn)
-        m[np.ix_([i, j], [i, j])] = [[math.cos(a), math.sin(a)], [math.cos(b), math.sin(b)]]
-    return m
+    def block(a, b, xn, yn):
+        a, b = math.radians(a), math.radians(b)
+        return [[math.cos(a), math.sin(a)], [math.cos(b), math.sin(b)]]
+
+    return _per_plane(angles, channels, block)
 
 
 def recorded_angles(run) -> dict:
