@@ -37,6 +37,7 @@ from pydantic_core import PydanticCustomError
 
 from . import units as _units
 from .errors import RotoridError
+from .probe_angles import ANGLED, MAX_ANGLE_DEG, plane_transform
 
 __all__ = [
     "CANONICAL", "QUANTITY", "ChannelSpec", "Config", "ConfigError", "FileEntry", "FileOptions", "ImbalanceRun",
@@ -615,7 +616,7 @@ class ChannelSpec(_Model):
     offset: Finite = 0.0
     delay_s: _number(abs_lt=1) = 0.0
     override_file_unit: bool = False
-    angle_deg: Optional[_number(ge=-360, le=360)] = None
+    angle_deg: Optional[_number(ge=-MAX_ANGLE_DEG, le=MAX_ANGLE_DEG)] = None
 
     @model_validator(mode="before")
     @classmethod
@@ -628,8 +629,6 @@ class ChannelSpec(_Model):
     def _unit_matches(self):
         if self.override_file_unit and self.unit is None:
             raise _err("override_file_unit = true needs the unit that replaces the file's", table=True)
-        from .probe_angles import ANGLED
-
         if self.angle_deg is not None and self.to not in ANGLED:
             raise _err(f"angle_deg is the measuring direction of a probe or housing accelerometer "
                        f"({', '.join(ANGLED)}), not of {self.to}", table=True)
@@ -641,19 +640,14 @@ class ChannelSpec(_Model):
         return self
 
 
-def _check_probe_pairs(angles: dict, present, where: str):
+def _check_probe_pairs(angles: dict, present):
     """A ConfigError when the two channels of a plane in ``present`` (one of them at an angle,
     ``angles`` {channel: deg}) are within the least separation of parallel (found here rather
     than when the files are read)."""
-    from .probe_angles import MIN_PROBE_SEPARATION_DEG, PLANE_PAIRS, default_angle, resolution
-
-    for xn, yn in PLANE_PAIRS:
-        if xn in present and yn in present and (xn in angles or yn in angles):
-            a, b = angles.get(xn, default_angle(xn)), angles.get(yn, default_angle(yn))
-            if resolution(a, b) is None:
-                raise _err(f"{where}{xn} (angle_deg {_fmt(a)}) and {yn} (angle_deg {_fmt(b)}) are within "
-                           f"{_fmt(MIN_PROBE_SEPARATION_DEG)}° of parallel: the plane's motion cannot be resolved "
-                           "from them", table=True)
+    try:
+        plane_transform(angles, tuple(present))
+    except ValueError as exc:
+        raise _err(str(exc), table=True) from None
 
 
 def _check_channel_map(v):
@@ -664,7 +658,7 @@ def _check_channel_map(v):
         if spec.to in seen:
             raise _err(f"{seen[spec.to]!r} and {lab!r} both map to {spec.to}", table=True)
         seen[spec.to] = lab
-    _check_probe_pairs({s.to: s.angle_deg for s in v.values() if s.angle_deg is not None}, seen, "")
+    _check_probe_pairs({s.to: s.angle_deg for s in v.values() if s.angle_deg is not None}, seen)
     return v
 
 
@@ -865,7 +859,7 @@ class OneXColumn(_Model):
 
     amplitude: Text = Field(description="name of the amplitude column")
     phase: Text = Field(description="name of the phase column")
-    angle_deg: Optional[_number(ge=-360, le=360)] = Field(None, description="direction the probe measures along, "
+    angle_deg: Optional[_number(ge=-MAX_ANGLE_DEG, le=MAX_ANGLE_DEG)] = Field(None, description="direction the probe measures along, "
                                                                           "degrees from +x toward +y (default x 0, y 90)")
 
 
@@ -892,7 +886,7 @@ class OneXColumns(_Model):
                        "housing accelerometers or none", missing[0])
         present = [n for n in ("x1", "x2", "y1", "y2", *names) if getattr(self, n) is not None]
         _check_probe_pairs({n: getattr(self, n).angle_deg for n in present if getattr(self, n).angle_deg is not None},
-                           present, "")
+                           present)
         return self
 
 

@@ -53,7 +53,7 @@ def _check_live_probes(tracks, labels, runs=None):
     their noise, before any compensation. Tracks without a covariance (1X tables) are not checked.
     Probes mounted at an angle (``runs``: the runs as loaded, whose meta says so) are checked on
     what they read, not on the x and y resolved from them: a dead probe's partner fills both."""
-    from .probe_angles import reading_map, recorded_angles
+    from .probe_angles import moved_covariance, reading_map, recorded_angles
 
     names = ("x1", "x2", "y1", "y2")
     above, total = np.zeros(4), 0
@@ -66,8 +66,7 @@ def _check_live_probes(tracks, labels, runs=None):
         m = reading_map({c: a for c, a in run_angles.items() if c in names}, names)
         if m is not None:
             angles.update(run_angles)
-            m8 = np.kron(np.eye(2), m)
-            v, cov = v @ m.T, m8 @ cov @ m8.T
+            v, cov = v @ m.T, moved_covariance(cov, m)
         x = np.abs(v)
         var = np.stack([cov[:, c, c] + cov[:, c + 4, c + 4] for c in range(4)], axis=1)
         with np.errstate(divide="ignore", invalid="ignore"):

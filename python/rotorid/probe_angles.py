@@ -67,7 +67,7 @@ def _per_plane(angles: dict, channels: tuple, block) -> np.ndarray | None:
         return None
     m = np.eye(len(channels))
     for xn, yn in PLANE_PAIRS:
-        if xn not in channels or (xn not in angles and yn not in angles):
+        if xn not in channels or yn not in channels or (xn not in angles and yn not in angles):
             continue
         a, b = angles.get(xn, default_angle(xn)), angles.get(yn, default_angle(yn))
         i, j = channels.index(xn), channels.index(yn)
@@ -101,6 +101,15 @@ def reading_map(angles: dict, channels: tuple) -> np.ndarray | None:
         return [[math.cos(a), math.sin(a)], [math.cos(b), math.sin(b)]]
 
     return _per_plane(angles, channels, block)
+
+
+def moved_covariance(cov, t):
+    """The covariance (n, 8, 8) of [Re u, Im u] after u -> T u (``t`` (4, 4) real, the same map of
+    both parts): A C Aᵀ with A = diag(T, T), by the core (exactly symmetric; a point with a NaN
+    all NaN)."""
+    from ._corecall import core
+
+    return core.move_covariances(np.kron(np.eye(2), t), None, np.ascontiguousarray(cov, dtype=float))[0]
 
 
 def recorded_angles(run) -> dict:

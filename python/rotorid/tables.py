@@ -39,7 +39,7 @@ import numpy as np
 
 from . import units
 from .errors import RotoridError
-from .probe_angles import MAX_ANGLE_DEG, plane_transform
+from .probe_angles import MAX_ANGLE_DEG, moved_covariance, plane_transform
 from .recording import ACCELEROMETERS
 from .signals import SyncTrack
 
@@ -887,25 +887,19 @@ def load_1x_table(path, *, columns, speed_column="auto", amplitude="pk-pk", unit
         if not (np.isfinite(sa) and np.isfinite(sp) and sa >= 0 and sp >= 0) or (sa == 0 and sp == 0 and sa_acc == 0):
             raise RotoridError(f"{where}: amplitude_std and phase_std_deg must be finite and >= 0 (one > 0), got "
                                f"{amplitude_std!r}, {phase_std_deg!r}")
-        cov = _resolved_cov(polar_covariance(q_read, sa, sp), t_probe)
+        cov = polar_covariance(q_read, sa, sp)
+        cov = cov if t_probe is None else moved_covariance(cov, t_probe)
         dof = np.full(n, np.inf)
         if has_ped:
             # the acceleration's covariance scaled by 1/Ω⁴ (P = -A/Ω²: the sign leaves it unchanged);
             # every channel's reading has its own error: no cross-covariance with the probes
-            ped["pedestal_cov"] = _resolved_cov(polar_covariance(z[:, 4:], sa_acc, sp), t_acc) / (om2 ** 2)[:, None, None]
+            acc_cov = polar_covariance(z[:, 4:], sa_acc, sp)
+            acc_cov = acc_cov if t_acc is None else moved_covariance(acc_cov, t_acc)
+            ped["pedestal_cov"] = acc_cov / (om2 ** 2)[:, None, None]
             ped["pedestal_cross"] = np.zeros((n, 8, 8))
     return TableTrack(speed.astype(float), q[:, None, :], (1,), np.full(n, np.nan), np.full((n, 4), np.nan),
                       np.full(n, np.nan), [], cov, dof, name=name if name is not None else path.stem,
                       source=str(path), meta=m, **ped)
-
-
-def _resolved_cov(cov, t):
-    """The covariance (n, 8, 8) of [Re u, Im u] moved with u -> T u (``t`` (4, 4) real, or None)."""
-    if t is None:
-        return cov
-    t8 = np.zeros((8, 8))
-    t8[:4, :4] = t8[4:, 4:] = t
-    return t8 @ cov @ t8.T
 
 
 def polar_covariance(q, amplitude_std_m: float, phase_std_rad: float) -> np.ndarray:

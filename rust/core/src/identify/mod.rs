@@ -1347,11 +1347,6 @@ impl NegativeDampingTest {
     }
 }
 
-/// [`NegativeDampingTest::is_negative`] for a single value (finds the threshold each call).
-pub fn significantly_negative(d: f64, s: f64, dof: f64) -> bool {
-    NegativeDampingTest::default().is_negative(d, s, dof)
-}
-
 /// The "negative direct damping" bit over a run of points: C_xx or C_yy of either bearing (flat
 /// positions 0, 3, 4, 7 of a point's [bearing, i, j]) significantly below zero
 /// ([`NegativeDampingTest`]) with the degrees of freedom of its standard error (`dof`: empty =
@@ -1395,7 +1390,7 @@ crate::lanes::simd_dispatch! {
 /// is inf or NaN), ill-conditioned (cond > `cond_max`), uncertain (`rel_std` > `max_rel_std`),
 /// low amplitude (amp / max(amp) < `min_rel_amplitude`), negative direct damping (with `c`: a
 /// direct damping coefficient significantly below zero, one-sided at the 2-standard-error level of
-/// a normal with Student's t for the `dof` of `c_std` ([`significantly_negative`]), or below zero
+/// a normal with Student's t for the `dof` of `c_std` ([`NegativeDampingTest`]), or below zero
 /// where the errors are unknown: a passive support dissipates, and a channel reversed in every run
 /// leaves no residual but this). `cond`: (n, 2); `amp`: (n,); `rel_std`: (n,), or empty when the
 /// standard errors are unknown (no point is then "uncertain"); `c`, `c_std`: (n, 2, 2, 2) damping
