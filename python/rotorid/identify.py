@@ -999,7 +999,7 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
     # the dof of the runs) before any stated uncertainty (accelerometer calibration, phase
     # reference; infinite dof) is added below
     estimated = None
-    if dof is not None and source != "none":
+    if dof is not None and source != "none" and (calibration is not None or phase_std is not None):
         estimated = (ks ** 2, cs ** 2) if covs is None else (ks_meas ** 2, cs_meas ** 2)
     if calibration is not None and covs is None and source != "none":
         # residual-based errors (redundant runs) plus the calibration's (without any estimate of
@@ -1033,7 +1033,7 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
         rel_std = None
         source = f"{source} + phase reference"
     flag_dof = None
-    if estimated is not None and (calibration is not None or phase_std is not None):
+    if estimated is not None:
         dof, flag_dof = _welch_satterthwaite(dof, estimated, (ks ** 2, cs ** 2), axis.size)
     return _finish(axis_name, axis, amp[0], k[0], c[0], cond[0], resid[0], ks, cs, cond_max, min_rel_amplitude,
                    method, labels, source, dof, cov, max_rel_std, extra_flags, ks_res, cs_res, bias_k, bias_c,
