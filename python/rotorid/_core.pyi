@@ -222,6 +222,24 @@ def series_impedance(
 ) -> tuple[npt.NDArray[np.complex128], int]:
     """Z_eq = Z_b - Z_b (Z_b + Z_d - w^2 m_j I)^-1 Z_b (n, 2, 2), n_singular (NaN there)."""
 
+def identical_std(
+    rotor: npt.NDArray[np.float64],
+    w: npt.NDArray[np.float64],  # (n,), times w_scale if given
+    spin: npt.NDArray[np.float64] | None,  # (n,) or (1,); None: spin = w (synchronous runs)
+    q: npt.NDArray[np.complex128] | list[npt.NDArray[np.complex128]],  # as identify's
+    e: npt.NDArray[np.complex128],  # (1 or batch, runs, 4)
+    gain: npt.NDArray[np.float64] | None,  # (n,) or (1,); None: spin^2
+    k: npt.NDArray[np.float64],  # (batch, n, 2, 2, 2): identify's estimate with identical=True
+    c: npt.NDArray[np.float64],
+    sigma: npt.NDArray[np.float64] | None = None,
+    q_ped: npt.NDArray[np.complex128] | list[npt.NDArray[np.complex128]] | None = None,
+    planes: npt.NDArray[np.float64] | None = None,  # (2, 2) eq. 19 transform when q is at the probe planes
+    w_scale: float | None = None,
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    """Residual-based standard errors of identical bearings with the structure of their pooled
+    equations (identify::identical): k_std, c_std (batch, n, 2, 2, 2) and each row's real dof
+    (batch, n, 2) [x, y]; NaN where the estimate is not finite or no dof is left."""
+
 def bearing_forces(
     rotor: npt.NDArray[np.float64],
     w: npt.NDArray[np.float64],

@@ -915,10 +915,15 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
     e_core = _core_excitations(e) if e_core is None else e_core
     # residual dof per bearing system: R complex equations (2R real) for 2 complex unknowns
     residual_dof = 2.0 * (nruns * (2 if identical else 1) - 2)
+    # identical bearings pool both bearings' equations, whose errors differ: their residual-based
+    # errors come from identical_std below, and the flags with them (in _finish)
+    structured = identical and redundant and method == "forces"
+    w = np.ascontiguousarray(w)
     k, c, cond, resid, amp, ks, cs, rel_std, code, rel_amp, ok, nbad = _core.identify(
-        rotor.core_params(), np.ascontiguousarray(w), spin, list(qs), e_core,
-        gain, identical=identical, method=method, with_std=redundant, sigma=sigma, q_ped=q_ped, planes=planes,
-        w_scale=w_scale, flag_limits=None if covs is not None or calibration is not None or phase_std is not None
+        rotor.core_params(), w, spin, list(qs), e_core,
+        gain, identical=identical, method=method, with_std=redundant and not structured, sigma=sigma, q_ped=q_ped,
+        planes=planes, w_scale=w_scale,
+        flag_limits=None if covs is not None or calibration is not None or phase_std is not None or structured
         else (cond_max, min_rel_amplitude, max_rel_std, residual_dof if redundant else np.inf))
     k_ls, c_ls = k[0], c[0]  # the least-squares estimate (before any bias correction)
     if nbad:
@@ -930,6 +935,12 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
             raise RotoridError(f"{what} reach {big:.3g} (m or m/N): the computation overflows; no rotor responds that "
                                "much (a unit error?)")
         raise RotoridError(f"{what} contain NaN or inf")
+    row_dof = None
+    if structured:
+        # (n, 2): the x and the y row's dof (identify::identical)
+        ks, cs, row_dof = _core.identical_std(rotor.core_params(), w, spin, list(qs), e_core, gain, k, c, sigma=sigma,
+                                              q_ped=q_ped, planes=planes, w_scale=w_scale)
+        row_dof = row_dof[0]
     std_known = ks is not None or covs is not None  # residual-based, or propagated below
     # residual-based errors only where the core computed them (not for method="report", whose
     # standard errors stay unknown without a covariance)
@@ -947,7 +958,12 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
     ks_res, cs_res = ks, cs
     bias_k = bias_c = None
     source, dof, cov = ("residual" if residual_std else "none"), None, None
-    if residual_std:
+    coef_dof = None  # the dof of each coefficient's error where they differ, (n, 2, 2, 2)
+    if residual_std and row_dof is not None:
+        coef_dof = np.broadcast_to(row_dof[:, None, :, None], (axis.size, 2, 2, 2))
+        # the intervals take each point's smaller dof (NaN only where both are)
+        dof = np.fmin(row_dof[:, 0], row_dof[:, 1])
+    elif residual_std:
         # one value for every point: a read-only view, not an (n,) array (freed with om, two such
         # arrays made glibc return and fault in the memory on every call)
         dof = _constant_view(residual_dof, (axis.size,))
@@ -975,6 +991,7 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
         if unknown.any():
             extra_flags = _flag_list(extra_flags) + [(unknown, "uncertainty unknown")]
         source = "measurement covariance"
+        coef_dof = None
         dof = np.min(dofs, axis=0) if dofs is not None else np.full(axis.size, np.inf)
         dof = np.where(unknown, np.nan, dof)
     if covs is not None and not identical and residual_std and ks is not None:
@@ -1032,9 +1049,10 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
             cov = cov + g[:, :, None] * g[:, None, :] + 0.5 * h[:, :, None] * h[:, None, :]
         rel_std = None
         source = f"{source} + phase reference"
-    flag_dof = None
+    flag_dof = coef_dof
     if estimated is not None:
-        dof, flag_dof = _welch_satterthwaite(dof, estimated, (ks ** 2, cs ** 2), axis.size)
+        dof, flag_dof = _welch_satterthwaite(dof if coef_dof is None else coef_dof, estimated, (ks ** 2, cs ** 2),
+                                             axis.size)
     return _finish(axis_name, axis, amp[0], k[0], c[0], cond[0], resid[0], ks, cs, cond_max, min_rel_amplitude,
                    method, labels, source, dof, cov, max_rel_std, extra_flags, ks_res, cs_res, bias_k, bias_c,
                    estimator, rel_std, std_known, flags=None if code is None else (code[0], rel_amp[0], ok[0]),
@@ -1044,19 +1062,22 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
 def _welch_satterthwaite(dof, estimated, total, n):
     """Degrees of freedom once stated uncertainties (infinite dof: the accelerometers' calibration,
     the phase reference) are added to estimated ones: each coefficient's grow by (total /
-    estimated variance)², Welch-Satterthwaite. Returns (per point, the smallest over its 16
-    coefficients: the intervals'; per damping coefficient (n, 2, 2, 2): the negative-damping
+    estimated variance)², Welch-Satterthwaite. ``dof``: the estimated errors' dof, per point (n,)
+    or per coefficient (n, 2, 2, 2) (alike for K and C). Returns (per point, the smallest over its
+    16 coefficients: the intervals'; per damping coefficient (n, 2, 2, 2): the negative-damping
     flag's). Residual-based errors of 3 runs (2 dof) made the intervals 2.2 times too wide where the
     phase term dominates; the point's smallest dof flagged 0.5 % of zero dampings (its damping's
     own gives the intended 2.3 %), and without any growth the calibration's case flagged none."""
     with np.errstate(divide="ignore", invalid="ignore"):
         grow_k, grow_c = ((t / e) ** 2 for t, e in zip(total, estimated))
     grow_k, grow_c = (np.where(np.isfinite(g), g, np.nan) for g in (grow_k, grow_c))
-    grow = np.nanmin(np.concatenate([grow_k.reshape(n, -1), grow_c.reshape(n, -1)], axis=1), axis=1,
-                     initial=np.inf)
     base = np.asarray(dof, dtype=float)
-    per_point = base * np.where(np.isfinite(grow), grow, 1.0)
-    per_damping = base.reshape(n, 1, 1, 1) * np.where(np.isnan(grow_c), 1.0, grow_c)
+    base = base.reshape(n, 1, 1, 1) if base.ndim == 1 else base
+    # a point without any finite growth keeps its (smallest) dof
+    grown = np.nanmin(np.concatenate([(base * grow_k).reshape(n, -1), (base * grow_c).reshape(n, -1)], axis=1),
+                      axis=1, initial=np.inf)
+    per_point = np.where(np.isfinite(grown), grown, np.broadcast_to(base, (n, 2, 2, 2)).reshape(n, -1).min(axis=1))
+    per_damping = base * np.where(np.isnan(grow_c), 1.0, grow_c)
     return per_point, per_damping
 
 
@@ -1067,7 +1088,9 @@ def identify_synchronous_batch(rotor: RigidRotor, speed_rpm, q, imbalances, *, m
     ``imbalances``: list of Imbalance (one per run, shared by all trials) or a complex array
     (trials, runs, 4) of generalized imbalance vectors F_o/Ω² (eq. 4) when the imbalance itself is
     perturbed per trial. Returns a dict of arrays k, c (trials, n, 2, 2, 2), cond (trials, n, 2),
-    residual and amplitude (rms response, m) (trials, n) and, with ``with_std``, k_std and c_std.
+    residual and amplitude (rms response, m) (trials, n) and, with ``with_std``, k_std and c_std
+    (residual-based; with ``identical=True`` also ``dof`` (trials, n, 2), the x and y rows' degrees
+    of freedom, as :func:`identify_synchronous` computes them).
     No per-point flags: use cond (inf where singular, NaN where the input was not finite).
     ``q`` is used as it is when it is a C-contiguous complex128 array (no copy, no extra pass).
     """
@@ -1103,11 +1126,16 @@ def identify_synchronous_batch(rotor: RigidRotor, speed_rpm, q, imbalances, *, m
                                        "linearly dependent across the runs (complex multiples of one another): those "
                                        "trials cannot identify the coefficients")
     om = rpm * RPM
-    k, c, cond, resid, amp, ks, cs, *_ = _core.identify(rotor.core_params(), om, om, np.ascontiguousarray(q),
-                                                      np.ascontiguousarray(e), om ** 2, identical=identical,
-                                                      method=method, with_std=with_std)
+    q, e = np.ascontiguousarray(q), np.ascontiguousarray(e)
+    structured = identical and with_std and method == "forces"
+    k, c, cond, resid, amp, ks, cs, *_ = _core.identify(rotor.core_params(), om, om, q, e, om ** 2, identical=identical,
+                                                      method=method, with_std=with_std and not structured)
     out = dict(k=k, c=c, cond=cond, residual=resid, amplitude=amp)
-    if with_std and ks is not None:
+    if structured:
+        # identical bearings: errors with the structure of the pooled equations (identify_synchronous)
+        ks, cs, dof = _core.identical_std(rotor.core_params(), om, om, q, e, om ** 2, k, c)
+        out.update(k_std=ks, c_std=cs, dof=dof)
+    elif with_std and ks is not None:
         out.update(k_std=ks, c_std=cs)
     return out
 

@@ -1218,6 +1218,57 @@ fn bearing_forces<'py>(
     to_py(py, out, &[batch, runs, n, 4])
 }
 
+/// (k_std, c_std, dof) of `identical_std`.
+type IdenticalStd<'py> = (Bound<'py, PyArrayDyn<f64>>, Bound<'py, PyArrayDyn<f64>>, Bound<'py, PyArrayDyn<f64>>);
+
+/// Residual-based standard errors of an identical-bearing identification with the structure of
+/// its equation errors (see identify::identical): arguments as `identify` (identical=True), and
+/// its estimate k, c (B, n, 2, 2, 2). Returns k_std, c_std (B, n, 2, 2, 2) and the real degrees of
+/// freedom of each row's errors (B, n, 2) [x row, y row]; NaN where the estimate is not finite or
+/// the residual has no degree of freedom.
+#[pyfunction]
+#[pyo3(signature = (rotor, w, spin, q, e, gain, k, c, sigma=None, q_ped=None, planes=None, w_scale=None))]
+#[allow(clippy::too_many_arguments)]
+fn identical_std<'py>(
+    py: Python<'py>,
+    rotor: PyReadonlyArrayDyn<'py, f64>,
+    w: PyReadonlyArrayDyn<'py, f64>,
+    spin: Option<PyReadonlyArrayDyn<'py, f64>>,
+    q: &Bound<'py, PyAny>,
+    e: PyReadonlyArrayDyn<'py, C64>,
+    gain: Option<PyReadonlyArrayDyn<'py, f64>>,
+    k: PyReadonlyArrayDyn<'py, f64>,
+    c: PyReadonlyArrayDyn<'py, f64>,
+    sigma: Option<PyReadonlyArrayDyn<'py, f64>>,
+    q_ped: Option<&Bound<'py, PyAny>>,
+    planes: Option<PyReadonlyArrayDyn<'py, f64>>,
+    w_scale: Option<f64>,
+) -> PyResult<IdenticalStd<'py>> {
+    let rot = rotor_of(&rotor)?;
+    let resp = responses(q)?;
+    let (batch, n) = (resp.batch, resp.n);
+    let axes = AxisValues::new(&w, &sigma, n, w_scale)?;
+    let blocks = resp.blocks()?;
+    let ped = pedestal_responses(q_ped, &resp)?;
+    let ped_blocks = pedestal_blocks(&ped)?;
+    let prob = ident_problem(rot, &resp, &axes, spin.as_ref(), &e, &gain, &blocks, &ped_blocks, planes.as_ref(), true)?;
+    check_shape("k", k.shape(), &[batch, n, 2, 2, 2])?;
+    check_shape("c", c.shape(), &[batch, n, 2, 2, 2])?;
+    let (ks_in, cs_in) = (slice(&k, "k")?, slice(&c, "c")?);
+    let npts = batch.checked_mul(n).ok_or_else(|| PyMemoryError::new_err("identical_std: batch x points overflows"))?;
+    check_alloc("identical_std", npts.checked_mul(18), 8)?;
+    let (ks, cs, dof) = py
+        .detach(|| {
+            guarded(|| {
+                let (mut ks, mut cs, mut dof) = (vec![0.0; 8 * npts], vec![0.0; 8 * npts], vec![0.0; 2 * npts]);
+                let out = identify::identical::IdenticalStdOut { k_std: &mut ks, c_std: &mut cs, dof: &mut dof };
+                identify::identical::identical_std(&prob, ks_in, cs_in, out).map(|_| (ks, cs, dof))
+            })
+        })?
+        .map_err(core_err)?;
+    Ok((to_py(py, ks, &[batch, n, 2, 2, 2])?, to_py(py, cs, &[batch, n, 2, 2, 2])?, to_py(py, dof, &[batch, n, 2])?))
+}
+
 /// The covariance fit's (theta (4, u), cov (4, u, u), resid (4,)).
 type CovFitArrays<'py> = (Bound<'py, PyArrayDyn<f64>>, Bound<'py, PyArrayDyn<f64>>, Bound<'py, PyArrayDyn<f64>>);
 
@@ -1941,6 +1992,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(series_impedance, m)?)?;
     m.add_function(wrap_pyfunction!(relative_std, m)?)?;
     m.add_function(wrap_pyfunction!(propagate, m)?)?;
+    m.add_function(wrap_pyfunction!(identical_std, m)?)?;
     m.add_function(wrap_pyfunction!(check_covariances, m)?)?;
     m.add_function(wrap_pyfunction!(unknown_points, m)?)?;
     m.add_function(wrap_pyfunction!(flag_codes, m)?)?;

@@ -26,6 +26,7 @@ use rayon::prelude::*;
 pub(crate) mod avx2;
 #[cfg(target_arch = "x86_64")]
 pub(crate) mod avx512;
+pub mod identical;
 pub mod propagate;
 #[cfg(target_arch = "x86_64")]
 pub(crate) mod registers;
