@@ -491,16 +491,40 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
         raise KeyphasorError(f"found {rises.size} keyphasor pulse(s){where}, at least two are needed: pulses fill "
                              f"{100 * duty:.2g} % of samples; states {rest:.4g} and {pulse:.4g}; {n_cross} crossing(s) "
                              f"of {sgn * lev:.4g} with hysteresis {hys:.3g}")
-    # rough times: the mid-level crossing, linear between the straddling samples, local base level
-    k = np.clip(_last_below(w, lev, rises), 0, w.size - 2)
-    rise = _rise_samples(w, rises, lo, swing)
-    # the edge window: the whole edge, but clear of the pulse's other edge and of the previous pulse
-    per_samples = np.median(np.diff(rises)) if rises.size > 1 else w.size
-    width = duty * per_samples if duty <= 0.4 else 0.5 * per_samples
-    full = max(np.ceil(1.5 * rise) + 2, 3)
-    half = int(min(full, 256, max(0.4 * (per_samples - width) - 8, 3)))      # before the edge
-    post = int(min(full, 256, max(0.4 * width, 2)))                          # after it
-    base = _local_base(w, k, half, lev, lo) if level is None else np.full(k.size, lo)
+    k, rise, per_samples, width, full, half, post, base = _pulse_windows(w, rises, lo, swing, lev, duty, level)
+    drifting = ""
+    if level is None:
+        # a resting level that drifts: detect and time the pulses above their own base. With an offset
+        # drifting by 20 % of the swing the histogram's states sat at the drift's opposite extremes (a
+        # swing 35 % too large: settled RC pulses judged too short to settle, timed 0.43-0.87 samples
+        # late) and the Schmitt trigger missed pulses where the rest rose above its lower threshold
+        # (77 of 300 "missing", filled by interpolation, and the equivalent-time correction left out)
+        trend = np.zeros(w.size)
+        for _ in range(DRIFT_PASSES):
+            spread = float(np.percentile(base, 95) - np.percentile(base, 5)) if base.size >= 3 else 0.0
+            if not spread > max(DRIFT_FRACTION * swing, 3.0 * _noise(w, lo, swing)):
+                break
+            step = np.interp(np.arange(w.size), k, base) - lo
+            again = _without_drift(w - step, duty)
+            # the drift must be slow against the pulses, so that the signal less the base
+            # interpolated between them rests at a steadier level (an offset drifting at 10 Hz
+            # under pulses at 5.8 Hz, timed 0.14-0.20 samples off through the states of such a
+            # signal)
+            if again is None or not _rest_spread(w - step, *again[:2]) < 0.75 * _rest_spread(w, lo, hi):
+                break
+            w, trend = w - step, trend + step
+            lo, hi, duty = again
+            swing, lev, hys = hi - lo, 0.5 * (lo + hi), 0.4 * (hi - lo) if hysteresis is None else hys
+            rises = _schmitt_rises(w, lev - hys / 2, lev + hys / 2)
+            k, rise, per_samples, width, full, half, post, base = _pulse_windows(w, rises, lo, swing, lev, duty, level)
+        if np.any(trend):
+            drifting = (f"the resting level drifts by {np.ptp(trend):.3g} ({100 * np.ptp(trend) / swing:.0f} % of the "
+                        "swing): the pulses are detected and timed above their own base")
+            # timed on the signal itself, above each pulse's own base (the trend, linear between the
+            # pulses, has kinks at the edges: timing the signal less it moved the edges of pulses on
+            # an offset drifting at 10 Hz by 0.24 samples)
+            w = w + trend
+            base = _local_base(w, k, half, lev + trend[k], lo + trend[k])
 
     def times_at(level):
         at = _last_below_each(w, rises, level, int(full) + 2, k)
@@ -588,7 +612,7 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
                      f"(a speed commensurate with the sample rate, {100 * stuck.mean():.0f} % of them): their peak "
                      "is sampled short of its apex by an amount that cannot be seen, and their timing is uncertain "
                      "by a third of a sample")
-    note = "; ".join(x for x in (ambiguous, unsettled, hump, narrow, fixed, note) if x)
+    note = "; ".join(x for x in (ambiguous, drifting, unsettled, hump, narrow, fixed, note) if x)
     t = t0_s + t_samples / fs_hz
     found = t.copy()
     span_s = (t0_s, t0_s + (w.size - 1) / fs_hz)
@@ -666,14 +690,67 @@ def _rise_samples(w, rises, lo, swing):
     return float(max(2.0 * np.median(d), 0.25)) if d.size else 1.0
 
 
+#: a drift of the pulses' own base beyond this fraction of the swing (5th to 95th percentile over
+#: the pulses, and beyond 3 noise widths) has the pulses detected again on the signal less it
+DRIFT_FRACTION = 0.03
+#: detection passes on the signal less its drifting base (the first base misses where the
+#: first detection missed pulses)
+DRIFT_PASSES = 2
+
+
+def _pulse_windows(w, rises, lo, swing, lev, duty, level):
+    """(k, rise, per_samples, width, full, half, post, base) of the pulses triggered at ``rises``:
+    the sample before each mid-level crossing, the edge duration, the period and pulse width in
+    samples, the edge windows before and after the edge, and each pulse's base just before it
+    (the resting state ``lo`` for all with a user's ``level``)."""
+    # rough times: the mid-level crossing, linear between the straddling samples, local base level
+    k = np.clip(_last_below(w, lev, rises), 0, w.size - 2)
+    rise = _rise_samples(w, rises, lo, swing)
+    # the edge window: the whole edge, but clear of the pulse's other edge and of the previous pulse
+    per_samples = np.median(np.diff(rises)) if rises.size > 1 else w.size
+    width = duty * per_samples if duty <= 0.4 else 0.5 * per_samples
+    full = max(np.ceil(1.5 * rise) + 2, 3)
+    half = int(min(full, 256, max(0.4 * (per_samples - width) - 8, 3)))      # before the edge
+    post = int(min(full, 256, max(0.4 * width, 2)))                          # after it
+    base = _local_base(w, k, half, lev, lo) if level is None else np.full(k.size, lo)
+    return k, rise, per_samples, width, full, half, post, base
+
+
+def _rest_spread(w, lo, hi):
+    """The 5th to 95th percentile range of the samples nearer the resting state ``lo`` than the
+    pulse state ``hi``."""
+    rest = w[np.abs(w - lo) < np.abs(w - hi)]
+    return float(np.percentile(rest, 95) - np.percentile(rest, 5)) if rest.size else np.inf
+
+
+def _without_drift(w, duty):
+    """(lo, hi, duty) of the oriented signal ``w`` less its drifting base: its histogram states,
+    which must still be two states with the pulses above the rest; None where they are not (the
+    detection then keeps the signal as it is)."""
+    try:
+        rest, pulse, peaked = _state_levels(w)
+    except KeyphasorError:
+        return None
+    if peaked:
+        return None
+    lo, hi = sorted((rest, pulse))
+    new_duty = float(np.mean(np.abs(w - hi) < np.abs(w - lo)))
+    # the same pulses: the pulse state above the rest, filling about as much of the record
+    if not (hi - lo > 0 and abs(new_duty - duty) <= 0.5 * duty + 0.01):
+        return None
+    return lo, hi, new_duty
+
+
 def _local_base(w, k, half, lev, lo):
     """Resting level just before each edge: median of up to 8 samples before the edge window that
-    lie below the trigger level (the global resting state where there are too few)."""
-    out = np.full(k.size, lo)
+    lie below the trigger level (the global resting state where there are too few). ``lev`` and
+    ``lo``: one value, or one per pulse (a drifting rest)."""
+    out = np.array(np.broadcast_to(lo, k.shape), dtype=float)
+    levs = np.broadcast_to(lev, k.shape)
     for i, ki in enumerate(k):
         a = max(ki - half - 8, 0)
         seg = w[a:max(ki - half, 0)]
-        seg = seg[seg < lev]
+        seg = seg[seg < levs[i]]
         if seg.size >= 3:
             out[i] = np.median(seg)
     return out
