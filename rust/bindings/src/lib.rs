@@ -418,6 +418,21 @@ fn report_method(method: &str) -> PyResult<bool> {
     }
 }
 
+/// The checked identification problem of `identify`'s arguments, bound to `$prob` in the
+/// caller's block (with the responses as `$resp`): the pieces it borrows (axis values, blocks of
+/// q and of the pedestal motion) live in that block too, which a function returning the problem
+/// could not give them.
+macro_rules! ident_problem_of {
+    ($prob:ident, $resp:ident; $rot:expr, $q:expr, $q_ped:expr, $w:expr, $sigma:expr, $w_scale:expr, $spin:expr, $e:expr, $gain:expr, $planes:expr, $identical:expr) => {
+        let $resp = responses($q)?;
+        let axes = AxisValues::new($w, $sigma, $resp.n, $w_scale)?;
+        let blocks = $resp.blocks()?;
+        let ped = pedestal_responses($q_ped, &$resp)?;
+        let ped_blocks = pedestal_blocks(&ped)?;
+        let $prob = ident_problem($rot, &$resp, &axes, $spin, $e, $gain, &blocks, &ped_blocks, $planes, $identical)?;
+    };
+}
+
 /// Batched identification (see rotorid_core::identify).
 /// q: (B, R, n, 4) complex, or a list of R arrays (n, 4) for B = 1; e: (1 or B, R, 4) complex;
 /// w, spin: (n,) (spin also (1,)); spin None: spin = w (synchronous runs, after `w_scale`);
@@ -458,14 +473,9 @@ fn py_identify<'py>(
         .transpose()
         .map_err(|e| PyValueError::new_err(format!("flag_limits must be (cond_max, min_rel_amplitude, max_rel_std, dof): {e}")))?;
     let rot = rotor_of(&rotor)?;
-    let resp = responses(q)?;
-    let (batch, n) = (resp.batch, resp.n);
-    let axes = AxisValues::new(&w, &sigma, n, w_scale)?;
     let report = report_method(method)?;
-    let blocks = resp.blocks()?;
-    let ped = pedestal_responses(q_ped, &resp)?;
-    let ped_blocks = pedestal_blocks(&ped)?;
-    let prob = ident_problem(rot, &resp, &axes, spin.as_ref(), &e, &gain, &blocks, &ped_blocks, planes.as_ref(), identical)?;
+    ident_problem_of!(prob, resp; rot, q, q_ped, &w, &sigma, w_scale, spin.as_ref(), &e, &gain, planes.as_ref(), identical);
+    let (batch, n) = (resp.batch, resp.n);
     let npts = batch.checked_mul(n).ok_or_else(|| PyMemoryError::new_err("identify: batch x points overflows"))?;
     let want_std = with_std && !report;
     check_alloc("identify", npts.checked_mul(if want_std { 37 } else { 20 }), 8)?;
@@ -1197,13 +1207,8 @@ fn bearing_forces<'py>(
     planes: Option<PyReadonlyArrayDyn<'py, f64>>,
 ) -> PyResult<Bound<'py, PyArrayDyn<C64>>> {
     let rot = rotor_of(&rotor)?;
-    let resp = responses(q)?;
+    ident_problem_of!(prob, resp; rot, q, q_ped, &w, &sigma, None, Some(&spin), &e, &gain, planes.as_ref(), false);
     let (batch, runs, n) = (resp.batch, resp.runs, resp.n);
-    let axes = AxisValues::new(&w, &sigma, n, None)?;
-    let blocks = resp.blocks()?;
-    let ped = pedestal_responses(q_ped, &resp)?;
-    let ped_blocks = pedestal_blocks(&ped)?;
-    let prob = ident_problem(rot, &resp, &axes, Some(&spin), &e, &gain, &blocks, &ped_blocks, planes.as_ref(), false)?;
     let total = batch.checked_mul(runs).and_then(|v| v.checked_mul(n)).and_then(|v| v.checked_mul(4));
     check_alloc("bearing_forces", total, 16)?;
     let total = total.unwrap_or(0);
@@ -1245,13 +1250,8 @@ fn identical_std<'py>(
     w_scale: Option<f64>,
 ) -> PyResult<IdenticalStd<'py>> {
     let rot = rotor_of(&rotor)?;
-    let resp = responses(q)?;
+    ident_problem_of!(prob, resp; rot, q, q_ped, &w, &sigma, w_scale, spin.as_ref(), &e, &gain, planes.as_ref(), true);
     let (batch, n) = (resp.batch, resp.n);
-    let axes = AxisValues::new(&w, &sigma, n, w_scale)?;
-    let blocks = resp.blocks()?;
-    let ped = pedestal_responses(q_ped, &resp)?;
-    let ped_blocks = pedestal_blocks(&ped)?;
-    let prob = ident_problem(rot, &resp, &axes, spin.as_ref(), &e, &gain, &blocks, &ped_blocks, planes.as_ref(), true)?;
     check_shape("k", k.shape(), &[batch, n, 2, 2, 2])?;
     check_shape("c", c.shape(), &[batch, n, 2, 2, 2])?;
     let (ks_in, cs_in) = (slice(&k, "k")?, slice(&c, "c")?);
