@@ -407,11 +407,14 @@ def test_pulses_narrower_than_a_sample_are_noted_and_their_timing_uncertain():
         warnings.simplefilter("ignore")
         kp = signals.keyphasor_times(v, FS)
     assert np.all(np.abs(_errors(kp, ev)) < 1.0) and kp.timing_std_s == pytest.approx(1 / np.sqrt(3) / FS)
-    # pulses 2 samples wide are not narrow
+    # pulses 2 samples wide are not narrow: as steps, they are timed to within the gap between the
+    # samples that enclose their edges in equivalent time (0.11 sample here)
     v, ev = _pulses("narrow", 3000.3, FS, 0.02)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        assert signals.keyphasor_times(v, FS).timing_std_s == 0.0
+        kp = signals.keyphasor_times(v, FS)
+    assert "wide: their edges fall between samples" not in kp.note and "the edges are steps" in kp.note
+    assert 0.0 < kp.timing_std_s * FS < 0.035
 
 
 def test_a_pulse_that_never_settles_nor_forms_a_train_is_refused_not_timed_at_its_tail():
