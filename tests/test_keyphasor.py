@@ -480,3 +480,34 @@ def test_rc_edges_at_five_positions_per_sample_are_corrected(rpm, edge_samples):
         near = np.where(np.abs(ev[idx] - kp.times) < np.abs(ev[idx - 1] - kp.times), ev[idx], ev[idx - 1])
         err = (kp.times - near) * fs
         assert abs(err.mean()) < 0.008, (err.mean(), kp.note)
+
+
+@pytest.mark.parametrize("rpm", [3500.0, 4500.0, 5000.0])
+def test_one_sample_ramps_are_crossed_not_bounded(rpm):
+    """A 1-sample trapezoid edge is a ramp: placed by the boundary between the samples below and
+    above mid-height (a method for steps), its records scattered by +-0.01-0.03 samples at these
+    speeds (10,240 Hz); crossed on its equivalent-time template they stay within 0.003, with no
+    step uncertainty. An ideal step keeps the boundary, and its resolution is its uncertainty."""
+    fs = 10240.0
+    t = np.arange(int(4.0 * fs)) / fs
+    errs, step_errs, step_stds = [], [], []
+    for offset in (0.0011, 0.0042, 0.0077, 0.0123):
+        ev = event_times(rpm, 4.0, mark_time_s=offset)
+        kp = signals.keyphasor_times(pulse_train(t, ev, fs, PulseShape("trapezoid", 1.0, duty=0.03)), fs)
+        errs.append(_mean_error(kp, ev, fs))
+        assert kp.timing_std_s == 0.0 and "steps" not in kp.note
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            kp = signals.keyphasor_times(pulse_train(t, ev, fs, PulseShape("rectangular", duty=0.03)), fs)
+        step_errs.append(_mean_error(kp, ev, fs))
+        step_stds.append(kp.timing_std_s * fs)
+    assert np.max(np.abs(errs)) < 0.003, errs
+    # the steps' stated uncertainty is of the size of their scatter (uniform within the gap)
+    assert np.all(np.array(step_stds) > 0.0), step_stds
+    assert np.std(step_errs) < 2.0 * np.mean(step_stds), (step_errs, step_stds)
+
+
+def _mean_error(kp, ev, fs):
+    idx = np.clip(np.searchsorted(ev, kp.times), 1, ev.size - 1)
+    near = np.where(np.abs(ev[idx] - kp.times) < np.abs(ev[idx - 1] - kp.times), ev[idx], ev[idx - 1])
+    return float(((kp.times - near) * fs).mean())
