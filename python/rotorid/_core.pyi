@@ -235,6 +235,9 @@ def identical_std(
     q_ped: npt.NDArray[np.complex128] | list[npt.NDArray[np.complex128]] | None = None,
     planes: npt.NDArray[np.float64] | None = None,  # (2, 2) eq. 19 transform when q is at the probe planes
     w_scale: float | None = None,
+    # (2, 2) eq. 19 transform from the probe planes, where the noise is white, for q moved to the
+    # bearings before the call (None: white where q is given)
+    noise_planes: npt.NDArray[np.float64] | None = None,
 ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]]:
     """Residual-based standard errors of identical bearings with the structure of their pooled
     equations (identify::identical): k_std, c_std (batch, n, 2, 2, 2) and each row's real dof

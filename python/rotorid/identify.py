@@ -517,7 +517,7 @@ def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", ide
                       labels=labels, cond_max=cond_max, min_rel_amplitude=min_rel_amplitude, what="responses",
                       covs=covs, dofs=dofs, max_rel_std=max_rel_std, estimator=estimator, extra_flags=flags,
                       q_ped=qps, shared_cov=_shared(rotor, runs, shared_cov, size=16), calibration=cal,
-                      phase_std=phase_std)
+                      phase_std=phase_std, noise_planes=_noise_planes(rotor, runs) if identical else None)
     _no_calibration(accel_gain_std, accel_phase_std_deg)
     at_b, planes = _for_the_core(rotor, runs, may_use_planes=shared_cov is None)
     qs = [np.ascontiguousarray(r.q, dtype=complex) for r in at_b]  # the runs as they are: no copy, no stack
@@ -530,7 +530,7 @@ def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", ide
                   labels=labels, cond_max=cond_max, min_rel_amplitude=min_rel_amplitude, what="responses",
                   covs=covs, dofs=None if covs is None else _run_dofs(at_b), max_rel_std=max_rel_std,
                   estimator=estimator, shared_cov=_shared(rotor, runs, shared_cov), planes=planes, w_scale=RPM,
-                  phase_std=phase_std)
+                  phase_std=phase_std, noise_planes=_noise_planes(rotor, runs) if identical else None)
 
 
 def _phase_reference_std(rpm, angle_std_deg, delay_std_s):
@@ -887,7 +887,7 @@ def _misfit_ratio(ks_res, cs_res, ks_meas, cs_meas, n):
 def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, method, labels, cond_max,
            min_rel_amplitude, what, covs=None, dofs=None, max_rel_std=MAX_REL_STD, extra_flags=None,
            estimator="ls", shared_cov=None, q_ped=None, calibration=None, planes=None, w_scale=None, e_core=None,
-           phase_std=None):
+           phase_std=None, noise_planes=None):
     """One core call for the whole axis, uncertainty, then flags; shared by both methods.
     ``e``: the (R, 4) excitations; ``e_core``: the same as the core takes them
     (:func:`_core_excitations`) when the caller has them at hand, else None.
@@ -897,7 +897,8 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
     the core: no (n,) temporary). ``spin`` None: the spin speed is w (synchronous runs).
     ``calibration``: the accelerometers' calibration uncertainty (:func:`_calibration_inputs`),
     added by the core's propagation. ``phase_std``: (n,) uncertainty of the phase reference (rad,
-    :func:`_phase_reference_std`) or None."""
+    :func:`_phase_reference_std`) or None. ``noise_planes``: with identical bearings, the eq. 19
+    transform from the probe planes when the runs were measured there (:func:`_noise_planes`)."""
     assert planes is None or (covs is None and calibration is None and q_ped is None)
     cond_max = _check_threshold("cond_max", cond_max, 1.0)
     min_rel_amplitude = _check_threshold("min_rel_amplitude", min_rel_amplitude, -1e-300, 1.0)
@@ -938,8 +939,12 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
     row_dof = None
     if structured:
         # (n, 2): the x and the y row's dof (identify::identical)
+        # the noise white where the runs were measured: at the probes also when they reach the core
+        # moved to the bearings (a covariance, pedestal motion, or q not a complex128 array; a list
+        # instead of an array gave standard errors 0.82-1.05 times as large)
         ks, cs, row_dof = _core.identical_std(rotor.core_params(), w, spin, list(qs), e_core, gain, k, c, sigma=sigma,
-                                              q_ped=q_ped, planes=planes, w_scale=w_scale)
+                                              q_ped=q_ped, planes=planes, w_scale=w_scale,
+                                              noise_planes=noise_planes if planes is None else None)
         row_dof = row_dof[0]
     std_known = ks is not None or covs is not None  # residual-based, or propagated below
     # residual-based errors only where the core computed them (not for method="report", whose
@@ -1140,6 +1145,12 @@ def identify_synchronous_batch(rotor: RigidRotor, speed_rpm, q, imbalances, *, m
     return out
 
 
+def _noise_planes(rotor, runs):
+    """The eq. 19 transform from the probe planes when every run (or test) was measured there, else
+    None: the identical-bearing errors take the noise as white where it was measured."""
+    return _plane_matrix(rotor, "bearings") if all(r.at == "probes" for r in runs) else None
+
+
 def _for_the_core(rotor, runs, may_use_planes=True):
     """(runs at the bearings, planes) for the core call: runs (or tests) recorded at the probe
     planes as they are, with the eq. 19 transform for the core to apply as it loads each point
@@ -1318,4 +1329,4 @@ def identify_impact(rotor: RigidRotor, tests, *, method: str = "forces", identic
                   w_scale=2 * np.pi, identical=identical, method=method, labels=labels, cond_max=cond_max,
                   min_rel_amplitude=min_rel_amplitude, what="impact responses", covs=covs, dofs=dofs,
                   max_rel_std=max_rel_std, extra_flags=extra_flags, estimator=estimator, q_ped=q_ped, calibration=cal,
-                  planes=planes, e_core=e_core)
+                  planes=planes, e_core=e_core, noise_planes=_noise_planes(rotor, tests) if identical else None)

@@ -1228,11 +1228,13 @@ type IdenticalStd<'py> = (Bound<'py, PyArrayDyn<f64>>, Bound<'py, PyArrayDyn<f64
 
 /// Residual-based standard errors of an identical-bearing identification with the structure of
 /// its equation errors (see identify::identical): arguments as `identify` (identical=True), and
-/// its estimate k, c (B, n, 2, 2, 2). Returns k_std, c_std (B, n, 2, 2, 2) and the real degrees of
-/// freedom of each row's errors (B, n, 2) [x row, y row]; NaN where the estimate is not finite or
-/// the residual has no degree of freedom.
+/// its estimate k, c (B, n, 2, 2, 2; bearing 1's half read). `noise_planes`: the (2, 2) eq. 19
+/// transform from the probe planes, where the noise is white, for responses moved to the bearings
+/// before the call (None: white where q is given). Returns k_std, c_std (B, n, 2, 2, 2) and the
+/// real degrees of freedom of each row's errors (B, n, 2) [x row, y row]; NaN where the estimate
+/// is not finite or the residual has no degree of freedom.
 #[pyfunction]
-#[pyo3(signature = (rotor, w, spin, q, e, gain, k, c, sigma=None, q_ped=None, planes=None, w_scale=None))]
+#[pyo3(signature = (rotor, w, spin, q, e, gain, k, c, sigma=None, q_ped=None, planes=None, w_scale=None, noise_planes=None))]
 #[allow(clippy::too_many_arguments)]
 fn identical_std<'py>(
     py: Python<'py>,
@@ -1248,7 +1250,9 @@ fn identical_std<'py>(
     q_ped: Option<&Bound<'py, PyAny>>,
     planes: Option<PyReadonlyArrayDyn<'py, f64>>,
     w_scale: Option<f64>,
+    noise_planes: Option<PyReadonlyArrayDyn<'py, f64>>,
 ) -> PyResult<IdenticalStd<'py>> {
+    let noise_t = noise_planes.map(|t| plane_transform("noise_planes", &t)).transpose()?;
     let rot = rotor_of(&rotor)?;
     ident_problem_of!(prob, resp; rot, q, q_ped, &w, &sigma, w_scale, spin.as_ref(), &e, &gain, planes.as_ref(), true);
     let (batch, n) = (resp.batch, resp.n);
@@ -1262,7 +1266,7 @@ fn identical_std<'py>(
             guarded(|| {
                 let (mut ks, mut cs, mut dof) = (vec![0.0; 8 * npts], vec![0.0; 8 * npts], vec![0.0; 2 * npts]);
                 let out = identify::identical::IdenticalStdOut { k_std: &mut ks, c_std: &mut cs, dof: &mut dof };
-                identify::identical::identical_std(&prob, ks_in, cs_in, out).map(|_| (ks, cs, dof))
+                identify::identical::identical_std(&prob, ks_in, cs_in, noise_t, out).map(|_| (ks, cs, dof))
             })
         })?
         .map_err(core_err)?;

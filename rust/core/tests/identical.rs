@@ -38,7 +38,7 @@ fn both(p: &IdentProblem) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
     let (mut k, mut cc, mut cond, mut resid, mut amp) = (vec![0.0; 8 * n], vec![0.0; 8 * n], vec![0.0; 2 * n], vec![0.0; n], vec![0.0; n]);
     identify_forces(p, IdentOut { k: &mut k, c: &mut cc, cond: &mut cond, resid: &mut resid, amp: &mut amp, k_std: None, c_std: None, rel_std: None }).unwrap();
     let (mut ks, mut cs, mut dof) = (vec![0.0; 8 * n], vec![0.0; 8 * n], vec![0.0; 2 * n]);
-    identical_std(p, &k, &cc, IdenticalStdOut { k_std: &mut ks, c_std: &mut cs, dof: &mut dof }).unwrap();
+    identical_std(p, &k, &cc, None, IdenticalStdOut { k_std: &mut ks, c_std: &mut cs, dof: &mut dof }).unwrap();
     (ks, cs, dof)
 }
 
@@ -99,21 +99,21 @@ fn identical_std_refuses_what_it_cannot_compute() {
     let p = IdentProblem { rotor: r, w: &w, spin: &w, q: &qb, e: &e, gain: &[], sigma: &[], q_ped: &[], planes: None, batch: 1, runs: 2, identical: false };
     let (k, cc) = (vec![1e6; 24], vec![1e3; 24]);
     let (mut ks, mut cs, mut dof) = (vec![0.0; 24], vec![0.0; 24], vec![0.0; 6]);
-    let err = identical_std(&p, &k, &cc, IdenticalStdOut { k_std: &mut ks, c_std: &mut cs, dof: &mut dof }).unwrap_err();
+    let err = identical_std(&p, &k, &cc, None, IdenticalStdOut { k_std: &mut ks, c_std: &mut cs, dof: &mut dof }).unwrap_err();
     assert_eq!(err.name(), "identical");
     let p = IdentProblem { identical: true, ..p };
-    let err = identical_std(&p, &k[..16], &cc, IdenticalStdOut { k_std: &mut ks, c_std: &mut cs, dof: &mut dof }).unwrap_err();
+    let err = identical_std(&p, &k[..16], &cc, None, IdenticalStdOut { k_std: &mut ks, c_std: &mut cs, dof: &mut dof }).unwrap_err();
     assert_eq!(err.name(), "k");
-    let err = identical_std(&p, &k, &cc, IdenticalStdOut { k_std: &mut ks, c_std: &mut cs, dof: &mut dof[..4] }).unwrap_err();
+    let err = identical_std(&p, &k, &cc, None, IdenticalStdOut { k_std: &mut ks, c_std: &mut cs, dof: &mut dof[..4] }).unwrap_err();
     assert_eq!(err.name(), "dof");
     // a NaN estimate gives NaN, the other points numbers
     let mut kn = k.clone();
     kn[8] = f64::NAN;
-    identical_std(&p, &kn, &cc, IdenticalStdOut { k_std: &mut ks, c_std: &mut cs, dof: &mut dof }).unwrap();
+    identical_std(&p, &kn, &cc, None, IdenticalStdOut { k_std: &mut ks, c_std: &mut cs, dof: &mut dof }).unwrap();
     assert!(ks[8..16].iter().all(|v| v.is_nan()) && dof[2..4].iter().all(|v| v.is_nan()));
     assert!(ks[..8].iter().all(|v| v.is_finite()) && dof[..2].iter().all(|v| v.is_finite()));
     // one run: no residual degree of freedom
     let p1 = IdentProblem { q: &qb[..1], e: &e[..4], runs: 1, ..p };
-    identical_std(&p1, &k, &cc, IdenticalStdOut { k_std: &mut ks, c_std: &mut cs, dof: &mut dof }).unwrap();
+    identical_std(&p1, &k, &cc, None, IdenticalStdOut { k_std: &mut ks, c_std: &mut cs, dof: &mut dof }).unwrap();
     assert!(ks.iter().chain(&dof).all(|v| v.is_nan()));
 }

@@ -22,8 +22,10 @@
 //! NSF rig, gave standard errors 0.56-1.46 times the spread of the estimates (95 % intervals
 //! covering 89-90 %).
 //!
-//! Responses measured at the probe planes ([`IdentProblem::planes`]) take the noise as white at
-//! the probes: B is then B T. Noise on the pedestal motion is not modelled.
+//! Responses measured at the probe planes take the noise as white at the probes: B is then B T,
+//! with T the transform to the bearings ([`IdentProblem::planes`] when the problem holds the
+//! responses at the probes, or `noise_planes` when they were moved to the bearings before). Noise
+//! on the pedestal motion is not modelled.
 
 use super::{force_point, load_q, motion_forces, sigma_at, Consts, IdentProblem, CHUNK};
 use crate::error::{expect_len, product, CoreError};
@@ -44,9 +46,12 @@ pub struct IdenticalStdOut<'a> {
 
 /// Residual-based standard errors of an identical-bearing identification (see the module's
 /// documentation) at the estimate `k`, `c` ((B, n, 8), as
-/// [`identify_forces`](super::identify_forces) returns them with `p.identical`). Points whose
-/// estimate is not finite, or whose residual has no degree of freedom, get NaN.
-pub fn identical_std(p: &IdentProblem, k: &[f64], c: &[f64], out: IdenticalStdOut) -> Result<(), CoreError> {
+/// [`identify_forces`](super::identify_forces) returns them with `p.identical`; bearing 1's half
+/// of each point is read). `noise_planes`: the transform [T11, T12, T21, T22] from the planes
+/// where the noise is white to the bearings, for responses moved there before (None: white where
+/// `p` holds them, at its `planes` or at the bearings). Points whose estimate is not finite, or
+/// whose residual has no degree of freedom, get NaN.
+pub fn identical_std(p: &IdentProblem, k: &[f64], c: &[f64], noise_planes: Option<[f64; 4]>, out: IdenticalStdOut) -> Result<(), CoreError> {
     p.check()?;
     if !p.identical {
         return Err(CoreError::value("identical", "identical_std is for an identical-bearing problem"));
@@ -58,6 +63,10 @@ pub fn identical_std(p: &IdentProblem, k: &[f64], c: &[f64], out: IdenticalStdOu
     expect_len("k_std", out.k_std, points * 8)?;
     expect_len("c_std", out.c_std, points * 8)?;
     expect_len("dof", out.dof, points * 2)?;
+    if noise_planes.is_some_and(|t| t.iter().any(|v| !v.is_finite())) {
+        return Err(CoreError::value("noise_planes", "must be finite"));
+    }
+    let noise_t = noise_planes.or(p.planes);
     let kc = Consts::new(&p.rotor);
     let (ks, cs, dof) = (Disjoint::new(out.k_std), Disjoint::new(out.c_std), Disjoint::new(out.dof));
     crate::par::for_each_task(points.div_ceil(CHUNK), |j| {
@@ -66,7 +75,7 @@ pub fn identical_std(p: &IdentProblem, k: &[f64], c: &[f64], out: IdenticalStdOu
         for (t, ((kso, cso), dofo)) in ks.chunks_exact_mut(8).zip(cs.chunks_exact_mut(8)).zip(dof.chunks_exact_mut(2)).enumerate() {
             let idx = j * CHUNK + t;
             let (b, i) = (idx / n, idx % n);
-            let (sv, nu) = point(p, &kc, b, i, &k[8 * idx..8 * idx + 8], &c[8 * idx..8 * idx + 8]);
+            let (sv, nu) = point(p, &kc, noise_t.as_ref(), b, i, &k[8 * idx..8 * idx + 8], &c[8 * idx..8 * idx + 8]);
             let w = p.w[i];
             let sg = sigma_at(p, i);
             // Z = K + s C = (K + sigma C) + j w C, its error circular: var K = var Re Z (1 + (sigma/w)^2)
@@ -82,8 +91,11 @@ pub fn identical_std(p: &IdentProblem, k: &[f64], c: &[f64], out: IdenticalStdOu
     Ok(())
 }
 
-/// (standard error of Re z per row and column, dof per row) of point i of batch member b.
-fn point(p: &IdentProblem, kc: &Consts, b: usize, i: usize, k: &[f64], c: &[f64]) -> ([[f64; 2]; 2], [f64; 2]) {
+/// (standard error of Re z per row and column, dof per row) of point i of batch member b, the
+/// noise white where `noise_t` moves it from (None: at the bearings).
+// (2 x 2 and 4 x 4 blocks indexed as in the formulas)
+#[allow(clippy::too_many_arguments, clippy::needless_range_loop)]
+fn point(p: &IdentProblem, kc: &Consts, noise_t: Option<&[f64; 4]>, b: usize, i: usize, k: &[f64], c: &[f64]) -> ([[f64; 2]; 2], [f64; 2]) {
     const NAN2: ([[f64; 2]; 2], [f64; 2]) = ([[f64::NAN; 2]; 2], [f64::NAN; 2]);
     let (w, sg) = (p.w[i], sigma_at(p, i));
     let spin = p.spin[if p.spin.len() == 1 { 0 } else { i }];
@@ -104,30 +116,54 @@ fn point(p: &IdentProblem, kc: &Consts, b: usize, i: usize, k: &[f64], c: &[f64]
             jac[fi][jq] = f[fi];
         }
     }
-    // rows of q the regressors of bearing b read: x_b = q[b], y_b = q[2 + b]
+    // the runs' moments Q = sum_r conj(v_r) v_r^T of v_r = [x1, y1, x2, y2] (bearing-major, as
+    // X_r's rows): G = sum_a Q[a][a] and S = sum_{a,b} P_ab Q[a][b] by 2 x 2 blocks, for both rows
+    // without another pass over the runs
     let runs = p.runs;
-    let mut g: M2 = [[C64::new(0.0, 0.0); 2]; 2];
+    let mut mom = [[C64::new(0.0, 0.0); 4]; 4];
     let mut rss = [0.0f64; 2];
-    // X_r per run ([bearing][x, y]) kept for S and S2 (runs are few: a small vector)
-    let mut xs: Vec<M2> = Vec::with_capacity(runs);
     for r in 0..runs {
         let q = load_q(p, b, r, i);
         let f = force_point(p, kc, b, r, i);
-        let xr: M2 = [[q[0], q[2]], [q[1], q[3]]];
-        for (bb, xrow) in xr.iter().enumerate() {
-            for c1 in 0..2 {
-                for c2 in 0..2 {
-                    g[c1][c2] += xrow[c1].conj() * xrow[c2];
-                }
+        let v = [q[0], q[2], q[1], q[3]];
+        for m in 0..4 {
+            let vm = v[m].conj();
+            for n in m..4 {
+                mom[m][n] += vm * v[n];
             }
+        }
+        for (bb, xrow) in v.chunks_exact(2).enumerate() {
             for row in 0..2 {
                 // f index of (row, bearing): f1x, f2x, f1y, f2y
                 let e = f[2 * row + bb] - z[row][0] * xrow[0] - z[row][1] * xrow[1];
                 rss[row] += e.norm_sqr();
             }
         }
-        xs.push(xr);
     }
+    for m in 0..4 {
+        for n in 0..m {
+            mom[m][n] = mom[n][m].conj();
+        }
+    }
+    // block (a, b) of the moments: [i][j] = Q[2a + i][2b + j]
+    let block = |a: usize, bb: usize| -> M2 { [[mom[2 * a][2 * bb], mom[2 * a][2 * bb + 1]], [mom[2 * a + 1][2 * bb], mom[2 * a + 1][2 * bb + 1]]] };
+    let mut g = block(0, 0);
+    add(&mut g, &block(1, 1));
+    // S = sum_{a,b} P_ab Q_ab for a 2 x 2 P
+    let weighted = |pm: &M2| -> M2 {
+        let mut o = [[C64::new(0.0, 0.0); 2]; 2];
+        for a in 0..2 {
+            for bb in 0..2 {
+                let q = block(a, bb);
+                for x in 0..2 {
+                    for y in 0..2 {
+                        o[x][y] += pm[a][bb] * q[x][y];
+                    }
+                }
+            }
+        }
+        o
+    };
     let det = (g[0][0] * g[1][1] - g[0][1] * g[1][0]).re;
     // a singular Gram matrix (or NaN): no standard error
     if det.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
@@ -143,7 +179,7 @@ fn point(p: &IdentProblem, kc: &Consts, b: usize, i: usize, k: &[f64], c: &[f64]
             bm[bb] = jac[2 * row + bb];
             bm[bb][bb] -= z[row][0];
             bm[bb][2 + bb] -= z[row][1];
-            if let Some(t) = &p.planes {
+            if let Some(t) = noise_t {
                 // q_bearings = T q_probes per direction
                 let v = bm[bb];
                 bm[bb] = [v[0] * t[0] + v[1] * t[2], v[0] * t[1] + v[1] * t[3], v[2] * t[0] + v[3] * t[2], v[2] * t[1] + v[3] * t[3]];
@@ -156,11 +192,7 @@ fn point(p: &IdentProblem, kc: &Consts, b: usize, i: usize, k: &[f64], c: &[f64]
             }
         }
         let p2 = mul(&pm, &pm);
-        let (mut s, mut s2): (M2, M2) = ([[C64::new(0.0, 0.0); 2]; 2], [[C64::new(0.0, 0.0); 2]; 2]);
-        for xr in &xs {
-            add(&mut s, &sandwich(xr, &pm));
-            add(&mut s2, &sandwich(xr, &p2));
-        }
+        let (s, s2) = (weighted(&pm), weighted(&p2));
         let a = mul(&gi, &s);
         let rf = runs as f64;
         let tr_m = rf * (pm[0][0].re + pm[1][1].re) - (a[0][0].re + a[1][1].re);
@@ -202,17 +234,4 @@ fn add(acc: &mut M2, a: &M2) {
             acc[r][c] += a[r][c];
         }
     }
-}
-
-/// Xᴴ P X.
-#[inline(always)]
-fn sandwich(x: &M2, pm: &M2) -> M2 {
-    let px = mul(pm, x);
-    let mut o = [[C64::new(0.0, 0.0); 2]; 2];
-    for r in 0..2 {
-        for c in 0..2 {
-            o[r][c] = x[0][r].conj() * px[0][c] + x[1][r].conj() * px[1][c];
-        }
-    }
-    o
 }
