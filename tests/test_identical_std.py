@@ -244,6 +244,18 @@ def test_batch_identification_gives_the_same_identical_errors():
     # one run: no residual errors (NaN), as before
     single = rotorid.identify_synchronous_batch(RIG.rotor, RPM, trials[:, :1], imbs[:1], identical=True, with_std=True)
     assert np.isnan(single["k_std"]).all()
+    # trials recorded at the probes: the noise white there, as identify_synchronous takes such runs
+    at_p = np.stack([[rotorid.imbalance_response(RIG.rotor, brg, RIG.imbalances[s], speed_rpm=RPM).at_probes(RIG.rotor).q
+                      for s in "ABC"]])
+    at_p = at_p + 5e-8 * (rng.standard_normal(at_p.shape) + 1j * rng.standard_normal(at_p.shape))
+    out = rotorid.identify_synchronous_batch(RIG.rotor, RPM, at_p, imbs, identical=True, with_std=True, at="probes")
+    runs = []
+    for i, s in enumerate("ABC"):
+        r = rotorid.imbalance_response(RIG.rotor, brg, RIG.imbalances[s], speed_rpm=RPM).at_probes(RIG.rotor)
+        r.q = at_p[0, i]
+        runs.append(r)
+    one = rotorid.identify_synchronous(RIG.rotor, runs, identical=True)
+    np.testing.assert_allclose(out["c_std"][0], one.c_std, rtol=1e-8)
 
 
 def test_the_noise_is_white_where_the_runs_were_measured_however_they_are_stored():

@@ -1138,7 +1138,8 @@ def identify_synchronous_batch(rotor: RigidRotor, speed_rpm, q, imbalances, *, m
     out = dict(k=k, c=c, cond=cond, residual=resid, amplitude=amp)
     if structured:
         # identical bearings: errors with the structure of the pooled equations (identify_synchronous)
-        ks, cs, dof = _core.identical_std(rotor.core_params(), om, om, q, e, om ** 2, k, c)
+        ks, cs, dof = _core.identical_std(rotor.core_params(), om, om, q, e, om ** 2, k, c,
+                                          noise_planes=_plane_matrix(rotor, "bearings") if at == "probes" else None)
         out.update(k_std=ks, c_std=cs, dof=dof)
     elif with_std and ks is not None:
         out.update(k_std=ks, c_std=cs)
