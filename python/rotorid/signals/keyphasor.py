@@ -512,10 +512,13 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
             # signal)
             if again is None or not _rest_spread(w - step, *again[:2]) < 0.75 * _rest_spread(w, lo, hi):
                 break
-            w, trend = w - step, trend + step
-            lo, hi, duty = again
-            swing, lev, hys = hi - lo, 0.5 * (lo + hi), 0.4 * (hi - lo) if hysteresis is None else hys
-            rises = _schmitt_rises(w, lev - hys / 2, lev + hys / 2)
+            lo2, hi2, duty2 = again
+            lev2, hys2 = 0.5 * (lo2 + hi2), 0.4 * (hi2 - lo2) if hysteresis is None else hys
+            rises2 = _schmitt_rises(w - step, lev2 - hys2 / 2, lev2 + hys2 / 2)
+            if rises2.size < max(2, rises.size // 2):
+                break  # the signal less the base shows fewer pulses: keep the first detection
+            w, trend, rises = w - step, trend + step, rises2
+            lo, hi, duty, swing, lev, hys = lo2, hi2, duty2, hi2 - lo2, lev2, hys2
             k, rise, per_samples, width, full, half, post, base = _pulse_windows(w, rises, lo, swing, lev, duty, level)
         if np.any(trend):
             drifting = (f"the resting level drifts by {np.ptp(trend):.3g} ({100 * np.ptp(trend) / swing:.0f} % of the "
@@ -912,7 +915,11 @@ def _refine(w, t, base, swing, half, post, steep):
         # (steep edges, placed by the boundary between samples below and above mid-height, need the
         # positions dense: at 5 positions a 1-sample trapezoid, timed exactly by the interpolation,
         # came out up to 0.07 samples off)
-        if (occupied < TEMPLATE_BINS // 2) if steep else (_widest_gap(np.mod(fit, 1.0)) > MAX_POSITION_GAP):
+        # (edges that are not steep: 8 bins, or evenly spread positions; the gap rule alone turned
+        # away coast-downs and short stretches whose positions fill 8 bins of part of a sample, left
+        # 0.04-0.07 samples off, found in review)
+        dense = occupied >= TEMPLATE_BINS // 2
+        if not dense if steep else not (dense or _widest_gap(np.mod(fit, 1.0)) <= MAX_POSITION_GAP):
             notes.append(occupied)
             continue
         if not _phase_dependent(np.mod(fit, 1.0), tc - fit, TEMPLATE_BINS):
@@ -943,7 +950,7 @@ def _refine(w, t, base, swing, half, post, steep):
                 "interpolated, and any interpolation error repeats every revolution instead of averaging out")
     if step_std.max() > 0.02:
         note = (note + "; " if note else "") + (
-            f"the edges are steps (no sample on them): timed to within {np.sqrt(12.0) * step_std.max():.2g} sample "
+            f"the edges are steps (few samples on them): timed to within {np.sqrt(12.0) * step_std.max():.2g} sample "
             "(the widest gap between the positions the pulses fall at within a sample), an uncertainty of "
             f"{step_std.max():.2g} sample")
     return out, done, note, step_std
