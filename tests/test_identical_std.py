@@ -134,6 +134,19 @@ def test_impact_identical_std_matches_the_dense_oracle(windowed):
     np.testing.assert_allclose(ident.dof, dof.min(axis=1), rtol=1e-9)
 
 
+def _covered(ident, truth_k, truth_c):
+    """(points, 16): whether each coefficient's 95 % interval holds the truth."""
+    iv = ident.interval(0.95)
+    n = ident.k.shape[0]
+    return np.concatenate([((iv.k_lower <= truth_k) & (truth_k <= iv.k_upper)).reshape(n, -1),
+                           ((iv.c_lower <= truth_c) & (truth_c <= iv.c_upper)).reshape(n, -1)], 1)
+
+
+def _negative_damping_bits(ident):
+    """(points,): 1 where the point is flagged for a negative direct damping."""
+    return (ident.flag_code.astype(int) >> ident.flag_reasons.index(NEGATIVE_DAMPING)) & 1
+
+
 def _monte_carlo(sets, draws=300, noise=5e-8, probes=False):
     brg = _identical_bearings(zero_cxx=True)
     clean = []
@@ -151,11 +164,8 @@ def _monte_carlo(sets, draws=300, noise=5e-8, probes=False):
             r.q = _noisy(r0.q, rng, noise)
             runs.append(r)
         ident = rotorid.identify_synchronous(RIG.rotor, runs, identical=True)
-        iv = ident.interval(0.95)
-        inside.append(np.concatenate([((iv.k_lower <= truth_k) & (truth_k <= iv.k_upper)).reshape(RPM.size, -1),
-                                      ((iv.c_lower <= truth_c) & (truth_c <= iv.c_upper)).reshape(RPM.size, -1)], 1))
-        bit = ident.flag_reasons.index(NEGATIVE_DAMPING)
-        flagged.append((ident.flag_code.astype(int) >> bit) & 1)
+        inside.append(_covered(ident, truth_k, truth_c))
+        flagged.append(_negative_damping_bits(ident))
         scale.append((ident.c[:, 0, 0, 0], ident.c_std[:, 0, 0, 0]))
     c_xx = np.array([s[0] for s in scale])
     c_std = np.array([s[1] for s in scale])
@@ -297,10 +307,7 @@ def test_impact_identical_intervals_cover_the_truth():
                                                                       rng.standard_normal(b.q.shape)),
                                 plane=0.0, direction=b.direction) for b in base]
         ident = rotorid.identify_impact(RIG.rotor, tests, identical=True)
-        iv = ident.interval(0.95)
-        inside.append(np.concatenate([((iv.k_lower <= truth_k) & (truth_k <= iv.k_upper)).reshape(f.size, -1),
-                                      ((iv.c_lower <= truth_c) & (truth_c <= iv.c_upper)).reshape(f.size, -1)], 1))
-        bit = ident.flag_reasons.index(NEGATIVE_DAMPING)
-        flagged.append((ident.flag_code.astype(int) >> bit) & 1)
+        inside.append(_covered(ident, truth_k, truth_c))
+        flagged.append(_negative_damping_bits(ident))
     assert 0.935 <= np.mean(inside) <= 0.975, np.mean(inside)
     assert 0.008 <= np.mean(flagged) <= 0.035, np.mean(flagged)
