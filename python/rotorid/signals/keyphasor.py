@@ -16,16 +16,20 @@ that its timing does not depend on the pulse shape, the duty cycle or the trigge
    negative-going pulses and works as is.
 3. **Edge times**, in two steps. First the crossing of mid-height, linearly interpolated between
    the two samples that straddle it, measured against the local resting level before each edge
-   (so a drifting offset does not move it). Then, when the pulses fall at diverse positions
-   relative to the sample clock (as they do unless the speed is commensurate with the sample
-   rate), an *equivalent-time* refinement: all edges of a steady stretch are overlaid at their
-   estimated times, which samples the edge shape ``g`` densely; each event time is then the shift
-   that best fits its own samples to ``g`` (least squares), and ``g``'s mid-height crossing
-   anchors them. This is unbiased for steep edges (trapezoids of 1-3 samples), asymmetric ones
-   (RC-rounded) and smooth ones alike, and it uses every sample of the edge, which lowers the
-   jitter in noise. Ideal steps carry no sub-sample information; their linear estimate has an
-   error uniform in ±0.5 sample that averages out over revolutions only when the pulse phases
-   vary; the result says so when they do not (``Keyphasor.note``).
+   (so a drifting offset does not move it; a base that drifts by more than 3 % of the swing has
+   the pulses detected again, and the states read, on the signal less it). Then, when the pulses
+   fall at diverse positions relative to the sample clock (8 of 16 bins of a sample interval, or
+   for edges that are not steep no gap wider than a quarter sample), an *equivalent-time*
+   refinement: all edges of a steady stretch are overlaid at their estimated times, which samples
+   the edge shape ``g`` densely; each event time is then the shift that best fits its own samples
+   to ``g`` (least squares), and ``g``'s mid-height crossing anchors them. This is unbiased for
+   steep ramps (trapezoids of 1-3 samples), asymmetric edges (RC-rounded) and smooth ones alike,
+   and it uses every sample of the edge, which lowers the jitter in noise. Steps (steep edges
+   with few samples on them) are anchored by the boundary between the overlaid samples below and
+   above mid-height, and carry its resolution (the widest gap between the pulses' positions within
+   a sample, over √12) as their timing uncertainty; their linear estimate has an error uniform in
+   ±0.5 sample that averages out over revolutions only when the pulse phases vary; the result
+   says so when they do not (``Keyphasor.note``).
 4. **Plausibility**: intervals far shorter than the running median period are extra pulses
    (dropped), intervals that are whole multiples of it are missing pulses (filled), both
    reported; an interval that is neither (a speed jump beyond ``tolerance``) is an error.
