@@ -180,9 +180,9 @@ fn point(p: &IdentProblem, kc: &Consts, noise_t: Option<&[f64; 4]>, b: usize, i:
             bm[bb][bb] -= z[row][0];
             bm[bb][2 + bb] -= z[row][1];
             if let Some(t) = noise_t {
-                // q_bearings = T q_probes per direction
-                let v = bm[bb];
-                bm[bb] = [v[0] * t[0] + v[1] * t[2], v[0] * t[1] + v[1] * t[3], v[2] * t[0] + v[3] * t[2], v[2] * t[1] + v[3] * t[3]];
+                // q_bearings = T q_probes per direction: the row vector times T, i.e. T's transpose
+                // applied as planes_point applies T
+                bm[bb] = crate::model::planes_point(&[t[0], t[2], t[1], t[3]], bm[bb]);
             }
         }
         let mut pm: M2 = [[C64::new(0.0, 0.0); 2]; 2];
@@ -195,13 +195,14 @@ fn point(p: &IdentProblem, kc: &Consts, noise_t: Option<&[f64; 4]>, b: usize, i:
         let (s, s2) = (weighted(&pm), weighted(&p2));
         let a = mul(&gi, &s);
         let rf = runs as f64;
-        let tr_m = rf * (pm[0][0].re + pm[1][1].re) - (a[0][0].re + a[1][1].re);
-        let tr_p2 = (0..2).flat_map(|x| (0..2).map(move |y| (x, y))).map(|(x, y)| pm[x][y].norm_sqr()).sum::<f64>();
+        let tr_p = pm[0][0].re + pm[1][1].re;
+        let tr_m = rf * tr_p - (a[0][0].re + a[1][1].re);
+        // tr P² = sum |P_ab|² (P Hermitian)
+        let tr_p2 = pm.iter().flatten().map(|v| v.norm_sqr()).sum::<f64>();
         let gis2 = mul(&gi, &s2);
         let aa = mul(&a, &a);
         let tr_m2 = rf * tr_p2 - 2.0 * (gis2[0][0].re + gis2[1][1].re) + (aa[0][0].re + aa[1][1].re);
         // no residual degree of freedom (one run: tr M is rounding)
-        let tr_p = pm[0][0].re + pm[1][1].re;
         if runs < 2 || !(tr_m > 1e-9 * rf * tr_p && tr_m2 > 0.0) {
             continue;
         }
