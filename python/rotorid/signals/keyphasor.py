@@ -916,12 +916,10 @@ def _refine(w, t, base, swing, half, post, steep):
             near = np.abs(pv) <= 2.0
             anchor = _boundary(pv[near], y[valid][near], 0.5)
             step_std[a:b] = _widest_gap(np.mod(fit, 1.0)) / np.sqrt(12.0)
-        # (steep edges, placed by the boundary between samples below and above mid-height, need the
-        # positions dense: at 5 positions a 1-sample trapezoid, timed exactly by the interpolation,
-        # came out up to 0.07 samples off)
-        # (edges that are not steep: 8 bins, or evenly spread positions; the gap rule alone turned
-        # away coast-downs and short stretches whose positions fill 8 bins of part of a sample, left
-        # 0.04-0.07 samples off, found in review)
+        # the positions the correction needs: 8 of the 16 bins for steep edges (at 5 positions a
+        # 1-sample trapezoid, timed exactly by the interpolation, came out up to 0.07 samples off);
+        # 8 bins or evenly spread positions for the others (the gap rule alone turned away
+        # coast-downs and short stretches filling 8 bins of part of a sample: 0.04-0.07 samples off)
         dense = occupied >= TEMPLATE_BINS // 2
         if not dense if steep else not (dense or _widest_gap(np.mod(fit, 1.0)) <= MAX_POSITION_GAP):
             notes.append(occupied)
