@@ -124,7 +124,10 @@ def test_guide_runs(tmp_path, monkeypatch):
     assert "Against the known coefficients" in Path("ex/report_imbalance.html").read_text(encoding="utf-8")
     # section 4: the CSV chain identifies the example's bearings (direct K within 1 %, C within 5 %)
     ident = namespace["ident"]
-    assert ident.ok.all() and ident.std_source == "measurement covariance"
+    # the example's speeds are whole numbers of samples per revolution at 5 kHz: its keyphasor pulses
+    # fall at one position within a sample, where the edge shapes their samples allow leave the
+    # interpolated times uncertain by 0.005-0.014 sample, in the error bars as a phase reference
+    assert ident.ok.all() and ident.std_source == "measurement covariance + phase reference"
     for b in range(2):
         for i in range(2):
             assert np.abs(ident.k[:, b, i, i] / true.k[b, i, i] - 1).max() < 0.01

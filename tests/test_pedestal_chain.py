@@ -229,7 +229,10 @@ def test_imbalance_chain_with_pedestal_motion_recovers_bearings_and_pedestals(im
     sim, runs, base = imbalance_records
     res = _chain(sim, runs, base, True)
     ident = res.identification
-    assert ident.axis.size == RPM.size and ident.std_source == "measurement covariance"
+    # rawsim's 10 kHz and round speeds put the pulses at 1-3 positions within a sample (the
+    # keyphasor's timing uncertainty there is a phase reference), the lab simulator's not
+    assert ident.axis.size == RPM.size and ident.std_source == (
+        "measurement covariance + phase reference" if sim == "rawsim" else "measurement covariance")
     assert ident.ok.all(), ident.flag
     assert all(r.pedestal is not None and r.pedestal_cov is not None for r in res.responses)
     assert any(n.startswith("pedestal motion from accelerometers") for n in res.notes), res.notes
@@ -621,7 +624,10 @@ def test_cli_on_the_pedestal_example(example):
         assert cli.main(["identify", "imbalance", os.path.join(example, "pedestal_imbalance.toml"), "--out", out]) == 0
     _check_pedestal_csv(os.path.join(out, "pedestals_imbalance.csv"), example)
     df = pd.read_csv(os.path.join(out, "coefficients_imbalance.csv"))
-    assert len(df) == 4 and df.ok.all()
+    # at 6000 rpm (50 samples per revolution at 5 kHz, every pulse at one position within a
+    # sample) the keyphasor's timing is uncertain by 0.008-0.014 sample for the edge shapes its
+    # samples allow; this rig's coefficients there are that sensitive to the phase reference
+    assert len(df) == 4 and df.ok[:3].all() and df.flag[3] == "uncertain"
     hits = []
     for name, (b, i, j) in {"Kxx1": (0, 0, 0), "Kyy1": (0, 1, 1), "Kxx2": (1, 0, 0), "Kyy2": (1, 1, 1),
                             "Cxx1": (0, 0, 0), "Cyy1": (0, 1, 1), "Cxx2": (1, 0, 0), "Cyy2": (1, 1, 1)}.items():

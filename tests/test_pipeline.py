@@ -363,7 +363,8 @@ def test_a_keyphasor_timing_the_pulse_shape_leaves_ambiguous_widens_the_error_ba
     while every point stayed ok with the truth outside its 95 % interval. That timing uncertainty
     is now a delay of the phase reference in the coefficients' error bars."""
     rotor, brg, runs, base, slow = imbalance_records
-    plain = pipeline.imbalance_chain(rotor, runs, baseline=base).identification
+    plain_res = pipeline.imbalance_chain(rotor, runs, baseline=base)
+    plain = plain_res.identification
     humps = [_with_hump_keyphasor(r) for r in runs]
     with warnings.catch_warnings(record=True) as seen:
         warnings.simplefilter("always")
@@ -374,7 +375,11 @@ def test_a_keyphasor_timing_the_pulse_shape_leaves_ambiguous_widens_the_error_ba
     assert 0.05 / runs[0].fs_hz < shape_std < 0.3 / runs[0].fs_hz
     assert any("no flat top" in str(w.message) for w in seen)
     assert any("depends on the pulse shape" in n and "counted in the uncertainty" in n for n in res.notes)
-    assert ident.std_source.endswith("+ phase reference") and not plain.std_source.endswith("phase reference")
+    # (the flat-topped pulses have a phase reference too at these round speeds, whose pulses fall at
+    # 1-3 positions within a sample at 10 kHz: the uncertainty their edges' samples leave, 0.005-0.025
+    # sample)
+    assert ident.std_source.endswith("+ phase reference")
+    assert max(k.timing_std_s for t in plain_res.tracks for k in t.keyphasors) < 0.03 / runs[0].fs_hz < shape_std
     # the same data otherwise: wider error bars that cover the truth of the direct coefficients
     assert np.all(ident.c_std >= plain.c_std) and np.any(ident.c_std > 2 * plain.c_std)
     iv = ident.interval(0.95)
