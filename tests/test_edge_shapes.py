@@ -1,8 +1,9 @@
 """The bound on the interpolation error of keyphasor edges seen at few positions within a sample.
 
 The edges here are step responses computed with scipy.signal (Bessel, Butterworth and Chebyshev
-filters of orders 2-4, several outside the family the bound fits) and closed forms (first-order,
-Gaussian, linear, a circular probe spot), sampled at random positions; each is timed as the
+filters of orders 2-4; the Chebyshev ripple is outside the family the bound fits, whose filter
+edges are computed from their poles) and closed forms (first-order, Gaussian, linear), sampled at
+random positions; each is timed as the
 keyphasor times it (linear crossing below 2.5 samples, the cubic above) and its true error compared
 with the bound.
 """
@@ -85,13 +86,13 @@ def test_the_bound_covers_the_interpolation_error_of_edges_in_and_outside_its_fa
     assert covered == fitted and fitted >= 10
 
 
-def test_the_bound_follows_what_the_samples_show():
-    """A linear ramp two samples long is timed exactly by the interpolation. Where one of its
-    samples lies near an end of the ramp the long-tailed shapes cannot fit them, and the bound
-    stays near its floor (0.016 sample at phase 0.35); where only two samples lie on it and the
-    others on the flats, a second-order edge fits as well and the bound is that edge's error
-    (0.12 at phase 0.85). An RC edge of the same duration, interpolated up to 0.12 sample late, gets
-    a bound above its error by less than 0.05."""
+def test_the_bound_covers_an_rc_edge_closely_and_a_ramp_by_what_else_fits_it():
+    """An RC edge of two samples' duration, interpolated up to 0.13 sample late, gets a bound above
+    its error by less than 0.05. A linear ramp two samples long is timed exactly by the
+    interpolation, but with only two or three samples on it the edges of 3rd- to 5th-order
+    filters fit its samples within 1 % of the swing too, and they would be interpolated 0.05-0.1
+    sample off: its bound is 0.07-0.12 (0.016-0.12 with a family of first- and second-order edges
+    only), below the family-wide figure's 2 x 0.09."""
     ramp = []
     for phase in (0.1, 0.35, 0.6, 0.85):
         e, rise = _edge("ramp", 0, 2.0)
@@ -102,7 +103,7 @@ def test_the_bound_follows_what_the_samples_show():
         p, y, err = _timed(e, phase, rise)
         b = edge_shapes.interpolation_bound(p, y, np.zeros(p.size, int), rise)[0]
         assert abs(err) <= b < abs(err) + 0.05
-    assert min(ramp) < 0.02 and max(ramp) < 0.13
+    assert max(ramp) < 0.13 < 2 * kpmod._interpolation_std(2.0)
 
 
 def test_groups_are_bounded_each_and_noise_widens_the_fit():

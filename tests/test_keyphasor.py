@@ -572,9 +572,9 @@ def test_positions_too_few_or_too_slow_to_correct_carry_the_uncertainty_their_sa
     assert abs(e.mean()) <= 2.0 * std, (e.mean(), std)
     assert np.all(np.abs(e) <= 2.0 * kp.timing_std_each_s * FS + 0.01)
     assert ("positions within a sample interval" in kp.note or "creeps so slowly" in kp.note) and "sample for the edge shapes" in kp.note
-    if shape.kind == "trapezoid" and shape.edge_samples == 2.0 and creep == 0.0:
-        # the ramp's samples exclude the long-tailed shapes: not the family-wide 0.09 sample
-        assert std < 0.02
+    if shape.kind == "trapezoid" and shape.edge_samples == 2.0:
+        # the ramp's samples exclude the long-tailed shapes: below the family-wide 0.09 sample
+        assert std < 0.05
 
 
 @pytest.mark.parametrize("shape", [PulseShape("rc", 0.7), PulseShape("rc", 1.0)], ids=lambda s: f"{s.kind}-{s.edge_samples}")
@@ -611,3 +611,18 @@ def test_a_coast_down_keeps_its_correction():
     assert kp.refined
     blocks = np.array_split(e, 8)        # seconds of the coast-down: 0.0001-0.0077, as before the change
     assert max(abs(b.mean()) for b in blocks) < 0.01, [round(b.mean(), 4) for b in blocks]
+
+
+@pytest.mark.parametrize("shape", [PulseShape("rc", 0.7), PulseShape("rc", 1.0)], ids=lambda s: f"{s.kind}-{s.edge_samples}")
+def test_four_positions_per_sample_are_corrected_not_taken_for_a_creep(shape):
+    """At exactly 100.25 samples per revolution the pulses fall at 4 evenly spread positions within
+    a sample, which the correction uses. Read from the +-8-pulse fit, whose own interpolation error
+    spreads them past the quarter-sample gap, they were taken for a slow creep (found in review:
+    0.002-0.011 before, 0.04-0.08 then, with an uncertainty); the positions come from the
+    quadratic over the stretch where it holds one speed."""
+    v, ev = _record(shape, 60.0 * FS / 100.25)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        kp = signals.keyphasor_times(v, FS)
+    assert kp.refined and kp.timing_std_s == 0.0, kp.note
+    assert abs(_errors(kp, ev).mean()) < 0.015

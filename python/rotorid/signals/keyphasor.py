@@ -52,7 +52,7 @@ from .edge_shapes import interpolation_bound
 #: bins of the equivalent-time edge template per sample interval
 TEMPLATE_BINS = 16
 #: steady stretches of at most this many pulses share one edge template
-TEMPLATE_CHUNK = 512
+TEMPLATE_CHUNK = 256
 #: half-width (pulses) of the local quadratic that gives the smooth time base of the refinement
 LOCAL_FIT = 8
 
@@ -914,9 +914,17 @@ def _refine(w, t, base, swing, half, post, rise):
         # the positions within a sample where they creep slowly, so that it does not follow the
         # interpolation error as they creep
         fit = _local_quadratic(tc, LOCAL_FIT)
-        cycle = _cycle_length(np.mod(fit, 1.0), MAX_POSITION_GAP)
         i = np.arange(tc.size, dtype=float)
-        steady = abs(2.0 * np.polyfit(i - i.mean(), tc, 2)[0] * tc.size) < STEADY_PERIOD_CHANGE
+        quad = np.polyfit(i - i.mean(), tc, 2)
+        on_quad = np.polyval(quad, i - i.mean())
+        # one speed: a quadratic over the stretch whose period changes by less than
+        # STEADY_PERIOD_CHANGE and from which the times depart by less than a quarter sample rms
+        # (a wandering speed departs by samples)
+        steady = abs(2.0 * quad[0] * tc.size) < STEADY_PERIOD_CHANGE and _rms(tc - on_quad) < 0.25
+        # the positions' cycle from that quadratic at one speed (the +-8 pulse fit follows the
+        # interpolation error, and at exactly 4 positions per sample spread them past the
+        # quarter-sample gap: taken for a slow creep, left 0.04-0.08 sample off)
+        cycle = _cycle_length(np.mod(on_quad if steady else fit, 1.0), MAX_POSITION_GAP)
         if steady and ((2 * cycle > tc.size) if cycle is not None else _occupied(fit) >= TEMPLATE_BINS // 2):
             # at one speed, the positions creep so slowly that the stretch holds less than two of
             # their cycles (or fills 8 bins without completing one): no time base can tell their
@@ -1047,34 +1055,39 @@ def _left_stds(w, t, base, swing, offs, rise, stretches):
     there (edge_shapes.interpolation_bound, which no edge exceeded in 275 trials of 11 edge
     families), and at least their rms over each stretch's pulses (the mean time's error is the
     mean of theirs); where no shape fits, the family's INTERPOLATION_STD for edges ``rise``
-    samples long. Adjacent stretches are bounded together up to BOUND_BLOCK pulses (a coast-down's
-    short ones, at nearly one speed)."""
+    samples long. Stretches at nearly one speed (BOUND_SPEED_SPREAD) are bounded together."""
     out = np.zeros(t.size)
     if not stretches:
         return out
     noise = _noise(w, float(np.median(base)), swing) / swing
+    def period(a, b):
+        return (t[b - 1] - t[a]) / max(b - 1 - a, 1) if b - a > 1 else np.nan
+
     blocks = [[stretches[0]]]
     for a, b in stretches[1:]:
-        last = blocks[-1]
-        if a == last[-1][1] and last[-1][1] - last[0][0] < BOUND_BLOCK:
-            last.append((a, b))
+        first = period(*blocks[-1][0])
+        if abs(period(a, b) / first - 1.0) <= BOUND_SPEED_SPREAD:
+            blocks[-1].append((a, b))
         else:
             blocks.append([(a, b)])
     for block in blocks:
-        a0, b0 = block[0][0], block[-1][1]
-        each = _position_std(w, t[a0:b0], base[a0:b0], swing, offs, rise, noise)
+        sel = np.concatenate([np.arange(a, b) for a, b in block])
+        each = np.empty(t.size)
+        each[sel] = _position_std(w, t[sel], base[sel], swing, offs, rise, noise)
         for a, b in block:
             # not below the rms over the stretch: where the positions alternate (a half number of
             # samples per revolution), the mean time's error is the mean of theirs, which the
             # median over the pulses understated (0.0165 against a mean error of 0.037 sample for
             # Bessel edges whose two positions were bounded at 0.154 and 0.033)
-            part = each[a - a0:b - a0]
+            part = each[a:b]
             out[a:b] = np.maximum(part, float(np.sqrt(np.mean(part ** 2))))
     return out
 
 
-#: adjacent stretches bounded together up to this many pulses
-BOUND_BLOCK = 64
+#: stretches whose speeds lie within this fraction of the first one's are bounded together (an
+#: edge that is a fixed angle of the rotor lasts fewer samples at a higher speed): one block for
+#: a speed wobbling by +-3 %, where blocks of 64 pulses took 3.8 s for a 100 s record)
+BOUND_SPEED_SPREAD = 0.05
 
 
 def _position_std(w, tc, base, swing, offs, rise, noise):
