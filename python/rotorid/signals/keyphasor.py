@@ -918,9 +918,8 @@ def _refine(w, t, base, swing, half, post, rise):
         quad = np.polyfit(i - i.mean(), tc, 2)
         on_quad = np.polyval(quad, i - i.mean())
         # one speed: a quadratic over the stretch whose period changes by less than
-        # STEADY_PERIOD_CHANGE and from which the times depart by less than a quarter sample rms
-        # (a wandering speed departs by samples)
-        steady = abs(2.0 * quad[0] * tc.size) < STEADY_PERIOD_CHANGE and _rms(tc - on_quad) < 0.25
+        # STEADY_PERIOD_CHANGE and from which the times depart by less than ONE_SPEED_RESIDUAL rms
+        steady = abs(2.0 * quad[0] * tc.size) < STEADY_PERIOD_CHANGE and _rms(tc - on_quad) < ONE_SPEED_RESIDUAL
         # the positions' cycle from that quadratic at one speed (the +-8 pulse fit follows the
         # interpolation error, and at exactly 4 positions per sample spread them past the
         # quarter-sample gap: taken for a slow creep, left 0.04-0.08 sample off)
@@ -1032,10 +1031,11 @@ def _refine(w, t, base, swing, half, post, rise):
 
 
 #: the standard deviation (samples) of the interpolated mid-height crossing of an edge over the
-#: positions it can fall at within a sample, by its duration (twice the 25-75 % time, samples), the
-#: largest over first-order (RC), Bessel, Butterworth, Gaussian, linear and circular-spot edges
-#: (linear interpolation below 2.5 samples, the cubic above, as the timing uses them; `/tmp`
-#: computation of 2026-11-29 in the README): for times the equivalent-time correction cannot reach
+#: positions it can fall at within a sample, by its duration (twice the 25-75 % time, samples): an
+#: envelope of the rms over 200 positions of first-order (RC), Bessel 2 and 4, Butterworth 2,
+#: Gaussian, linear and circular-spot edges (linear interpolation below 2.5 samples, the cubic
+#: above, as the timing uses them; tests/test_edge_shapes.py checks it against filter edges of
+#: orders 2-4). For times no edge shape of edge_shapes fits
 INTERPOLATION_STD = ((0.5, 0.24), (0.8, 0.145), (1.1, 0.125), (1.55, 0.11), (2.2, 0.09), (3.1, 0.05),
                      (4.4, 0.016), (6.6, 0.001))
 
@@ -1187,6 +1187,9 @@ def _phase_dependent(phase, r, nbins, f_crit=4.0) -> bool:
 #: pulses at positions that fill 8 of the 16 bins but leave a gap creep slowly there (at 10,240 Hz
 #: and 85.3 rpm from a whole number of samples per revolution), where in a coast-down they sweep
 STEADY_PERIOD_CHANGE = 0.1
+#: ... and from which the times depart by less than this rms (samples; interpolation errors stay
+#: below it, a speed wandering by 0.05 % over 97 revolutions departs by samples)
+ONE_SPEED_RESIDUAL = 0.25
 
 
 def _occupied(fit):
