@@ -880,10 +880,11 @@ def _refine(w, t, base, swing, half, post, rise):
     speed fluctuation included, is kept)."""
     n = t.size
     steep = rise <= 1.5
+    offs = np.arange(-half, post + 1)
     if n < 16:
-        left = _left_stds(w, t, base, swing, np.arange(-half, post + 1), rise, [(0, n)]) if n else np.zeros(0)
+        left = _left_stds(w, t, base, swing, offs, rise, [(0, n)]) if n else np.zeros(0)
         note = (f"only {n} pulses: too few for the equivalent-time correction; their edge times are interpolated, "
-                f"with an uncertainty of up to {left.max():.2g} sample for the edge shapes their samples allow") if n else ""
+                f"with {_allowed(left)}") if n else ""
         return t, False, note, left
     out = t.copy()
     per = np.diff(t)
@@ -897,7 +898,6 @@ def _refine(w, t, base, swing, half, post, rise):
     # the positions' whole cycle where they creep slowly)
     starts = sorted({int(a + round(j * (b - a) / -(-(b - a) // TEMPLATE_CHUNK)))
                      for a, b in zip(starts[:-1], starts[1:]) for j in range(-(-(b - a) // TEMPLATE_CHUNK))} | {n})
-    offs = np.arange(-half, post + 1)
     notes, notes_rejected, notes_creep, notes_unmeasured, done = [], [], [], [], False
     step_std = np.zeros(n)
     gap_std = np.zeros(n)
@@ -936,7 +936,7 @@ def _refine(w, t, base, swing, half, post, rise):
             if steep:
                 gap_std[a:b] = _widest_gap(np.mod(fit, 1.0)) / np.sqrt(12.0)
             continue
-        fit, e_phase = _time_base(tc, LOCAL_FIT)
+        fit, e_phase = _time_base(tc, LOCAL_FIT, fit)
         wide = LOCAL_FIT if cycle is None else max(LOCAL_FIT, int(np.ceil(CREEP_WINDOW * cycle)))
         if wide > LOCAL_FIT:
             # the wider time base where it explains the times as well (a speed that wanders over a
@@ -1006,22 +1006,20 @@ def _refine(w, t, base, swing, half, post, rise):
     if notes:
         note = (note + "; " if note else "") + (f"in {len(notes)} steady stretch(es) the pulses fall at only {min(notes)} of {TEMPLATE_BINS} positions "
                 "within a sample interval (a speed commensurate with the sample rate): their edge times are "
-                "interpolated, and any interpolation error repeats every revolution instead of averaging out: an "
-                f"uncertainty of up to {left_std.max():.2g} sample for the edge shapes their samples allow (a speed "
-                "or sample rate a little different avoids it)")
+                "interpolated, and any interpolation error repeats every revolution instead of averaging out: "
+                f"{_allowed(left_std)} (a speed or sample rate a little different avoids it)")
     if notes_unmeasured:
         note = (note + "; " if note else "") + (
             f"in {len(notes_unmeasured)} stretch(es) the interpolation error could not be measured (fewer than 16 "
             "pulses, or a speed varying faster than the time base follows): their edge times are interpolated, "
-            f"with an uncertainty of up to {left_std.max():.2g} sample for the edge shapes their samples allow")
+            f"with {_allowed(left_std)}")
     if notes_creep:
         note = (note + "; " if note else "") + (
             f"in {len(notes_creep)} steady stretch(es) the pulses' position within a sample interval creeps so slowly "
             f"({'a cycle of ' + str(max(notes_creep)) + ' revolutions, more than half the stretch' if max(notes_creep) else 'not one cycle in the stretch'}: "
             "a speed nearly commensurate with the sample rate) that the interpolation error cannot be told from a change "
-            "of speed: their edge times are interpolated, with an uncertainty of up to "
-            f"{left_std.max():.2g} sample for the edge shapes their samples allow (a longer record, or a speed "
-            "or sample rate a little different, avoids it)")
+            f"of speed: their edge times are interpolated, with {_allowed(left_std)} (a longer record, or a "
+            "speed or sample rate a little different, avoids it)")
     if step_std.max() > 0.02:
         note = (note + "; " if note else "") + (
             f"the edges are steps (few samples on them): timed to within {np.sqrt(12.0) * step_std.max():.2g} sample "
@@ -1046,6 +1044,11 @@ MAX_BASE_RESIDUAL = 0.01
 
 #: positions within a sample at which the interpolation error left in the times is bounded
 BOUND_GROUPS = 8
+
+
+def _allowed(left):
+    """The notes' account of the uncertainty left in edge times (``left``, samples, per pulse)."""
+    return f"an uncertainty of up to {left.max():.2g} sample for the edge shapes their samples allow"
 
 
 def _left_stds(w, t, base, swing, offs, rise, stretches):
@@ -1197,12 +1200,13 @@ def _occupied(fit):
     return np.unique(np.floor(np.mod(fit, 1.0) * TEMPLATE_BINS).astype(int)).size
 
 
-def _time_base(tc, m):
+def _time_base(tc, m, first=None):
     """The smooth time base of the times ``tc`` (a local quadratic over +-m pulses) and their
-    interpolation error by position within a sample, each estimated from the other (four rounds)."""
+    interpolation error by position within a sample, each estimated from the other (four rounds;
+    ``first``: the first round's quadratic, of ``tc`` itself, if the caller has it)."""
     e_phase = np.zeros(tc.size)
-    for _ in range(4):
-        fit = _local_quadratic(tc - e_phase, m)
+    for k in range(4):
+        fit = first if k == 0 and first is not None else _local_quadratic(tc - e_phase, m)
         e_phase = _phase_curve(np.mod(fit, 1.0), tc - fit, TEMPLATE_BINS)
     return fit, e_phase
 
