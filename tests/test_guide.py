@@ -126,8 +126,14 @@ def test_guide_runs(tmp_path, monkeypatch):
     ident = namespace["ident"]
     # the example's speeds are whole numbers of samples per revolution at 5 kHz: its keyphasor pulses
     # fall at one position within a sample, where the edge shapes their samples allow leave the
-    # interpolated times uncertain by 0.005-0.014 sample, in the error bars as a phase reference
-    assert ident.ok.all() and ident.std_source == "measurement covariance + phase reference"
+    # interpolated times uncertain by 0.005-0.017 sample, in the error bars as a phase reference;
+    # at the fastest speed that makes the damping "uncertain" (the guide says so), and only that
+    assert ident.std_source == "measurement covariance + phase reference"
+    assert ident.ok[:-1].all() and (ident.ok[-1] or ident.flag[-1] == "uncertain"), ident.flag
+    iv = ident.interval(0.95)
+    for b in range(2):
+        for i in range(2):
+            assert np.all((iv.c_lower[:, b, i, i] <= true.c[b, i, i]) & (true.c[b, i, i] <= iv.c_upper[:, b, i, i]))
     for b in range(2):
         for i in range(2):
             assert np.abs(ident.k[:, b, i, i] / true.k[b, i, i] - 1).max() < 0.01

@@ -34,6 +34,19 @@ def _record(shape, rpm, n_pulses=600, mark=0.01373917, wander=0.0, seed=1):
     return pulse_train(t, ev, FS, shape, seed=seed), ev
 
 
+def _corrected(kp):
+    """The equivalent-time correction was taken (not left unmeasured with the edge family's bound):
+    the timing carries only the correction's own uncertainty (its template's noise and roughness,
+    0-0.006 sample on clean records)."""
+    unmeasured = ("could not be measured", "creeps so slowly", "positions within a sample interval")
+    return kp.refined and not any(u in kp.note for u in unmeasured) and kp.timing_std_s * FS < 0.01
+
+
+def _covered(kp, e):
+    """The mean error lies within twice the stated uncertainty (or 0.001 sample)."""
+    return abs(e.mean()) <= max(2.0 * kp.timing_std_s * FS, 0.001)
+
+
 def _errors(kp, ev):
     idx = np.clip(np.searchsorted(ev, kp.times), 1, ev.size - 1)
     near = np.where(np.abs(ev[idx] - kp.times) < np.abs(ev[idx - 1] - kp.times), ev[idx], ev[idx - 1])
@@ -71,9 +84,12 @@ def test_timing_bias_below_5_thousandths_of_a_sample(shape, rpm):
     assert abs(e.mean()) < 0.005, (e.mean(), np.abs(e).max())
     # per pulse: a drifting offset is followed from the samples before each edge (noise-like error)
     assert np.abs(e).max() < (0.35 if shape.drift_v else 0.06)
-    # flat tops (with ringing or drift too) are not taken for humps, nor timed with a shape uncertainty
+    # flat tops (with ringing or drift too) are not taken for humps, nor timed with a shape
+    # uncertainty; where the top is still settling at the trailing edge (RC edges of 2 samples at 61
+    # samples per revolution) or rings, the level's dependence on where it is read is in it (0.002)
     assert "no flat top" not in kp.note
-    assert kp.timing_std_s == 0.0 or "too short to settle" in kp.note
+    assert kp.timing_std_s * FS < 0.005 or "too short to settle" in kp.note
+    assert _covered(kp, e), (e.mean(), kp.timing_std_s * FS)
 
 
 @pytest.mark.parametrize("shape", [PulseShape("trapezoid", 2.0, noise_v=0.02), PulseShape("rc", 1.0, noise_v=0.02),
@@ -450,7 +466,8 @@ def test_an_offset_drifting_by_a_fifth_of_the_swing(tau, rpm, ringing):
     assert kp.times.size >= 0.99 * ev.size
     assert abs(e.mean()) < 0.005, (e.mean(), np.abs(e).max())
     assert np.abs(e).max() < 0.06
-    assert "too short to settle" not in kp.note and kp.timing_std_s == 0.0
+    # settled (the level read above the rest as it drifts), and not judged too short to settle
+    assert "too short to settle" not in kp.note and kp.timing_std_s * FS < 0.002
     assert re.search(r"resting level drifts by 2 \(40 % of the swing\)", kp.note), kp.note
 
 
@@ -549,7 +566,7 @@ def test_edges_creeping_slowly_across_the_sample_positions_are_corrected(shape, 
         warnings.simplefilter("error")
         kp = signals.keyphasor_times(v, FS)
     e = _errors(kp, ev)
-    assert kp.refined and kp.timing_std_s == 0.0
+    assert _corrected(kp) and _covered(kp, e), (e.mean(), kp.timing_std_s * FS, kp.note)
     assert abs(e.mean()) < 0.005, e.mean()
     assert np.abs(e).max() < 0.02
 
@@ -590,8 +607,11 @@ def test_a_wandering_speed_keeps_the_narrow_time_base(shape, rpm, wander):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         kp = signals.keyphasor_times(v, FS)
-    assert kp.refined and kp.timing_std_s == 0.0
-    assert abs(_errors(kp, ev).mean()) < 0.006
+    # (the correction's uncertainty follows the wander only roughly: 0.0001-0.0038 sample off against
+    # 0.0003-0.0058, one case of 12 beyond twice it: 0.00105 against 0.0003)
+    e = _errors(kp, ev)
+    assert _corrected(kp), (e.mean(), kp.timing_std_s * FS, kp.note)
+    assert abs(e.mean()) < 0.006
 
 
 def test_a_coast_down_keeps_its_correction():
@@ -624,5 +644,184 @@ def test_four_positions_per_sample_are_corrected_not_taken_for_a_creep(shape):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         kp = signals.keyphasor_times(v, FS)
-    assert kp.refined and kp.timing_std_s == 0.0, kp.note
-    assert abs(_errors(kp, ev).mean()) < 0.015
+    e = _errors(kp, ev)
+    assert _corrected(kp) and _covered(kp, e), (e.mean(), kp.timing_std_s * FS, kp.note)
+    assert abs(e.mean()) < 0.015
+
+
+# ---------------------------------------------------------------------------------------------
+# the pulse level, the template's crossing and the correction's own uncertainty (2026-11-29, third
+# part): a 4-run identification resolves the damping to 0.07-0.3 %, which a timing error of 0.002
+# sample moves by twice that at 6,000 rpm and 10,240 Hz
+
+
+def _second_order_record(tau, rpm, width, n_pulses=400, mark=0.0123457):
+    """Rectangular pulses of ``width`` samples through a critically damped second-order low pass of
+    time constant ``tau`` samples (step response 1 - (1 + u) e^-u, u = t / tau), 5 V, written here
+    apart from rawsim: the edge approaches its top as slowly as u e^-u, and crosses mid-height
+    1.6783 tau after the step."""
+    def g(u):
+        u = np.maximum(u, 0.0)
+        return 1.0 - (1.0 + u) * np.exp(-u)
+    period = 60.0 / rpm * FS
+    steps = mark * FS + period * np.arange(n_pulses)
+    n = np.arange(int(steps[-1] + period))
+    v = np.zeros(n.size)
+    for s in steps:
+        near = slice(max(int(s) - 2, 0), min(int(s + width + 60 * tau), n.size))
+        v[near] += 5.0 * (g((n[near] - s) / tau) - g((n[near] - s - width) / tau))
+    return v, (steps + 1.678347 * tau) / FS
+
+
+@pytest.mark.parametrize("rpm", [2345.6, 3456.7])
+@pytest.mark.parametrize("source", ["rc-2", "rc-3", "second-order-1.5"])
+def test_a_top_still_creeping_up_at_mid_pulse_is_read_where_it_has_settled(source, rpm):
+    """An edge that approaches its top slowly (first-order tau = 2-3 samples, critically damped
+    second order) is 0.05-0.3 % short of it in the middle of a 24-30 sample pulse. The level was
+    read there, which put mid-height that much low: RC edges 0.0017-0.005 samples early with no
+    uncertainty (damping errors of twice their standard errors in a 4-run identification on the
+    second simulator, 83 % coverage at 5,000 rpm). The level is now read just before the trailing
+    edge departs from the top."""
+    if source.startswith("rc"):
+        v, ev = _record(PulseShape("rc", float(source[3:]), duty=0.01), rpm, n_pulses=400)
+    else:
+        v, ev = _second_order_record(1.5, rpm, width=26.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        kp = signals.keyphasor_times(v, FS)
+    e = _errors(kp, ev)
+    assert abs(e.mean()) < 0.0005, e.mean()
+    assert kp.timing_std_s * FS < 0.001 and "do not settle" not in kp.note, kp.note
+
+
+@pytest.mark.parametrize("tau", [0.5, 0.7, 1.0])
+@pytest.mark.parametrize("per_rev", [100.4, 100.0 + 3.0 / 7.0, 142.19])
+def test_edges_at_few_positions_are_crossed_on_a_cubic(tau, per_rev):
+    """At 5 or 7 positions within a sample (100.4 and 100 3/7 samples per revolution) the
+    template's points lie 0.2 and 0.14 sample apart, and its linear crossing was 0.004-0.007
+    samples late on RC edges (the error of a chord on a curved edge); it is read on a cubic now. At
+    142.19 samples per
+    revolution the +-8-pulse time base followed part of the interpolation error and bent the
+    template (0.001-0.0017 late); the stretch's own quadratic serves now where it explains the times
+    as well. Now within 0.0007 sample, and within the correction's stated uncertainty."""
+    v, ev = _record(PulseShape("rc", tau), 60.0 * FS / per_rev)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        kp = signals.keyphasor_times(v, FS)
+    e = _errors(kp, ev)
+    if tau == 0.5 and per_rev == 100.0 + 3.0 / 7.0:
+        # a steep edge (1.1 samples) needs 8 of the 16 bins: at 7 it is left uncorrected, with the
+        # bound of the edge shapes its samples allow
+        assert not _corrected(kp) and "positions within a sample interval" in kp.note
+        assert _covered(kp, e), (e.mean(), kp.timing_std_s * FS)
+        return
+    assert _corrected(kp), kp.note
+    assert abs(e.mean()) < 0.0007 and _covered(kp, e), (e.mean(), kp.timing_std_s * FS)
+
+
+@pytest.mark.parametrize("shape,rpm,calibrated", [
+    (PulseShape("rc", 2.0, duty=0.03, noise_v=0.01), 3456.7, True),
+    (PulseShape("rc", 0.7, duty=0.03, noise_v=0.02), 60.0 * FS / 100.4, True),
+    (PulseShape("rc", 2.0, duty=0.03, noise_v=0.04), 3456.7, False),
+    (PulseShape("trapezoid", 2.0, duty=0.03, noise_v=0.02), 3456.7, False),
+    (PulseShape("smooth", 1.0, duty=0.03, noise_v=0.05), 2345.6, False)],
+    ids=["rc-2", "rc-0.7-5-positions", "rc-2-noise-0.8%", "trapezoid-2", "erf-1"])
+def test_a_noisy_keyphasor_states_the_uncertainty_its_noise_leaves(shape, rpm, calibrated):
+    """White noise of 0.2-1 % of the swing: the mean time of 150 pulses and the template's
+    crossing carry its error, common to every pulse of the stretch. They were given no uncertainty
+    (40 records each: mean errors up to 0.009 sample, nearly every one beyond twice its stated 0),
+    and a 1-sample erf edge's noisy times were taken for a speed the time base missed (0.08 sample
+    of edge-family bound for 0.002 of error). The timing now states the noise's share. Where the
+    correction is taken (RC edges, whose position pattern shows) its uncertainty matches the
+    spread of the mean errors over 30 records; where no pattern shows under the noise, the times
+    are kept unless their template moves them by more than 3 times its uncertainty, and carry what
+    the template says they may be off by: 5-7 times the error for an exact interpolation
+    (trapezoid, erf), 1.3-1.5 times for RC edges whose cubic crossing is 0.009 sample off under
+    0.8 % noise, the pattern unseen."""
+    errs, stds = [], []
+    for seed in range(30):
+        v, ev = _record(shape, rpm, n_pulses=150, seed=seed)
+        kp = signals.keyphasor_times(v, FS)
+        errs.append(_errors(kp, ev).mean())
+        stds.append(kp.timing_std_s * FS)
+        assert "do not settle" not in kp.note, kp.note   # (a flat top's noise is no oscillation)
+    errs, stds = np.array(errs), np.array(stds)
+    rms = float(np.sqrt(np.mean(errs ** 2)))
+    assert np.mean(np.abs(errs) > 2.0 * stds) <= 0.1, np.abs(errs / stds).max()
+    if calibrated:
+        assert 0.6 < rms / np.median(stds) < 1.6, (rms, np.median(stds))
+    else:
+        assert 0.1 < rms / np.median(stds) < 1.0, (rms, np.median(stds))
+    if shape.kind != "rc":
+        # an exact interpolation keeps its precision (0.0006 / 0.0018 sample; corrected, the
+        # template's noise made them 0.0017 / 0.0064)
+        assert rms < (0.001 if shape.kind == "trapezoid" else 0.003), rms
+
+
+def test_a_ringing_top_that_does_not_settle_states_its_level_uncertainty():
+    """Ringing of 5 % of the swing at a quarter of the sample rate that decays over 20 samples,
+    after RC edges, on pulses of 15-20 samples: the top never settles, and the level read from it
+    depends on where it is read by up to 1 % of the swing. Timed 0.005-0.027 samples off with no
+    uncertainty before; now within twice the level's uncertainty, with a note."""
+    shape = PulseShape("rc", 1.0, duty=0.05, ringing=(0.05, FS / 4.0, 0.002))
+    for rpm in (1234.5, 2345.6, 3456.7):
+        v, ev = _record(shape, rpm, n_pulses=300)
+        kp = signals.keyphasor_times(v, FS)
+        e = _errors(kp, ev)
+        assert "tops do not settle" in kp.note, kp.note
+        assert _covered(kp, e), (rpm, e.mean(), kp.timing_std_s * FS)
+
+
+def _rc_edge(x, tau):
+    """Unit RC edge crossing 1/2 at x = 0 (its start, a kink, at -tau ln 2)."""
+    u = np.maximum(x / tau + np.log(2.0), 0.0)
+    return 1.0 - np.exp(-u)
+
+
+@pytest.mark.parametrize("start", np.linspace(-0.19, -0.01, 9))   # (a point exactly at the crossing: one-sided)
+def test_the_template_crossing_is_read_on_a_cubic(start):
+    """Template points 0.2 sample apart (5 positions) on an RC edge of tau = 0.7: the chord between
+    the two points straddling mid-height is 0.0071 sample off at worst, the cubic through them and
+    their neighbours 0.0002 (0.001 for tau = 0.5, whose kink lies among the points). Its
+    sensitivities dx/dy_j are those of the cubic it solved (central differences)."""
+    from rotorid.signals import keyphasor as kpm
+
+    gx = start + 0.2 * np.arange(-8, 9)
+    for tau, tol in ((0.7, 3e-4), (0.5, 1.2e-3)):
+        x, at, sens = kpm._crossing_of(gx, _rc_edge(gx, tau), 0.5)
+        assert abs(x) < tol, (tau, x)
+    gy = _rc_edge(gx, 0.7)
+    x, at, sens = kpm._crossing_of(gx, gy, 0.5)
+    assert at.size == 4
+    for j, s in zip(at, sens):
+        d = np.zeros(gy.size)
+        d[j] = 1e-7
+        fd = (kpm._crossing_of(gx, gy + d, 0.5)[0] - kpm._crossing_of(gx, gy - d, 0.5)[0]) / 2e-7
+        assert fd == pytest.approx(s, rel=1e-4, abs=1e-9)
+
+
+def test_one_position_split_by_a_bin_boundary_is_one_template_point():
+    """Pulses at one position whose samples straddle a template bin boundary (-0.0005 and +0.0034
+    sample) gave two points 0.004 apart with one value, which bent the crossing's cubic (0.024
+    sample off): they are one point."""
+    from rotorid.signals import keyphasor as kpm
+
+    p = np.r_[np.arange(-3, 4) - 0.0005, np.arange(-3, 4) + 0.0034, np.arange(-3, 4) + 0.2][None, :]
+    y = _rc_edge(p, 0.7)
+    gx, gy, gn = kpm._template(p, y, np.ones(p.shape, dtype=bool), 4)
+    assert np.min(np.diff(gx)) > 0.1 and gn.sum() == p.size
+    assert np.isclose(gx, 0.00145).any()
+
+
+def test_the_template_roughness_is_its_points_scatter_not_its_kinks():
+    """Roughness of template points: about 0 on a smooth edge, the points' noise on a noisy one,
+    and not raised by a linear edge's kinks five points from the crossing."""
+    from rotorid.signals import keyphasor as kpm
+
+    gx = 0.2 * np.arange(-10, 11) + 0.05
+    at = np.array([9, 10])
+    assert kpm._roughness(gx, _rc_edge(gx, 2.0), at) < 1e-4
+    assert kpm._roughness(gx, np.clip(gx / 2.0 + 0.5, 0.0, 1.0), at) < 1e-12
+    rng = np.random.default_rng(5)
+    noisy = [kpm._roughness(gx, _rc_edge(gx, 2.0) + 1e-3 * rng.standard_normal(gx.size), at) for _ in range(200)]
+    assert 0.5e-3 < np.median(noisy) < 1.5e-3, np.median(noisy)
