@@ -808,7 +808,8 @@ def _settled_top(w, k, base, swing, width, noise, trend, half):
     profile rises toward the trailing edge), else the median of the later half of the top (an
     oscillation, e.g. ringing that has not died out, whose last samples sit at one phase of it);
     NaN where a pulse holds no such samples clear of both edges (the caller keeps the median of its
-    middle half). Also the uncertainty of the level: 0 for an approach; for an oscillation how far
+    middle half). Also the uncertainty of the level: for an approach the rise still to come (from
+    its last steps, 0 where they are within the noise); for an oscillation how far
     the later half's level departs from its last half's or from the pulse's middle half's; without
     settled samples how far the middle half's highest per-offset median lies above its median
     (each 0 within twice the noise of such medians).
@@ -864,14 +865,24 @@ def _settled_top(w, k, base, swing, width, noise, trend, half):
     # a long pulse moved the level read at its end by as much)
     y = above_rest(idx)
     profile = np.median(y[usable], axis=0) if usable.any() else np.zeros(span)
-    # still approaching: the profile no lower toward the trailing edge, within its noise
-    approaching = np.all(np.diff(profile) <= eps)
+    # still approaching: the profile no lower toward the trailing edge, within its noise, and, where
+    # it still rises at the end, by steps that shrink as an approach's do (a ratio r < 0.9: the
+    # rest of the rise is then about d r / (1 - r) for a last step d; ringing sampled over a third
+    # of its period also rises monotonically, by steps that do not shrink: 0.005 samples off with
+    # no uncertainty as an approach)
+    d = -np.diff(profile)        # the steps toward the trailing edge, last first
+    approaching = np.all(d >= -eps)
+    tail = 0.0
+    if approaching and d[0] > eps:
+        ratio = d[0] / d[1] if d.size > 1 and d[1] > 0 else np.inf
+        approaching = ratio < 0.9
+        tail = d[0] * ratio / (1.0 - ratio) if approaching else 0.0
     top = np.median(y[:, :SETTLED_SAMPLES] if approaching else y, axis=1) + base
     # an oscillation that has not died out: the level is uncertain by as much as it depends on
     # the window it is read from (the later half, its last half, the middle half of the pulse).
     # Ringing that decays within the pulse leaves them alike; ringing over 1.1 periods of a
     # 15-sample top does not (timed 0.027 samples off)
-    spread = 0.0
+    spread = tail
     if not approaching and np.ptp(profile) > 2.0 * eps:   # (a flat top's noise is no oscillation)
         later = float(np.median(profile))
         last_half = float(np.median(profile[:max(span // 2, 1)]))
