@@ -830,3 +830,107 @@ def test_the_template_roughness_is_its_points_scatter_not_its_kinks():
     rng = np.random.default_rng(5)
     noisy = [kpm._roughness(gx, _rc_edge(gx, 2.0) + 1e-3 * rng.standard_normal(gx.size), at) for _ in range(200)]
     assert 0.5e-3 < np.median(noisy) < 1.5e-3, np.median(noisy)
+
+
+def _filtered_pulses(b, a, per, width, n=20480, phase=37.3, drift=0.0, drift_per=3000.0, lead=None, noise=0.0,
+                     seed=0):
+    """Rectangular pulses of ``width`` samples every ``per`` samples (or from the samples ``lead``)
+    through the analog filter b/a (time in samples, unit DC gain), sampled ideally, 5 V, on a 0.3 V
+    offset with a sinusoidal drift of ``drift`` and white noise of ``noise`` of the swing; written
+    here apart from rawsim (exact step response by partial fractions). Returns the samples and the
+    true events (samples)."""
+    from scipy import signal as sps
+    from scipy.optimize import brentq
+
+    b = np.asarray(b, float) / (np.asarray(b, float)[-1] / np.asarray(a, float)[-1])
+    r, p, _ = sps.residue(b, np.polymul(a, [1.0, 0.0]))
+
+    def step(t):
+        t = np.asarray(t, float)
+        return np.where(t >= 0, sum(ri * np.exp(pi * np.maximum(t, 0.0)) for ri, pi in zip(r, p)).real, 0.0)
+
+    fine = np.linspace(0.0, 100.0, 100001)
+    j = np.flatnonzero(step(fine) >= 0.5)[0]
+    t50 = brentq(lambda t: float(step(np.array([t]))[0]) - 0.5, fine[j - 1], fine[j], xtol=1e-13)
+    if lead is None:
+        lead = phase + per * np.arange(int((n - 60 - phase) // per))
+    k = np.arange(n)
+    x = np.zeros(n)
+    for e in lead:
+        x += step(k - e) - step(k - e - width)
+    x = x + drift * np.sin(2 * np.pi * k / drift_per + 0.7) + noise * np.random.default_rng(seed).standard_normal(n)
+    return 5.0 * x + 0.3, lead + t50
+
+
+def _butterworth3():
+    from scipy import signal as sps
+    return sps.butter(3, 0.8, analog=True)
+
+
+def test_a_slow_offset_drift_keeps_the_narrow_time_base():
+    """A resting level drifting by 5 % of the swing over 3000 samples moves the edge times slowly
+    (0.0028 samples rms about a quadratic over the whole stretch, 0.0003 about the +-8-pulse one).
+    The stretch's base was accepted within 0.003 samples of the narrow one's residual, the position
+    pattern drowned in the drift, and the times were left uncorrected and silent (Butterworth-3 and
+    second-order edges 0.0027-0.0033 off; found in review). The stretch's base must now explain the
+    times within 1.25 times the narrow base's residual."""
+    for b, a in (_butterworth3(), ([0.36], [1.0, 0.6, 0.36])):
+        x, ev = _filtered_pulses(b, a, 133.37, 30.0, drift=0.05)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            kp = signals.keyphasor_times(x, FS)
+        e = kp.times * FS - ev[np.abs(ev[:, None] - kp.times[None, :] * FS).argmin(axis=0)]
+        assert kp.refined and abs(e.mean()) <= max(2 * kp.timing_std_s * FS, 0.001), (e.mean(), kp.timing_std_s * FS)
+        assert abs(e.mean()) < 0.0008
+
+
+@pytest.mark.parametrize("duty", [0.45, 0.6])
+def test_pulses_filling_half_the_period_read_their_own_top(duty):
+    """Where the pulses fill half the period or more, the scan back from the edge for where it
+    leaves the rest reached into the previous pulse, and the level was read 11 samples into the
+    pulse (second-order edges of damping 0.5: 0.03 samples off, with a "do not settle" note on a
+    settled top; found in review). The scan takes the run of offsets from the edge only."""
+    per = 133.37
+    x, ev = _filtered_pulses([0.36], [1.0, 0.6, 0.36], per, duty * per)
+    kp = signals.keyphasor_times(x, FS, edge="rising")
+    e = kp.times * FS - ev[np.abs(ev[:, None] - kp.times[None, :] * FS).argmin(axis=0)]
+    assert abs(e.mean()) < 0.001 and "do not settle" not in kp.note, (e.mean(), kp.note)
+
+
+@pytest.mark.parametrize("filt", ["rc-2", "butterworth-3"])
+def test_a_wandering_speed_under_noise_is_not_corrected_on_a_base_that_missed_it(filt):
+    """The period wandering by +-0.5 % over 3000 samples, with noise of 0.2 % of the swing: no
+    edge-position pattern shows through the noise, and the check that the time base had followed
+    the speed was made only for quiet records, so a template read on a base that had missed it
+    corrected the times 0.05-0.11 samples off (found in review). Now such times are unmeasured, and
+    carry the edge shapes' bound."""
+    b, a = ([1.0], [2.0, 1.0]) if filt == "rc-2" else _butterworth3()
+    t = np.arange(20480.0)
+    rev = np.cumsum(1.0 / (131.7 * (1 + 0.005 * np.sin(2 * np.pi * t / 3000.0))))
+    lead = np.interp(np.arange(0.0, rev[-1] - rev[0]), rev - rev[0], t) + 37.3
+    lead = lead[(lead > 30) & (lead < 20480 - 200)]
+    for seed in (7, 8, 9, 10):
+        x, ev = _filtered_pulses(b, a, None, 30.0, lead=lead, noise=0.002, seed=seed)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            kp = signals.keyphasor_times(x, FS)
+        e = kp.times * FS - ev[np.abs(ev[:, None] - kp.times[None, :] * FS).argmin(axis=0)]
+        assert abs(e.mean()) <= max(2 * kp.timing_std_s * FS, 0.001), (seed, e.mean(), kp.timing_std_s * FS)
+
+
+@pytest.mark.parametrize("noise", [0.01, 0.02])
+def test_noisy_times_are_not_corrected_by_a_template_of_noise(noise):
+    """RC edges of 2 samples at 5 positions per sample (102.4 samples per revolution) under 1-2 %
+    noise: no edge-position pattern shows in most records. They were corrected where the template
+    moved them by more than 3 times its uncertainty, which selected the records whose template was
+    noise (0.073 samples off against a stated 0.009; found in review). They are kept now, with the
+    template's shift as their uncertainty; over 40 records none lies beyond twice it."""
+    z = []
+    for seed in range(40):
+        x, ev = _filtered_pulses([1.0], [2.0, 1.0], 102.4, 30.0, phase=37.3137, noise=noise, seed=seed)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            kp = signals.keyphasor_times(x, FS)
+        e = kp.times * FS - ev[np.abs(ev[:, None] - kp.times[None, :] * FS).argmin(axis=0)]
+        z.append(abs(e.mean()) / max(kp.timing_std_s * FS, 1e-12))
+    assert np.mean(np.array(z) > 2.0) <= 0.05, np.sort(z)[-5:]

@@ -835,10 +835,13 @@ def _settled_top(w, k, base, swing, width, noise, trend, half):
         return w[idx] - base[:, None] - (trend[idx] - at_base)
 
     # the leading edge's departure from the rest: offsets before the sample k (just below mid)
+    # (the run of offsets from the edge back: further back lies the previous pulse where pulses fill
+    # half the period or more, and its last offset above the rest read the level 11 samples into a
+    # pulse at 60 % duty, 0.03 samples off)
     back = np.arange(0, max(int(np.ceil(width)), 4))
     idx = np.clip(k[:, None] - back[None, :], 0, w.size - 1)
     risen = np.median(above_rest(idx), axis=0) > eps
-    depart = (int(np.flatnonzero(risen)[-1]) + 2) if risen.any() else 1
+    depart = (int(np.argmin(risen)) if not risen.all() else risen.size) + 1
     # each pulse's trailing mid-height crossing: the first sample below mid after the top
     body = np.arange(2, int(np.ceil(1.5 * width)) + 5)
     idx = np.clip(k[:, None] + body[None, :], 0, w.size - 1)
@@ -1067,10 +1070,15 @@ def _refine(w, t, base, swing, half, post, rise):
         # differently at each position, which bends the template (RC edges of 0.5-1 sample at
         # 138.9-142.2 samples per revolution: 0.001-0.0017 samples late with the +-8-pulse base,
         # within 0.0003 with the stretch's)
+        # The stretch's base is held to its residual within STRETCH_BASE_FACTOR of the narrow one's
+        # (+ STRETCH_BASE_SLACK): a slow offset drift of 5 % of the swing moved the times by 0.0028
+        # samples rms about it (0.0003 about the narrow base), and the position pattern drowned
+        # in that was left in them (0.003 samples, found in review)
         narrow = _rms(tc - fit - e_phase)
         for m in sorted({wide} - {LOCAL_FIT} | ({tc.size} if steady and cycle is not None else set())):
             fit_w, e_w = _time_base(tc, m)
-            if _rms(tc - fit_w - e_w) <= narrow + WIDE_BASE_SLACK:
+            limit = (STRETCH_BASE_FACTOR * narrow + STRETCH_BASE_SLACK) if m == tc.size else narrow + WIDE_BASE_SLACK
+            if _rms(tc - fit_w - e_w) <= limit:
                 fit, e_phase = fit_w, e_w
         occupied = _occupied(fit)
         kc = np.floor(fit).astype(int)
@@ -1098,15 +1106,17 @@ def _refine(w, t, base, swing, half, post, rise):
             unmeasured.append((a, b))
             continue
         quiet = not _phase_dependent(np.mod(fit, 1.0), tc - fit, TEMPLATE_BINS)
+        if quiet and _rms(tc - fit) > max(MAX_BASE_RESIDUAL, 2.0 * jitter):
+            # no error that depends on the edge position shows, through a time base that missed the
+            # speed by more than such an error: unmeasured (RC edges under a speed wobble of
+            # 0.02-0.5 % at 0.7 Hz, 1500-4300 rpm: 0.04-0.08 sample late with no uncertainty)
+            notes_unmeasured.append("wobble")
+            unmeasured.append((a, b))
+            continue
         if quiet and jitter < NOISY_JITTER:
             # the interpolated times show no error that depends on the edge position: keep them. Only
             # an edge interpolated exactly shows none (its error vanishes where a sample meets
-            # mid-height), unless the time base missed the speed by more than such an error: then
-            # it is unmeasured (RC edges under a speed wobble of 0.02-0.5 % at 0.7 Hz, 1500-4300 rpm:
-            # 0.04-0.08 sample late with no uncertainty)
-            if _rms(tc - fit) > max(MAX_BASE_RESIDUAL, 2.0 * jitter):
-                notes_unmeasured.append("wobble")
-                unmeasured.append((a, b))
+            # mid-height)
             continue
         gx, gy, gn = _template(idx - fit[:, None], y, valid, max(half, post))
         if gx is None:
@@ -1125,14 +1135,15 @@ def _refine(w, t, base, swing, half, post, rise):
             point_std = np.maximum(noise / np.sqrt(gn[at]), _roughness(gx, gy, at))
             noise_std[a:b] = np.hypot(np.sqrt(np.sum((sens * point_std) ** 2)), noise_std[a])
         new = tc - e_phase + anchor
-        shift = float(np.mean(new - tc))
-        if quiet and not step and abs(shift) <= 3.0 * noise_std[a]:
-            # noisy times with no position pattern to see, and a template that does not move them
-            # by more than 3 times its uncertainty: an exact interpolation, or one whose error the
-            # noise hides. Kept, with what the template says they may be off by (a 2-sample
-            # trapezoid's times under 0.4 % noise, exact, came out 3 times noisier corrected at 2
-            # times; RC edges of 2 samples, 0.009 samples off under 0.8 % noise, are covered)
-            noise_std[a:b] = np.hypot(noise_std[a], shift)
+        if quiet and not step:
+            # noisy times with no position pattern to see: an exact interpolation, or one whose
+            # error the noise hides. Kept, with what the template says they may be off by, its shift
+            # and its own uncertainty (corrected, a 2-sample trapezoid's exact times under 0.4 % noise
+            # came out 3 times noisier, and a correction taken only where the shift exceeded 3 times
+            # that uncertainty selected the records whose template was noise: RC edges under 2 %
+            # noise 0.073 samples off against 0.009, found in review; RC edges of 2 samples, 0.009
+            # off under 0.8 % noise, are covered)
+            noise_std[a:b] = np.hypot(noise_std[a], float(np.mean(new - tc)))
             continue
         # the correction may not add scatter: if the refined times are rougher than the rough ones
         # (the time base could not follow the speed), keep the interpolated times
@@ -1196,7 +1207,7 @@ INTERPOLATION_STD = ((0.5, 0.24), (0.8, 0.145), (1.1, 0.125), (1.55, 0.11), (2.2
 #: times noisier than this (samples) may hide an interpolation error that depends on the edge's
 #: position, and whose mean is not 0 (RC edges of 2 samples under 0.8 % noise: timed on the cubic
 #: 0.009 samples late, the pattern unseen): their template is read whether one shows or not, and
-#: corrects them where it moves them by more than 3 times its uncertainty
+#: its shift is stated as their uncertainty (they are kept as they are)
 NOISY_JITTER = 0.005
 #: a time base whose rms residual exceeds this (samples), or twice the times' noise, missed the
 #: speed: an edge position pattern smaller than that cannot be seen through it (the times' own
@@ -1380,6 +1391,10 @@ def _rms(x):
 #: the wider time base is taken where its rms residual exceeds the +-LOCAL_FIT one's by no more
 #: than this (samples)
 WIDE_BASE_SLACK = 0.003
+#: the stretch's own quadratic serves as time base where its rms residual is within this factor of
+#: the +-8-pulse base's, plus STRETCH_BASE_SLACK samples (clean records: within 1.1 times)
+STRETCH_BASE_FACTOR = 1.25
+STRETCH_BASE_SLACK = 0.0002
 
 #: the time base's half-width, in cycles of the pulses' positions within a sample (pulses until
 #: they have spread over the interval): a quadratic over fewer follows an interpolation error that
