@@ -93,10 +93,6 @@ class ImbalanceChainResult:
     notes: list = field(default_factory=list)
     shared_cov: np.ndarray | None = None   # the baseline's covariance common to every run (None without)
     slow_roll_1x: np.ndarray | None = None   # the slow-roll run-out 1X vector (4,) subtracted, m (None without)
-    #: the keyphasor's own timing uncertainty as a phase (degrees) at each speed of the grid, as the
-    #: identification took it (None where every pulse's is 0): a phase calibration applied later
-    #: does not take it out where it differs from speed to speed, so keep it in its error bars
-    keyphasor_phase_std_deg: np.ndarray | None = None
 
 
 def _near_only(track, speeds, tol, label, what):
@@ -444,7 +440,7 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
                      "(a phase calibration, or a trigger level of your own, takes it out)")
     ident = identify_synchronous(rotor, responses, method=method, **ident_kw)
     return ImbalanceChainResult(responses, tracks, ident, notes, ident_kw.get("shared_cov"),
-                                None if sr is None else np.asarray(sr[0]), shape_deg)
+                                None if sr is None else np.asarray(sr[0]))
 
 
 @dataclass
@@ -1093,20 +1089,12 @@ def _run_config(path, kind, *, out_dir, log, overwrite, plots, report, seen, lin
                     # the corrected vectors serve everything downstream: the identification (with the
                     # baseline's shared covariance, which a common phase turn leaves as it is to first
                     # order), the pedestal fit and the written tables. The calibration's own
-                    # uncertainty replaces the stated one (it estimated the common offset and delay),
-                    # with the keyphasor's own timing uncertainty, which varies from speed to speed
-                    # where the edges fall at few positions within a sample and which theta + Omega tau
-                    # cannot follow (RC edges of 0.5 sample: coverage 0.74 with the calibration's alone)
+                    # uncertainty replaces the stated and the keyphasor's (it estimated both)
                     responses = cal.apply(res.responses)
-                    phase_std = cal.phase_std_deg(responses[0].speed_rpm)
-                    if res.keyphasor_phase_std_deg is not None:
-                        phase_std = np.hypot(phase_std, res.keyphasor_phase_std_deg)
                     ident = identify_synchronous(rotor, responses, method=sec.method, shared_cov=res.shared_cov,
-                                                 keyphasor_angle_std_deg=phase_std, **ident_kw)
-                    log("  phase calibration applied to the 1X vectors (its uncertainty in the error bars"
-                        + ("" if res.keyphasor_phase_std_deg is None else
-                           f", with the keyphasor's own timing uncertainty of {np.min(res.keyphasor_phase_std_deg):.3g}-"
-                           f"{np.max(res.keyphasor_phase_std_deg):.3g} degrees, which it cannot take out") + ")")
+                                                 keyphasor_angle_std_deg=cal.phase_std_deg(responses[0].speed_rpm),
+                                                 **ident_kw)
+                    log("  phase calibration applied to the 1X vectors (its uncertainty in the error bars)")
         for i, r in enumerate(responses):
             stem = f"sync_vectors_{i}_{_safe(r.name)}"
             write_csv(conv.sync_table(r), f"{stem}.csv", float_format="%.6g")
