@@ -96,7 +96,7 @@ def test_imbalance_chain_intervals_cover_the_truth_with_rc_keyphasor_edges(kp_sh
     2026-11-29 (third part) the damping's intervals covered 89 % and 92-93 % (30 trials; 55 % at
     6000 rpm with tau = 0.7, 83 % at 5000 rpm with tau = 2, every point ok): the edge times were
     0.002-0.007 sample off, from the template's linear crossing at 5 positions and a pulse level
-    read where an RC top has not settled. Measured now over 30 trials (C / K): 0.967 / 0.965 with tau =
+    read where an RC top has not settled. Measured now over 30 trials (C / K): 0.965 / 0.964 with tau =
     0.7, 0.965 / 0.963 with tau = 2."""
     rotor, brg, remnant = rawsim.example_rig()
     speeds = np.arange(3000, 6001, 500.0)
