@@ -1003,7 +1003,7 @@ def _refine(w, t, base, swing, half, post, rise):
     slope = float(np.median(w[kt + 1] - w[kt])) / swing if n else 0.0
     jitter = noise / slope if slope > 0 else 0.0
     if n < 16:
-        left = _left_stds(w, t, base, swing, offs, rise, [(0, n)]) if n else np.zeros(0)
+        left = _left_stds(w, t, base, swing, offs, rise, [(0, n)], noise) if n else np.zeros(0)
         note = (f"only {n} pulses: too few for the equivalent-time correction; their edge times are interpolated, "
                 f"with {_allowed(left)}") if n else ""
         return t, False, note, np.maximum(left, _negligible(jitter / np.sqrt(max(n, 1))))
@@ -1153,7 +1153,7 @@ def _refine(w, t, base, swing, half, post, rise):
             continue
         out[a:b] = new
         done = True
-    left_std = np.maximum(_left_stds(w, t, base, swing, offs, rise, unmeasured), gap_std)
+    left_std = np.maximum(_left_stds(w, t, base, swing, offs, rise, unmeasured, noise), gap_std)
     note = ""
     if notes_rejected:
         note = (f"the equivalent-time correction was rejected in {len(notes_rejected)} stretch(es) (it would have "
@@ -1224,18 +1224,18 @@ def _allowed(left):
     return f"an uncertainty of up to {left.max():.2g} sample for the edge shapes their samples allow"
 
 
-def _left_stds(w, t, base, swing, offs, rise, stretches):
+def _left_stds(w, t, base, swing, offs, rise, stretches, noise):
     """Per pulse of the times ``t``, the standard uncertainty (samples) of the interpolation error
     left in those of the ``stretches`` (pulse ranges a:b, in order; 0 elsewhere). At each position
     within a sample, half the largest error of the edge shapes that fit the samples of the pulses
     there (edge_shapes.interpolation_bound, which no edge exceeded in 275 trials of 11 edge
     families), and at least their rms over each stretch's pulses (the mean time's error is the
     mean of theirs); where no shape fits, the family's INTERPOLATION_STD for edges ``rise``
-    samples long. Stretches at nearly one speed (BOUND_SPEED_SPREAD) are bounded together."""
+    samples long. Stretches at nearly one speed (BOUND_SPEED_SPREAD) are bounded together.
+    ``noise``: the samples' noise as a fraction of the swing (the fit's tolerance)."""
     out = np.zeros(t.size)
     if not stretches:
         return out
-    noise = _noise(w, float(np.median(base)), swing) / swing
     def period(a, b):
         return (t[b - 1] - t[a]) / max(b - 1 - a, 1) if b - a > 1 else np.nan
 
@@ -1504,9 +1504,7 @@ def _roughness(gx, gy, at):
     for j in range(lo, hi + 1):
         best = np.inf
         for near in ((j - 2, j - 1, j + 1, j + 2), (j - 3, j - 2, j - 1, j + 1), (j - 1, j + 1, j + 2, j + 3)):
-            xs, ys = gx[list(near)], gy[list(near)]
-            lag = [np.prod([(gx[j] - xs[m]) / (xs[i] - xs[m]) for m in range(4) if m != i]) for i in range(4)]
-            best = min(best, abs(gy[j] - float(np.dot(lag, ys))))
+            best = min(best, abs(gy[j] - float(np.dot(_lagrange(gx[j], gx[list(near)]), gy[list(near)]))))
         res.append(best)
     if not res:
         return 0.0
@@ -1550,8 +1548,14 @@ def _crossing_of(gx, gy, level):
         return linear
     r = real[0]
     slope = np.polyval(np.polyder(coef), r)
-    lagrange = np.array([np.prod([(r - u[m]) / (u[j] - u[m]) for m in range(4) if m != j]) for j in range(4)])
-    return float(x0 + r * (x1 - x0)), np.arange(i - 1, i + 3), -lagrange / slope * (x1 - x0)
+    return float(x0 + r * (x1 - x0)), np.arange(i - 1, i + 3), -_lagrange(r, u) / slope * (x1 - x0)
+
+
+def _lagrange(x, nodes):
+    """The Lagrange basis polynomials of ``nodes`` at ``x``: the weights of the interpolating
+    polynomial's value there, L_j(x) = prod_{m != j} (x - x_m) / (x_j - x_m)."""
+    return np.array([np.prod([(x - nodes[m]) / (nodes[j] - nodes[m]) for m in range(nodes.size) if m != j])
+                     for j in range(nodes.size)])
 
 
 def _running_median(d, w):
