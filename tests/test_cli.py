@@ -199,3 +199,29 @@ def test_a_reader_that_goes_away_does_not_stop_identify(tmp_path):
     assert p.wait(timeout=300) == 0, err
     assert "Broken pipe" not in err and "Exception ignored" not in err, err
     assert {"rotorid-manifest.json", "coefficients_imbalance.csv"} <= set(os.listdir(out))
+
+
+def test_identify_imbalance_applies_the_phase_calibration(tmp_path, capsys):
+    """``phase_calibration = "apply"`` in [imbalance]: the chain calibrates (the same code as
+    ``imbalance_chain(..., phase_calibration="apply")``), says so, and writes coefficients of the
+    corrected vectors; "off" says nothing of it; a value outside the three is one line, exit 1."""
+    import os
+
+    from rotorid import example
+
+    ex = example.copy_example(str(tmp_path / "ex"))
+    cfg = os.path.join(ex, "imbalance.toml")
+    text = open(cfg, encoding="utf-8").read()
+    out = {}
+    for mode in ("off", "apply"):
+        open(cfg, "w", encoding="utf-8").write(text.replace("steady = true\n", f'steady = true\nphase_calibration = "{mode}"\n'))
+        assert cli.main(["identify", "imbalance", cfg, "--out", str(tmp_path / mode), "--no-plot"]) == 0
+        log = capsys.readouterr().out
+        assert ("phase calibration applied" in log) == (mode == "apply")
+        assert ("phase reference: offset" in log) == (mode == "apply")
+        out[mode] = pd.read_csv(tmp_path / mode / "coefficients_imbalance.csv")
+    assert not np.allclose(out["off"].filter(like="Cxx").to_numpy(), out["apply"].filter(like="Cxx").to_numpy())
+    open(cfg, "w", encoding="utf-8").write(text.replace("steady = true\n", 'steady = true\nphase_calibration = "yes"\n'))
+    assert cli.main(["identify", "imbalance", cfg, "--out", str(tmp_path / "bad"), "--no-plot"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "phase_calibration" in err[0]

@@ -934,3 +934,27 @@ def test_noisy_times_are_not_corrected_by_a_template_of_noise(noise):
         e = kp.times * FS - ev[np.abs(ev[:, None] - kp.times[None, :] * FS).argmin(axis=0)]
         z.append(abs(e.mean()) / max(kp.timing_std_s * FS, 1e-12))
     assert np.mean(np.array(z) > 2.0) <= 0.05, np.sort(z)[-5:]
+
+
+def test_the_timing_uncertainty_local_to_a_dwell_is_told_apart_from_the_shapes():
+    """``local_std_each_s``: the part of each pulse's timing uncertainty that changes from dwell to
+    dwell (where the pulses fall between samples, noise, the correction's own), which a phase
+    calibration's theta - Omega tau cannot follow; the rest is the pulse shape's, common to the
+    record. RC edges of 0.5 sample at exactly 6000 rpm (5 positions): all local; Gaussian humps:
+    the shape's alone; pulses a sample wide: local where they fall at the same few positions every
+    revolution, the record's bias otherwise."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        v, _ = _record(PulseShape("rc", 0.5), 6000.0, n_pulses=300)
+        rc = signals.keyphasor_times(v, FS)
+        hump = signals.keyphasor_times(_humps(4321.0, 1.33, n_pulses=300)[0], FS)
+        narrow = {rpm: signals.keyphasor_times(_record(PulseShape("trapezoid", 0.3, duty=0.0001, min_width_samples=1.0),
+                                                       rpm, n_pulses=300)[0], FS) for rpm in (6000.0, 4321.0)}
+    assert rc.timing_std_each_s is not None and rc.local_std_each_s is not None
+    np.testing.assert_allclose(rc.local_std_each_s, rc.timing_std_each_s)
+    assert hump.timing_std_each_s is not None and np.all(hump.timing_std_each_s > 0)
+    assert hump.local_std_each_s is None or np.all(hump.local_std_each_s <= 0.01 * hump.timing_std_each_s)
+    for kp in narrow.values():
+        np.testing.assert_allclose(kp.timing_std_each_s * FS, 1 / np.sqrt(3), rtol=1e-9)
+    np.testing.assert_allclose(narrow[6000.0].local_std_each_s * FS, 1 / np.sqrt(3), rtol=1e-9)
+    assert narrow[4321.0].local_std_each_s is None

@@ -91,3 +91,27 @@ def test_an_applied_calibration_keeps_its_uncertainty_in_the_error_bars():
         assert np.all((iv.c_lower[:, b, i, i] <= brg.c[b, i, i]) & (brg.c[b, i, i] <= iv.c_upper[:, b, i, i]))
     with pytest.raises(RotoridError, match="speed_rpm"):
         cal.phase_std_deg([-3000.0])
+
+
+def test_a_phase_error_of_one_speed_alone_is_weighted_down_when_stated():
+    """``keyphasor_angle_std_deg`` per speed: a phase error of that speed alone (the keyphasor's
+    timing local to a dwell), which theta - Omega tau cannot follow. Stated, it weights that speed
+    down and widens the estimate's uncertainty; unstated, the speed pulls the estimate away."""
+    rig = rotorid.nsf_rig()
+    rpm = np.arange(3200.0, 6001.0, 400.0)
+    rng = np.random.default_rng(2)
+    runs = []
+    for s in "ABCD":
+        r = rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=rpm)
+        sig = 3e-4 * np.sqrt(np.mean(np.abs(r.q) ** 2, axis=1))
+        turn = np.deg2rad(0.5 + np.where(rpm == 4400.0, 1.0, 0.0))            # 1 degree more at 4400 rpm
+        q = r.q * np.exp(1j * turn)[:, None] + (sig / np.sqrt(2))[:, None] * (
+            rng.standard_normal(r.q.shape) + 1j * rng.standard_normal(r.q.shape))
+        runs.append(rotorid.SyncResponse(rpm, q, r.imbalance, r.at, r.name, np.eye(8)[None] * (sig ** 2 / 2)[:, None, None]))
+    local = np.where(rpm == 4400.0, 1.0, 0.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        blind = rotorid.calibrate_phase(rig.rotor, runs, delay=False)
+        told = rotorid.calibrate_phase(rig.rotor, runs, delay=False, keyphasor_angle_std_deg=local)
+    assert abs(blind.offset_deg - 0.5) > 4 * blind.offset_std_deg, (blind.offset_deg, blind.offset_std_deg)
+    assert abs(told.offset_deg - 0.5) < 2.5 * told.offset_std_deg, (told.offset_deg, told.offset_std_deg)

@@ -597,3 +597,82 @@ def test_a_dwell_whose_pulses_time_exactly_states_no_phase_uncertainty_of_anothe
     assert pipeline._keyphasor_phase_std([kp(3000.0, None)], [3000.0, 6000.0], 2.0) is None
     carried = pipeline._keyphasor_phase_std([kp(6000.0, 0.12)], [3000.0, 6000.0], 2.0)
     np.testing.assert_allclose(carried, [6000.0 * 6.0 * 0.12 / 10240.0] * 2)
+
+
+def test_a_recordings_local_keyphasor_uncertainty_turns_its_own_vectors():
+    """The part of a keyphasor's timing uncertainty local to its dwells (where the pulses fall
+    between samples) is a phase error of that recording's 1X vectors alone: the covariance the
+    chain adds to them (probes and pedestal motion turned together) against the spread of the
+    vectors under random draws of that turn."""
+    from rotorid.signals.keyphasor import Keyphasor
+
+    fs = 10240.0
+    t = np.r_[np.arange(200) * 60.0 / 3000.0, 200 * 60.0 / 3000.0 + np.arange(1, 201) * 60.0 / 4000.0]
+    local = np.where(t < 200 * 60.0 / 3000.0, 0.05, 0.12) / fs       # samples -> s
+    kp = Keyphasor(t, timing_std_s=float(np.median(local)), timing_std_each_s=1.5 * local, local_std_each_s=local)
+    rng = np.random.default_rng(3)
+    q = (rng.standard_normal((2, 1, 4)) + 1j * rng.standard_normal((2, 1, 4))) * 1e-5
+    p = (rng.standard_normal((2, 1, 4)) + 1j * rng.standard_normal((2, 1, 4))) * 1e-6
+    track = signals.SyncTrack(np.array([3000.0, 4000.0]), q, (1,), np.array([200, 200]), np.zeros((2, 4)),
+                              np.array([2.0, 5.0]), keyphasors=[kp], pedestal=p)
+    grid = np.array([3000.0, 4000.0])
+    add = pipeline._local_phase_cov(track, grid, 2.0, True)
+    sd = np.deg2rad(grid * 6.0 * np.array([0.05, 0.12]) / fs)          # the angle of the local timing
+    for i in range(2):
+        e = rng.standard_normal(400_000) * sd[i]
+        dq, dp = q[i, 0] * np.exp(1j * e[:, None]), p[i, 0] * np.exp(1j * e[:, None])
+        x = np.concatenate([dq.real, dq.imag, dp.real, dp.imag], axis=1)
+        c = np.cov(x, rowvar=False)
+        for got, want in ((add["cov"][i], c[:8, :8]), (add["pedestal_cov"][i], c[8:, 8:]),
+                          (add["pedestal_cross"][i], c[:8, 8:])):
+            np.testing.assert_allclose(got, want, atol=0.01 * np.abs(want).max())
+    # a keyphasor whose pulses time exactly adds nothing
+    import dataclasses
+
+    assert pipeline._local_phase_cov(dataclasses.replace(track, keyphasors=[Keyphasor(t)]), grid, 2.0, True) is None
+
+
+def test_the_chains_phase_calibration_reports_applies_and_keeps_the_local_part():
+    """imbalance_chain(phase_calibration=...) through its helper: "report" leaves the vectors and the
+    identification as they are, "apply" corrects them and states the calibration's uncertainty with
+    the keyphasor's local part beside it (a phase error of one speed alone, which theta - Omega tau
+    cannot follow); too few speeds leave a note, not an error."""
+    rig = rotorid.nsf_rig()
+    rpm = np.arange(3200.0, 6001.0, 400.0)
+    rng = np.random.default_rng(5)
+    runs = []
+    for s in "ABCD":
+        r = rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=rpm)
+        sig = 0.002 * np.sqrt(np.mean(np.abs(r.q) ** 2, axis=1))
+        q = r.q * np.exp(1j * np.deg2rad(0.4)) + (sig / np.sqrt(2))[:, None] * (
+            rng.standard_normal(r.q.shape) + 1j * rng.standard_normal(r.q.shape))
+        runs.append(rotorid.SyncResponse(rpm, q, r.imbalance, r.at, r.name, np.eye(8)[None] * (sig ** 2 / 2)[:, None, None]))
+    ident = rotorid.identify_synchronous(rig.rotor, runs)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        notes = []
+        same, kept, cal = pipeline._phase_calibrated(rig.rotor, runs, ident, "forces", {}, None, False, notes)
+        assert same is runs and kept is ident and abs(cal.offset_deg - 0.4) < 0.05 and notes == [cal.message]
+        _, bare, cal0 = pipeline._phase_calibrated(rig.rotor, runs, ident, "forces", {}, None, True, [])
+        local = np.zeros(rpm.size)
+        local[3] = 0.3
+        notes = []
+        fixed, wide, _ = pipeline._phase_calibrated(rig.rotor, runs, ident, "forces", {}, local, True, notes)
+    assert "applied" in notes[-1] and not np.allclose(fixed[0].q, runs[0].q)
+    def z(i):
+        return np.abs((i.c - rig.bearings.c) / i.c_std)[:, :, [0, 1], [0, 1]].max()
+
+    assert z(ident) > 5 and z(bare) < 3.5, (z(ident), z(bare))   # (measured 9.1 and 2.2)
+    # the speed with a local part is stated wider; the others keep the calibration's own
+    assert np.all(wide.c_std[3] > 1.5 * bare.c_std[3])
+    np.testing.assert_allclose(np.delete(wide.c_std, 3, axis=0), np.delete(bare.c_std, 3, axis=0), rtol=0.05)
+    notes = []
+    two = [dataclasses_sub(r, [0, 1]) for r in runs]
+    out = pipeline._phase_calibrated(rig.rotor, two, ident, "forces", {}, None, True, notes)
+    assert out[1] is ident and out[2] is None and notes[0].startswith("phase reference not calibrated")
+    with pytest.raises(RotoridError, match="phase_calibration"):
+        pipeline.imbalance_chain(rig.rotor, [runs[0]], phase_calibration="yes")
+
+
+def dataclasses_sub(r, idx):
+    return rotorid.SyncResponse(r.speed_rpm[idx], r.q[idx], r.imbalance, r.at, r.name, r.cov[idx])

@@ -126,7 +126,12 @@ def calibrate_phase(rotor, runs, *, delay: bool = True, offset: bool = True, deg
     significance : float
         An estimate this many standard errors from zero is reported as significant (a warning).
     **ident_kw
-        Passed to :func:`rotorid.identify_synchronous` (method, identical, thresholds).
+        Passed to :func:`rotorid.identify_synchronous` (method, identical, thresholds,
+        ``shared_cov``). ``keyphasor_angle_std_deg`` (per speed) is for phase errors of each speed
+        alone, such as the keyphasor timing local to each dwell (``ImbalanceChainResult.
+        keyphasor_local_std_deg``): theta - Omega tau cannot follow them, so they weight the speeds
+        and enter the estimate's uncertainty. A phase error common to the speeds is what this
+        estimates: do not pass it.
 
     Returns
     -------
@@ -161,13 +166,17 @@ def calibrate_phase(rotor, runs, *, delay: bool = True, offset: bool = True, deg
         raise RotoridError("calibrate_phase: estimate the offset, the delay or both")
     degree = index("degree", degree, 0)
     unknown = sorted(set(ident_kw) - {"method", "identical", "cond_max", "min_rel_amplitude", "max_rel_std",
-                                      "estimator", "shared_cov", "accel_gain_std", "accel_phase_std_deg"})
+                                      "estimator", "shared_cov", "accel_gain_std", "accel_phase_std_deg",
+                                      "keyphasor_angle_std_deg"})
     if unknown:
         raise RotoridError(f"calibrate_phase got unknown argument(s) {unknown}")
     # the accelerometers' calibration is a systematic error common to all runs: it does not enter
     # the misfit between runs that the phase reference is estimated from
     ident_kw = {k: v for k, v in ident_kw.items() if k not in ("accel_gain_std", "accel_phase_std_deg")}
     base = identify_synchronous(rotor, runs, **ident_kw)
+    # (the phase errors of each speed alone weight the speeds through base.cov; the refits need only
+    # the coefficients)
+    fit_kw = {k: v for k, v in ident_kw.items() if k != "keyphasor_angle_std_deg"}
     # points flagged only for negative direct damping count: a phase reference far off is one way
     # to get it, and is what this estimates
     from .identify import NEGATIVE_DAMPING
@@ -207,7 +216,7 @@ def calibrate_phase(rotor, runs, *, delay: bool = True, offset: bool = True, deg
         corrected = [_rotated(r, -th, -tau) for r in runs]  # q e^{-j(theta - Omega tau)}
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            ident = identify_synchronous(rotor, corrected, **{**ident_kw, "max_rel_std": np.inf})
+            ident = identify_synchronous(rotor, corrected, **{**fit_kw, "max_rel_std": np.inf})
         p = report_vector(ident.k, ident.c)[idx]                         # (n, 16)
         # each coefficient's polynomial in speed by least squares, then the whitened misfit
         out = []

@@ -93,6 +93,14 @@ class ImbalanceChainResult:
     notes: list = field(default_factory=list)
     shared_cov: np.ndarray | None = None   # the baseline's covariance common to every run (None without)
     slow_roll_1x: np.ndarray | None = None   # the slow-roll run-out 1X vector (4,) subtracted, m (None without)
+    # the keyphasors' timing uncertainty as a phase at each grid speed (deg; None where every pulse
+    # times exactly), and its part local to each dwell (where the pulses fall between samples,
+    # noise, the equivalent-time correction's own), which a phase calibration does not absorb
+    keyphasor_phase_std_deg: np.ndarray | None = None
+    keyphasor_local_std_deg: np.ndarray | None = None
+    # the phase-reference calibration (phase_calibration "report" or "apply"; None otherwise or
+    # where it could not be made, with a note saying why)
+    phase_calibration: object = None
 
 
 def _near_only(track, speeds, tol, label, what):
@@ -184,7 +192,7 @@ def _plausible_speeds(track, run, label):
 NEAREST_REVOLUTIONS = 5
 
 
-def _keyphasor_phase_std(keyphasors, grid_rpm, tol_rpm):
+def _keyphasor_phase_std(keyphasors, grid_rpm, tol_rpm, part="timing_std_each_s"):
     """(n,) phase uncertainty (degrees) at the grid speeds from the keyphasors' per-pulse timing
     uncertainty (``Keyphasor.timing_std_each_s``), or None when every pulse's is 0. At each speed:
     Omega times the mean over the pulses of a keyphasor within max(tol_rpm, 0.5 %) of it (a pulse
@@ -202,16 +210,19 @@ def _keyphasor_phase_std(keyphasors, grid_rpm, tol_rpm):
     A keyphasor whose pulses all time exactly (``timing_std_each_s`` None) counts as 0 at the
     speeds it reaches: left out, its speeds took the nearest revolutions of another dwell's, and a
     segmented test whose 6000 rpm dwell had 0.12 sample stated 0.42 degrees at every clean speed
-    (found in review)."""
+    (found in review).
+
+    ``part`` = "local_std_each_s" gives the part of it local to each dwell (a keyphasor whose
+    pulses have none counts as 0)."""
     each = [k for k in keyphasors if k.times.size > 1]
-    if not any(k.timing_std_each_s is not None for k in each):
+    if not any(getattr(k, part) is not None for k in each):
         return None
     grid_rpm = np.asarray(grid_rpm, dtype=float)
     out = np.full(grid_rpm.size, np.nan)
     nearest = np.full(grid_rpm.size, np.nan)
     for k in each:
         rpm = k.speed_rpm
-        std = np.zeros(k.times.size) if k.timing_std_each_s is None else k.timing_std_each_s
+        std = np.zeros(k.times.size) if getattr(k, part) is None else getattr(k, part)
         s = 0.5 * (std[1:] + std[:-1])
         for i, g in enumerate(grid_rpm):
             # (revolutions whose timing uncertainty is unknown, NaN, are left out)
@@ -246,7 +257,7 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
                     speed_match_rpm: float | None = None, slow_roll_max_rpm: float | None = None,
                     points_per_rev=None, min_revs: int = 8, settle_revs: int = 2, speed_tolerance: float = 0.005,
                     revs_per_block: int | None = None, pedestal_motion: bool | None = None,
-                    **ident_kw) -> ImbalanceChainResult:
+                    phase_calibration: str = "off", **ident_kw) -> ImbalanceChainResult:
     """Imbalance runs -> 1X vectors -> slow-roll and baseline compensation -> identification.
 
     Parameters
@@ -280,14 +291,45 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
         identification uses both (report sec. on pedestal motion). False: accelerometer channels
         are ignored. None (default): an error if any run carries accelerometer channels, so they
         are never silently ignored.
+    phase_calibration : {"off", "report", "apply"}
+        Estimate a keyphasor angle offset and a probe-channel delay across speeds
+        (:func:`rotorid.calibrate_phase`, its speeds weighted by the keyphasor's timing
+        uncertainty local to each dwell): "report" puts it in ``phase_calibration`` and ``notes``
+        (a warning when significant); "apply" also corrects the vectors and identifies again, with
+        the calibration's own uncertainty and the keyphasor's local part in the error bars (in place
+        of ``keyphasor_angle_std_deg``, ``keyphasor_delay_std_s`` and the pulse shape's part, which
+        it estimates). Where it cannot be made (fewer than 3 trustworthy speeds) a note says why
+        and the identification is the uncalibrated one.
     **ident_kw
         Passed to :func:`rotorid.identify_synchronous` (identical, cond_max, min_rel_amplitude,
         keyphasor_angle_std_deg, keyphasor_delay_std_s, ...). Where a keyphasor's pulse shape
         leaves its timing uncertain (``Keyphasor.timing_std_each_s``), Omega times it, at each
         speed the largest over the runs and the baseline, is added to ``keyphasor_angle_std_deg``
-        (root sum of squares) and noted.
+        (root sum of squares) and noted; its part local to each dwell
+        (``Keyphasor.local_std_each_s``) is also a phase error of each recording's own vectors, in
+        their covariance (the dwells of different recordings at one speed may err alike or each its
+        own way: both are counted).
+
+    Examples
+    --------
+    >>> import numpy as np, rotorid
+    >>> from rotorid import pipeline, rawsim
+    >>> rotor, brg, remnant = rawsim.example_rig()
+    >>> rpm = [3000.0, 4000.0, 5000.0, 6000.0]
+    >>> masses = {"S0": (0, 0), "C0": (0, 180), "S90": (90, 90), "C90": (90, 270)}
+    >>> runs = [rawsim.lab_imbalance_recording(rotor, brg, speeds_rpm=rpm, remnant=remnant, mark_angle_deg=0.5,
+    ...         added=rotorid.Imbalance((5e-3, 5e-3), a, name=n), seed=i, dwell_s=1.0)
+    ...         for i, (n, a) in enumerate(masses.items())]
+    >>> base = rawsim.lab_imbalance_recording(rotor, brg, speeds_rpm=rpm, remnant=remnant, mark_angle_deg=0.5,
+    ...                                       added=None, seed=9, dwell_s=1.0)
+    >>> import warnings
+    >>> with warnings.catch_warnings():
+    ...     warnings.simplefilter("ignore")
+    ...     res = pipeline.imbalance_chain(rotor, runs, baseline=base, phase_calibration="apply")
+    >>> round(res.phase_calibration.offset_deg, 1)
+    0.5
     """
-    from ._validate import flag, number, real_array
+    from ._validate import choice, flag, number, real_array
 
     if isinstance(runs, (str, bytes)) or not hasattr(runs, "__iter__"):
         raise RotoridError(f"runs must be a list of recordings or 1X tables, got {type(runs).__name__}")
@@ -295,6 +337,7 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
     if len(runs) == 0:
         raise RotoridError("no imbalance runs given")
     steady = flag("steady", steady)
+    phase_calibration = choice("phase_calibration", phase_calibration, ("off", "report", "apply"))
     if isinstance(orders, (str, bytes, dict)):
         raise RotoridError(f"orders must be a tuple of whole numbers >= 1 holding 1 (the 1X), got {orders!r}")
     speed_match_rpm = number("speed_match_rpm", speed_match_rpm, positive=True, allow_none=True)
@@ -348,6 +391,7 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
     tol = 2.0 if speed_match_rpm is None else float(speed_match_rpm)
     if baseline is not None:
         bt = _track_of(baseline, "baseline", **kw)
+        bt_raw = bt
         bt = bt.minus(sr[: len(bt.orders)]) if sr is not None else bt
         if steady or isinstance(baseline, signals.SyncTrack):
             # the baseline is interpolated to each run's speeds: only where it was measured close by
@@ -385,6 +429,10 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
         qs = [_labelled(lambda t=t: t.at_speeds(grid)[:, t.orders.index(1), :], f"run {i}", "the common speed grid")
               for i, t in enumerate(comp)]
         ped_on_grid = [t.pedestal_at_speeds(grid)[:, t.orders.index(1), :] for t in comp] if ped else None
+    # the keyphasor timing uncertainty local to each recording's dwells: a phase error of that
+    # recording's vectors alone (the baseline's reaches every run through the subtraction)
+    turns = [_local_phase_cov(t, grid, tol, ped) for t in tracks]
+    base_turn = _local_phase_cov(bt_raw, grid, tol, ped) if baseline is not None else None
     responses = []
     for i, (r, q, t) in enumerate(zip(runs, qs, comp)):
         cov, dof = _labelled(lambda t=t: t.cov_at_speeds(grid), f"run {i}", "the common speed grid")
@@ -411,6 +459,15 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
                 warnings.warn(f"run {i} ({name}): its stated accuracy is lost in the compensation because the baseline "
                               "or slow roll has none (give them amplitude_std / phase_std_deg too): its standard "
                               "errors are unknown")
+        for add in (turns[i], base_turn):
+            if add is None:
+                continue
+            if cov is None:
+                continue   # (no covariance to go into: the common phase below still holds it)
+            cov = cov + add["cov"]
+            if pk:
+                pk["pedestal_cov"] = pk["pedestal_cov"] + add["pedestal_cov"]
+                pk["pedestal_cross"] = pk["pedestal_cross"] + add["pedestal_cross"]
         responses.append(SyncResponse(grid, q, imb, at, name, cov,
                                       None if dof is None else np.where(np.isnan(dof), np.inf, dof), **pk))
     if ped:
@@ -420,8 +477,12 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
     if baseline is not None and "shared_cov" not in ident_kw:
         # every run had the same baseline subtracted: its error is common to all runs
         shared, _ = _labelled(lambda: bt.cov_at_speeds(grid), "baseline", "the common speed grid")
+        if base_turn is not None:
+            shared = shared + base_turn["cov"]
         if ped:
             pc, cr = bt.pedestal_cov_at_speeds(grid)
+            if base_turn is not None:
+                pc, cr = pc + base_turn["pedestal_cov"], cr + base_turn["pedestal_cross"]
             joint = np.zeros((grid.size, 16, 16))
             joint[:, :8, :8], joint[:, 8:, 8:] = shared, pc
             joint[:, :8, 8:], joint[:, 8:, :8] = cr, np.swapaxes(cr, 1, 2)
@@ -433,20 +494,99 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
             ident_kw = dict(ident_kw, shared_cov=shared)
     kps = [k for t in tracks + ([bt] if baseline is not None else []) for k in t.keyphasors]
     shape_deg = _keyphasor_phase_std(kps, grid, tol)
+    local_deg = _keyphasor_phase_std(kps, grid, tol, part="local_std_each_s")
+    fixed_kw = dict(ident_kw)   # the phase reference as the user stated it
     if shape_deg is not None:
         # pulses whose timing their shape leaves uncertain: a phase error common to every run (the
-        # same sensor and convention), added to the phase reference's uncertainty at each speed
+        # same sensor and convention), added to the phase reference's uncertainty at each speed. Its
+        # part local to each dwell is also in each recording's covariance (above): where the pulses
+        # fall between samples, the dwells of different recordings at one speed err alike (the mean
+        # interpolation error over the positions, at 3000 rpm and 10,240 Hz 0.13 degree in every
+        # run, 0.007 apart) or each its own way (4000 rpm: 0.09 degree apart), so both are counted
         stated = real_array("keyphasor_angle_std_deg", ident_kw.get("keyphasor_angle_std_deg", 0.0), nonneg=True)
         if stated.ndim > 1 or stated.size not in (1, grid.size):
             raise RotoridError(f"keyphasor_angle_std_deg must be a number or one per speed ({grid.size}), got shape "
                                f"{stated.shape}")
         ident_kw = dict(ident_kw, keyphasor_angle_std_deg=np.hypot(stated, shape_deg))
+        local = "" if local_deg is None else (
+            f"; up to {local_deg.max():.3g} degrees of it local to each recording's dwells (where the pulses fall "
+            "between samples, noise: in that recording's 1X covariance, and not taken out by a phase calibration)")
         notes.append(f"keyphasor timing depends on the pulse shape by {shape_deg.min():.3g}-{shape_deg.max():.3g} "
                      "degrees of 1X phase at these speeds: counted in the uncertainty as a phase reference error "
-                     "(a phase calibration, or a trigger level of your own, takes it out)")
+                     f"(a phase calibration, or a trigger level of your own, takes out what is common to the dwells){local}")
     ident = identify_synchronous(rotor, responses, method=method, **ident_kw)
+    cal = None
+    if phase_calibration != "off":
+        responses, ident, cal = _phase_calibrated(rotor, responses, ident, method, fixed_kw, local_deg,
+                                                  phase_calibration == "apply", notes)
     return ImbalanceChainResult(responses, tracks, ident, notes, ident_kw.get("shared_cov"),
-                                None if sr is None else np.asarray(sr[0]))
+                                None if sr is None else np.asarray(sr[0]), shape_deg, local_deg, cal)
+
+
+def _phase_calibrated(rotor, responses, ident, method, ident_kw, local_deg, apply, notes):
+    """The chain's phase-reference calibration: (responses, identification, PhaseCalibration or
+    None), the first two corrected when ``apply``.
+
+    What the user stated for the phase reference (``keyphasor_angle_std_deg``,
+    ``keyphasor_delay_std_s``) and the part of the keyphasors' timing uncertainty common to their
+    dwells (the pulse shape's) are what the calibration estimates: its own uncertainty replaces
+    them. The part local to each dwell (``local_deg``, deg per grid speed) is a phase error of that
+    speed alone, which theta - Omega tau cannot follow: as a phase common to the runs at the speed
+    it weights the calibration's speeds (and enters its uncertainty) and, applied, stays in the
+    error bars beside the calibration's own; as each recording's own it is in their covariances,
+    which turn with the vectors. Before 2026-11-29 (fourth part) the local part was dropped once
+    applied and the calibration not weighted by it: RC keyphasor edges of 0.5 sample at 10,240 Hz
+    with a 0.3 degree mark offset gave the damping's 95 % intervals 48 % coverage (0.003-0.006
+    degree stated; the calibration 5-7 of its standard errors off in 2 of 6 trials, pulled by
+    3000 rpm, a speed commensurate with the sample rate where every run's vectors were turned
+    0.13 degree)."""
+    from .phasecal import calibrate_phase
+
+    own = {k: v for k, v in ident_kw.items() if k not in ("keyphasor_angle_std_deg", "keyphasor_delay_std_s")}
+    local = {} if local_deg is None else dict(keyphasor_angle_std_deg=local_deg)
+    try:
+        cal = calibrate_phase(rotor, responses, method=method, **own, **local)
+    except RotoridError as exc:
+        notes.append(f"phase reference not calibrated: {exc}")
+        return responses, ident, None
+    notes.append(cal.message)
+    if not apply:
+        return responses, ident, cal
+    responses = cal.apply(responses)
+    std = cal.phase_std_deg(responses[0].speed_rpm)
+    ident = identify_synchronous(rotor, responses, method=method, **own,
+                                 keyphasor_angle_std_deg=std if local_deg is None else np.hypot(std, local_deg))
+    notes.append("phase calibration applied to the 1X vectors (its uncertainty in the error bars, with the keyphasor's "
+                 "local to each dwell)")
+    return responses, ident, cal
+
+
+def _local_phase_cov(track, grid, tol, pedestal):
+    """What a recording's keyphasor timing uncertainty local to its dwells adds to the covariance of
+    its 1X vectors at the grid speeds, or None where it has none.
+
+    A phase error e of the recording turns its vector q (and the pedestal motion p) by e^{je}:
+    d[Re q, Im q] / de = [-Im q, Re q] = v, so the covariance grows by s_e^2 v v^T (``cov``), with
+    u from p likewise s_e^2 u u^T (``pedestal_cov``) and s_e^2 v u^T (``pedestal_cross``); s_e is the
+    recording's own share at each speed (:func:`_keyphasor_phase_std`, "local_std_each_s"), q the
+    1X of its block nearest in speed."""
+    sd = _keyphasor_phase_std(track.keyphasors, grid, tol, part="local_std_each_s")
+    if sd is None or not np.any(sd > 0):
+        return None
+    s2 = np.deg2rad(np.nan_to_num(sd)) ** 2
+    near = np.argmin(np.abs(track.speed_rpm[:, None] - np.asarray(grid)[None, :]), axis=0)
+    i1 = track.orders.index(1)
+
+    def tangent(z):
+        return np.concatenate([-z.imag, z.real], axis=1)
+
+    v = tangent(track.vectors[near, i1, :])
+    out = dict(cov=s2[:, None, None] * v[:, :, None] * v[:, None, :])
+    if pedestal:
+        u = tangent(track.pedestal[near, i1, :])
+        out.update(pedestal_cov=s2[:, None, None] * u[:, :, None] * u[:, None, :],
+                   pedestal_cross=s2[:, None, None] * v[:, :, None] * u[:, None, :])
+    return out
 
 
 @dataclass
@@ -1079,28 +1219,12 @@ def _run_config(path, kind, *, out_dir, log, overwrite, plots, report, seen, lin
         res = imbalance_chain(rotor, runs, baseline=base, slow_roll=slow,
                               speeds_rpm=None if sec.speeds_rpm is None else list(sec.speeds_rpm), steady=sec.steady,
                               imbalances=imbs, orders=tuple(sec.orders), method=sec.method,
-                              pedestal_motion=pedestal_motion, **chain_kw, **ident_kw, **phase_ref)
+                              pedestal_motion=pedestal_motion, phase_calibration=sec.phase_calibration,
+                              **chain_kw, **ident_kw, **phase_ref)
+        # (applied, the calibrated vectors serve everything downstream: the identification, the
+        # pedestal fit and the written tables; its messages are among the chain's notes)
         ident = res.identification
         responses = res.responses
-        if sec.phase_calibration != "off":
-            from .phasecal import calibrate_phase
-
-            try:
-                cal = calibrate_phase(rotor, res.responses, **ident_kw)
-            except RotoridError as exc:
-                log(f"  phase reference not calibrated: {exc}")
-            else:
-                log("  " + cal.message)
-                if sec.phase_calibration == "apply":
-                    # the corrected vectors serve everything downstream: the identification (with the
-                    # baseline's shared covariance, which a common phase turn leaves as it is to first
-                    # order), the pedestal fit and the written tables. The calibration's own
-                    # uncertainty replaces the stated and the keyphasor's (it estimated both)
-                    responses = cal.apply(res.responses)
-                    ident = identify_synchronous(rotor, responses, method=sec.method, shared_cov=res.shared_cov,
-                                                 keyphasor_angle_std_deg=cal.phase_std_deg(responses[0].speed_rpm),
-                                                 **ident_kw)
-                    log("  phase calibration applied to the 1X vectors (its uncertainty in the error bars)")
         for i, r in enumerate(responses):
             stem = f"sync_vectors_{i}_{_safe(r.name)}"
             write_csv(conv.sync_table(r), f"{stem}.csv", float_format="%.6g")

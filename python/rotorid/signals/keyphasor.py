@@ -72,13 +72,19 @@ class Keyphasor:
     differences of the times, so it includes genuine speed fluctuation); ``rise_samples``: the
     10-90 % edge duration; ``refined``: whether the equivalent-time refinement was used;
     ``note``: anything a user should know about the timing (empty when all is well).
-    ``timing_std_s``: the standard uncertainty of the timing that the pulse shape leaves (s), the
-    median over the pulses of ``timing_std_each_s`` (per pulse; None when 0 for all). Where the
-    shape leaves mid-height ambiguous (pulses without a flat top, or too short to settle): the
-    larger of the difference between the two mid-heights in the note and of how far the spread of
-    the sampled peaks moves half of them along the edge; 1/sqrt(3) sample for pulses too narrow to
-    show their edges (also with a ``level``); 0 for flat tops and otherwise with a ``level``. The
-    imbalance chain turns it into a phase uncertainty at each speed (``keyphasor_angle_std_deg``).
+    ``timing_std_s``: the standard uncertainty of the timing that the pulse shape and the sampling
+    leave (s), the median over the pulses of ``timing_std_each_s`` (per pulse; None when 0 for
+    all). Where the shape leaves mid-height ambiguous (pulses without a flat top, or too short to
+    settle): the larger of the difference between the two mid-heights in the note and of how far
+    the spread of the sampled peaks moves half of them along the edge; for flat tops the level's
+    share where the top does not settle, the noise's, and the equivalent-time correction's own or,
+    where it could not be made, the bound of the edge shapes the samples allow; 1/sqrt(3) sample for
+    pulses too narrow to show their edges (also with a ``level``); otherwise 0 with a ``level``.
+    ``local_std_each_s`` (per pulse, s; None when 0 for all): its part local to each stretch of
+    the record, which changes from speed to speed (where the pulses fall between samples, noise,
+    the correction's own); the rest is the pulse shape's, common to the record. The imbalance
+    chain turns both into a phase uncertainty at each speed (``keyphasor_angle_std_deg``), the
+    local part also into each recording's 1X covariance, which a phase calibration keeps.
     """
 
     times: np.ndarray
@@ -95,6 +101,7 @@ class Keyphasor:
     mark_angle_deg: float = 0.0
     timing_std_s: float = 0.0
     timing_std_each_s: np.ndarray | None = None
+    local_std_each_s: np.ndarray | None = None
 
     @classmethod
     def from_times(cls, times, *, mark_angle_deg: float = 0.0, delay_s: float = 0.0, source: str = "") -> "Keyphasor":
@@ -476,6 +483,9 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
     ambiguous, unsettled, hump = "", "", ""
     shape_each = 0.0  # samples, per pulse: how much its timing depends on the pulse shape
     level_each, ringing = 0.0, ""  # samples: how much on the level of a top that does not settle
+    # samples, per pulse: the part of its uncertainty local to its stretch of the record (where the
+    # pulses fall between samples, noise, the correction's own), which changes from speed to speed
+    local_each = 0.0
     if edge == "auto":
         if duty > 0.4:
             # a square-ish wave: which state is "resting" is a matter of noise; time the rising edge
@@ -608,6 +618,7 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
         t_samples, refined, note, unresolved_std = _refine(w, t_samples, base, swing, half, post, rise)
         if unresolved_std.any():
             shape_each = np.maximum(shape_each, unresolved_std)
+            local_each = unresolved_std
         elif smooth and not refined:
             note = ""  # a smooth edge timed by the cubic: the residual interpolation error is small
     narrow = ""
@@ -617,6 +628,9 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
         # sample wide), a standard uncertainty of 1/sqrt(3) sample (uniform over +-1 sample); some
         # pulses may not be sampled at all
         shape_each = np.maximum(shape_each, 1.0 / np.sqrt(3.0))
+        # local to a dwell only where the pulses fall at the same few positions every revolution;
+        # elsewhere they sample the edge at all positions and their mean error is the record's bias
+        local_each = np.where(_commensurate(t_samples), np.maximum(local_each, 1.0 / np.sqrt(3.0)), local_each)
         narrow = (f"the pulses are only {seen:.2g} sample(s) wide: their edges fall between samples and are timed only to "
                   "within a sample (record the keyphasor at a higher rate, or widen the mark)")
     fixed = ""
@@ -629,6 +643,7 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
         stuck = _commensurate(t_samples)
         if stuck.any():
             shape_each = np.where(stuck, np.maximum(shape_each, 1.0 / np.sqrt(12.0)), shape_each)
+            local_each = np.where(stuck, np.maximum(local_each, 1.0 / np.sqrt(12.0)), local_each)
             fixed = ("the pulses have no flat top and fall at the same phases of the sampling every revolution "
                      f"(a speed commensurate with the sample rate, {100 * stuck.mean():.0f} % of them): their peak "
                      "is sampled short of its apex by an amount that cannot be seen, and their timing is uncertain "
@@ -656,6 +671,7 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
     times = _to_angle_zero(t, mark_angle_deg, delay_s)
     # each pulse's shape uncertainty, carried to the pulses kept (and filled in) by time
     each_s = np.interp(t, found, np.broadcast_to(shape_each, found.shape)) / fs_hz if np.any(shape_each) else None
+    local_s = np.interp(t, found, np.broadcast_to(local_each, found.shape)) / fs_hz if np.any(local_each) else None
     if extra.size:
         warnings.warn(f"keyphasor{where}: dropped {extra.size} extra pulse(s) at t = {np.round(extra[:5], 6)} s")
     if missing:
@@ -663,7 +679,7 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
         warnings.warn(f"keyphasor{where}: {sum(c for _, c in missing)} missing pulse(s) after t = "
                       f"{[round(m[0], 6) for m in missing[:5]]} s ({what})")
     return Keyphasor(times, extra, missing, sgn * lev, hys, (rest, pulse), edge, _jitter(t), rise, refined, note,
-                     float(mark_angle_deg), 0.0 if each_s is None else float(np.median(each_s)), each_s)
+                     float(mark_angle_deg), 0.0 if each_s is None else float(np.median(each_s)), each_s, local_s)
 
 
 def _commensurate(t):
