@@ -95,8 +95,9 @@ def test_an_applied_calibration_keeps_its_uncertainty_in_the_error_bars():
 
 def test_a_phase_error_of_one_speed_alone_is_weighted_down_when_stated():
     """``keyphasor_angle_std_deg`` per speed: a phase error of that speed alone (the keyphasor's
-    timing local to a dwell), which theta - Omega tau cannot follow. Stated, it weights that speed
-    down and widens the estimate's uncertainty; unstated, the speed pulls the estimate away."""
+    timing local to a dwell), which theta - Omega tau cannot follow. Unstated, 1 degree more at
+    6000 rpm pulls the calibration tens of its standard errors away; stated, that speed is weighted
+    down (here out: its coefficients turn uncertain) and the calibration holds."""
     rig = rotorid.nsf_rig()
     rpm = np.arange(3200.0, 6001.0, 400.0)
     rng = np.random.default_rng(2)
@@ -104,14 +105,46 @@ def test_a_phase_error_of_one_speed_alone_is_weighted_down_when_stated():
     for s in "ABCD":
         r = rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=rpm)
         sig = 3e-4 * np.sqrt(np.mean(np.abs(r.q) ** 2, axis=1))
-        turn = np.deg2rad(0.5 + np.where(rpm == 4400.0, 1.0, 0.0))            # 1 degree more at 4400 rpm
+        turn = np.deg2rad(0.5 + np.where(rpm == 6000.0, 1.0, 0.0))
         q = r.q * np.exp(1j * turn)[:, None] + (sig / np.sqrt(2))[:, None] * (
             rng.standard_normal(r.q.shape) + 1j * rng.standard_normal(r.q.shape))
         runs.append(rotorid.SyncResponse(rpm, q, r.imbalance, r.at, r.name, np.eye(8)[None] * (sig ** 2 / 2)[:, None, None]))
-    local = np.where(rpm == 4400.0, 1.0, 0.0)
+
+    def z(cal):
+        return np.abs(cal.offset_deg - 0.5 - np.rad2deg(rpm * np.pi / 30 * cal.delay_s)) / cal.phase_std_deg(rpm)
+
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        blind = rotorid.calibrate_phase(rig.rotor, runs, delay=False)
-        told = rotorid.calibrate_phase(rig.rotor, runs, delay=False, keyphasor_angle_std_deg=local)
-    assert abs(blind.offset_deg - 0.5) > 4 * blind.offset_std_deg, (blind.offset_deg, blind.offset_std_deg)
-    assert abs(told.offset_deg - 0.5) < 2.5 * told.offset_std_deg, (told.offset_deg, told.offset_std_deg)
+        blind = rotorid.calibrate_phase(rig.rotor, runs)
+        told = rotorid.calibrate_phase(rig.rotor, runs, keyphasor_angle_std_deg=np.where(rpm == 6000.0, 1.0, 0.0))
+    assert z(blind).max() > 10 and z(told).max() < 2.5, (z(blind), z(told))
+    assert told.n_speeds < blind.n_speeds
+    with pytest.raises(RotoridError, match="keyphasor_angle_std_deg"):
+        rotorid.calibrate_phase(rig.rotor, runs, keyphasor_angle_std_deg=[1.0, 2.0])
+
+
+def test_the_stated_uncertainty_matches_the_spread_of_the_estimates():
+    """30 noise draws of exact runs (0.03 % noise, 8 speeds, a 0.5 degree offset): the spread of the
+    estimated offset and delay against their stated standard errors. With the coefficient model
+    refitted without the misfit's weights the spread was 1.8 and 1.7 times the stated (the
+    sandwich then misses the refitted mean's share)."""
+    rig = rotorid.nsf_rig()
+    rpm = np.arange(3200.0, 6001.0, 400.0)
+    exact = [rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=rpm) for s in "ABCD"]
+    z_th, z_tau = [], []
+    for seed in range(30):
+        rng = np.random.default_rng(seed)
+        runs = []
+        for r in exact:
+            sig = 3e-4 * np.sqrt(np.mean(np.abs(r.q) ** 2, axis=1))
+            q = r.q * np.exp(1j * np.deg2rad(0.5)) + (sig / np.sqrt(2))[:, None] * (
+                rng.standard_normal(r.q.shape) + 1j * rng.standard_normal(r.q.shape))
+            runs.append(rotorid.SyncResponse(rpm, q, r.imbalance, r.at, r.name,
+                                             np.eye(8)[None] * (sig ** 2 / 2)[:, None, None]))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            cal = rotorid.calibrate_phase(rig.rotor, runs)
+        z_th.append((cal.offset_deg - 0.5) / cal.offset_std_deg)
+        z_tau.append(cal.delay_s / cal.delay_std_s)
+    # measured 0.97 and 0.92 (1.8 and 1.66 before)
+    assert 0.7 <= np.std(z_th) <= 1.3 and 0.7 <= np.std(z_tau) <= 1.3, (np.std(z_th), np.std(z_tau))
