@@ -225,3 +225,31 @@ def test_identify_imbalance_applies_the_phase_calibration(tmp_path, capsys):
     assert cli.main(["identify", "imbalance", cfg, "--out", str(tmp_path / "bad"), "--no-plot"]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "phase_calibration" in err[0]
+
+
+def test_impact_tests_of_one_name_write_an_frf_file_each(tmp_path, capsys):
+    """Tests are named by direction and plane to 6 significant figures: two groups whose planes
+    agree that far (a plane converted from inches, say) wrote one frf file over the other; the
+    second now gets _2."""
+    import os
+
+    from rotorid import example
+
+    ex = example.copy_example(str(tmp_path / "ex"))
+    cfg = os.path.join(ex, "impact.toml")
+    text = open(cfg, encoding="utf-8").read()
+    # (the example's x impacts said to be 0.1 m and 0.1000001 m along the rotor: the coefficients
+    # are off, the files are the point)
+    text = text.replace('plane_m = 0.0\ndirection = "x"', 'plane_m = 0.1\ndirection = "x"')
+    text += '\n[[impact.tests]]\nfile = "impact/impact_x.tdms"\nplane_m = 0.1000001\ndirection = "x"\n'
+    open(cfg, "w", encoding="utf-8").write(text)
+    out = tmp_path / "o"
+    assert cli.main(["identify", "impact", cfg, "--out", str(out), "-q"]) == 0
+    files = sorted(f for f in os.listdir(out) if f.startswith("frf_"))
+    assert len(files) == 6 and "frf_x_0.1m_x5_2.csv" in files and "frf_x_0.1m_x5_2.png" in files, files
+
+
+def test_distinct_file_stems():
+    from rotorid.pipeline import _distinct
+
+    assert _distinct(["a", "b", "A", "a", "a_2"]) == ["a", "b", "A_2", "a_3", "a_2_2"]

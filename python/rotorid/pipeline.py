@@ -1267,13 +1267,13 @@ def _run_config(path, kind, *, out_dir, log, overwrite, plots, report, seen, lin
         responses = res.tests
         import pandas as pd
 
-        for t, frf in zip(res.tests, res.frfs):
+        for t, frf, stem in zip(res.tests, res.frfs, _distinct([f"frf_{_safe(t.name)}" for t in res.tests])):
             df = conv.frf_table(t)
             sel = (frf.freq_hz >= t.freq_hz[0] - 1e-9) & (frf.freq_hz <= t.freq_hz[-1] + 1e-9)
             for j, nm in enumerate(DISPLACEMENTS + (ACCELEROMETERS if t.pedestal is not None else ())):
                 df[f"{nm}_coherence"] = frf.coherence[sel, j]
-            write_csv(df, f"frf_{_safe(t.name)}.csv", float_format="%.6g")
-            write_png(plot.frf, f"frf_{_safe(t.name)}.png", response=t, coherence=frf.coherence[sel, :4],
+            write_csv(df, f"{stem}.csv", float_format="%.6g")
+            write_png(plot.frf, f"{stem}.png", response=t, coherence=frf.coherence[sel, :4],
                       coherence_min=sec.coherence_min, title=f"H1 FRFs and coherence, test {t.name}",
                       units=conv.units, phase=conv.phase)
         if res.dropped:
@@ -1386,6 +1386,22 @@ def _safe(name, limit: int = 60):
     """A file-name-safe form of a run or test name, at most ``limit`` characters."""
     out = "".join(ch if ch.isalnum() or ch in "-_." else "_" for ch in str(name))
     return out[:limit] or "unnamed"
+
+
+def _distinct(stems):
+    """File stems made distinct (case-insensitively, as some file systems compare them): a stem
+    met before gets _2, _3, ... (two impact tests whose planes agree to 6 significant figures, or
+    names that differ only beyond 60 characters or in characters a file name cannot hold, had
+    written one frf file over the other)."""
+    seen, out = set(), []
+    for stem in stems:
+        cand, k = stem, 1
+        while cand.lower() in seen:
+            k += 1
+            cand = f"{stem}_{k}"
+        seen.add(cand.lower())
+        out.append(cand)
+    return out
 
 
 from .model import REPORT_ORDER as REPORT_NAMES  # noqa: E402
