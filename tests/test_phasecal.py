@@ -97,7 +97,7 @@ def test_a_phase_error_of_one_speed_alone_is_weighted_down_when_stated():
     """``keyphasor_angle_std_deg`` per speed: a phase error of that speed alone (the keyphasor's
     timing local to a dwell), which theta - Omega tau cannot follow. Unstated, 1 degree more at
     6000 rpm pulls the calibration tens of its standard errors away; stated, that speed is weighted
-    down (here out: its coefficients turn uncertain) and the calibration holds."""
+    down (through its coefficients' covariance; not left out) and the calibration holds."""
     rig = rotorid.nsf_rig()
     rpm = np.arange(3200.0, 6001.0, 400.0)
     rng = np.random.default_rng(2)
@@ -118,7 +118,7 @@ def test_a_phase_error_of_one_speed_alone_is_weighted_down_when_stated():
         blind = rotorid.calibrate_phase(rig.rotor, runs)
         told = rotorid.calibrate_phase(rig.rotor, runs, keyphasor_angle_std_deg=np.where(rpm == 6000.0, 1.0, 0.0))
     assert z(blind).max() > 10 and z(told).max() < 2.5, (z(blind), z(told))
-    assert told.n_speeds < blind.n_speeds
+    assert told.n_speeds == blind.n_speeds == rpm.size
     with pytest.raises(RotoridError, match="keyphasor_angle_std_deg"):
         rotorid.calibrate_phase(rig.rotor, runs, keyphasor_angle_std_deg=[1.0, 2.0])
 
@@ -148,3 +148,28 @@ def test_the_stated_uncertainty_matches_the_spread_of_the_estimates():
         z_tau.append(cal.delay_s / cal.delay_std_s)
     # measured 0.97 and 0.92 (1.8 and 1.66 before)
     assert 0.7 <= np.std(z_th) <= 1.3 and 0.7 <= np.std(z_tau) <= 1.3, (np.std(z_th), np.std(z_tau))
+
+
+def test_speeds_flagged_only_uncertain_are_weighted_not_left_out():
+    """A keyphasor whose timing is uncertain at most speeds turns their points "uncertain". Left
+    out, fewer than 3 speeds remained (RC keyphasor edges of 0.5 sample at 10 kHz): no
+    calibration, and the mark's offset stayed in the coefficients outside their intervals. Their
+    standard errors weight them now."""
+    rig = rotorid.nsf_rig()
+    rpm = np.arange(3200.0, 6001.0, 400.0)
+    rng = np.random.default_rng(4)
+    runs = []
+    for s in "ABCD":
+        r = rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=rpm)
+        sig = 3e-4 * np.sqrt(np.mean(np.abs(r.q) ** 2, axis=1))
+        q = r.q * np.exp(1j * np.deg2rad(0.5)) + (sig / np.sqrt(2))[:, None] * (
+            rng.standard_normal(r.q.shape) + 1j * rng.standard_normal(r.q.shape))
+        runs.append(rotorid.SyncResponse(rpm, q, r.imbalance, r.at, r.name, np.eye(8)[None] * (sig ** 2 / 2)[:, None, None]))
+    local = np.where(np.isin(rpm, [3200.0, 6000.0]), 0.0, 3.0)   # 3 degrees at 6 of the 8 speeds
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        flagged = rotorid.identify_synchronous(rig.rotor, runs, keyphasor_angle_std_deg=local)
+        cal = rotorid.calibrate_phase(rig.rotor, runs, keyphasor_angle_std_deg=local)
+    assert int(flagged.ok.sum()) < 3 and cal.n_speeds == rpm.size
+    z = np.abs(cal.offset_deg - 0.5 - np.rad2deg(rpm * np.pi / 30 * cal.delay_s)) / cal.phase_std_deg(rpm)
+    assert z.max() < 3, z

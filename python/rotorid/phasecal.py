@@ -178,17 +178,22 @@ def calibrate_phase(rotor, runs, *, delay: bool = True, offset: bool = True, deg
     # the coefficients)
     fit_kw = {k: v for k, v in ident_kw.items() if k != "keyphasor_angle_std_deg"}
     # points flagged only for negative direct damping count: a phase reference far off is one way
-    # to get it, and is what this estimates
+    # to get it, and is what this estimates. So do points flagged only "uncertain": their standard
+    # errors weight them down (left out, a keyphasor whose timing is uncertain at most speeds, RC
+    # edges of 0.5 sample at 10 kHz, left fewer than 3 speeds: the calibration was not made and the
+    # mark's 0.3 degree stayed in the coefficients, outside their intervals)
     from .identify import NEGATIVE_DAMPING
 
     code = base.flag_code.astype(np.int64)
-    if NEGATIVE_DAMPING in base.flag_reasons:
-        code = code & ~(1 << base.flag_reasons.index(NEGATIVE_DAMPING))
+    for reason in (NEGATIVE_DAMPING, "uncertain"):
+        if reason in base.flag_reasons:
+            code = code & ~(1 << base.flag_reasons.index(reason))
     sel = (code == 0) & np.all(np.isfinite(base.k.reshape(base.axis.size, -1)), axis=1)
     n = int(sel.sum())
     if n < degree + 3:
-        raise RotoridError(f"calibrate_phase needs at least {degree + 3} trustworthy speeds (ok points) to separate a "
-                           f"phase offset and a delay from the coefficients, got {n}")
+        raise RotoridError(f"calibrate_phase needs at least {degree + 3} trustworthy speeds (points neither singular, "
+                           f"ill-conditioned, of too low amplitude nor of unknown uncertainty) to separate a phase "
+                           f"offset and a delay from the coefficients, got {n}")
     om = base.axis[sel] * RPM
     # whitening: the coefficient covariance at each speed, else the bearing's scale
     if base.cov is not None and np.all(np.isfinite(base.cov[sel])):
