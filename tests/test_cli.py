@@ -4,6 +4,7 @@ import sys
 import numpy as np
 import pandas as pd
 
+import rotorid
 from rotorid import cli
 
 
@@ -221,6 +222,27 @@ def test_identify_imbalance_applies_the_phase_calibration(tmp_path, capsys):
         assert ("phase reference: offset" in log) == (mode == "apply")
         out[mode] = pd.read_csv(tmp_path / mode / "coefficients_imbalance.csv")
     assert not np.allclose(out["off"].filter(like="Cxx").to_numpy(), out["apply"].filter(like="Cxx").to_numpy())
+    # the same numbers as the API's chain on the same files
+    import warnings
+
+    from rotorid import io, pipeline
+
+    cmap = {"Prox DE X": {"to": "x1", "unit": "mil"}, "Prox DE Y": {"to": "y1", "unit": "mil"},
+            "Prox FE X": {"to": "x2", "unit": "mil"}, "Prox FE Y": {"to": "y2", "unit": "mil"},
+            "Keyphasor": {"to": "kp", "unit": "V"}}
+
+    def rec(name):
+        return io.load_recording(os.path.join(ex, "imbalance", name), channel_map=cmap)
+
+    imbs = [rotorid.Imbalance(tuple(m * 1e-3 for m in mass_g), ang, name=n) for n, (mass_g, ang) in example.SETS.items()]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = pipeline.imbalance_chain(rotorid.nsf_rig().rotor, [rec(f"run_{n}.tdms") for n in example.SETS],
+                                       baseline=rec("baseline.tdms"), slow_roll=rec("slow_roll.tdms"), imbalances=imbs,
+                                       phase_calibration="apply")
+    api = res.identification.to_dataframe()
+    for col in ("Kxx1", "Cxx1", "Cyy2", "Cxx1_std"):
+        np.testing.assert_allclose(out["apply"][col], api[col], rtol=1e-5)   # (the file holds 6 figures)
     open(cfg, "w", encoding="utf-8").write(text.replace("steady = true\n", 'steady = true\nphase_calibration = "yes"\n'))
     assert cli.main(["identify", "imbalance", cfg, "--out", str(tmp_path / "bad"), "--no-plot"]) == 1
     err = capsys.readouterr().err.strip().splitlines()

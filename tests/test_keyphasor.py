@@ -942,7 +942,8 @@ def test_the_timing_uncertainty_local_to_a_dwell_is_told_apart_from_the_shapes()
     calibration's theta - Omega tau cannot follow; the rest is the pulse shape's, common to the
     record. RC edges of 0.5 sample at exactly 6000 rpm (5 positions): all local; Gaussian humps:
     the shape's alone; pulses a sample wide: local where they fall at the same few positions every
-    revolution, the record's bias otherwise."""
+    revolution, the record's bias otherwise; pulses without a flat top sampled alike every
+    revolution: a third of a sample local (where their apex lies between samples)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         v, _ = _record(PulseShape("rc", 0.5), 6000.0, n_pulses=300)
@@ -950,6 +951,9 @@ def test_the_timing_uncertainty_local_to_a_dwell_is_told_apart_from_the_shapes()
         hump = signals.keyphasor_times(_humps(4321.0, 1.33, n_pulses=300)[0], FS)
         narrow = {rpm: signals.keyphasor_times(_record(PulseShape("trapezoid", 0.3, duty=0.0001, min_width_samples=1.0),
                                                        rpm, n_pulses=300)[0], FS) for rpm in (6000.0, 4321.0)}
+        # no flat top, at a speed commensurate with the sample rate (every pulse sampled alike)
+        peaked = signals.keyphasor_times(_record(PulseShape("trapezoid", 1.0, duty=0.0005, min_width_samples=1.0),
+                                                 6000.0, n_pulses=300)[0], FS)
     assert rc.timing_std_each_s is not None and rc.local_std_each_s is not None
     np.testing.assert_allclose(rc.local_std_each_s, rc.timing_std_each_s)
     assert hump.timing_std_each_s is not None and np.all(hump.timing_std_each_s > 0)
@@ -958,3 +962,5 @@ def test_the_timing_uncertainty_local_to_a_dwell_is_told_apart_from_the_shapes()
         np.testing.assert_allclose(kp.timing_std_each_s * FS, 1 / np.sqrt(3), rtol=1e-9)
     np.testing.assert_allclose(narrow[6000.0].local_std_each_s * FS, 1 / np.sqrt(3), rtol=1e-9)
     assert narrow[4321.0].local_std_each_s is None
+    np.testing.assert_allclose(peaked.local_std_each_s * FS, 1 / np.sqrt(12), rtol=1e-9)
+    assert "no flat top" in peaked.note and np.all(peaked.timing_std_each_s >= peaked.local_std_each_s)

@@ -134,6 +134,35 @@ def test_an_applied_phase_calibration_keeps_the_keyphasors_local_timing_uncertai
     assert 0.95 <= cover <= 0.999 and 0.3 <= med <= 0.72, (cover, med)
 
 
+def test_the_chains_phase_calibration_holds_where_the_keyphasor_is_uncertain_at_most_speeds():
+    """The same at 10,000 Hz, where the keyphasor's local timing uncertainty turns 5 of the 7
+    speeds "uncertain". Those speeds were left out of the calibration, which then could not be
+    made (fewer than 3 speeds, in 20 of 20 trials, with only a note): the mark's 0.3 degree stayed
+    in the coefficients (coverage 0.78, 0 at 5500 rpm; found in review). Weighted by their
+    standard errors: the calibration is made every time, within 1.1-1.6 of its standard errors
+    (2.2-3 when not weighted by the keyphasor's local part), and the intervals cover 0.997."""
+    rotor, brg, remnant = rawsim.example_rig()
+    speeds = np.arange(3000, 6001, 500.0)
+    hits, zcal = [], []
+    for seed in range(8):
+        sets = {"S0": ((5, 5), (0, 0)), "C0": ((5, 5), (0, 180)), "S90": ((5, 5), (90, 90)), "C90": ((5, 5), (90, 270))}
+        kw = dict(kp_shape=PulseShape("rc", 0.5, duty=0.03), mark_angle_deg=0.3, fs_hz=10000.0, dwell_s=2.0)
+        runs = [rawsim.lab_imbalance_recording(rotor, brg, speeds_rpm=speeds, added=rotorid.Imbalance(
+            tuple(m * 1e-3 for m in v[0]), v[1], name=k), remnant=remnant, seed=100 * seed + i, **kw)
+            for i, (k, v) in enumerate(sets.items())]
+        base = rawsim.lab_imbalance_recording(rotor, brg, speeds_rpm=speeds, added=None, remnant=remnant,
+                                              seed=100 * seed + 9, **kw)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            res = pipeline.imbalance_chain(rotor, runs, baseline=base, phase_calibration="apply")
+        cal = res.phase_calibration
+        assert cal is not None, res.notes
+        om = res.identification.axis * np.pi / 30
+        zcal.append(np.max(np.abs(cal.offset_deg - 0.3 - np.rad2deg(om * cal.delay_s)) / cal.phase_std_deg(om * 30 / np.pi)))
+        hits.append(_hits_and_z(res.identification, brg.k, brg.c)[0])
+    assert np.median(zcal) < 2.0 and np.mean(hits) >= 0.95, (zcal, np.mean(hits))
+
+
 def test_impact_chain_intervals_from_single_impact_scatter_cover_the_truth():
     rotor, brg, remnant = rawsim.example_rig()
     hits, zs = [], []

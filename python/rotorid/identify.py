@@ -331,6 +331,7 @@ def _flag_strings(code, reasons):
 #: run leaves no residual but this (an independent lab's reversed x1 gave Cxx1 = -2560 and Cxx2 =
 #: -12900 N·s/m, every point ok, K off by 136-440 %)
 NEGATIVE_DAMPING = "negative direct damping"
+IDENTICAL_REJECTED = "identical bearings rejected by the data"
 
 
 def _finish(axis_name, axis, amp, k, c, cond, resid, ks, cs, cond_max, min_rel_amplitude, method, labels,
@@ -1016,7 +1017,7 @@ def _solve(rotor, axis_name, axis, w, spin, qs, e, gain, sigma, *, identical, me
         else:
             rejected = resid[0] > 0.01
         if rejected.any():
-            extra_flags = _flag_list(extra_flags) + [(rejected, "identical bearings rejected by the data")]
+            extra_flags = _flag_list(extra_flags) + [(rejected, IDENTICAL_REJECTED)]
     # the estimated part of the variances (the residual's, or the measurement covariance's, with
     # the dof of the runs) before any stated uncertainty (accelerometer calibration, phase
     # reference; infinite dof) is added below

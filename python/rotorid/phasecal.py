@@ -12,8 +12,10 @@ the identified coefficients most consistent with that model, weighted by their c
     min over (theta, tau) of  sum_speeds || L^-1 (p(Omega; theta, tau) - model(Omega)) ||^2
 
 (p the 16 coefficients, L = diag of their standard errors at the speed, the model refitted for
-every (theta, tau) with the same weights). The uncertainty of (theta, tau) comes from the Jacobian at the optimum,
-widened by the Birge ratio when the misfit exceeds the covariance. With constant coefficients
+every (theta, tau) with the same weights). The uncertainty of (theta, tau) is the sandwich
+H^-1 (sum_speeds J_s^T L^-1 C_s L^-T J_s) H^-1 with J the Jacobian at the optimum, H = J^T J and C_s
+the full 16 x 16 coefficient covariance of each speed; without covariances (L then the bearings'
+scale) H^-1 times the Birge ratio chi^2 of the misfit. With constant coefficients
 assumed, a real speed dependence of the coefficients is partly absorbed into theta and tau: use
 ``degree`` >= 1 for supports whose coefficients vary, and read the result as a diagnostic.
 """
@@ -118,7 +120,11 @@ def calibrate_phase(rotor, runs, *, delay: bool = True, offset: bool = True, deg
     rotor : RigidRotor
     runs : list of SyncResponse
         The runs as for :func:`rotorid.identify_synchronous`, at three or more speeds, best with
-        their measurement covariance (``cov``; from the imbalance chain).
+        their measurement covariance (``cov``; from the imbalance chain). Speeds whose points are
+        singular, ill-conditioned, of too low amplitude or of unknown uncertainty are left out;
+        points flagged only "uncertain", "negative direct damping" or "identical bearings
+        rejected by the data" (the last two a phase error can cause) take part, weighted by their
+        standard errors.
     delay, offset : bool
         Which of the two to estimate (the other is held at 0).
     degree : int
@@ -178,14 +184,17 @@ def calibrate_phase(rotor, runs, *, delay: bool = True, offset: bool = True, deg
     # the coefficients)
     fit_kw = {k: v for k, v in ident_kw.items() if k != "keyphasor_angle_std_deg"}
     # points flagged only for negative direct damping count: a phase reference far off is one way
-    # to get it, and is what this estimates. So do points flagged only "uncertain": their standard
-    # errors weight them down (left out, a keyphasor whose timing is uncertain at most speeds, RC
-    # edges of 0.5 sample at 10 kHz, left fewer than 3 speeds: the calibration was not made and the
-    # mark's 0.3 degree stayed in the coefficients, outside their intervals)
-    from .identify import NEGATIVE_DAMPING
+    # to get it, and is what this estimates; so is identical bearings rejected by the data (a phase
+    # error turns the displacements but not the imbalance forces, and the two bearings' equations
+    # then disagree: with a mark 0.3 degree off the calibration was made in 1 of 20 trials). So do
+    # points flagged only "uncertain": their standard errors weight them down (left out, a keyphasor
+    # whose timing is uncertain at most speeds, RC edges of 0.5 sample at 10 kHz, left fewer than 3
+    # speeds: the calibration was not made and the mark's 0.3 degree stayed in the coefficients,
+    # outside their intervals)
+    from .identify import IDENTICAL_REJECTED, NEGATIVE_DAMPING
 
     code = base.flag_code.astype(np.int64)
-    for reason in (NEGATIVE_DAMPING, "uncertain"):
+    for reason in (NEGATIVE_DAMPING, IDENTICAL_REJECTED, "uncertain"):
         if reason in base.flag_reasons:
             code = code & ~(1 << base.flag_reasons.index(reason))
     sel = (code == 0) & np.all(np.isfinite(base.k.reshape(base.axis.size, -1)), axis=1)

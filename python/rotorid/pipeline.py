@@ -548,6 +548,10 @@ def _phase_calibrated(rotor, responses, ident, method, ident_kw, local_deg, appl
         cal = calibrate_phase(rotor, responses, method=method, **own, **local)
     except RotoridError as exc:
         notes.append(f"phase reference not calibrated: {exc}")
+        if apply:
+            # asked to correct, the user must not take the uncalibrated coefficients for corrected ones
+            warnings.warn(f"phase_calibration = \"apply\": the phase reference could not be calibrated ({exc}); the "
+                          "coefficients are identified from the vectors as measured")
         return responses, ident, None
     notes.append(cal.message)
     if not apply:

@@ -103,6 +103,15 @@ class Keyphasor:
     timing_std_each_s: np.ndarray | None = None
     local_std_each_s: np.ndarray | None = None
 
+    def __post_init__(self):
+        # (per-pulse arrays of another length failed deep inside the chain)
+        n = np.shape(self.times)[0] if np.ndim(self.times) == 1 else None
+        for name in ("timing_std_each_s", "local_std_each_s"):
+            v = getattr(self, name)
+            if v is not None and (n is None or np.shape(v) != (n,)):
+                raise KeyphasorError(f"Keyphasor.{name} must hold one value per pulse time ({n}), got shape "
+                                     f"{np.shape(v)}")
+
     @classmethod
     def from_times(cls, times, *, mark_angle_deg: float = 0.0, delay_s: float = 0.0, source: str = "") -> "Keyphasor":
         """Pulse times given directly (s, one per revolution, increasing): from another system, a
