@@ -8,6 +8,8 @@ import pytest
 import rotorid
 from rotorid import RotoridError, pipeline, rawsim
 
+from noisy import turned_nsf_runs
+
 SETS = {"S0": ((5, 5), (0, 0)), "C0": ((5, 5), (0, 180)), "S90": ((5, 5), (90, 90)), "C90": ((5, 5), (90, 270))}
 
 
@@ -98,17 +100,8 @@ def test_a_phase_error_of_one_speed_alone_is_weighted_down_when_stated():
     timing local to a dwell), which theta - Omega tau cannot follow. Unstated, 1 degree more at
     6000 rpm pulls the calibration tens of its standard errors away; stated, that speed is weighted
     down (through its coefficients' covariance; not left out) and the calibration holds."""
-    rig = rotorid.nsf_rig()
     rpm = np.arange(3200.0, 6001.0, 400.0)
-    rng = np.random.default_rng(2)
-    runs = []
-    for s in "ABCD":
-        r = rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=rpm)
-        sig = 3e-4 * np.sqrt(np.mean(np.abs(r.q) ** 2, axis=1))
-        turn = np.deg2rad(0.5 + np.where(rpm == 6000.0, 1.0, 0.0))
-        q = r.q * np.exp(1j * turn)[:, None] + (sig / np.sqrt(2))[:, None] * (
-            rng.standard_normal(r.q.shape) + 1j * rng.standard_normal(r.q.shape))
-        runs.append(rotorid.SyncResponse(rpm, q, r.imbalance, r.at, r.name, np.eye(8)[None] * (sig ** 2 / 2)[:, None, None]))
+    rig, runs = turned_nsf_runs(rpm, 0.5 + np.where(rpm == 6000.0, 1.0, 0.0), rel_noise=3e-4, seed=2)
 
     def z(cal):
         return np.abs(cal.offset_deg - 0.5 - np.rad2deg(rpm * np.pi / 30 * cal.delay_s)) / cal.phase_std_deg(rpm)
@@ -128,19 +121,11 @@ def test_the_stated_uncertainty_matches_the_spread_of_the_estimates():
     estimated offset and delay against their stated standard errors. With the coefficient model
     refitted without the misfit's weights the spread was 1.8 and 1.7 times the stated (the
     sandwich then misses the refitted mean's share)."""
-    rig = rotorid.nsf_rig()
     rpm = np.arange(3200.0, 6001.0, 400.0)
-    exact = [rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=rpm) for s in "ABCD"]
+    rig, exact = turned_nsf_runs(rpm, 0.0, rel_noise=0.0, seed=0)
     z_th, z_tau = [], []
     for seed in range(30):
-        rng = np.random.default_rng(seed)
-        runs = []
-        for r in exact:
-            sig = 3e-4 * np.sqrt(np.mean(np.abs(r.q) ** 2, axis=1))
-            q = r.q * np.exp(1j * np.deg2rad(0.5)) + (sig / np.sqrt(2))[:, None] * (
-                rng.standard_normal(r.q.shape) + 1j * rng.standard_normal(r.q.shape))
-            runs.append(rotorid.SyncResponse(rpm, q, r.imbalance, r.at, r.name,
-                                             np.eye(8)[None] * (sig ** 2 / 2)[:, None, None]))
+        _, runs = turned_nsf_runs(rpm, 0.5, rel_noise=3e-4, seed=seed, exact=exact)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             cal = rotorid.calibrate_phase(rig.rotor, runs)
@@ -155,16 +140,8 @@ def test_speeds_flagged_only_uncertain_are_weighted_not_left_out():
     out, fewer than 3 speeds remained (RC keyphasor edges of 0.5 sample at 10 kHz): no
     calibration, and the mark's offset stayed in the coefficients outside their intervals. Their
     standard errors weight them now."""
-    rig = rotorid.nsf_rig()
     rpm = np.arange(3200.0, 6001.0, 400.0)
-    rng = np.random.default_rng(4)
-    runs = []
-    for s in "ABCD":
-        r = rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=rpm)
-        sig = 3e-4 * np.sqrt(np.mean(np.abs(r.q) ** 2, axis=1))
-        q = r.q * np.exp(1j * np.deg2rad(0.5)) + (sig / np.sqrt(2))[:, None] * (
-            rng.standard_normal(r.q.shape) + 1j * rng.standard_normal(r.q.shape))
-        runs.append(rotorid.SyncResponse(rpm, q, r.imbalance, r.at, r.name, np.eye(8)[None] * (sig ** 2 / 2)[:, None, None]))
+    rig, runs = turned_nsf_runs(rpm, 0.5, rel_noise=3e-4, seed=4)
     local = np.where(np.isin(rpm, [3200.0, 6000.0]), 0.0, 3.0)   # 3 degrees at 6 of the 8 speeds
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -180,18 +157,10 @@ def test_identical_bearings_rejected_only_by_the_phase_error_are_calibrated():
     equations disagree: with identical bearings and a mark 0.5 degree off most points are flagged
     "identical bearings rejected by the data". Left out (as they were), too few speeds remained
     for a calibration (through the chain with a 0.3 degree mark: made in 1 of 20 trials)."""
-    rig = rotorid.nsf_rig()
-    b = rig.bearings
+    b = rotorid.nsf_rig().bearings
     same = rotorid.BearingCoefficients(np.stack([b.k[0], b.k[0]]), np.stack([b.c[0], b.c[0]]))
     rpm = np.arange(3200.0, 6001.0, 400.0)
-    rng = np.random.default_rng(1)
-    runs = []
-    for s in "ABCD":
-        r = rotorid.imbalance_response(rig.rotor, same, rig.imbalances[s], speed_rpm=rpm)
-        sig = 3e-4 * np.sqrt(np.mean(np.abs(r.q) ** 2, axis=1))
-        q = r.q * np.exp(1j * np.deg2rad(0.5)) + (sig / np.sqrt(2))[:, None] * (
-            rng.standard_normal(r.q.shape) + 1j * rng.standard_normal(r.q.shape))
-        runs.append(rotorid.SyncResponse(rpm, q, r.imbalance, r.at, r.name, np.eye(8)[None] * (sig ** 2 / 2)[:, None, None]))
+    rig, runs = turned_nsf_runs(rpm, 0.5, rel_noise=3e-4, seed=1, bearings=same)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         before = rotorid.identify_synchronous(rig.rotor, runs, identical=True)

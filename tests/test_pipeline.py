@@ -637,16 +637,10 @@ def test_the_chains_phase_calibration_reports_applies_and_keeps_the_local_part()
     identification as they are, "apply" corrects them and states the calibration's uncertainty with
     the keyphasor's local part beside it (a phase error of one speed alone, which theta - Omega tau
     cannot follow); too few speeds leave a note, not an error."""
-    rig = rotorid.nsf_rig()
+    from noisy import turned_nsf_runs
+
     rpm = np.arange(3200.0, 6001.0, 400.0)
-    rng = np.random.default_rng(5)
-    runs = []
-    for s in "ABCD":
-        r = rotorid.imbalance_response(rig.rotor, rig.bearings, rig.imbalances[s], speed_rpm=rpm)
-        sig = 0.002 * np.sqrt(np.mean(np.abs(r.q) ** 2, axis=1))
-        q = r.q * np.exp(1j * np.deg2rad(0.4)) + (sig / np.sqrt(2))[:, None] * (
-            rng.standard_normal(r.q.shape) + 1j * rng.standard_normal(r.q.shape))
-        runs.append(rotorid.SyncResponse(rpm, q, r.imbalance, r.at, r.name, np.eye(8)[None] * (sig ** 2 / 2)[:, None, None]))
+    rig, runs = turned_nsf_runs(rpm, 0.4, rel_noise=0.002, seed=5)
     ident = rotorid.identify_synchronous(rig.rotor, runs)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
