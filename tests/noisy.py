@@ -23,7 +23,8 @@ def turned_nsf_runs(rpm, turn_deg, *, rel_noise, seed, bearings=None, exact=None
     """(rig, runs): the NSF rig's responses to imbalances A-D at ``rpm`` (on ``bearings``, default
     the rig's), turned by ``turn_deg`` (a phase-reference error: a number or one per speed), with
     complex Gaussian noise of ``rel_noise`` times each speed's rms response and the matching
-    covariance. ``exact``: the noise-free responses, when already computed."""
+    covariance. ``exact``: the noise-free responses, when already computed (``bearings`` is then
+    not used)."""
     rig = rotorid.nsf_rig()
     rpm = np.asarray(rpm, float)
     if exact is None:

@@ -964,3 +964,15 @@ def test_the_timing_uncertainty_local_to_a_dwell_is_told_apart_from_the_shapes()
     assert narrow[4321.0].local_std_each_s is None
     np.testing.assert_allclose(peaked.local_std_each_s * FS, 1 / np.sqrt(12), rtol=1e-9)
     assert "no flat top" in peaked.note and np.all(peaked.timing_std_each_s >= peaked.local_std_each_s)
+
+
+def test_a_keyphasor_of_per_pulse_arrays_of_another_length_is_refused():
+    """A hand-built Keyphasor whose per-pulse uncertainties do not match its times failed deep in
+    the chain (a raw ValueError in the phase-uncertainty lookup; found in review)."""
+    from rotorid.signals.keyphasor import Keyphasor, KeyphasorError
+
+    t = np.arange(10) * 0.01
+    Keyphasor(t, timing_std_each_s=np.full(10, 1e-6), local_std_each_s=np.zeros(10))
+    for name in ("timing_std_each_s", "local_std_each_s"):
+        with pytest.raises(KeyphasorError, match=f"{name} must hold one value per pulse time \\(10\\)"):
+            Keyphasor(t, **{name: np.full(9, 1e-6)})
