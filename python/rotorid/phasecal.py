@@ -14,8 +14,9 @@ the identified coefficients most consistent with that model, weighted by their c
 (p the 16 coefficients, L = diag of their standard errors at the speed, the model refitted for
 every (theta, tau) with the same weights). The uncertainty of (theta, tau) is the sandwich
 H^-1 (sum_speeds J_s^T L^-1 C_s L^-T J_s) H^-1 with J the Jacobian at the optimum, H = J^T J and C_s
-the full 16 x 16 coefficient covariance of each speed; without covariances (L then the bearings'
-scale) H^-1 times the Birge ratio chi^2 of the misfit. With constant coefficients
+the full 16 x 16 coefficient covariance of each speed, widened by the misfit's chi^2 where it
+exceeds 1 (a chi^2 above ``MISFIT_CHI2`` makes the estimate a diagnostic); without covariances (L
+then the bearings' scale) H^-1 times chi^2. With constant coefficients
 assumed, a real speed dependence of the coefficients is partly absorbed into theta and tau: use
 ``degree`` >= 1 for supports whose coefficients vary, and read the result as a diagnostic.
 """

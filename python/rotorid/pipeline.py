@@ -299,7 +299,7 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
         the calibration's own uncertainty and the keyphasor's local part in the error bars (in place
         of ``keyphasor_angle_std_deg``, ``keyphasor_delay_std_s`` and the pulse shape's part, which
         it estimates). Where it cannot be made (fewer than 3 trustworthy speeds) a note says why
-        and the identification is the uncalibrated one.
+        (with "apply" also a warning) and the identification is the uncalibrated one.
     **ident_kw
         Passed to :func:`rotorid.identify_synchronous` (identical, cond_max, min_rel_amplitude,
         keyphasor_angle_std_deg, keyphasor_delay_std_s, ...). Where a keyphasor's pulse shape
@@ -460,10 +460,8 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
                               "or slow roll has none (give them amplitude_std / phase_std_deg too): its standard "
                               "errors are unknown")
         for add in (turns[i], base_turn):
-            if add is None:
-                continue
-            if cov is None:
-                continue   # (no covariance to go into: the common phase below still holds it)
+            if add is None or cov is None:
+                continue   # (without a covariance to go into, the common phase below still holds it)
             cov = cov + add["cov"]
             if pk:
                 pk["pedestal_cov"] = pk["pedestal_cov"] + add["pedestal_cov"]
