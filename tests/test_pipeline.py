@@ -662,7 +662,7 @@ def test_the_chains_phase_calibration_reports_applies_and_keeps_the_local_part()
     assert np.all(wide.c_std[3] > 1.5 * bare.c_std[3])
     np.testing.assert_allclose(np.delete(wide.c_std, 3, axis=0), np.delete(bare.c_std, 3, axis=0), rtol=0.05)
     notes = []
-    two = [dataclasses_sub(r, [0, 1]) for r in runs]
+    two = [_at_speed_indices(r, [0, 1]) for r in runs]
     # asked to apply it, a calibration that cannot be made is a warning, not only a note
     with pytest.warns(UserWarning, match="could not be calibrated"):
         out = pipeline._phase_calibrated(rig.rotor, two, ident, "forces", {}, None, True, notes)
@@ -671,7 +671,8 @@ def test_the_chains_phase_calibration_reports_applies_and_keeps_the_local_part()
         pipeline.imbalance_chain(rig.rotor, [runs[0]], phase_calibration="yes")
 
 
-def dataclasses_sub(r, idx):
+def _at_speed_indices(r, idx):
+    """The run at the speeds ``idx`` only."""
     return rotorid.SyncResponse(r.speed_rpm[idx], r.q[idx], r.imbalance, r.at, r.name, r.cov[idx])
 
 

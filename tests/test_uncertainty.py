@@ -61,7 +61,8 @@ def test_poorly_conditioned_speeds_are_flagged_where_the_intervals_undercover():
     assert cover < 0.93 and meanz < -0.2
 
 
-def _lab_trial(seed, rotor, brg, remnant, speeds, chain_kw=None, **kw):
+def _lab_chain(seed, rotor, brg, remnant, speeds, chain_kw=None, **kw):
+    """The imbalance chain's result on 4 runs and a baseline of the second simulator (2 s dwells)."""
     sets = {"S0": ((5, 5), (0, 0)), "C0": ((5, 5), (0, 180)), "S90": ((5, 5), (90, 90)), "C90": ((5, 5), (90, 270))}
     runs = [rawsim.lab_imbalance_recording(rotor, brg, speeds_rpm=speeds, added=rotorid.Imbalance(
         tuple(m * 1e-3 for m in v[0]), v[1], name=k), remnant=remnant, seed=100 * seed + i, dwell_s=2.0, **kw)
@@ -70,7 +71,23 @@ def _lab_trial(seed, rotor, brg, remnant, speeds, chain_kw=None, **kw):
                                           seed=100 * seed + 9, dwell_s=2.0, **kw)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return pipeline.imbalance_chain(rotor, runs, baseline=base, **(chain_kw or {})).identification
+        return pipeline.imbalance_chain(rotor, runs, baseline=base, **(chain_kw or {}))
+
+
+def _lab_trial(seed, rotor, brg, remnant, speeds, chain_kw=None, **kw):
+    return _lab_chain(seed, rotor, brg, remnant, speeds, chain_kw, **kw).identification
+
+
+def _lab_coverage(trials, chain_kw=None, **kw):
+    """(coverage of the 95 % intervals, median |z|) over ``trials`` chains at 3000-6000 rpm."""
+    rotor, brg, remnant = rawsim.example_rig()
+    speeds = np.arange(3000, 6001, 500.0)
+    hits, zs = [], []
+    for seed in range(trials):
+        h, z = _hits_and_z(_lab_trial(seed, rotor, brg, remnant, speeds, chain_kw, **kw), brg.k, brg.c)
+        hits.append(h)
+        zs.append(z)
+    return np.mean(hits), np.median(np.abs(zs))
 
 
 def test_imbalance_chain_intervals_from_the_data_cover_the_truth():
@@ -98,15 +115,7 @@ def test_imbalance_chain_intervals_cover_the_truth_with_rc_keyphasor_edges(kp_sh
     0.002-0.007 sample off, from the template's linear crossing at 5 positions and a pulse level
     read where an RC top has not settled. Measured now over 30 trials (C / K): 0.965 / 0.964 with tau =
     0.7, 0.965 / 0.963 with tau = 2."""
-    rotor, brg, remnant = rawsim.example_rig()
-    speeds = np.arange(3000, 6001, 500.0)
-    hits, zs = [], []
-    for seed in range(12):
-        i = _lab_trial(seed, rotor, brg, remnant, speeds, kp_shape=kp_shape)
-        h, z = _hits_and_z(i, brg.k, brg.c)
-        hits.append(h)
-        zs.append(z)
-    cover, med = np.mean(hits), np.median(np.abs(zs))
+    cover, med = _lab_coverage(12, kp_shape=kp_shape)
     assert 0.93 <= cover <= 0.98 and 0.6 <= med <= 0.78, (cover, med)
 
 
@@ -120,17 +129,8 @@ def test_an_applied_phase_calibration_keeps_the_keyphasors_local_timing_uncertai
     95 % intervals covered 42-48 % of the truth (20 trials). Measured now over 20 trials (K / C):
     0.988 / 0.988, median |z| 0.45 (conservative: the local part is counted both as common to the
     runs at a speed and as each recording's own)."""
-    rotor, brg, remnant = rawsim.example_rig()
-    speeds = np.arange(3000, 6001, 500.0)
-    hits, zs = [], []
-    for seed in range(12):
-        i = _lab_trial(seed, rotor, brg, remnant, speeds, chain_kw=dict(phase_calibration="apply"),
-                       kp_shape=PulseShape("rc", 0.5, duty=0.03), mark_angle_deg=0.3)
-        h, z = _hits_and_z(i, brg.k, brg.c)
-        hits.append(h)
-        zs.append(z)
-    cover, med = np.mean(hits), np.median(np.abs(zs))
-    print(cover, med)
+    cover, med = _lab_coverage(12, dict(phase_calibration="apply"), kp_shape=PulseShape("rc", 0.5, duty=0.03),
+                               mark_angle_deg=0.3)
     assert 0.95 <= cover <= 0.999 and 0.3 <= med <= 0.72, (cover, med)
 
 
@@ -145,16 +145,8 @@ def test_the_chains_phase_calibration_holds_where_the_keyphasor_is_uncertain_at_
     speeds = np.arange(3000, 6001, 500.0)
     hits, zcal = [], []
     for seed in range(8):
-        sets = {"S0": ((5, 5), (0, 0)), "C0": ((5, 5), (0, 180)), "S90": ((5, 5), (90, 90)), "C90": ((5, 5), (90, 270))}
-        kw = dict(kp_shape=PulseShape("rc", 0.5, duty=0.03), mark_angle_deg=0.3, fs_hz=10000.0, dwell_s=2.0)
-        runs = [rawsim.lab_imbalance_recording(rotor, brg, speeds_rpm=speeds, added=rotorid.Imbalance(
-            tuple(m * 1e-3 for m in v[0]), v[1], name=k), remnant=remnant, seed=100 * seed + i, **kw)
-            for i, (k, v) in enumerate(sets.items())]
-        base = rawsim.lab_imbalance_recording(rotor, brg, speeds_rpm=speeds, added=None, remnant=remnant,
-                                              seed=100 * seed + 9, **kw)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            res = pipeline.imbalance_chain(rotor, runs, baseline=base, phase_calibration="apply")
+        res = _lab_chain(seed, rotor, brg, remnant, speeds, dict(phase_calibration="apply"),
+                         kp_shape=PulseShape("rc", 0.5, duty=0.03), mark_angle_deg=0.3, fs_hz=10000.0)
         cal = res.phase_calibration
         assert cal is not None, res.notes
         # (the premise: the keyphasor's local part leaves most speeds "uncertain")
