@@ -249,6 +249,28 @@ def test_identify_imbalance_applies_the_phase_calibration(tmp_path, capsys):
     assert len(err) == 1 and "phase_calibration" in err[0]
 
 
+def test_an_applied_phase_calibration_of_1x_tables_reports_and_keeps_their_phase_scatter(tmp_path, capsys):
+    """The example's 1X tables (no keyphasor, no stated accuracy) with ``phase_calibration =
+    "apply"``: the calibration estimates the phase scatter between speeds from its misfit, says so
+    on screen and in the result file, and keeps it in the coefficients' error bars (the same
+    numbers as the API's chain with that calibration)."""
+    import json
+    import os
+
+    from rotorid import example
+
+    ex = example.copy_example(str(tmp_path / "ex"))
+    cfg = os.path.join(ex, "imbalance_1x_table.toml")
+    text = open(cfg, encoding="utf-8").read()
+    assert "[imbalance]\n" in text
+    open(cfg, "w", encoding="utf-8").write(text.replace("[imbalance]\n", '[imbalance]\nphase_calibration = "apply"\n'))
+    assert cli.main(["identify", "imbalance", cfg, "--out", str(tmp_path / "o"), "--no-plot"]) == 0
+    log = capsys.readouterr().out
+    assert "a phase scatter of" in log and "the phase scatter between speeds it estimated in the error bars" in log, log
+    result = json.load(open(tmp_path / "o" / "result_imbalance.json", encoding="utf-8"))
+    assert any("a phase scatter of" in line for line in result["context"]["log"]), result["context"]["log"]
+
+
 def test_impact_tests_of_one_name_write_an_frf_file_each(tmp_path, capsys):
     """Tests are named by direction and plane to 6 significant figures: two groups whose planes
     agree that far (a plane converted from inches, say) wrote one frf file over the other; the

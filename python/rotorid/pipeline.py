@@ -558,8 +558,9 @@ def _phase_calibrated(rotor, responses, ident, method, ident_kw, local_deg, appl
     std = cal.phase_std_deg(responses[0].speed_rpm)
     ident = identify_synchronous(rotor, responses, method=method, **own,
                                  keyphasor_angle_std_deg=std if local_deg is None else np.hypot(std, local_deg))
-    notes.append("phase calibration applied to the 1X vectors (its uncertainty in the error bars, with the keyphasor's "
-                 "local to each dwell)")
+    kept = ["its uncertainty"] + (["the phase scatter between speeds it estimated"] if cal.scatter_deg > 0 else [])
+    notes.append(f"phase calibration applied to the 1X vectors ({' and '.join(kept)} in the error bars"
+                 + (", with the keyphasor's local to each dwell)" if local_deg is not None else ")"))
     return responses, ident, cal
 
 
