@@ -423,8 +423,9 @@ def calibrate_phase(rotor, runs, *, delay: bool = True, offset: bool = True, deg
         msg += (f"; a phase scatter of {scatter_deg:.3f} deg between speeds beyond the stated uncertainty, in the "
                 f"calibrated reference's uncertainty: chi² {chi2:.2f} with it")
         if scatter_sig:
-            msg += (f"; the scatter is significant (Q = {q0:.1f} on {free} degrees of freedom): uncalibrated, the "
-                    "coefficients' error bars miss it")
+            msg += (f"; the scatter is significant (Q = {q0:.1f} on {free} degrees of freedom): the coefficients' "
+                    "error bars miss it unless it is in their keyphasor_angle_std_deg (the imbalance chain puts it "
+                    "there)")
     elif shown:
         msg += (f"; a phase scatter of {scatter_deg:.3f} deg between speeds, in the calibrated reference's "
                 "uncertainty (without the runs' covariance, all of the misfit along the speeds' phases, noise included)")
