@@ -635,8 +635,11 @@ def test_a_recordings_local_keyphasor_uncertainty_turns_its_own_vectors():
 def test_the_chains_phase_calibration_reports_applies_and_keeps_the_local_part():
     """imbalance_chain(phase_calibration=...) through its helper: "report" leaves the vectors and the
     identification as they are, "apply" corrects them and states the calibration's uncertainty with
-    the keyphasor's local part beside it (a phase error of one speed alone, which theta - Omega tau
-    cannot follow); too few speeds leave a note, not an error."""
+    the keyphasor's local part beside it as a phase common to the runs at its speed (a phase error
+    of one speed alone, which theta - Omega tau cannot follow) where too few speeds carry the phase
+    scatter between speeds (5 speeds: 2 degrees of freedom); with 8 (5 degrees of freedom) the
+    scatter stands in for that copy (the chain keeps the local part in each recording's covariance);
+    too few speeds for a calibration leave a note, not an error."""
     from noisy import turned_nsf_runs
 
     rpm = np.arange(3200.0, 6001.0, 400.0)
@@ -652,15 +655,27 @@ def test_the_chains_phase_calibration_reports_applies_and_keeps_the_local_part()
         local = np.zeros(rpm.size)
         local[3] = 0.3
         notes = []
-        fixed, wide, _ = pipeline._phase_calibrated(rig.rotor, runs, ident, "forces", {}, local, True, notes)
+        fixed, wide, cal8 = pipeline._phase_calibrated(rig.rotor, runs, ident, "forces", {}, local, True, notes)
+        # 5 speeds: the scatter rests on 2 degrees of freedom, the local part's common copy stays
+        five = [_at_speed_indices(r, [0, 2, 3, 5, 7]) for r in runs]
+        ident5 = rotorid.identify_synchronous(rig.rotor, five)
+        _, bare5, _ = pipeline._phase_calibrated(rig.rotor, five, ident5, "forces", {}, None, True, [])
+        notes5 = []
+        _, wide5, cal5 = pipeline._phase_calibrated(rig.rotor, five, ident5, "forces", {}, local[[0, 2, 3, 5, 7]], True,
+                                                    notes5)
     assert "applied" in notes[-1] and not np.allclose(fixed[0].q, runs[0].q)
     def z(i):
         return np.abs((i.c - rig.bearings.c) / i.c_std)[:, :, [0, 1], [0, 1]].max()
 
     assert z(ident) > 5 and z(bare) < 3.5, (z(ident), z(bare))   # (measured 9.1 and 2.2)
-    # the speed with a local part is stated wider; the others keep the calibration's own
-    assert np.all(wide.c_std[3] > 1.5 * bare.c_std[3])
-    np.testing.assert_allclose(np.delete(wide.c_std, 3, axis=0), np.delete(bare.c_std, 3, axis=0), rtol=0.05)
+    # 8 speeds: the calibration's scatter stands in for the common copy (the same calibration as
+    # without the local part, whose own copy is in each recording's covariance in the chain)
+    assert cal8.scatter_dof == 5 and "in each recording's covariance" in notes[-1], (cal8, notes[-1])
+    np.testing.assert_allclose(wide.c_std, bare.c_std, rtol=1e-9)
+    # 5 speeds: the speed with a local part is stated wider; the others keep the calibration's own
+    assert cal5.scatter_dof == 2 and "common to the runs" in notes5[-1], (cal5, notes5[-1])
+    assert np.all(wide5.c_std[2] > 1.5 * bare5.c_std[2])
+    np.testing.assert_allclose(np.delete(wide5.c_std, 2, axis=0), np.delete(bare5.c_std, 2, axis=0), rtol=0.05)
     notes = []
     two = [_at_speed_indices(r, [0, 1]) for r in runs]
     # asked to apply it, a calibration that cannot be made is a warning, not only a note

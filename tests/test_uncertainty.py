@@ -104,15 +104,18 @@ def _lab_trial(seed, rotor, brg, remnant, speeds, chain_kw=None, **kw):
 
 
 def _lab_coverage(trials, chain_kw=None, **kw):
-    """(coverage of the 95 % intervals, median |z|) over ``trials`` chains at 3000-6000 rpm."""
+    """(coverage of the 95 % intervals, median |z|, share of the points ok) over ``trials`` chains
+    at 3000-6000 rpm."""
     rotor, brg, remnant = rawsim.example_rig()
     speeds = np.arange(3000, 6001, 500.0)
-    hits, zs = [], []
+    hits, zs, ok = [], [], []
     for seed in range(trials):
-        h, z = _hits_and_z(_lab_trial(seed, rotor, brg, remnant, speeds, chain_kw, **kw), brg.k, brg.c)
+        ident = _lab_trial(seed, rotor, brg, remnant, speeds, chain_kw, **kw)
+        h, z = _hits_and_z(ident, brg.k, brg.c)
         hits.append(h)
         zs.append(z)
-    return np.mean(hits), np.median(np.abs(zs))
+        ok.append(ident.ok)
+    return np.mean(hits), np.median(np.abs(zs)), np.mean(ok)
 
 
 def test_imbalance_chain_intervals_from_the_data_cover_the_truth():
@@ -140,7 +143,7 @@ def test_imbalance_chain_intervals_cover_the_truth_with_rc_keyphasor_edges(kp_sh
     0.002-0.007 sample off, from the template's linear crossing at 5 positions and a pulse level
     read where an RC top has not settled. Measured now over 30 trials (C / K): 0.965 / 0.964 with tau =
     0.7, 0.965 / 0.963 with tau = 2."""
-    cover, med = _lab_coverage(12, kp_shape=kp_shape)
+    cover, med, _ = _lab_coverage(12, kp_shape=kp_shape)
     assert 0.93 <= cover <= 0.98 and 0.6 <= med <= 0.78, (cover, med)
 
 
@@ -151,12 +154,13 @@ def test_an_applied_phase_calibration_keeps_the_keyphasors_local_timing_uncertai
     vectors by 0.02-0.13 degree, speed by speed and run by run, which theta - Omega tau cannot
     follow. Until 2026-11-29 (fourth part) the calibration was not weighted by that uncertainty (it
     came out 3-8 of its standard errors off, pulled by 3000 rpm) and dropped it once applied: the
-    95 % intervals covered 42-48 % of the truth (20 trials). Measured now over 20 trials (K / C):
-    0.988 / 0.988, median |z| 0.45 (conservative: the local part is counted both as common to the
-    runs at a speed and as each recording's own)."""
-    cover, med = _lab_coverage(12, dict(phase_calibration="apply"), kp_shape=PulseShape("rc", 0.5, duty=0.03),
-                               mark_angle_deg=0.3)
-    assert 0.95 <= cover <= 0.999 and 0.3 <= med <= 0.72, (cover, med)
+    95 % intervals covered 42-48 % of the truth (20 trials). Measured over 20 trials (K / C): 0.988 /
+    0.988, median |z| 0.45, 61 % of the points ok, with the local part counted both as common to
+    the runs at a speed and as each recording's own; since the calibration's phase scatter between
+    speeds stands in for the common copy (fifth part) 0.988 / 0.988, median |z| 0.61, 91 % ok."""
+    cover, med, ok = _lab_coverage(12, dict(phase_calibration="apply"), kp_shape=PulseShape("rc", 0.5, duty=0.03),
+                                   mark_angle_deg=0.3)
+    assert 0.95 <= cover <= 0.999 and 0.3 <= med <= 0.75 and ok >= 0.8, (cover, med, ok)
 
 
 def test_the_chains_phase_calibration_holds_where_the_keyphasor_is_uncertain_at_most_speeds():
@@ -174,8 +178,10 @@ def test_the_chains_phase_calibration_holds_where_the_keyphasor_is_uncertain_at_
                          kp_shape=PulseShape("rc", 0.5, duty=0.03), mark_angle_deg=0.3, fs_hz=10000.0)
         cal = res.phase_calibration
         assert cal is not None, res.notes
-        # (the premise: the keyphasor's local part leaves most speeds "uncertain")
-        assert sum("uncertain" in f for f in res.identification.flag) >= 4, res.identification.flag
+        # (the premise: the keyphasor's local part is large at most speeds, 0.2-0.5 degree, which
+        # flagged them "uncertain" while it was also counted as common to the runs; every speed takes
+        # part in the calibration)
+        assert np.sum(res.keyphasor_local_std_deg > 0.15) >= 4 and cal.n_speeds == 7, res.keyphasor_local_std_deg
         om = res.identification.axis * np.pi / 30
         zcal.append(np.max(np.abs(cal.offset_deg - 0.3 - np.rad2deg(om * cal.delay_s)) / cal.phase_std_deg(om * 30 / np.pi)))
         hits.append(_hits_and_z(res.identification, brg.k, brg.c)[0])

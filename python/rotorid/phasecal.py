@@ -53,7 +53,9 @@ class PhaseCalibration:
     ``chi2``: the coefficients' misfit of the model in speed per degree of freedom, with the stated
     uncertainty (above ``MISFIT_CHI2`` the estimate is a diagnostic). ``scatter_deg``: the phase
     error of each speed alone beyond the stated uncertainty, estimated from that misfit (0 where
-    none shows or too few speeds); it is part of :meth:`phase_std_deg`.
+    none shows or too few speeds); it is part of :meth:`phase_std_deg`. ``scatter_dof``: the
+    degrees of freedom that estimate rests on (speeds less the fitted parameters; below 1 it is
+    not estimated).
     """
 
     offset_deg: float
@@ -66,6 +68,7 @@ class PhaseCalibration:
     message: str
     offset_delay_corr: float = 0.0
     scatter_deg: float = 0.0
+    scatter_dof: int = 0
 
     def phase_std_deg(self, speed_rpm):
         """Standard uncertainty of the calibrated phase reference at each speed (deg), from the
@@ -449,4 +452,4 @@ def calibrate_phase(rotor, runs, *, delay: bool = True, offset: bool = True, deg
         warnings.warn(msg)
     corr = float(cov[0, 1] / (sd[0] * sd[1])) if offset and delay and sd[0] > 0 and sd[1] > 0 else 0.0
     return PhaseCalibration(float(np.rad2deg(th)), float(np.rad2deg(th_sd)), float(tau), tau_sd, chi2_stated, n,
-                            bool(sig), msg, corr, scatter_deg)
+                            bool(sig), msg, corr, scatter_deg, max(int(free), 0))

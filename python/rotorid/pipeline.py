@@ -293,13 +293,17 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
         are never silently ignored.
     phase_calibration : {"off", "report", "apply"}
         Estimate a keyphasor angle offset and a probe-channel delay across speeds
-        (:func:`rotorid.calibrate_phase`, its speeds weighted by the keyphasor's timing
-        uncertainty local to each dwell): "report" puts it in ``phase_calibration`` and ``notes``
-        (a warning when significant); "apply" also corrects the vectors and identifies again, with
-        the calibration's own uncertainty and the keyphasor's local part in the error bars (in place
-        of ``keyphasor_angle_std_deg``, ``keyphasor_delay_std_s`` and the pulse shape's part, which
-        it estimates). Where it cannot be made (fewer than 3 trustworthy speeds) a note says why
-        (with "apply" also a warning) and the identification is the uncalibrated one.
+        (:func:`rotorid.calibrate_phase`, with the phase scatter between speeds that it estimates
+        from its misfit): "report" puts it in ``phase_calibration`` and ``notes`` (a warning when
+        significant), its speeds weighted by the keyphasor's timing uncertainty local to each
+        dwell, and keeps the scatter in the error bars; "apply" also corrects the vectors and
+        identifies again, with the calibration's own uncertainty and the scatter in the error bars
+        (in place of ``keyphasor_angle_std_deg``, ``keyphasor_delay_std_s`` and the pulse shape's
+        part, which it estimates); there the scatter stands in for the keyphasor's local part
+        common to the runs at a speed where it rests on ``MIN_SCATTER_DOF`` degrees of freedom
+        (the local part stays in each recording's covariance). Where it cannot be made (fewer
+        than 3 trustworthy speeds) a note says why (with "apply" also a warning) and the
+        identification is the uncalibrated one.
     **ident_kw
         Passed to :func:`rotorid.identify_synchronous` (identical, cond_max, min_rel_amplitude,
         keyphasor_angle_std_deg, keyphasor_delay_std_s, ...). Where a keyphasor's pulse shape
@@ -308,7 +312,7 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
         (root sum of squares) and noted; its part local to each dwell
         (``Keyphasor.local_std_each_s``) is also a phase error of each recording's own vectors, in
         their covariance (the dwells of different recordings at one speed may err alike or each its
-        own way: both are counted).
+        own way: both are counted, but see ``phase_calibration``).
 
     Examples
     --------
@@ -536,21 +540,34 @@ def _phase_calibrated(rotor, responses, ident, method, ident_kw, local_deg, appl
     ``keyphasor_delay_std_s``) and the part of the keyphasors' timing uncertainty common to their
     dwells (the pulse shape's) are what the calibration estimates: its own uncertainty replaces
     them. The part local to each dwell (``local_deg``, deg per grid speed) is a phase error of that
-    speed alone, which theta - Omega tau cannot follow: as a phase common to the runs at the speed
-    it weights the calibration's speeds (and enters its uncertainty) and, applied, stays in the
-    error bars beside the calibration's own; as each recording's own it is in their covariances,
-    which turn with the vectors. Before 2026-11-29 (fourth part) the local part was dropped once
-    applied and the calibration not weighted by it: RC keyphasor edges of 0.5 sample at 10,240 Hz
-    with a 0.3 degree mark offset gave the damping's 95 % intervals 48 % coverage (0.003-0.006
-    degree stated; the calibration 5-7 of its standard errors off in 2 of 6 trials, pulled by
-    3000 rpm, a speed commensurate with the sample rate where every run's vectors were turned
-    0.13 degree)."""
+    speed alone, which theta - Omega tau cannot follow; as each recording's own it is in their
+    covariances, which turn with the vectors. Where the dwells of different recordings at one
+    speed err alike (3000 rpm at 10,240 Hz: every run 0.13 degree), it is also a phase common to
+    the runs at that speed. Reported, that copy weights the calibration's speeds. Applied, the
+    calibration's phase scatter between speeds stands in for it where at least
+    ``MIN_SCATTER_DOF`` degrees of freedom carry the scatter (measured over 20 trials in 9
+    setups, RC keyphasor edges of 0.5 sample and others: coverage as with the copy, 0.978-0.997,
+    and 91 % of the points ok instead of 61 %); with fewer, the copy weights the calibration and
+    stays in the error bars beside its own uncertainty. Before 2026-11-29 (fourth part) the local
+    part was dropped once applied and the calibration not weighted by it: RC keyphasor edges of
+    0.5 sample at 10,240 Hz with a 0.3 degree mark offset gave the damping's 95 % intervals 48 %
+    coverage (0.003-0.006 degree stated; the calibration 5-7 of its standard errors off in 2 of 6
+    trials, pulled by 3000 rpm)."""
     from .phasecal import calibrate_phase
 
     own = {k: v for k, v in ident_kw.items() if k not in ("keyphasor_angle_std_deg", "keyphasor_delay_std_s")}
     local = {} if local_deg is None else dict(keyphasor_angle_std_deg=local_deg)
+    common = local_deg
     try:
-        cal = calibrate_phase(rotor, responses, method=method, **own, **local)
+        cal = None
+        if apply and local_deg is not None:
+            cal = calibrate_phase(rotor, responses, method=method, **own)
+            if cal.scatter_dof >= MIN_SCATTER_DOF:
+                common = None    # the scatter stands in for the local part's common copy
+            else:
+                cal = None
+        if cal is None:
+            cal = calibrate_phase(rotor, responses, method=method, **own, **local)
     except RotoridError as exc:
         notes.append(f"phase reference not calibrated: {exc}")
         if apply:
@@ -570,11 +587,18 @@ def _phase_calibrated(rotor, responses, ident, method, ident_kw, local_deg, appl
     responses = cal.apply(responses)
     std = cal.phase_std_deg(responses[0].speed_rpm)
     ident = identify_synchronous(rotor, responses, method=method, **own,
-                                 keyphasor_angle_std_deg=std if local_deg is None else np.hypot(std, local_deg))
+                                 keyphasor_angle_std_deg=std if common is None else np.hypot(std, common))
     kept = ["its uncertainty"] + (["the phase scatter between speeds it estimated"] if cal.scatter_deg > 0 else [])
-    notes.append(f"phase calibration applied to the 1X vectors ({' and '.join(kept)} in the error bars"
-                 + (", with the keyphasor's local to each dwell)" if local_deg is not None else ")"))
+    local_note = ("" if local_deg is None else
+                  ", with the keyphasor's local to each dwell in each recording's covariance" if common is None else
+                  ", with the keyphasor's local to each dwell, in each recording's covariance and common to the runs")
+    notes.append(f"phase calibration applied to the 1X vectors ({' and '.join(kept)} in the error bars{local_note})")
     return responses, ident, cal
+
+
+#: the degrees of freedom of an applied calibration's phase scatter from which it stands in for the
+#: keyphasors' local timing uncertainty common to the runs at a speed (7 speeds give 4)
+MIN_SCATTER_DOF = 3
 
 
 def _local_phase_cov(track, grid, tol, pedestal):
