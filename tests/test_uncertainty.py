@@ -160,7 +160,7 @@ def test_an_applied_phase_calibration_keeps_the_keyphasors_local_timing_uncertai
     speeds stands in for the common copy (fifth part) 0.988 / 0.988, median |z| 0.61, 91 % ok."""
     cover, med, ok = _lab_coverage(12, dict(phase_calibration="apply"), kp_shape=PulseShape("rc", 0.5, duty=0.03),
                                    mark_angle_deg=0.3)
-    assert 0.95 <= cover <= 0.999 and 0.3 <= med <= 0.75 and ok >= 0.8, (cover, med, ok)
+    assert 0.95 <= cover <= 0.999 and 0.3 <= med <= 0.72 and ok >= 0.8, (cover, med, ok)
 
 
 def test_the_chains_phase_calibration_holds_where_the_keyphasor_is_uncertain_at_most_speeds():
