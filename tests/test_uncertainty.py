@@ -193,10 +193,10 @@ def test_an_applied_phase_calibration_of_1x_tables_keeps_their_phase_scatter(wit
     """The runs of the test above as 1X tables (tracked, keyphasor dropped: a DAQ's export), with and
     without the tracking's covariance, the calibration applied. The tables carry the keyphasor's
     timing errors of 3000, 4000 and 6000 rpm but nothing says so; theta - Omega tau cannot follow
-    them. Before 2026-11-29 (fifth part) the intervals covered 52 % (64 % of the points flagged ok)
-    and 55 % without the covariance (every point ok), 20 trials. The calibration now estimates the
-    phase scatter between speeds from its misfit and keeps it: measured over 20 trials 0.88 (0.99 of
-    the points ok, 76 % ok) and 0.99 without the covariance (95 % ok)."""
+    them. Before 2026-11-29 (fifth part) the intervals covered 63 % (77 % of the points flagged ok)
+    and 52 % without the covariance (every point ok), 20 trials. The calibration now estimates the
+    phase scatter between speeds from its misfit and keeps it: measured over 20 trials 0.89 (0.99 of
+    the points ok, 75 % ok) and 0.99 without the covariance (91 % ok)."""
     rotor, brg, remnant = rawsim.example_rig()
     speeds = np.arange(3000, 6001, 500.0)
     hits, hits_ok = [], []

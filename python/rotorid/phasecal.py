@@ -30,7 +30,10 @@ is then repeated with s_e in every speed's phase uncertainty (until s_e settles)
 the calibrated reference's uncertainty (:meth:`PhaseCalibration.phase_std_deg`). 1X tables from a
 keyphasor whose timing errs at the speeds commensurate with the sample rate (RC edges of 0.5
 sample, 10,240 Hz, a 0.3 degree mark offset, 20 trials), calibration applied: the damping's 95 %
-intervals covered 52 % without it, 89 % with it (99 % of the points flagged ok). With constant coefficients
+intervals covered 63 % without it, 89 % with it (99 % of the points flagged ok). A speed whose
+phase lies off the calibrated line beyond the scatter (Bonferroni's 5 % point, sought against a
+robust s_e first so that two do not hide each other) keeps its own delta_s^2 - v_s where that is
+larger. With constant coefficients
 assumed, a real speed dependence of the coefficients is partly absorbed into theta and tau: use
 ``degree`` >= 1 for supports whose coefficients vary, and read the result as a diagnostic.
 """
@@ -55,7 +58,9 @@ class PhaseCalibration:
     error of each speed alone beyond the stated uncertainty, estimated from that misfit (0 where
     none shows or too few speeds); it is part of :meth:`phase_std_deg`. ``scatter_dof``: the
     degrees of freedom that estimate rests on (speeds less the fitted parameters; below 1 it is
-    not estimated).
+    not estimated). ``outlier_speeds_rpm``, ``outlier_deg``: speeds whose
+    phase lies off the calibrated line beyond the scatter (Bonferroni's 5 % point), each with its
+    own phase error, which :meth:`phase_std_deg` takes there instead of ``scatter_deg``.
     """
 
     offset_deg: float
@@ -69,12 +74,14 @@ class PhaseCalibration:
     offset_delay_corr: float = 0.0
     scatter_deg: float = 0.0
     scatter_dof: int = 0
+    outlier_speeds_rpm: tuple = ()
+    outlier_deg: tuple = ()
 
     def phase_std_deg(self, speed_rpm):
         """Standard uncertainty of the calibrated phase reference at each speed (deg), from the
         estimate's covariance and the phase scatter between speeds: sqrt(s_theta² + Omega² s_tau² -
         2 Omega r s_theta s_tau + s_e²), with r the correlation of the two estimates and s_e
-        ``scatter_deg``. It stays in the coefficients' uncertainty once the calibration is applied
+        ``scatter_deg`` (at an outlying speed its own ``outlier_deg``). It stays in the coefficients' uncertainty once the calibration is applied
         (``keyphasor_angle_std_deg`` of :func:`rotorid.identify_synchronous`).
 
         Examples
@@ -91,6 +98,9 @@ class PhaseCalibration:
         # phase = theta - Omega tau: the covariance term enters with a minus sign
         var = s_th ** 2 + (om * s_tau) ** 2 - 2.0 * om * self.offset_delay_corr * s_th * s_tau
         var = var + np.deg2rad(self.scatter_deg) ** 2
+        for rpm, own in zip(self.outlier_speeds_rpm, self.outlier_deg):
+            at = np.isclose(om, rpm * RPM, rtol=1e-9, atol=0.0)
+            var = np.where(at, var - np.deg2rad(self.scatter_deg) ** 2 + np.deg2rad(own) ** 2, var)
         return np.rad2deg(np.sqrt(np.clip(var, 0.0, None)))
 
     def apply(self, runs):
@@ -203,6 +213,7 @@ def calibrate_phase(rotor, runs, *, delay: bool = True, offset: bool = True, deg
     """
     from scipy.optimize import brentq, least_squares
     from scipy.stats import chi2 as chi2_dist
+    from scipy.stats import norm as norm_dist
 
     from .identify import identify_synchronous
     from .uncertainty import report_vector
@@ -323,19 +334,13 @@ def calibrate_phase(rotor, runs, *, delay: bool = True, offset: bool = True, deg
                                "(widen the speed range or estimate only one of them)") from None
         return sol, cov, chi2, n, weighted
 
-    def scatter2(x, sel, weighted):
-        """The variance s_e² (rad²) of a phase error of each speed alone beyond the stated
-        uncertainty, a random effect estimated by Paule and Mandel's moment equation (see the
-        module doc), the degrees of freedom it rests on and the moment statistic Q at s_e = 0
-        (chi² with those degrees of freedom where the stated uncertainty is all; None without the
-        covariance). Without the coefficients' covariance
-        the misfit along each speed's phase direction is all taken for scatter (v_s = 0: the noise's
-        share, already in residual-based standard errors, is then counted twice)."""
+    def misfit_phases(x, sel, weighted):
+        """Each calibrated speed's phase error along its own direction, delta_s (rad), its variance
+        v_s from the stated covariance (0 without one) and the whitened directions g_s, at the fit
+        ``x``; None where there is no degree of freedom for a scatter."""
         idx = np.nonzero(sel)[0]
-        n = idx.size
-        free = n - n_par - (degree + 1)
-        if free < 1:
-            return 0.0, free, None
+        if idx.size - n_par - (degree + 1) < 1:
+            return None
         th, tau = params(x)
         om = base.axis[sel] * RPM
         V = np.vander((om - om.mean()) / max(np.ptp(om), 1e-300), degree + 1)
@@ -345,24 +350,67 @@ def calibrate_phase(rotor, runs, *, delay: bool = True, offset: bool = True, deg
         g = (coefficients(th + eps, tau, idx) - coefficients(th - eps, tau, idx)) / (2 * eps) * w   # d p / d phase
         gg = np.sum(g * g, axis=1)
         delta = np.sum(g * r, axis=1) / gg                     # each speed's phase error along its own direction
-        if not weighted:
-            if not np.all(np.isfinite(delta)):
-                return 0.0, free, None
-            directions[:] = [g]
-            return float(np.sum(delta ** 2)) / free, free, None
-        C = base.cov[sel]
-        var = np.einsum("si,sij,sj->s", g, w[:, :, None] * C * w[:, None, :], g) / gg ** 2
-        if not (np.all(np.isfinite(delta)) and np.all(np.isfinite(var)) and np.all(var > 0)):
-            return 0.0, free, None
+        if weighted:
+            C = base.cov[sel]
+            var = np.einsum("si,sij,sj->s", g, w[:, :, None] * C * w[:, None, :], g) / gg ** 2
+        else:
+            var = np.zeros(idx.size)
+        if not (np.all(np.isfinite(delta)) and np.all(np.isfinite(var)) and (not weighted or np.all(var > 0))):
+            return None
+        return delta, var, g
+
+    def paule_mandel(delta, var, free):
+        """s_e² solving sum delta² / (var + s_e²) = free (0 where the left side is below at 0);
+        without variances the closed form sum delta² / free."""
+        if not np.any(var > 0):
+            return float(np.sum(delta ** 2)) / free
 
         def excess(s2):
             return float(np.sum(delta ** 2 / (var + s2))) - free
 
-        q0 = excess(0.0) + free
-        if q0 <= free:
-            return 0.0, free, q0
+        if excess(0.0) <= 0:
+            return 0.0
         hi = float(np.sum(delta ** 2)) / free
-        return float(brentq(excess, 0.0, hi, xtol=1e-12 * hi + 1e-30)), free, q0
+        return float(brentq(excess, 0.0, hi, xtol=1e-12 * hi + 1e-30))
+
+    def scatter(x, sel, weighted):
+        """(each calibrated speed's phase variance beyond the stated uncertainty (rad²), the common
+        scatter s_e² in it, the outlying speeds' mask, its degrees of freedom, Q at s_e = 0 or None,
+        the whitened directions g_s): the random effect of the module doc, and each speed beyond
+        Bonferroni's 5 % two-sided point of |delta_s| / sqrt(v_s + s_e²), with s_e² there over the
+        speeds not yet found, given its own share delta_s² - v_s where that is larger (one speed 1
+        degree off among 15 had spread its error over all: its phase covered 0 %, its coefficients
+        5 %, flagged ok in 20 % of trials; found in review)."""
+        n_sel = int(sel.sum())
+        free = n_sel - n_par - (degree + 1)
+        got = misfit_phases(x, sel, weighted)
+        if got is None:
+            return np.zeros(n_sel), 0.0, np.zeros(n_sel, dtype=bool), free, None, None
+        delta, var, g = got
+        q0 = float(np.sum(delta ** 2 / var)) if weighted else None
+        out = np.zeros(n_sel, dtype=bool)
+        s2_all = paule_mandel(delta, var, free)
+        crit = norm_dist.isf(0.025 / n_sel)
+        # the outliers are sought against a robust scatter first (the median of delta² - v over
+        # chi²(1)'s median), so that two do not hide each other: two speeds 0.7 degree off either way
+        # among 15 lifted s_e to 0.29 and stayed inside it (their phases covered 0 %)
+        robust = min(s2_all, max(float(np.median(delta ** 2 - var)) / 0.4549, 0.0))
+        # (without the runs' covariance the speeds' own noise, which differs from speed to speed, is
+        # not known: the median then took noisy speeds for outliers in 80 % of draws without any
+        # scatter, so the test is against the whole misfit there)
+        test = robust if weighted else s2_all
+        while True:
+            grown = out | (np.abs(delta) > crit * np.sqrt(var + test))
+            if grown.sum() == out.sum() or free - int(grown.sum()) < 1:
+                break
+            out = grown
+            test = paule_mandel(delta[~out], var[~out], free - int(out.sum()))
+        # the outliers only add: every speed keeps the scatter of all of them (s_e² over the speeds
+        # without the outliers left the others short where their errors are not all common to the
+        # runs: 1X tables of RC keyphasor edges, 0.88 -> 0.81)
+        own = np.full(n_sel, s2_all)
+        own[out] = np.maximum(delta[out] ** 2 - var[out], s2_all)
+        return own, s2_all, out, free, q0, g
 
     sol, cov, chi2, n, weighted = _fit(sel, base.cov)
     if (rejected & sel).any():
@@ -380,36 +428,47 @@ def calibrate_phase(rotor, runs, *, delay: bool = True, offset: bool = True, deg
             sol, cov, chi2, n, weighted = _fit(sel, base.cov, f" ({int(still.sum())} rejected identical bearings with "
                                                              "the phase reference calibrated: the bearings differ)")
     # phase errors of each speed alone that nobody stated (1X tables from a keyphasor whose timing
-    # errs from dwell to dwell: the calibration applied, the damping's intervals covered 52 %)
-    chi2_stated, s2, free, q0 = chi2, 0.0, 0, None
-    directions = []   # each speed's whitened phase direction g_s, from the unweighted estimate
-    stated = ident_kw.get("keyphasor_angle_std_deg", 0.0)
-    scatter_weighted = weighted
-    for i in range(4 if weighted else 1):
-        new, free, q = scatter2(sol.x, sel, scatter_weighted)
-        q0 = q if i == 0 else q0   # the test against no scatter, at the fit with the stated uncertainty
-        if new <= 0.0 or abs(new - s2) <= 0.02 * new:
-            break   # s2 is the value the fit was made with
-        s2 = new
-        if s2 > np.deg2rad(MAX_SCATTER_DEG) ** 2:
+    # errs from dwell to dwell: the calibration applied, the damping's intervals covered 63 %)
+    chi2_stated = chi2
+    stated = np.broadcast_to(np.asarray(ident_kw.get("keyphasor_angle_std_deg", 0.0), float), base.axis.shape)
+    state = scatter(sol.x, sel, weighted)   # (own, s2, out, free, Q, g)
+    q0 = state[4]                           # the test against no scatter, at the fit with the stated uncertainty
+    fitted = None                           # the state the fit was last made with
+    for _ in range(3 if weighted else 1):
+        own = state[0]
+        if own.size and own.max() > np.deg2rad(MAX_SCATTER_DEG) ** 2:
             raise RotoridError(f"calibrate_phase: the coefficients scatter between speeds as a phase error of "
-                               f"{np.rad2deg(np.sqrt(s2)):.1f} deg of each speed alone would (beyond "
+                               f"{np.rad2deg(np.sqrt(own.max())):.1f} deg of a speed alone would (beyond "
                                f"{MAX_SCATTER_DEG:g} deg, where their linear error propagation no longer holds): the "
                                "phase reference cannot be calibrated from these runs (check the keyphasor, the "
                                "imbalance masses and angles, or coefficients that vary with speed: degree)")
-        if not scatter_weighted:
+        if not weighted or not own.size or (fitted is None and not own.max() > 0):
+            break
+        if fitted is not None and np.allclose(own, fitted[0], rtol=0.05, atol=1e-12):
+            break
+        # the fit made again with each speed's phase uncertainty grown by its share (its sandwich then
+        # carries the scatter's share of theta and tau), and the shares estimated again at it: a
+        # speed far off pulls the first fit, whose misfit then lifts the others' (one speed 1 degree
+        # off among 15: s_e 0.106 degree from the first fit, 0 from the second)
+        every = np.full(base.axis.size, state[1])
+        every[sel] = own
+        wide = identify_synchronous(rotor, runs, **{**ident_kw, "keyphasor_angle_std_deg":
+                                                    np.hypot(stated, np.rad2deg(np.sqrt(every)))})
+        sol, cov, chi2, n, weighted = _fit(sel, wide.cov)
+        fitted = state
+        state = scatter(sol.x, sel, weighted)
+    own, s2, out, free, _, g = fitted if fitted is not None else state
+    if own.size and own.max() > 0:
+        if not weighted:
             # the weights (the bearings' scale) do not change with it: the fit stands, and the
-            # scatter's share of the estimate's covariance is added, the sandwich with s_e² g_s g_s^T
+            # scatter's share of the estimate's covariance is added, the sandwich with u_s² g_s g_s^T
             # for each speed's coefficient covariance (without it the offset's spread was 4.7 times
             # the stated, 20 draws of 0.15 degree per speed)
             J = sol.jac.reshape(n, 16, n_par)
-            Jg = np.einsum("sip,si->sp", J, directions[0])
+            Jg = np.einsum("sip,si->sp", J, g)
             Hinv = np.linalg.inv(sol.jac.T @ sol.jac)
-            cov = cov + s2 * Hinv @ (Jg.T @ Jg) @ Hinv
-            break
-        wide = identify_synchronous(rotor, runs, **{**ident_kw, "keyphasor_angle_std_deg":
-                                                    np.hypot(stated, np.rad2deg(np.sqrt(s2)))})
-        sol, cov, chi2, n, weighted = _fit(sel, wide.cov)
+            cov = cov + Hinv @ (Jg.T @ (own[:, None] * Jg)) @ Hinv
+    scatter_weighted = weighted
     sd = np.sqrt(np.diag(cov))
     th, tau = params(sol.x)
     it = iter(sd)
@@ -417,30 +476,41 @@ def calibrate_phase(rotor, runs, *, delay: bool = True, offset: bool = True, deg
     tau_sd = float(next(it)) * 1e-6 if delay else 0.0
     sig = (offset and abs(th) > significance * th_sd) or (delay and abs(tau) > significance * tau_sd)
     scatter_deg = float(np.rad2deg(np.sqrt(s2)))
+    out_rpm = tuple(float(r) for r in base.axis[sel][out])
+    out_deg = tuple(float(np.rad2deg(np.sqrt(u))) for u in own[out])
     msg = (f"phase reference: offset {np.rad2deg(th):.3f} ± {np.rad2deg(th_sd):.3f} deg, delay {tau * 1e6:.2f} ± "
            f"{tau_sd * 1e6:.2f} µs over {n} speeds (chi² {chi2_stated:.2f}")
     # no scatter rejected at 1 %: the error bars of uncalibrated coefficients miss it
-    scatter_sig = q0 is not None and s2 > 0 and chi2_dist.sf(q0, free) < 0.01
+    scatter_sig = q0 is not None and own.size > 0 and own.max() > 0 and chi2_dist.sf(q0, free) < 0.01
     shown = scatter_deg >= 5e-4   # (exact runs leave a scatter of rounding)
     if shown and scatter_weighted:
         msg += (f"; a phase scatter of {scatter_deg:.3f} deg between speeds beyond the stated uncertainty, in the "
                 f"calibrated reference's uncertainty: chi² {chi2:.2f} with it")
         if scatter_sig:
-            msg += (f"; the scatter is significant (Q = {q0:.1f} on {free} degrees of freedom): the coefficients' "
-                    "error bars miss it unless it is in their keyphasor_angle_std_deg (the imbalance chain puts it "
-                    "there)")
+            msg += (f"; the scatter is significant (Q = {q0:.1f} on {free} degrees of freedom): a phase reference "
+                    "that errs from speed to speed (the coefficients' error bars miss it unless it is in their "
+                    "keyphasor_angle_std_deg; the imbalance chain puts it there), or coefficients that vary with "
+                    "speed (raise degree)")
     elif shown:
         msg += (f"; a phase scatter of {scatter_deg:.3f} deg between speeds, in the calibrated reference's "
                 "uncertainty (without the runs' covariance, all of the misfit along the speeds' phases, noise included)")
     elif free < 1:
         msg += f"; {n} speeds are too few to estimate a phase scatter between them"
+    if out.any():
+        off = ", ".join(f"{r:.0f} rpm by {d:.3f} deg" for r, d in zip(out_rpm, out_deg))
+        msg += (f"; {int(out.sum())} speed(s) off the calibrated line beyond the scatter ({off}): their own phase "
+                "error in their error bars")
     msg += ")"
     # the misfit with the stated uncertainties: a phase scatter between speeds is one reading of it,
     # coefficients that vary with speed or bearings that differ under identical=True are others,
     # which the scatter then stands in for (the estimate stays within its widened uncertainty: 1.2
     # standard errors for bearings 3 % apart at 1 % noise, but it is no calibration to apply)
     misfit = chi2_stated > MISFIT_CHI2
-    if misfit:
+    if misfit and chi2 <= MISFIT_CHI2:
+        msg += (f"; the coefficients misfit a degree-{degree} model in speed beyond their stated uncertainty, which "
+                "the phase scatter explains; coefficients that vary with speed (raise degree) or bearings that differ "
+                "under identical=True misfit alike, and the estimate is then a diagnostic only")
+    elif misfit:
         msg += (f"; the coefficients misfit a degree-{degree} model in speed beyond their stated uncertainty: the "
                 "estimate takes up that misfit and is a diagnostic only (a phase reference that errs from speed to "
                 "speed; coefficients that vary with speed: raise degree; identical=True on bearings that differ)")
@@ -452,4 +522,4 @@ def calibrate_phase(rotor, runs, *, delay: bool = True, offset: bool = True, deg
         warnings.warn(msg)
     corr = float(cov[0, 1] / (sd[0] * sd[1])) if offset and delay and sd[0] > 0 and sd[1] > 0 else 0.0
     return PhaseCalibration(float(np.rad2deg(th)), float(np.rad2deg(th_sd)), float(tau), tau_sd, chi2_stated, n,
-                            bool(sig), msg, corr, scatter_deg, max(int(free), 0))
+                            bool(sig), msg, corr, scatter_deg, max(int(free), 0), out_rpm, out_deg)
