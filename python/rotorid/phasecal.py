@@ -315,15 +315,19 @@ def calibrate_phase(rotor, runs, *, delay: bool = True, offset: bool = True, deg
         scale = np.concatenate([np.repeat(np.median(rv[:, [0, 1, 6, 7]]), 8), np.repeat(np.median(rv[:, 8:][:, [0, 1, 6, 7]]), 8)])
         return np.broadcast_to(1.0 / scale, (int(sel.sum()), 16)), False
 
+    def speed_model(sel):
+        """The polynomial model in speed at the speeds ``sel``: (n, degree + 1)."""
+        om = base.axis[sel] * RPM
+        return np.vander((om - om.mean()) / max(np.ptp(om), 1e-300), degree + 1)
+
     def _fit(sel, coef_cov, why=""):
         n = int(sel.sum())
         if n < degree + 3:
             raise RotoridError(f"calibrate_phase needs at least {degree + 3} trustworthy speeds (points neither singular, "
                                f"ill-conditioned, of too low amplitude, of unknown uncertainty nor of runs that disagree) to "
                                f"separate a phase offset and a delay from the coefficients, got {n}{why}")
-        om = base.axis[sel] * RPM
         weight, weighted = whitening(sel, coef_cov)
-        V = np.vander((om - om.mean()) / max(np.ptp(om), 1e-300), degree + 1)   # polynomial model in speed
+        V = speed_model(sel)
         idx = np.nonzero(sel)[0]
 
         def resid(x):
@@ -357,13 +361,10 @@ def calibrate_phase(rotor, runs, *, delay: bool = True, offset: bool = True, deg
     def misfit_phases(x, sel, weighted):
         """Each calibrated speed's phase error along its own direction, delta_s (rad), its variance
         v_s from the stated covariance (0 without one) and the whitened directions g_s, at the fit
-        ``x``; None where there is no degree of freedom for a scatter."""
+        ``x``; None where they are not all finite."""
         idx = np.nonzero(sel)[0]
-        if idx.size - n_par - (degree + 1) < 1:
-            return None
         th, tau = params(x)
-        om = base.axis[sel] * RPM
-        V = np.vander((om - om.mean()) / max(np.ptp(om), 1e-300), degree + 1)
+        V = speed_model(sel)
         w = whitening(sel, base.cov if weighted else None)[0]
         r = model_residual(coefficients(th, tau, idx), V, w) * w
         eps = 1e-4
@@ -379,30 +380,27 @@ def calibrate_phase(rotor, runs, *, delay: bool = True, offset: bool = True, deg
             return None
         return delta, var, g
 
+    def root_above_zero(excess, hi):
+        """The s_e² in [0, hi] where the decreasing ``excess`` crosses zero; 0 where it is not
+        positive at 0."""
+        if excess(0.0) <= 0:
+            return 0.0
+        return float(brentq(excess, 0.0, hi, xtol=1e-12 * hi + 1e-30))
+
     def paule_mandel(delta, var, free):
         """s_e² solving sum delta² / (var + s_e²) = free (0 where the left side is below at 0);
         without variances the closed form sum delta² / free."""
         if not np.any(var > 0):
             return float(np.sum(delta ** 2)) / free
 
-        def excess(s2):
-            return float(np.sum(delta ** 2 / (var + s2))) - free
-
-        if excess(0.0) <= 0:
-            return 0.0
-        hi = float(np.sum(delta ** 2)) / free
-        return float(brentq(excess, 0.0, hi, xtol=1e-12 * hi + 1e-30))
+        return root_above_zero(lambda s2: float(np.sum(delta ** 2 / (var + s2))) - free,
+                               float(np.sum(delta ** 2)) / free)
 
     def robust_scatter2(delta, var):
         """s_e² at which the median of delta² / (var + s_e²) is 0.4549, chi²(1)'s median (0 where it
         is below at 0)."""
-        def excess(s2):
-            return float(np.median(delta ** 2 / (var + s2))) - 0.45494
-
-        if excess(0.0) <= 0:
-            return 0.0
-        hi = float(np.max(delta ** 2)) / 0.45494
-        return float(brentq(excess, 0.0, hi, xtol=1e-12 * hi + 1e-30))
+        return root_above_zero(lambda s2: float(np.median(delta ** 2 / (var + s2))) - 0.45494,
+                               float(np.max(delta ** 2)) / 0.45494)
 
     def scatter(x, sel, weighted):
         """(each calibrated speed's phase variance beyond the stated uncertainty (rad²), the common
@@ -414,7 +412,7 @@ def calibrate_phase(rotor, runs, *, delay: bool = True, offset: bool = True, deg
         5 %, flagged ok in 20 % of trials; found in review)."""
         n_sel = int(sel.sum())
         free = n_sel - n_par - (degree + 1)
-        got = misfit_phases(x, sel, weighted)
+        got = misfit_phases(x, sel, weighted) if free >= 1 else None
         if got is None:
             return np.zeros(n_sel), 0.0, np.zeros(n_sel, dtype=bool), free, None, None
         delta, var, g = got
@@ -501,7 +499,6 @@ def calibrate_phase(rotor, runs, *, delay: bool = True, offset: bool = True, deg
             Jg = np.einsum("sip,si->sp", J, g)
             Hinv = np.linalg.inv(sol.jac.T @ sol.jac)
             cov = cov + Hinv @ (Jg.T @ (own[:, None] * Jg)) @ Hinv
-    scatter_weighted = weighted
     sd = np.sqrt(np.diag(cov))
     th, tau = params(sol.x)
     it = iter(sd)
@@ -516,7 +513,7 @@ def calibrate_phase(rotor, runs, *, delay: bool = True, offset: bool = True, deg
     # no scatter rejected at 1 %: the error bars of uncalibrated coefficients miss it
     scatter_sig = q0 is not None and own.size > 0 and own.max() > 0 and chi2_dist.sf(q0, free) < 0.01
     shown = scatter_deg >= 5e-4   # (exact runs leave a scatter of rounding)
-    if shown and scatter_weighted:
+    if shown and weighted:
         msg += (f"; a phase scatter of {scatter_deg:.3f} deg between speeds beyond the stated uncertainty, in the "
                 f"calibrated reference's uncertainty: chi² {chi2:.2f} with it")
         if scatter_sig:

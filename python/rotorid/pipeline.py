@@ -562,13 +562,11 @@ def _phase_calibrated(rotor, responses, ident, method, ident_kw, local_deg, appl
         cal = None
         if apply and local_deg is not None:
             try:
-                cal = calibrate_phase(rotor, responses, method=method, **own)
+                trial = calibrate_phase(rotor, responses, method=method, **own)
             except RotoridError:
-                cal = None       # (weighted by the local part below, it may still be made)
-            if cal is not None and cal.scatter_dof >= MIN_SCATTER_DOF:
-                common = None    # the scatter stands in for the local part's common copy
-            else:
-                cal = None
+                trial = None     # (weighted by the local part below, it may still be made)
+            if trial is not None and trial.scatter_dof >= MIN_SCATTER_DOF:
+                cal, common = trial, None    # the scatter stands in for the local part's common copy
         if cal is None:
             cal = calibrate_phase(rotor, responses, method=method, **own, **local)
     except RotoridError as exc:
