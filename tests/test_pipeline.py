@@ -704,7 +704,13 @@ def test_a_reported_calibration_keeps_a_speed_off_the_line_in_the_error_bars():
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             _, kept, cal = pipeline._phase_calibrated(rig.rotor, runs, ident, "forces", {}, None, False, notes, {})
-        assert cal.outlier_speeds_rpm == (rpm[5],) and "off the line with their own" in notes[-1], (cal, notes)
+        assert cal.outlier_speeds_rpm == (rpm[5],) and f"off the line with their own: {rpm[5]:g} rpm" in notes[-1], \
+            (cal, notes)
+        if seed == 0:   # applied, the note names them too
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                _, _, cal_a = pipeline._phase_calibrated(rig.rotor, runs, ident, "forces", {}, None, True, notes, {})
+            assert cal_a.outlier_speeds_rpm == (rpm[5],) and f"speeds off its line ({rpm[5]:g} rpm)" in notes[-1], notes
         iv = kept.interval(0.95)
         b = rig.bearings
         hits.append(np.r_[((iv.k_lower[5] <= b.k) & (b.k <= iv.k_upper[5])).ravel(),

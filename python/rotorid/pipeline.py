@@ -585,7 +585,7 @@ def _phase_calibrated(rotor, responses, ident, method, ident_kw, local_deg, appl
             ident = identify_synchronous(rotor, responses, method=method, **{
                 **used_kw, "keyphasor_angle_std_deg": np.hypot(stated, cal.scatter_std_deg(responses[0].speed_rpm))})
             notes.append(f"phase scatter between speeds ({cal.scatter_deg:.3g} deg"
-                         + (f"; {len(cal.outlier_speeds_rpm)} speed(s) off the line with their own" if
+                         + (f"; the speeds off the line with their own: {_rpm_list(cal.outlier_speeds_rpm)}" if
                             cal.outlier_speeds_rpm else "")
                          + ") in the error bars; the calibration itself is reported, not applied")
         return responses, ident, cal
@@ -593,12 +593,19 @@ def _phase_calibrated(rotor, responses, ident, method, ident_kw, local_deg, appl
     std = cal.phase_std_deg(responses[0].speed_rpm)
     ident = identify_synchronous(rotor, responses, method=method, **own,
                                  keyphasor_angle_std_deg=std if common is None else np.hypot(std, common))
-    kept = ["its uncertainty"] + (["the phase scatter between speeds it estimated"] if cal.scatter_deg > 0 else [])
+    kept = (["its uncertainty"] + (["the phase scatter between speeds it estimated"] if cal.scatter_deg > 0 else [])
+            + ([f"the own phase errors of the speeds off its line ({_rpm_list(cal.outlier_speeds_rpm)})"]
+               if cal.outlier_speeds_rpm else []))
     local_note = ("" if local_deg is None else
                   ", with the keyphasor's local to each dwell in each recording's covariance" if common is None else
                   ", with the keyphasor's local to each dwell, in each recording's covariance and common to the runs")
     notes.append(f"phase calibration applied to the 1X vectors ({' and '.join(kept)} in the error bars{local_note})")
     return responses, ident, cal
+
+
+def _rpm_list(speeds):
+    """'4500, 6000 rpm' for a note."""
+    return ", ".join(f"{s:g}" for s in speeds) + " rpm"
 
 
 #: the degrees of freedom of an applied calibration's phase scatter from which it stands in for the
