@@ -92,14 +92,40 @@ class PhaseCalibration:
         >>> round(float(cal.phase_std_deg([3000.0])[0]), 3)
         0.1
         """
-        from ._validate import real_array
+        rpm = _speeds(speed_rpm)
+        return np.hypot(self.line_std_deg(rpm), self.scatter_std_deg(rpm))
 
-        om = np.atleast_1d(real_array("speed_rpm", speed_rpm, positive=True)) * RPM
+    def line_std_deg(self, speed_rpm):
+        """Standard uncertainty of the estimated line theta - Omega tau at each speed (deg), without
+        the phase errors of each speed alone: sqrt(s_theta² + Omega² s_tau² - 2 Omega r s_theta
+        s_tau).
+
+        Examples
+        --------
+        >>> from rotorid.phasecal import PhaseCalibration
+        >>> cal = PhaseCalibration(0.5, 0.1, 10e-6, 0.0, 1.0, 8, True, "", scatter_deg=0.2)
+        >>> round(float(cal.line_std_deg([3000.0])[0]), 3)
+        0.1
+        """
+        om = _speeds(speed_rpm) * RPM
         s_th, s_tau = np.deg2rad(self.offset_std_deg), self.delay_std_s
         # phase = theta - Omega tau: the covariance term enters with a minus sign
         var = s_th ** 2 + (om * s_tau) ** 2 - 2.0 * om * self.offset_delay_corr * s_th * s_tau
-        var = var + np.deg2rad(self.scatter_std_deg(om / RPM)) ** 2
         return np.rad2deg(np.sqrt(np.clip(var, 0.0, None)))
+
+    def error_deg(self, speed_rpm):
+        """The phase error of the vectors as measured at each speed, as estimated (deg): theta -
+        Omega tau, what :meth:`apply` takes out.
+
+        Examples
+        --------
+        >>> from rotorid.phasecal import PhaseCalibration
+        >>> cal = PhaseCalibration(0.5, 0.1, 10e-6, 0.0, 1.0, 8, True, "")
+        >>> cal.error_deg([0.1, 3000.0]).round(3).tolist()   # 10 µs at 3000 rpm: 0.18 deg
+        [0.5, 0.32]
+        """
+        om = _speeds(speed_rpm) * RPM
+        return self.offset_deg - np.rad2deg(om * self.delay_s)
 
     def scatter_std_deg(self, speed_rpm):
         """The phase error of each speed alone beyond the stated uncertainty (deg): ``scatter_deg``,
@@ -115,9 +141,7 @@ class PhaseCalibration:
         >>> cal.scatter_std_deg([3000.0, 4000.0]).round(3).tolist()
         [0.02, 0.3]
         """
-        from ._validate import real_array
-
-        rpm = np.atleast_1d(real_array("speed_rpm", speed_rpm, positive=True))
+        rpm = _speeds(speed_rpm)
         sd = np.full(rpm.shape, float(self.scatter_deg))
         for at_rpm, own in zip(self.outlier_speeds_rpm, self.outlier_deg):
             sd = np.where(np.isclose(rpm, at_rpm, rtol=1e-9, atol=0.0), own, sd)
@@ -127,6 +151,13 @@ class PhaseCalibration:
         """The runs corrected (each SyncResponse's q multiplied by e^{-j(theta - Omega tau)})."""
         runs = _runs(runs)
         return [_rotated(r, -np.deg2rad(self.offset_deg), -self.delay_s) for r in runs]
+
+
+def _speeds(speed_rpm):
+    """Speeds in rpm as a 1-d float array, or a RotoridError."""
+    from ._validate import real_array
+
+    return np.atleast_1d(real_array("speed_rpm", speed_rpm, positive=True))
 
 
 def _runs(runs) -> list:

@@ -529,12 +529,13 @@ def _phase_calibrated(rotor, responses, ident, method, ident_kw, local_deg, appl
     """The chain's phase-reference calibration: (responses, identification, PhaseCalibration or
     None), the first two corrected when ``apply``.
 
-    Reported only, the phase scatter between speeds that the calibration estimates from its misfit
-    (``PhaseCalibration.scatter_deg``: phase errors of each speed alone beyond the stated
-    uncertainty) is an uncertainty of the vectors as measured, not a correction: it is added to
-    the phase uncertainty ``used_kw`` gave ``ident`` and the runs identified again (1X tables
-    without a covariance, RC keyphasor edges of 0.5 sample at 10,240 Hz, no mark offset: coverage
-    0.81 without it).
+    Reported only, what the calibration found is an uncertainty of the vectors as measured, not a
+    correction (:func:`_reported_phase_std`): the phase error theta - Omega tau it estimates where
+    larger than the phase uncertainty ``used_kw`` gave ``ident``, and the phase scatter between
+    speeds it estimates from its misfit (``PhaseCalibration.scatter_deg``: phase errors of each
+    speed alone beyond the stated uncertainty; 1X tables without a covariance, RC keyphasor edges
+    of 0.5 sample at 10,240 Hz, no mark offset: coverage 0.81 without it); the runs are then
+    identified again.
 
     What the user stated for the phase reference (``keyphasor_angle_std_deg``,
     ``keyphasor_delay_std_s``) and the part of the keyphasors' timing uncertainty common to their
@@ -543,12 +544,12 @@ def _phase_calibrated(rotor, responses, ident, method, ident_kw, local_deg, appl
     speed alone, which theta - Omega tau cannot follow; as each recording's own it is in their
     covariances, which turn with the vectors. Where the dwells of different recordings at one
     speed err alike (3000 rpm at 10,240 Hz: every run 0.13 degree), it is also a phase common to
-    the runs at that speed. Reported, that copy weights the calibration's speeds. Applied, the
-    calibration's phase scatter between speeds stands in for it where at least
-    ``MIN_SCATTER_DOF`` degrees of freedom carry the scatter (measured over 20 trials in 9
-    setups, RC keyphasor edges of 0.5 sample and others: coverage as with the copy, 0.978-0.997,
-    and 91 % of the points ok instead of 61 %); with fewer, the copy weights the calibration and
-    stays in the error bars beside its own uncertainty. Before 2026-11-29 (fourth part) the local
+    the runs at that speed. The calibration's phase scatter between speeds stands in for that copy,
+    applied or reported, where at least ``MIN_SCATTER_DOF`` degrees of freedom carry the scatter
+    (applied, measured over 20 trials in 9 setups, RC keyphasor edges of 0.5 sample and others:
+    coverage as with the copy, 0.978-0.997, and 91 % of the points ok instead of 61 %; reported,
+    see the README's Uncertainty); with fewer, the copy weights the calibration and stays in the
+    error bars beside its own uncertainty. Before 2026-11-29 (fourth part) the local
     part was dropped once applied and the calibration not weighted by it: RC keyphasor edges of
     0.5 sample at 10,240 Hz with a 0.3 degree mark offset gave the damping's 95 % intervals 48 %
     coverage (0.003-0.006 degree stated; the calibration 5-7 of its standard errors off in 2 of 6
@@ -560,7 +561,7 @@ def _phase_calibrated(rotor, responses, ident, method, ident_kw, local_deg, appl
     common = local_deg
     try:
         cal = None
-        if apply and local_deg is not None:
+        if local_deg is not None:
             try:
                 trial = calibrate_phase(rotor, responses, method=method, **own)
             except RotoridError:
@@ -578,16 +579,15 @@ def _phase_calibrated(rotor, responses, ident, method, ident_kw, local_deg, appl
         return responses, ident, None
     notes.append(cal.message)
     if not apply:
-        if (cal.scatter_deg > 0 or cal.outlier_speeds_rpm) and used_kw is not None:
-            # the scatter and the outlying speeds' own errors (one speed 0.4 degree off among 15, only
-            # the scatter added: its coefficients covered 5 %, found in review)
-            stated = used_kw.get("keyphasor_angle_std_deg", 0.0)
-            ident = identify_synchronous(rotor, responses, method=method, **{
-                **used_kw, "keyphasor_angle_std_deg": np.hypot(stated, cal.scatter_std_deg(responses[0].speed_rpm))})
-            notes.append(f"phase scatter between speeds ({cal.scatter_deg:.3g} deg"
-                         + (f"; the speeds off the line with their own: {_rpm_list(cal.outlier_speeds_rpm)}" if
-                            cal.outlier_speeds_rpm else "")
-                         + ") in the error bars; the calibration itself is reported, not applied")
+        if used_kw is not None:
+            rpm = responses[0].speed_rpm
+            stated = np.broadcast_to(np.asarray(used_kw.get("keyphasor_angle_std_deg", 0.0), dtype=float), rpm.shape)
+            phase, why = _reported_phase_std(cal, rpm, stated, local_deg,
+                                             stand_in=local_deg is not None and common is None)
+            if why:
+                ident = identify_synchronous(rotor, responses, method=method,
+                                             **{**used_kw, "keyphasor_angle_std_deg": phase})
+                notes.append(f"{'; '.join(why)}: in the error bars; the calibration itself is reported, not applied")
         return responses, ident, cal
     responses = cal.apply(responses)
     std = cal.phase_std_deg(responses[0].speed_rpm)
@@ -601,6 +601,44 @@ def _phase_calibrated(rotor, responses, ident, method, ident_kw, local_deg, appl
                   ", with the keyphasor's local to each dwell, in each recording's covariance and common to the runs")
     notes.append(f"phase calibration applied to the 1X vectors ({' and '.join(kept)} in the error bars{local_note})")
     return responses, ident, cal
+
+
+def _reported_phase_std(cal, rpm, stated, local_deg, stand_in):
+    """The phase uncertainty (deg per speed) of the vectors as measured with a phase calibration
+    that is reported, not applied, and what it adds (a list of phrases for the note, empty where
+    it adds nothing).
+
+    ``stated``: the chain's (the user's, the keyphasor pulse shape's, which holds the part local
+    to each dwell ``local_deg`` as a phase common to the runs at a speed). Three things of the
+    calibration's enter:
+
+    - the phase error it found, theta - Omega tau, with its uncertainty: left in the vectors, it is
+      an error of the coefficients, so sqrt(e² + s_line²) takes the place of the stated common
+      part where it is larger (a keyphasor mark 0.3 degree off, found 17 standard errors away:
+      coverage 0.15-0.20 of the points ok under "report", 20 trials of the chain, before
+      2026-11-29, sixth part; the larger, not the sum, of two estimates of one error);
+    - the phase scatter between speeds and the outlying speeds' own (one speed 0.4 degree off among
+      15, only the scatter added: its coefficients covered 5 %, found in review);
+    - where the scatter rests on ``MIN_SCATTER_DOF`` or more (``stand_in``), it stands in for the
+      local part's common copy, which leaves the stated part (it stays in each recording's
+      covariance)."""
+    loc2 = 0.0 if local_deg is None else np.nan_to_num(np.asarray(local_deg, dtype=float)) ** 2
+    common = np.sqrt(np.clip(stated ** 2 - loc2, 0.0, None))
+    found = np.hypot(cal.error_deg(rpm), cal.line_std_deg(rpm))
+    scatter = cal.scatter_std_deg(rpm)
+    phase = np.sqrt(np.fmax(common, found) ** 2 + (0.0 if stand_in else loc2) + scatter ** 2)
+    why = []
+    if np.any(found > common):
+        why.append(f"the phase reference error the calibration found (up to {np.abs(cal.error_deg(rpm)).max():.3g} "
+                   "deg at these speeds, where larger than stated)")
+    if cal.scatter_deg > 0 or cal.outlier_speeds_rpm or stand_in:
+        why.append(f"the phase scatter between speeds ({cal.scatter_deg:.3g} deg"
+                   + (f"; the speeds off the line with their own: {_rpm_list(cal.outlier_speeds_rpm)}"
+                      if cal.outlier_speeds_rpm else "")
+                   + (", standing in for the keyphasor's local to each dwell as common to the runs; that part "
+                      "stays in each recording's covariance" if stand_in and local_deg is not None else "")
+                   + ")")
+    return phase, why
 
 
 def _rpm_list(speeds):
@@ -776,6 +814,63 @@ def _undecayed(responses, pre):
     return float(np.median(np.nanmax(r, axis=1)))
 
 
+#: the largest amplitude ratio per quarter record credited to a response that passes the decay
+#: check (its last tenth under ``DECAYED`` of its peak: an exponential decay from the peak over the
+#: record's four quarters has 0.05^(1/4) = 0.47 per quarter)
+TAIL_DECAY_PER_QUARTER = 0.5
+
+
+def _truncation_var(forces, responses, pre, fs, zero_pad_s, sel, tau_s):
+    """(n_band, C) variance of each FRF column's error (per unit force, squared) from the response
+    the records cut off at their end, estimated from their last quarter after the impact; None
+    where there is no covariance (a single impact).
+
+    D, the H1 of the records' last quarter alone (the rest zeroed), is that quarter's share of the
+    FRF. A response decaying by a factor a per quarter record leaves beyond the record's end a
+    share like D, smaller by a / (1 - a) (a geometric series of quarters). Per channel, a is the
+    ratio of the last quarter's share to the third's, sqrt(sum(|D4|² - var D4) / sum(|D3|² - var
+    D3)) over the band (0 where the third quarter's share does not stand clear of its noise), at
+    most the exponential window's own decay over a quarter, exp(-P / (4 tau)) for P seconds after
+    the impact, and ``TAIL_DECAY_PER_QUARTER`` (what passing the decay check implies). The part of
+    |D|² that is the impacts' noise (the scatter of the impacts, as H1's covariance) is taken out:
+    s² = max(|D4|² - var D4, 0) a² / (1 - a)². Found by an independent simulator's impacts (2026-11-29):
+    0.08 s records with a 20 ms window passed the decay check, every point ok, while the damping at
+    12.5 Hz was 4-12 % off in every draw (the truth inside its 95 % interval 25 % of the time in
+    quiet records, 87 % in noisy ones)."""
+    n = responses[0].shape[-1]
+    q = (n - pre) // 4
+    if q < 2:
+        return None
+
+    def quarter(k):
+        """|D|² and var D (n_band, C) of the records' quarter k (0-3) after the impact alone."""
+        lo, hi = pre + k * q, (n if k == 3 else pre + (k + 1) * q)
+        part = [np.concatenate([np.zeros(r.shape[:-1] + (lo,)), r[..., lo:hi], np.zeros(r.shape[:-1] + (n - hi,))],
+                               axis=-1) for r in responses]
+        d = _h1(forces, part, fs, zero_pad_s)
+        if d.cov is None:
+            return None, None
+        idx = np.arange(d.h.shape[1])
+        re = 8 * (idx // 4) + idx % 4
+        cov = d.cov[sel]
+        return np.abs(d.h[sel]) ** 2, cov[:, re, re] + cov[:, re + 4, re + 4]
+
+    p4, v4 = quarter(3)
+    if p4 is None:
+        return None
+    p3, v3 = quarter(2)
+    # the decay per quarter: bounded by the check and the window, and measured where the third
+    # quarter's response stands clear of its noise (its share above the noise, summed over the band)
+    bound = TAIL_DECAY_PER_QUARTER
+    if tau_s is not None:
+        bound = min(bound, float(np.exp(-q / fs / tau_s)))
+    s3, s4 = (p3 - v3).sum(axis=0), (p4 - v4).sum(axis=0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        a = np.where(s3 > v3.sum(axis=0), np.sqrt(np.clip(s4, 0.0, None) / s3), 0.0)
+    a = np.minimum(np.nan_to_num(a), bound)
+    return np.maximum(p4 - v4, 0.0) * (a / (1.0 - a)) ** 2
+
+
 _DETECT_OPTIONS = ("threshold_N", "min_separation_s", "double_hit_window_s", "double_hit_fraction", "overload_N")
 
 #: longest zero-padded impact record (samples) the impact chain transforms (8 MB per channel)
@@ -804,13 +899,21 @@ def _delay_rotation(phase):
     return R
 
 
-def _impact_response(frf, sel, speed, plane, direction, at, sigma, name, delays=None) -> ImpactResponse:
+def _impact_response(frf, sel, speed, plane, direction, at, sigma, name, delays=None, extra_var=None) -> ImpactResponse:
     """The ImpactResponse of an averaged H1 over the band ``sel``; with 8 channels the last four
     are housing accelerometers, whose FRFs A become pedestal displacement FRFs A / s² with
     s = sigma + j w (their covariance mapped alike). ``delays`` (C,): each response channel's
-    delay less the force channel's (s); the FRFs are advanced by e^{j w delay}."""
+    delay less the force channel's (s); the FRFs are advanced by e^{j w delay}. ``extra_var``
+    (n_band, C): a variance of each FRF column's error of any phase (split evenly between its real
+    and imaginary parts) added to the covariance (:func:`_truncation_var`)."""
     h = frf.h[sel]
     cov = None if frf.cov is None else frf.cov[sel]
+    if cov is not None and extra_var is not None:
+        cov = cov.copy()
+        idx = np.arange(h.shape[1])
+        re = 8 * (idx // 4) + idx % 4
+        cov[:, re, re] += 0.5 * extra_var
+        cov[:, re + 4, re + 4] += 0.5 * extra_var
     if delays is not None and np.any(delays):
         # measured x(t - d) has the spectrum X e^{-j w d}: undo it (the exponential window's decay
         # rate sigma does not change the phase of a pure delay's correction at s = sigma + j w
@@ -1003,7 +1106,9 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
             truncated.append(f"{direction} at {plane:g} m: {100 * tail:.0f} %")
         sigma = 0.0 if exp_window_tau_s is None else 1.0 / exp_window_tau_s
         tests.append(_impact_response(frf, sel, speed, plane, direction, at, sigma,
-                                      f"{direction}@{plane:g}m x{len(fl)}", rel))
+                                      f"{direction}@{plane:g}m x{len(fl)}", rel,
+                                      _truncation_var(fl, rl, int(round(pre_s * fs)), fs, zero_pad_s, sel,
+                                                      exp_window_tau_s)))
         frfs.append(frf)
         used.append(ul)
     # low coherence at a frequency (any test, any channel) flags the point: its FRFs are unreliable
@@ -1017,7 +1122,10 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
         # leakage of a response cut off before it died out smears every frequency of the FRFs
         warnings.warn(f"the response has not died out by the end of the {record_s:g} s records (its last tenth, "
                       f"above the noise, against its peak: {'; '.join(truncated)}): the FRFs leak and every point is "
-                      "flagged; a longer record_s or an exponential window (exp_window_tau_s) avoids it")
+                      "flagged; " + ("a longer record_s or an exponential window (exp_window_tau_s) avoids it"
+                                     if exp_window_tau_s is None else
+                                     f"a longer record_s or a shorter exponential window than exp_window_tau_s = "
+                                     f"{exp_window_tau_s:g} s avoids it"))
         flags.append((np.ones(low_coh.size, bool), "response not decayed in the record"))
     ident = identify_impact(rotor, tests, identical=identical, method=method, extra_flags=flags, **ident_kw)
     kcm = None
