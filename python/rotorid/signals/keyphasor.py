@@ -1040,6 +1040,7 @@ def _refine(w, t, base, swing, half, post, rise):
         if abs(per[i] - ref) > 0.01 * ref:
             starts.append(i + 1)
     starts.append(n)
+    starts = _ramp_ends_split(t, starts)
     # steady stretches longer than TEMPLATE_CHUNK in equal parts (a short remainder could not see
     # the positions' whole cycle where they creep slowly)
     starts = sorted({int(a + round(j * (b - a) / -(-(b - a) // TEMPLATE_CHUNK)))
@@ -1391,6 +1392,36 @@ STEADY_PERIOD_CHANGE = 0.1
 #: ... and from which the times depart by less than this rms (samples; interpolation errors stay
 #: below it, a speed wandering by 0.05 % over 97 revolutions departs by samples)
 ONE_SPEED_RESIDUAL = 0.25
+
+
+def _ramp_ends_split(t, starts):
+    """The stretch boundaries ``starts`` with each stretch's ramp ends split off: the runs of pulses
+    at either end that depart by more than ``ONE_SPEED_RESIDUAL`` from the quadratic through the
+    stretch's middle half, where that middle holds one speed.
+
+    A stretch begins where the period changes by 1 %: the last revolutions of a ramp into a dwell
+    (and the first out of it) are within that and joined it, 0.3-5 samples off the dwell's speed.
+    They made the dwell's quadratic miss by 0.26-0.41 samples rms, so it was not taken for one speed,
+    and a time base that follows the speed then read a slowly creeping interpolation error as a
+    change of speed (an independent simulator's dwells with 0.8 s ramps between them, 12,800 Hz,
+    192.002 samples per revolution: 0.18 samples late beyond the pulse shape's share, stated 0.001;
+    found 2026-11-29). Split off, the ends are stretches of their own (mostly too short to measure:
+    the uncertainty their edges allow)."""
+    out = [starts[0]]
+    for a, b in zip(starts[:-1], starts[1:]):
+        m = b - a
+        if m >= 32:
+            i = np.arange(m, dtype=float) - 0.5 * (m - 1)
+            m0, m1 = m // 4, m - m // 4
+            quad = np.polyfit(i[m0:m1], t[a + m0:a + m1], 2)
+            r = np.abs(t[a:b] - np.polyval(quad, i))
+            if _rms(r[m0:m1]) < 0.5 * ONE_SPEED_RESIDUAL:
+                off = r > ONE_SPEED_RESIDUAL
+                lo = int(np.argmin(off[:m0])) if not off[:m0].all() else m0
+                hi = m - (int(np.argmin(off[m1:][::-1])) if not off[m1:].all() else m - m1)
+                out += [a + k for k in (lo, hi) if 0 < k < m]
+        out.append(b)
+    return sorted(set(out))
 
 
 def _occupied(fit):
