@@ -1016,3 +1016,21 @@ def test_a_dwell_between_ramps_is_timed_as_one_speed(spr, shape):
     err = float(np.mean(tk[near] - ev[dwell])) * fs
     stated = 0.0 if kp.timing_std_each_s is None else float(np.mean(kp.timing_std_each_s[near])) * fs
     assert abs(err) <= 2.0 * stated + 0.01, (err, stated)
+
+
+def test_pulses_that_narrow_with_speed_are_named_when_they_are_missed():
+    """A mark of a fixed angle (2.5 degrees, 1-sample edges) is 2-3 samples wide on average over a
+    run-up from 1500 to 6000 rpm at 12,800 Hz, but under a sample at the top: pulses are missed
+    there, the periods jump, and the refusal named only blocks and max_speed_step (an independent
+    simulator's notches of 1.5-3 degrees); it now names the narrow pulses and what to do."""
+    fs, dt, span = 12800.0, 1e-5, 12.0
+    tt = np.arange(0.0, span, dt)
+    turns = 0.1 + np.cumsum(np.interp(tt, [0, 1, 11, span], [1500, 1500, 6000, 6000]) / 60.0 * dt)
+    ev = np.interp(np.arange(np.ceil(turns[0]), np.floor(turns[-1])), turns, tt)
+    v = pulse_train(np.arange(0.0, span, 1.0 / fs), ev, fs,
+                    PulseShape("trapezoid", edge_samples=1.0, duty=2.5 / 360, min_width_samples=0.0), seed=1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        with pytest.raises(RotoridError, match=r"speed jumps .* At the fastest speeds the pulses are only 0\.\d+ "
+                                               r"sample\(s\) wide .* widen the mark"):
+            signals.keyphasor_times(v, fs)

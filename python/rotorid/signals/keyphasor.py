@@ -668,10 +668,20 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
     try:
         t, extra, missing = _plausible(t, tolerance, fill_missing, where, max_speed_step)
     except KeyphasorError as exc:
-        if not narrow:
+        if narrow:
+            raise KeyphasorError(f"{exc}. The pulses are only {seen:.2g} sample(s) wide, so the sampling misses some "
+                                 "of them: record the keyphasor at a higher rate, or widen the mark") from None
+        # pulses of a fixed angle narrow as the speed rises: wide enough on average, they may be
+        # missed at the fastest speeds (notches of 1.5-3 degrees at 12,800 Hz, 0.8-1.3 samples wide
+        # at 6000 rpm, were refused as a speed jump that named only blocks and max_speed_step; an
+        # independent simulator's finding)
+        fast = duty * float(np.percentile(np.diff(t), 5)) * fs_hz if t.size > 20 else np.inf
+        if fast >= NARROW_AT_SPEED:
             raise
-        raise KeyphasorError(f"{exc}. The pulses are only {seen:.2g} sample(s) wide, so the sampling misses some of "
-                             "them: record the keyphasor at a higher rate, or widen the mark") from None
+        raise KeyphasorError(f"{exc}. At the fastest speeds the pulses are only {fast:.2g} sample(s) wide "
+                             f"({100 * duty:.2g} % of a revolution), so the sampling may miss some of them: record the "
+                             "keyphasor at a higher rate, widen the mark, or give a trigger level nearer the rest "
+                             "state (level, hysteresis)") from None
     period = float(np.median(np.diff(t))) if t.size > 1 else np.inf
     if t.size > 1 and (t[0] - span_s[0] > UNUSED_PERIODS * period or span_s[1] - t[-1] > UNUSED_PERIODS * period):
         warnings.warn(f"keyphasor{where}: pulses only from t = {t[0]:.4g} to {t[-1]:.4g} s of the record's "
@@ -707,6 +717,9 @@ def _commensurate(t):
     return out
 
 
+#: a speed jump where the pulses at the fastest speeds are narrower than this (samples) names them
+#: as its likely cause (missed pulses)
+NARROW_AT_SPEED = 2.0
 #: pulses narrower than this (samples above mid-height) are timed only to within a sample
 NARROW_SAMPLES = 1.5
 #: a record whose first pulse comes later, or last pulse earlier, than this many periods from its
