@@ -113,8 +113,9 @@ def _near_only(track, speeds, tol, label, what):
     if far.all():
         raise RotoridError(f"{label}: none of its speeds ({track.speed_rpm.min():.0f}-{track.speed_rpm.max():.0f} rpm) "
                            f"lies within {tol:g} rpm of a speed of {what}; raise speed_match_rpm if they are the same")
-    warnings.warn(f"{label}: {int(far.sum())} of {far.size} speed(s) ({', '.join(f'{v:.1f}' for v in track.speed_rpm[far][:5])} "
-                  f"rpm) dropped: farther than {tol:g} rpm (speed_match_rpm) from every speed of {what}")
+    listed = ", ".join(f"{v:.1f}" for v in track.speed_rpm[far][:5]) + (", ..." if far.sum() > 5 else "")
+    warnings.warn(f"{label}: {int(far.sum())} of {far.size} speed(s) ({listed} rpm) dropped: farther than {tol:g} rpm "
+                  f"(speed_match_rpm) from every speed of {what}")
     keep = ~far
     fields = ("speed_rpm", "vectors", "n_revs", "scatter", "t_mid", "cov", "dof")
     if track.has_pedestal:
@@ -615,8 +616,8 @@ def _reported_phase_std(cal, rpm, stated, local_deg, stand_in):
     - the phase error it found, theta - Omega tau, with its uncertainty: left in the vectors, it is
       an error of the coefficients, so sqrt(e² + s_line²) takes the place of the stated common
       part where it is larger (a keyphasor mark 0.3 degree off, found 17 standard errors away:
-      coverage 0.15-0.20 of the points ok under "report", 20 trials of the chain, before
-      2026-11-29, sixth part; the larger, not the sum, of two estimates of one error);
+      61 % of the points ok under "report" and none of them covered, 20 trials of the chain,
+      before 2026-11-29, sixth part; the larger, not the sum, of two estimates of one error);
     - the phase scatter between speeds and the outlying speeds' own (one speed 0.4 degree off among
       15, only the scatter added: its coefficients covered 5 %, found in review);
     - where the scatter rests on ``MIN_SCATTER_DOF`` or more (``stand_in``), it stands in for the
