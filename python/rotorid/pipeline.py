@@ -18,7 +18,7 @@ from .errors import RotoridError
 from .identify import Identification, identify_impact, identify_synchronous
 from .model import Imbalance, RigidRotor
 from .recording import ACCELEROMETERS, DISPLACEMENTS, Recording, SegmentedRecording
-from .simulate import ImpactResponse, SyncResponse
+from .simulate import RPM, ImpactResponse, SyncResponse
 
 
 def _imbalance_of(rec, override=None, label="") -> Imbalance:
@@ -582,12 +582,15 @@ def _phase_calibrated(rotor, responses, ident, method, ident_kw, local_deg, appl
     if not apply:
         if used_kw is not None:
             rpm = responses[0].speed_rpm
-            stated = np.broadcast_to(np.asarray(used_kw.get("keyphasor_angle_std_deg", 0.0), dtype=float), rpm.shape)
+            # the stated phase uncertainty at each speed: the angle's and the delay's (Omega sigma_tau),
+            # one common phase error per speed, which the calibration's finding may take the place of
+            angle = np.broadcast_to(np.asarray(used_kw.get("keyphasor_angle_std_deg", 0.0), dtype=float), rpm.shape)
+            stated = np.hypot(angle, np.rad2deg(rpm * RPM * float(used_kw.get("keyphasor_delay_std_s", 0.0))))
             phase, why = _reported_phase_std(cal, rpm, stated, local_deg,
                                              stand_in=local_deg is not None and common is None)
             if why:
-                ident = identify_synchronous(rotor, responses, method=method,
-                                             **{**used_kw, "keyphasor_angle_std_deg": phase})
+                ident = identify_synchronous(rotor, responses, method=method, **{
+                    **used_kw, "keyphasor_angle_std_deg": phase, "keyphasor_delay_std_s": 0.0})
                 notes.append(f"{'; '.join(why)}: in the error bars; the calibration itself is reported, not applied")
         return responses, ident, cal
     responses = cal.apply(responses)
@@ -609,15 +612,18 @@ def _reported_phase_std(cal, rpm, stated, local_deg, stand_in):
     that is reported, not applied, and what it adds (a list of phrases for the note, empty where
     it adds nothing).
 
-    ``stated``: the chain's (the user's, the keyphasor pulse shape's, which holds the part local
-    to each dwell ``local_deg`` as a phase common to the runs at a speed). Three things of the
+    ``stated``: the chain's (the user's angle and delay, the keyphasor pulse shape's, which holds the
+    part local to each dwell ``local_deg`` as a phase common to the runs at a speed). Three things of the
     calibration's enter:
 
-    - the phase error it found, theta - Omega tau, with its uncertainty: left in the vectors, it is
-      an error of the coefficients, so sqrt(e² + s_line²) takes the place of the stated common
-      part where it is larger (a keyphasor mark 0.3 degree off, found 17 standard errors away:
-      61 % of the points ok under "report" and none of them covered, 20 trials of the chain,
-      before 2026-11-29, sixth part; the larger, not the sum, of two estimates of one error);
+    - the phase error it found: left in the vectors, it is an error of the coefficients. Its size
+      estimated from e = theta - Omega tau and e's uncertainty s_line, sqrt(max(e² - s_line², 0))
+      (a moment estimate, as the scatter's, truncated at 0: a calibration that finds nothing adds
+      nothing), takes the place of the stated common part where it is larger (a keyphasor mark
+      0.3 degree off, found 17 standard errors away: 61 % of the points ok under "report" and none
+      of them covered, 20 trials of the chain, before 2026-11-29, sixth part; the larger, not the
+      sum, of two estimates of one error; sqrt(e² + s_line²), tried first, turned clean points
+      "uncertain" where nothing was stated: at 10,000 Hz 39 -> 21 % ok, found in review);
     - the phase scatter between speeds and the outlying speeds' own (one speed 0.4 degree off among
       15, only the scatter added: its coefficients covered 5 %, found in review);
     - where the scatter rests on ``MIN_SCATTER_DOF`` or more (``stand_in``), it stands in for the
@@ -625,13 +631,16 @@ def _reported_phase_std(cal, rpm, stated, local_deg, stand_in):
       covariance)."""
     loc2 = 0.0 if local_deg is None else np.nan_to_num(np.asarray(local_deg, dtype=float)) ** 2
     common = np.sqrt(np.clip(stated ** 2 - loc2, 0.0, None))
-    found = np.hypot(cal.error_deg(rpm), cal.line_std_deg(rpm))
+    found = np.sqrt(np.clip(cal.error_deg(rpm) ** 2 - cal.line_std_deg(rpm) ** 2, 0.0, None))
     scatter = cal.scatter_std_deg(rpm)
     phase = np.sqrt(np.fmax(common, found) ** 2 + (0.0 if stand_in else loc2) + scatter ** 2)
     why = []
     if np.any(found > common):
-        why.append(f"the phase reference error the calibration found (up to {np.abs(cal.error_deg(rpm)).max():.3g} "
-                   "deg at these speeds, where larger than stated)")
+        why.append(f"the phase reference error the calibration found (up to {found.max():.3g} deg at these speeds, "
+                   "where larger than stated" + (f"; counted as {MAX_REPORTED_PHASE_DEG:g} deg where beyond: such "
+                                                 "coefficients mean little" if np.any(phase > MAX_REPORTED_PHASE_DEG)
+                                                 else "") + ")")
+    phase = np.minimum(phase, MAX_REPORTED_PHASE_DEG)
     if cal.scatter_deg > 0 or cal.outlier_speeds_rpm or stand_in:
         why.append(f"the phase scatter between speeds ({cal.scatter_deg:.3g} deg"
                    + (f"; the speeds off the line with their own: {_rpm_list(cal.outlier_speeds_rpm)}"
@@ -640,6 +649,11 @@ def _reported_phase_std(cal, rpm, stated, local_deg, stand_in):
                       "stays in each recording's covariance" if stand_in and local_deg is not None else "")
                    + ")")
     return phase, why
+
+
+#: the largest phase uncertainty a reported calibration puts in the error bars (deg; the
+#: identification takes less than 45): a mark 60 degrees off would have refused the whole chain
+MAX_REPORTED_PHASE_DEG = 44.0
 
 
 def _rpm_list(speeds):
