@@ -864,7 +864,13 @@ def _truncation_var(forces, responses, pre, fs, zero_pad_s, sel, tau_s):
                                axis=-1) for r in responses]
         d = _h1(forces, part, fs, zero_pad_s)
         if d.cov is None:
-            return None, None
+            # one impact: the quarter's noise from the samples before it
+            noise = _impact_noise(forces[0], responses[0], pre) if len(forces) == 1 else None
+            if noise is None:
+                return None, None
+            w = _record_window(n, fs, pre, tau_s) * ((np.arange(n) >= lo) & (np.arange(n) < hi))
+            n_fft = n if zero_pad_s is None else int(round(zero_pad_s * fs))
+            return np.abs(d.h[sel]) ** 2, _h1_noise_var(d.h, forces[0], noise, w, n_fft)[sel]
         idx = np.arange(d.h.shape[1])
         re = 8 * (idx // 4) + idx % 4
         cov = d.cov[sel]
@@ -884,6 +890,63 @@ def _truncation_var(forces, responses, pre, fs, zero_pad_s, sel, tau_s):
         a = np.where(s3 > v3.sum(axis=0), np.sqrt(np.clip(s4, 0.0, None) / s3), 0.0)
     a = np.minimum(np.nan_to_num(a), bound)
     return np.maximum(p4 - v4, 0.0) * (a / (1.0 - a)) ** 2
+
+
+#: the fewest samples before the impact from which a single impact's noise is estimated
+MIN_NOISE_SAMPLES = 16
+
+
+def _impact_noise(force, response, pre):
+    """(s_c² per response channel, s_f²): the variances of one impact's records over the ``pre``
+    samples before it (run-out filtered), or None where there are fewer than
+    ``MIN_NOISE_SAMPLES``."""
+    if pre < MIN_NOISE_SAMPLES:
+        return None
+    return (np.var(np.asarray(response, dtype=float)[:, :pre], axis=1, ddof=1),
+            float(np.var(np.asarray(force, dtype=float)[:pre], ddof=1)))
+
+
+def _h1_noise_var(h, force, noise, w, n_fft):
+    """(n_f, C) E|dH_c|² of one impact's H1 = X F* / |F|² under white noise ``noise`` = (s_c², s_f²)
+    on records weighted by ``w`` (the response's; the force's is ``w`` where the force record is
+    not zero): (s_c² sum w² + |H_c|² s_f² sum w_f²) / |F|²."""
+    s2, sf2 = noise
+    f = np.asarray(force, dtype=float)
+    F2 = np.abs(np.fft.rfft(f, n_fft)) ** 2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return (s2[None, :] * float(np.sum(w ** 2)) + np.abs(h) ** 2 * sf2 * float(np.sum(np.where(f != 0.0, w, 0.0) ** 2))) \
+            / F2[:, None]
+
+
+def _record_window(n, fs, pre, tau_s):
+    """The weight the impact chain gives its records' samples: its exponential window, or 1."""
+    return np.ones(n) if tau_s is None else signals.exponential_window(n, fs, tau_s, start=pre)
+
+
+def _single_impact_frf(frf, force, response, pre, fs, zero_pad_s, tau_s):
+    """``frf`` of one impact with the covariance of its H1 from the noise of the records before the
+    impact, or ``frf`` as it is where there are fewer than ``MIN_NOISE_SAMPLES`` of them.
+
+    One impact leaves no scatter to estimate H1's error from, and its points had no standard error
+    at all (NaN, every point ok: coverage 0, review of 2026-11-29). With white noise of variance
+    s_c² on response channel c and s_f² on the force, each weighted by the records' windows w (the
+    exponential window, and for the force the window around its pulse too), H1 = X F* / |F|² errs
+    by E|dH_c|² = (s_c² sum w² + |H_c|² s_f² sum w_f²) / |F|² (:func:`_h1_noise_var`), split evenly
+    between its real and imaginary parts; the variances come from the ``pre`` samples before the
+    impact (run-out filtered), with pre - 1 degrees of freedom."""
+    noise = _impact_noise(force, response, pre)
+    if noise is None:
+        return frf
+    n = np.shape(response)[-1]
+    n_fft = n if zero_pad_s is None else int(round(zero_pad_s * fs))
+    var = _h1_noise_var(frf.h, force, noise, _record_window(n, fs, pre, tau_s), n_fft)
+    c = frf.h.shape[1]
+    cov = np.zeros((var.shape[0], 2 * c, 2 * c))
+    idx = np.arange(c)
+    re = 8 * (idx // 4) + idx % 4
+    cov[:, re, re] = 0.5 * var
+    cov[:, re + 4, re + 4] = 0.5 * var
+    return dataclasses.replace(frf, cov=cov, dof=float(pre - 1))
 
 
 _DETECT_OPTIONS = ("threshold_N", "min_separation_s", "double_hit_window_s", "double_hit_fraction", "overload_N")
@@ -1109,6 +1172,8 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
             raise RotoridError(f"no clean impact left for the test in {direction} at plane {plane:g} m" +
                                (f" (impacts dropped: {'; '.join(why)})" if why else ""))
         frf = _h1(fl, rl, fs, zero_pad_s)
+        if len(fl) == 1 and frf.h.shape[1] in (4, 8):
+            frf = _single_impact_frf(frf, fl[0], rl[0], int(round(pre_s * fs)), fs, zero_pad_s, exp_window_tau_s)
         sel = (frf.freq_hz >= band_hz[0]) & (frf.freq_hz <= band_hz[1])
         coh = frf.coherence[sel]
         if np.any(coh < coherence_min):
