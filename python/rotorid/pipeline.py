@@ -925,7 +925,8 @@ def _record_window(n, fs, pre, tau_s):
 
 def _single_impact_frf(frf, force, response, pre, fs, zero_pad_s, tau_s):
     """``frf`` of one impact with the covariance of its H1 from the noise of the records before the
-    impact, or ``frf`` as it is where there are fewer than ``MIN_NOISE_SAMPLES`` of them.
+    impact, or a NaN covariance (uncertainty unknown) where there are fewer than
+    ``MIN_NOISE_SAMPLES`` of them.
 
     One impact leaves no scatter to estimate H1's error from, and its points had no standard error
     at all (NaN, every point ok: coverage 0, review of 2026-11-29). With white noise of variance
@@ -933,10 +934,16 @@ def _single_impact_frf(frf, force, response, pre, fs, zero_pad_s, tau_s):
     exponential window, and for the force the window around its pulse too), H1 = X F* / |F|² errs
     by E|dH_c|² = (s_c² sum w² + |H_c|² s_f² sum w_f²) / |F|² (:func:`_h1_noise_var`), split evenly
     between its real and imaginary parts; the variances come from the ``pre`` samples before the
-    impact (run-out filtered), with pre - 1 degrees of freedom."""
+    impact (run-out filtered), with pre - 1 degrees of freedom. Noise that is not white is
+    under-counted where it concentrates in the band (review: probe noise below 50 Hz of 0.1-0.5 µm
+    beside 0.5 µm white, 20-120 Hz: coverage 0.85-0.60; low-frequency force noise of 5-20 N 0.81-0.60;
+    a 50 Hz hum 0.89), which the scatter of two or more impacts sees (0.96 in the same cases)."""
     noise = _impact_noise(force, response, pre)
     if noise is None:
-        return frf
+        # unknown, not absent: NaN, which flags every point "uncertainty unknown" (with no
+        # covariance its points had NaN errors and were ok, review)
+        c = frf.h.shape[1]
+        return dataclasses.replace(frf, cov=np.full((frf.h.shape[0], 2 * c, 2 * c), np.nan), dof=np.inf)
     n = np.shape(response)[-1]
     n_fft = n if zero_pad_s is None else int(round(zero_pad_s * fs))
     var = _h1_noise_var(frf.h, force, noise, _record_window(n, fs, pre, tau_s), n_fft)
@@ -1174,6 +1181,15 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
         frf = _h1(fl, rl, fs, zero_pad_s)
         if len(fl) == 1 and frf.h.shape[1] in (4, 8):
             frf = _single_impact_frf(frf, fl[0], rl[0], int(round(pre_s * fs)), fs, zero_pad_s, exp_window_tau_s)
+            if np.isnan(frf.cov).all():
+                warnings.warn(f"test {direction} at {plane:g} m has one impact and {int(round(pre_s * fs))} sample(s) "
+                              f"before it (pre_s = {pre_s:g} s): too few to estimate its noise, so its FRF's "
+                              f"uncertainty is unknown and every point is flagged; give pre_s of at least "
+                              f"{MIN_NOISE_SAMPLES / fs:.2g} s, or two or more impacts")
+            else:
+                warnings.warn(f"test {direction} at {plane:g} m has one impact: its FRF's error bars come from the "
+                              "noise before the impact, taken as white (noise concentrated in the band is "
+                              "under-counted); two or more impacts give them from their scatter")
         sel = (frf.freq_hz >= band_hz[0]) & (frf.freq_hz <= band_hz[1])
         coh = frf.coherence[sel]
         if np.any(coh < coherence_min):

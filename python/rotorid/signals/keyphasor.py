@@ -679,7 +679,7 @@ def keyphasor_times(kp, fs_hz: float, *, t0_s: float = 0.0, level=None, hysteres
         # genuine jump between two dwells only the few around it, found in review)
         d = np.diff(t)
         fast = duty * float(np.percentile(d, 5)) * fs_hz if t.size > 20 else np.inf
-        uneven = t.size > 20 and int(np.sum(np.abs(d / _running_median(d, 9) - 1.0) > tolerance)) >= UNEVEN_PERIODS
+        uneven = t.size > 20 and int(np.sum(d / _running_median(d, 9) > 1.0 + tolerance)) >= UNEVEN_PERIODS
         if fast >= NARROW_AT_SPEED or not uneven:
             raise
         raise KeyphasorError(f"{exc}. At the fastest speeds the pulses are only {fast:.3g} sample(s) wide "
@@ -724,7 +724,8 @@ def _commensurate(t):
 #: a speed jump where the pulses at the fastest speeds are narrower than this (samples) names them
 #: as its likely cause (missed pulses)
 NARROW_AT_SPEED = 2.0
-#: ... where at least this many periods depart from their neighbours' by the tolerance
+#: ... where at least this many periods exceed their neighbours' by the tolerance (the gaps missed
+#: pulses leave; extra pulses and glitches make short ones, which do not count)
 UNEVEN_PERIODS = 8
 #: pulses narrower than this (samples above mid-height) are timed only to within a sample
 NARROW_SAMPLES = 1.5
