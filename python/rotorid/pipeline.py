@@ -829,6 +829,13 @@ def _undecayed(responses, pre):
     return float(np.median(np.nanmax(r, axis=1)))
 
 
+def _real_rows(c):
+    """The rows of each of ``c`` FRF columns' real part in an FRF covariance ([Re q, Im q] per group
+    of 4 channels: probes, then accelerometers); the imaginary part's are 4 further on."""
+    idx = np.arange(c)
+    return 8 * (idx // 4) + idx % 4
+
+
 #: the largest amplitude ratio per quarter record credited to a response that passes the decay
 #: check (its last tenth under ``DECAYED`` of its peak: an exponential decay from the peak over the
 #: record's four quarters has 0.05^(1/4) = 0.47 per quarter)
@@ -871,8 +878,7 @@ def _truncation_var(forces, responses, pre, fs, zero_pad_s, sel, tau_s):
             w = _record_window(n, fs, pre, tau_s) * ((np.arange(n) >= lo) & (np.arange(n) < hi))
             n_fft = n if zero_pad_s is None else int(round(zero_pad_s * fs))
             return np.abs(d.h[sel]) ** 2, _h1_noise_var(d.h, forces[0], noise, w, n_fft)[sel]
-        idx = np.arange(d.h.shape[1])
-        re = 8 * (idx // 4) + idx % 4
+        re = _real_rows(d.h.shape[1])
         cov = d.cov[sel]
         return np.abs(d.h[sel]) ** 2, cov[:, re, re] + cov[:, re + 4, re + 4]
 
@@ -949,8 +955,7 @@ def _single_impact_frf(frf, force, response, pre, fs, zero_pad_s, tau_s):
     var = _h1_noise_var(frf.h, force, noise, _record_window(n, fs, pre, tau_s), n_fft)
     c = frf.h.shape[1]
     cov = np.zeros((var.shape[0], 2 * c, 2 * c))
-    idx = np.arange(c)
-    re = 8 * (idx // 4) + idx % 4
+    re = _real_rows(c)
     cov[:, re, re] = 0.5 * var
     cov[:, re + 4, re + 4] = 0.5 * var
     return dataclasses.replace(frf, cov=cov, dof=float(pre - 1))
@@ -995,8 +1000,7 @@ def _impact_response(frf, sel, speed, plane, direction, at, sigma, name, delays=
     cov = None if frf.cov is None else frf.cov[sel]
     if cov is not None and extra_var is not None:
         cov = cov.copy()
-        idx = np.arange(h.shape[1])
-        re = 8 * (idx // 4) + idx % 4
+        re = _real_rows(h.shape[1])
         cov[:, re, re] += 0.5 * extra_var
         cov[:, re + 4, re + 4] += 0.5 * extra_var
     if delays is not None and np.any(delays):
