@@ -15,7 +15,7 @@ import numpy as np
 
 from . import signals
 from .errors import RotoridError
-from .identify import Identification, identify_impact, identify_synchronous
+from .identify import Identification, _phase_reference_std, identify_impact, identify_synchronous
 from .model import Imbalance, RigidRotor
 from .recording import ACCELEROMETERS, DISPLACEMENTS, Recording, SegmentedRecording
 from .simulate import RPM, ImpactResponse, SyncResponse
@@ -531,8 +531,8 @@ def _phase_calibrated(rotor, responses, ident, method, ident_kw, local_deg, appl
     None), the first two corrected when ``apply``.
 
     Reported only, what the calibration found is an uncertainty of the vectors as measured, not a
-    correction (:func:`_reported_phase_std`): the phase error theta - Omega tau it estimates where
-    larger than the phase uncertainty ``used_kw`` gave ``ident``, and the phase scatter between
+    correction (:func:`_reported_phase_std`): the size of the phase error theta - Omega tau it
+    finds where larger than the phase uncertainty ``used_kw`` gave ``ident``, and the phase scatter between
     speeds it estimates from its misfit (``PhaseCalibration.scatter_deg``: phase errors of each
     speed alone beyond the stated uncertainty; 1X tables without a covariance, RC keyphasor edges
     of 0.5 sample at 10,240 Hz, no mark offset: coverage 0.81 without it); the runs are then
@@ -559,7 +559,7 @@ def _phase_calibrated(rotor, responses, ident, method, ident_kw, local_deg, appl
 
     own = {k: v for k, v in ident_kw.items() if k not in ("keyphasor_angle_std_deg", "keyphasor_delay_std_s")}
     local = {} if local_deg is None else dict(keyphasor_angle_std_deg=local_deg)
-    common = local_deg
+    stand_in = False    # the scatter stands in for the local part's common copy
     try:
         cal = None
         if local_deg is not None:
@@ -568,7 +568,7 @@ def _phase_calibrated(rotor, responses, ident, method, ident_kw, local_deg, appl
             except RotoridError:
                 trial = None     # (weighted by the local part below, it may still be made)
             if trial is not None and trial.scatter_dof >= MIN_SCATTER_DOF:
-                cal, common = trial, None    # the scatter stands in for the local part's common copy
+                cal, stand_in = trial, True
         if cal is None:
             cal = calibrate_phase(rotor, responses, method=method, **own, **local)
     except RotoridError as exc:
@@ -582,12 +582,13 @@ def _phase_calibrated(rotor, responses, ident, method, ident_kw, local_deg, appl
     if not apply:
         if used_kw is not None:
             rpm = responses[0].speed_rpm
-            # the stated phase uncertainty at each speed: the angle's and the delay's (Omega sigma_tau),
-            # one common phase error per speed, which the calibration's finding may take the place of
-            angle = np.broadcast_to(np.asarray(used_kw.get("keyphasor_angle_std_deg", 0.0), dtype=float), rpm.shape)
-            stated = np.hypot(angle, np.rad2deg(rpm * RPM * float(used_kw.get("keyphasor_delay_std_s", 0.0))))
-            phase, why = _reported_phase_std(cal, rpm, stated, local_deg,
-                                             stand_in=local_deg is not None and common is None)
+            # the stated phase uncertainty at each speed, the angle's and the delay's together as
+            # identify_synchronous takes them: one common phase error per speed, which the
+            # calibration's finding may take the place of
+            ref = _phase_reference_std(rpm, used_kw.get("keyphasor_angle_std_deg", 0.0),
+                                       used_kw.get("keyphasor_delay_std_s", 0.0))
+            stated = np.zeros(rpm.shape) if ref is None else np.rad2deg(ref) * np.ones(rpm.shape)
+            phase, why = _reported_phase_std(cal, rpm, stated, local_deg, stand_in=stand_in)
             if why:
                 ident = identify_synchronous(rotor, responses, method=method, **{
                     **used_kw, "keyphasor_angle_std_deg": phase, "keyphasor_delay_std_s": 0.0})
@@ -596,12 +597,13 @@ def _phase_calibrated(rotor, responses, ident, method, ident_kw, local_deg, appl
     responses = cal.apply(responses)
     std = cal.phase_std_deg(responses[0].speed_rpm)
     ident = identify_synchronous(rotor, responses, method=method, **own,
-                                 keyphasor_angle_std_deg=std if common is None else np.hypot(std, common))
+                                 keyphasor_angle_std_deg=(std if stand_in or local_deg is None
+                                                          else np.hypot(std, local_deg)))
     kept = (["its uncertainty"] + (["the phase scatter between speeds it estimated"] if cal.scatter_deg > 0 else [])
             + ([f"the own phase errors of the speeds off its line ({_rpm_list(cal.outlier_speeds_rpm)})"]
                if cal.outlier_speeds_rpm else []))
     local_note = ("" if local_deg is None else
-                  ", with the keyphasor's local to each dwell in each recording's covariance" if common is None else
+                  ", with the keyphasor's local to each dwell in each recording's covariance" if stand_in else
                   ", with the keyphasor's local to each dwell, in each recording's covariance and common to the runs")
     notes.append(f"phase calibration applied to the 1X vectors ({' and '.join(kept)} in the error bars{local_note})")
     return responses, ident, cal
@@ -646,7 +648,7 @@ def _reported_phase_std(cal, rpm, stated, local_deg, stand_in):
                    + (f"; the speeds off the line with their own: {_rpm_list(cal.outlier_speeds_rpm)}"
                       if cal.outlier_speeds_rpm else "")
                    + (", standing in for the keyphasor's local to each dwell as common to the runs; that part "
-                      "stays in each recording's covariance" if stand_in and local_deg is not None else "")
+                      "stays in each recording's covariance" if stand_in else "")
                    + ")")
     return phase, why
 
@@ -842,10 +844,10 @@ def _real_rows(c):
 TAIL_DECAY_PER_QUARTER = 0.5
 
 
-def _truncation_var(forces, responses, pre, fs, zero_pad_s, sel, tau_s):
+def _truncation_var(forces, responses, pre, fs, zero_pad_s, sel, tau_s, noise=None):
     """(n_band, C) variance of each FRF column's error (per unit force, squared) from the response
     the records cut off at their end, estimated from their last quarter after the impact; None
-    where there is no covariance (a single impact).
+    where there is no covariance (a single impact without ``noise``, :func:`_impact_noise`).
 
     D, the H1 of the records' last quarter alone (the rest zeroed), is that quarter's share of the
     FRF. A response decaying by a factor a per quarter record leaves beyond the record's end a
@@ -872,11 +874,10 @@ def _truncation_var(forces, responses, pre, fs, zero_pad_s, sel, tau_s):
         d = _h1(forces, part, fs, zero_pad_s)
         if d.cov is None:
             # one impact: the quarter's noise from the samples before it
-            noise = _impact_noise(forces[0], responses[0], pre) if len(forces) == 1 else None
             if noise is None:
                 return None, None
             w = _record_window(n, fs, pre, tau_s) * ((np.arange(n) >= lo) & (np.arange(n) < hi))
-            n_fft = n if zero_pad_s is None else int(round(zero_pad_s * fs))
+            n_fft = _fft_samples(n, fs, zero_pad_s)
             return np.abs(d.h[sel]) ** 2, _h1_noise_var(d.h, forces[0], noise, w, n_fft)[sel]
         re = _real_rows(d.h.shape[1])
         cov = d.cov[sel]
@@ -919,9 +920,9 @@ def _h1_noise_var(h, force, noise, w, n_fft):
     s2, sf2 = noise
     f = np.asarray(force, dtype=float)
     F2 = np.abs(np.fft.rfft(f, n_fft)) ** 2
+    wf2 = float(np.sum(np.where(f != 0.0, w, 0.0) ** 2))
     with np.errstate(divide="ignore", invalid="ignore"):
-        return (s2[None, :] * float(np.sum(w ** 2)) + np.abs(h) ** 2 * sf2 * float(np.sum(np.where(f != 0.0, w, 0.0) ** 2))) \
-            / F2[:, None]
+        return (s2[None, :] * float(np.sum(w ** 2)) + np.abs(h) ** 2 * sf2 * wf2) / F2[:, None]
 
 
 def _record_window(n, fs, pre, tau_s):
@@ -929,7 +930,7 @@ def _record_window(n, fs, pre, tau_s):
     return np.ones(n) if tau_s is None else signals.exponential_window(n, fs, tau_s, start=pre)
 
 
-def _single_impact_frf(frf, force, response, pre, fs, zero_pad_s, tau_s):
+def _single_impact_frf(frf, force, response, noise, pre, fs, zero_pad_s, tau_s):
     """``frf`` of one impact with the covariance of its H1 from the noise of the records before the
     impact, or a NaN covariance (uncertainty unknown) where there are fewer than
     ``MIN_NOISE_SAMPLES`` of them.
@@ -940,18 +941,18 @@ def _single_impact_frf(frf, force, response, pre, fs, zero_pad_s, tau_s):
     exponential window, and for the force the window around its pulse too), H1 = X F* / |F|² errs
     by E|dH_c|² = (s_c² sum w² + |H_c|² s_f² sum w_f²) / |F|² (:func:`_h1_noise_var`), split evenly
     between its real and imaginary parts; the variances come from the ``pre`` samples before the
-    impact (run-out filtered), with pre - 1 degrees of freedom. Noise that is not white is
-    under-counted where it concentrates in the band (review: probe noise below 50 Hz of 0.1-0.5 µm
-    beside 0.5 µm white, 20-120 Hz: coverage 0.85-0.60; low-frequency force noise of 5-20 N 0.81-0.60;
-    a 50 Hz hum 0.89), which the scatter of two or more impacts sees (0.96 in the same cases)."""
-    noise = _impact_noise(force, response, pre)
+    impact (run-out filtered, ``noise`` of :func:`_impact_noise`), with pre - 1 degrees of freedom.
+    Noise that is not white is under-counted where it concentrates in the band (review: probe noise
+    below 50 Hz of 0.1-0.5 µm beside 0.5 µm white, 20-120 Hz: coverage 0.85-0.60; low-frequency
+    force noise of 5-20 N 0.81-0.60; a 50 Hz hum 0.89), which the scatter of two or more impacts
+    sees (0.96 in the same cases)."""
     if noise is None:
         # unknown, not absent: NaN, which flags every point "uncertainty unknown" (with no
         # covariance its points had NaN errors and were ok, review)
         c = frf.h.shape[1]
         return dataclasses.replace(frf, cov=np.full((frf.h.shape[0], 2 * c, 2 * c), np.nan), dof=np.inf)
     n = np.shape(response)[-1]
-    n_fft = n if zero_pad_s is None else int(round(zero_pad_s * fs))
+    n_fft = _fft_samples(n, fs, zero_pad_s)
     var = _h1_noise_var(frf.h, force, noise, _record_window(n, fs, pre, tau_s), n_fft)
     c = frf.h.shape[1]
     cov = np.zeros((var.shape[0], 2 * c, 2 * c))
@@ -967,10 +968,16 @@ _DETECT_OPTIONS = ("threshold_N", "min_separation_s", "double_hit_window_s", "do
 MAX_FFT_SAMPLES = 1 << 20
 
 
+def _fft_samples(n, fs, zero_pad_s):
+    """The length the impact chain transforms records of ``n`` samples at: zero padded to
+    ``zero_pad_s`` when given."""
+    return n if zero_pad_s is None else int(round(zero_pad_s * fs))
+
+
 def _h1(forces, responses, fs, zero_pad_s):
     """H1 FRF of equally long records, zero padded to ``zero_pad_s`` when given."""
     if zero_pad_s is not None:
-        npad = int(round(zero_pad_s * fs))
+        npad = _fft_samples(forces[0].size, fs, zero_pad_s)
         forces = [np.pad(f, (0, npad - f.size)) for f in forces]
         responses = [np.pad(r, ((0, 0), (0, npad - r.shape[1]))) for r in responses]
     return signals.frf_h1(forces, responses, fs)
@@ -1183,10 +1190,12 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
             raise RotoridError(f"no clean impact left for the test in {direction} at plane {plane:g} m" +
                                (f" (impacts dropped: {'; '.join(why)})" if why else ""))
         frf = _h1(fl, rl, fs, zero_pad_s)
+        pre = int(round(pre_s * fs))
+        noise = _impact_noise(fl[0], rl[0], pre) if len(fl) == 1 else None
         if len(fl) == 1 and frf.h.shape[1] in (4, 8):
-            frf = _single_impact_frf(frf, fl[0], rl[0], int(round(pre_s * fs)), fs, zero_pad_s, exp_window_tau_s)
+            frf = _single_impact_frf(frf, fl[0], rl[0], noise, pre, fs, zero_pad_s, exp_window_tau_s)
             if np.isnan(frf.cov).all():
-                warnings.warn(f"test {direction} at {plane:g} m has one impact and {int(round(pre_s * fs))} sample(s) "
+                warnings.warn(f"test {direction} at {plane:g} m has one impact and {pre} sample(s) "
                               f"before it (pre_s = {pre_s:g} s): too few to estimate its noise, so its FRF's "
                               f"uncertainty is unknown and every point is flagged; give pre_s of at least "
                               f"{MIN_NOISE_SAMPLES / fs:.2g} s, or two or more impacts")
@@ -1201,14 +1210,13 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
             warnings.warn(f"test {direction} at {plane:g} m: coherence drops to {coh[i, j]:.2f} "
                           f"({channels[j]} at {frf.freq_hz[sel][i]:.1f} Hz) in the band; "
                           f"{int((coh < coherence_min).sum())} of {coh.size} points below {coherence_min:g}")
-        tail = _undecayed(rl, int(round(pre_s * fs)))
+        tail = _undecayed(rl, pre)
         if tail > DECAYED:
             truncated.append(f"{direction} at {plane:g} m: {100 * tail:.0f} %")
         sigma = 0.0 if exp_window_tau_s is None else 1.0 / exp_window_tau_s
         tests.append(_impact_response(frf, sel, speed, plane, direction, at, sigma,
                                       f"{direction}@{plane:g}m x{len(fl)}", rel,
-                                      _truncation_var(fl, rl, int(round(pre_s * fs)), fs, zero_pad_s, sel,
-                                                      exp_window_tau_s)))
+                                      _truncation_var(fl, rl, pre, fs, zero_pad_s, sel, exp_window_tau_s, noise)))
         frfs.append(frf)
         used.append(ul)
     # low coherence at a frequency (any test, any channel) flags the point: its FRFs are unreliable
