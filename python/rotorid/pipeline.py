@@ -7,13 +7,14 @@ Callable from Python (``imbalance_chain``, ``impact_chain``, ``run_config``) and
 from __future__ import annotations
 
 import dataclasses
+import functools
 import os
 import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import signals
+from . import impact_noise, signals
 from .errors import RotoridError
 from .identify import Identification, _phase_reference_std, identify_impact, identify_synchronous
 from .model import Imbalance, RigidRotor
@@ -719,6 +720,46 @@ def impact_segments(rec: Recording, *, record_s: float = 0.25, pre_s: float = 0.
     ``detect``: options of :func:`rotorid.signals.detect_impacts` (a dict, optional).
     ``pedestal``: the responses also hold the housing accelerometers px1, px2, py1, py2 (rows 4-7,
     m/s², run-out filtered alike: the filter removes their synchronous vibration)."""
+    forces, responses, used, dropped, _ = _impact_segments(
+        rec, record_s=record_s, pre_s=pre_s, revs_before=revs_before, runout=runout, kp=kp,
+        points_per_rev=points_per_rev, exp_window_tau_s=exp_window_tau_s, detect=detect, pedestal=pedestal)
+    return forces, responses, used, dropped
+
+
+def _columns(x, lo, hi):
+    """Samples lo..hi of the channels ``x`` (C, N)."""
+    return x[:, lo:hi]
+
+
+def _impact_noise_of(x, force, lo, hi, filtered, n_seg, f, y, pre, fw, demean):
+    """The :class:`rotorid.impact_noise.ImpactNoise` (or None) of an impact's records ``f``, ``y``
+    (``pre`` samples before the impact, force window ``fw``), measured on samples lo..hi of the
+    recording's channels ``x`` and ``force`` (:func:`_quiet_stretch`)."""
+    return impact_noise.impact_noise(f, y, pre, fw, _quiet_stretch(x, force, lo, hi, n_seg, pre, filtered),
+                                     demean=demean)
+
+
+def _quiet_stretch(x, force, lo, hi, n_seg, pre, filtered):
+    """(response (C, L), force (L,)) of samples lo..hi of a recording's channels ``x`` (C, N) and
+    ``force`` (N,): the last ``QUIET_SEGMENTS`` half-overlapping records of it (and the samples
+    their force's resting level is taken from) after its last non-finite sample, the response as
+    ``filtered(lo, hi)`` gives it; None where no more than a record is left."""
+    lo = max(lo, 0, hi - (impact_noise.QUIET_SEGMENTS + 1) * n_seg // 2 - max(impact_noise.FORCE_REST_SAMPLES, pre))
+    if hi - lo <= n_seg:
+        return None
+    bad = np.flatnonzero(~(np.isfinite(x[:, lo:hi]).all(axis=0) & np.isfinite(force[lo:hi])))
+    if bad.size:
+        lo += int(bad[-1]) + 1
+        if hi - lo <= n_seg:
+            return None
+    return filtered(lo, hi), force[lo:hi]
+
+
+def _impact_segments(rec, *, record_s, pre_s, revs_before, runout, kp, points_per_rev, exp_window_tau_s, detect,
+                     pedestal):
+    """:func:`impact_segments`, and per impact a function of no arguments giving the noise of its
+    records (:class:`rotorid.impact_noise.ImpactNoise` or None), measured on the recording's quiet
+    stretch before it."""
     from ._validate import flag, index, instance, mapping, number
 
     instance("rec", rec, Recording, what="rotorid.Recording (one impact recording)")
@@ -745,7 +786,7 @@ def impact_segments(rec: Recording, *, record_s: float = 0.25, pre_s: float = 0.
         rec.require("kp")
         kp = kp if kp is not None else signals.order.detect_keyphasor(rec)
     x = np.stack([rec.channels[c] for c in channels])
-    forces, responses, used, dropped = [], [], [], []
+    forces, responses, used, dropped, noises = [], [], [], [], []
     for j, imp in enumerate(imps):
         t_imp = rec.t0_s + imp.start / fs
         if not imp.ok:
@@ -757,6 +798,10 @@ def impact_segments(rec: Recording, *, record_s: float = 0.25, pre_s: float = 0.
         if a < 0 or b > rec.n_samples or b > nxt - pre:
             dropped.append((rec.source, t_imp, f"less than record_s = {record_s:g} s of clean record around it"))
             continue
+        # the quiet stretch before the impact, whose noise stands for its record's: from the end of
+        # the previous impact's record up to this record or, with the run-out filter, up to the
+        # revolutions its signature is taken from (their noise is in the signature)
+        quiet_from = imps[j - 1].start - pre + n_seg if j > 0 else 0
         if runout:
             period = 60.0 / np.median(kp.speed_rpm)
             t_end = rec.t0_s + a / fs
@@ -783,8 +828,10 @@ def impact_segments(rec: Recording, *, record_s: float = 0.25, pre_s: float = 0.
             if not np.all(np.isfinite(y)):
                 dropped.append((rec.source, t_imp, "keyphasor pulses do not cover the record"))
                 continue
+            quiet = (quiet_from, win, functools.partial(signals.runout_filter, x, fs, kp.times, tmpl, t0_s=rec.t0_s))
         else:
             y = x[:, a:b] - x[:, a:a + pre].mean(axis=1, keepdims=True) if pre > 0 else x[:, a:b]
+            quiet = (quiet_from, a, functools.partial(_columns, x))
         if imp.peak_N < 0:
             raise RotoridError(f"impact recording {rec.source!r}: the force channel's impact at t = {t_imp:.4f} s peaks "
                                f"at {imp.peak_N:.4g} N; a hammer pushes, which a force transducer reads as positive: the "
@@ -795,7 +842,12 @@ def impact_segments(rec: Recording, *, record_s: float = 0.25, pre_s: float = 0.
         prev = imps[j - 1].stop if j > 0 else 0
         rest = rec.channels["force"][max(prev, imp.start - max(pre, 64)):imp.start]
         f0 = float(np.median(rest)) if rest.size >= 8 else 0.0
-        f = (rec.channels["force"][a:b] - f0) * signals.force_window(n_seg, 0, imp.stop - a + pre, taper=0)
+        fw = signals.force_window(n_seg, 0, imp.stop - a + pre, taper=0)
+        f = (rec.channels["force"][a:b] - f0) * fw
+        # measured when asked for (a test of one impact): the quiet stretch's segments would hold
+        # 15 records per impact
+        noises.append(functools.partial(_impact_noise_of, x, rec.channels["force"], *quiet, n_seg, f, y, pre, fw,
+                                        not runout))
         if exp_window_tau_s is not None:
             ew = signals.exponential_window(n_seg, fs, exp_window_tau_s, start=pre)
             f = f * ew
@@ -803,7 +855,7 @@ def impact_segments(rec: Recording, *, record_s: float = 0.25, pre_s: float = 0.
         forces.append(f)
         responses.append(y)
         used.append((rec.source, t_imp))
-    return forces, responses, used, dropped
+    return forces, responses, used, dropped, noises
 
 
 #: a test's impact records end too soon when the rms of their last tenth, above the noise before the
@@ -831,156 +883,10 @@ def _undecayed(responses, pre):
     return float(np.median(np.nanmax(r, axis=1)))
 
 
-def _real_rows(c):
-    """The rows of each of ``c`` FRF columns' real part in an FRF covariance ([Re q, Im q] per group
-    of 4 channels: probes, then accelerometers); the imaginary part's are 4 further on."""
-    idx = np.arange(c)
-    return 8 * (idx // 4) + idx % 4
-
-
-#: the largest amplitude ratio per quarter record credited to a response that passes the decay
-#: check (its last tenth under ``DECAYED`` of its peak: an exponential decay from the peak over the
-#: record's four quarters has 0.05^(1/4) = 0.47 per quarter)
-TAIL_DECAY_PER_QUARTER = 0.5
-
-
-def _truncation_var(forces, responses, pre, fs, zero_pad_s, sel, tau_s, noise=None):
-    """(n_band, C) variance of each FRF column's error (per unit force, squared) from the response
-    the records cut off at their end, estimated from their last quarter after the impact; None
-    where there is no covariance (a single impact without ``noise``, :func:`_impact_noise`).
-
-    D, the H1 of the records' last quarter alone (the rest zeroed), is that quarter's share of the
-    FRF. A response decaying by a factor a per quarter record leaves beyond the record's end a
-    share like D, smaller by a / (1 - a) (a geometric series of quarters). Per channel, a is the
-    ratio of the last quarter's share to the third's, sqrt(sum(|D4|² - var D4) / sum(|D3|² - var
-    D3)) over the band (0 where the third quarter's share does not stand clear of its noise), at
-    most the exponential window's own decay over a quarter, exp(-P / (4 tau)) for P seconds after
-    the impact, and ``TAIL_DECAY_PER_QUARTER`` (what passing the decay check implies). The part of
-    |D|² that is the impacts' noise (the scatter of the impacts, as H1's covariance) is taken out:
-    s² = max(|D4|² - var D4, 0) a² / (1 - a)². Found by an independent simulator's impacts (2026-11-29):
-    0.08 s records with a 20 ms window passed the decay check, every point ok, while the damping at
-    12.5 Hz was 4-12 % off in every draw (the truth inside its 95 % interval 25 % of the time in
-    quiet records, 87 % in noisy ones)."""
-    n = responses[0].shape[-1]
-    q = (n - pre) // 4
-    if q < 2:
-        return None
-
-    def quarter(k):
-        """|D|² and var D (n_band, C) of the records' quarter k (0-3) after the impact alone."""
-        lo, hi = pre + k * q, (n if k == 3 else pre + (k + 1) * q)
-        part = [np.concatenate([np.zeros(r.shape[:-1] + (lo,)), r[..., lo:hi], np.zeros(r.shape[:-1] + (n - hi,))],
-                               axis=-1) for r in responses]
-        d = _h1(forces, part, fs, zero_pad_s)
-        if d.cov is None:
-            # one impact: the quarter's noise from the samples before it
-            if noise is None:
-                return None, None
-            w = _record_window(n, fs, pre, tau_s) * ((np.arange(n) >= lo) & (np.arange(n) < hi))
-            n_fft = _fft_samples(n, fs, zero_pad_s)
-            return np.abs(d.h[sel]) ** 2, _h1_noise_var(d.h, forces[0], noise, w, n_fft)[sel]
-        re = _real_rows(d.h.shape[1])
-        cov = d.cov[sel]
-        return np.abs(d.h[sel]) ** 2, cov[:, re, re] + cov[:, re + 4, re + 4]
-
-    p4, v4 = quarter(3)
-    if p4 is None:
-        return None
-    p3, v3 = quarter(2)
-    # the decay per quarter: bounded by the check and the window, and measured where the third
-    # quarter's response stands clear of its noise (its share above the noise, summed over the band)
-    bound = TAIL_DECAY_PER_QUARTER
-    if tau_s is not None:
-        bound = min(bound, float(np.exp(-q / fs / tau_s)))
-    s3, s4 = (p3 - v3).sum(axis=0), (p4 - v4).sum(axis=0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        a = np.where(s3 > v3.sum(axis=0), np.sqrt(np.clip(s4, 0.0, None) / s3), 0.0)
-    a = np.minimum(np.nan_to_num(a), bound)
-    return np.maximum(p4 - v4, 0.0) * (a / (1.0 - a)) ** 2
-
-
-#: the fewest samples before the impact from which a single impact's noise is estimated
-MIN_NOISE_SAMPLES = 16
-
-
-def _impact_noise(force, response, pre):
-    """(s_c² per response channel, s_f²): the variances of one impact's records over the ``pre``
-    samples before it (run-out filtered), or None where there are fewer than
-    ``MIN_NOISE_SAMPLES``."""
-    if pre < MIN_NOISE_SAMPLES:
-        return None
-    return (np.var(np.asarray(response, dtype=float)[:, :pre], axis=1, ddof=1),
-            float(np.var(np.asarray(force, dtype=float)[:pre], ddof=1)))
-
-
-def _h1_noise_var(h, force, noise, w, n_fft):
-    """(n_f, C) E|dH_c|² of one impact's H1 = X F* / |F|² under white noise ``noise`` = (s_c², s_f²)
-    on records weighted by ``w`` (the response's; the force's is ``w`` where the force record is
-    not zero): (s_c² sum w² + |H_c|² s_f² sum w_f²) / |F|²."""
-    s2, sf2 = noise
-    f = np.asarray(force, dtype=float)
-    F2 = np.abs(np.fft.rfft(f, n_fft)) ** 2
-    wf2 = float(np.sum(np.where(f != 0.0, w, 0.0) ** 2))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return (s2[None, :] * float(np.sum(w ** 2)) + np.abs(h) ** 2 * sf2 * wf2) / F2[:, None]
-
-
-def _record_window(n, fs, pre, tau_s):
-    """The weight the impact chain gives its records' samples: its exponential window, or 1."""
-    return np.ones(n) if tau_s is None else signals.exponential_window(n, fs, tau_s, start=pre)
-
-
-def _single_impact_frf(frf, force, response, noise, pre, fs, zero_pad_s, tau_s):
-    """``frf`` of one impact with the covariance of its H1 from the noise of the records before the
-    impact, or a NaN covariance (uncertainty unknown) where there are fewer than
-    ``MIN_NOISE_SAMPLES`` of them.
-
-    One impact leaves no scatter to estimate H1's error from, and its points had no standard error
-    at all (NaN, every point ok: coverage 0, review of 2026-11-29). With white noise of variance
-    s_c² on response channel c and s_f² on the force, each weighted by the records' windows w (the
-    exponential window, and for the force the window around its pulse too), H1 = X F* / |F|² errs
-    by E|dH_c|² = (s_c² sum w² + |H_c|² s_f² sum w_f²) / |F|² (:func:`_h1_noise_var`), split evenly
-    between its real and imaginary parts; the variances come from the ``pre`` samples before the
-    impact (run-out filtered, ``noise`` of :func:`_impact_noise`), with pre - 1 degrees of freedom.
-    Noise that is not white is under-counted where it concentrates in the band (review: probe noise
-    below 50 Hz of 0.1-0.5 µm beside 0.5 µm white, 20-120 Hz: coverage 0.85-0.60; low-frequency
-    force noise of 5-20 N 0.81-0.60; a 50 Hz hum 0.89), which the scatter of two or more impacts
-    sees (0.96 in the same cases)."""
-    if noise is None:
-        # unknown, not absent: NaN, which flags every point "uncertainty unknown" (with no
-        # covariance its points had NaN errors and were ok, review)
-        c = frf.h.shape[1]
-        return dataclasses.replace(frf, cov=np.full((frf.h.shape[0], 2 * c, 2 * c), np.nan), dof=np.inf)
-    n = np.shape(response)[-1]
-    n_fft = _fft_samples(n, fs, zero_pad_s)
-    var = _h1_noise_var(frf.h, force, noise, _record_window(n, fs, pre, tau_s), n_fft)
-    c = frf.h.shape[1]
-    cov = np.zeros((var.shape[0], 2 * c, 2 * c))
-    re = _real_rows(c)
-    cov[:, re, re] = 0.5 * var
-    cov[:, re + 4, re + 4] = 0.5 * var
-    return dataclasses.replace(frf, cov=cov, dof=float(pre - 1))
-
-
 _DETECT_OPTIONS = ("threshold_N", "min_separation_s", "double_hit_window_s", "double_hit_fraction", "overload_N")
 
 #: longest zero-padded impact record (samples) the impact chain transforms (8 MB per channel)
 MAX_FFT_SAMPLES = 1 << 20
-
-
-def _fft_samples(n, fs, zero_pad_s):
-    """The length the impact chain transforms records of ``n`` samples at: zero padded to
-    ``zero_pad_s`` when given."""
-    return n if zero_pad_s is None else int(round(zero_pad_s * fs))
-
-
-def _h1(forces, responses, fs, zero_pad_s):
-    """H1 FRF of equally long records, zero padded to ``zero_pad_s`` when given."""
-    if zero_pad_s is not None:
-        npad = _fft_samples(forces[0].size, fs, zero_pad_s)
-        forces = [np.pad(f, (0, npad - f.size)) for f in forces]
-        responses = [np.pad(r, ((0, 0), (0, npad - r.shape[1]))) for r in responses]
-    return signals.frf_h1(forces, responses, fs)
 
 
 def _delay_rotation(phase):
@@ -1002,12 +908,12 @@ def _impact_response(frf, sel, speed, plane, direction, at, sigma, name, delays=
     s = sigma + j w (their covariance mapped alike). ``delays`` (C,): each response channel's
     delay less the force channel's (s); the FRFs are advanced by e^{j w delay}. ``extra_var``
     (n_band, C): a variance of each FRF column's error of any phase (split evenly between its real
-    and imaginary parts) added to the covariance (:func:`_truncation_var`)."""
+    and imaginary parts) added to the covariance (:func:`rotorid.impact_noise.truncation_var`)."""
     h = frf.h[sel]
     cov = None if frf.cov is None else frf.cov[sel]
     if cov is not None and extra_var is not None:
         cov = cov.copy()
-        re = _real_rows(h.shape[1])
+        re = impact_noise.real_rows(h.shape[1])
         cov[:, re, re] += 0.5 * extra_var
         cov[:, re + 4, re + 4] += 0.5 * extra_var
     if delays is not None and np.any(delays):
@@ -1149,16 +1055,16 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
             speeds.append(float(np.median(kp.speed_rpm)))
         elif runout:
             rec.require("kp")
-        f, r, u, d = impact_segments(rec, record_s=record_s, pre_s=pre_s, runout=runout, kp=kp,
-                                     exp_window_tau_s=exp_window_tau_s, revs_before=revs_before,
-                                     points_per_rev=points_per_rev, detect=detect, pedestal=ped)
+        f, r, u, d, nz = _impact_segments(rec, record_s=record_s, pre_s=pre_s, runout=runout, kp=kp,
+                                          exp_window_tau_s=exp_window_tau_s, revs_before=revs_before,
+                                          points_per_rev=points_per_rev, detect=detect, pedestal=ped)
         dropped += d
         key = (float(meta["plane"]), str(meta["direction"]), meta.get("probes_at", "probes"), rec.fs_hz)
         group_dropped.setdefault(key, []).extend(d)
         # channel delays (the channel map's delay_s): each response channel relative to the force
         dl = rec.meta.get("channel_delays_s", {}) or {}
         rel = np.array([float(dl.get(c, 0.0)) for c in channels]) - float(dl.get("force", 0.0))
-        g = groups.setdefault(key, ([], [], [], rel))
+        g = groups.setdefault(key, ([], [], [], rel, []))
         if not np.allclose(g[3], rel, rtol=0.0, atol=1e-12):
             raise RotoridError(f"impact recording {rec.source!r} has other channel delays than the other recordings "
                                f"of its test ({meta['direction']} at {float(meta['plane']):g} m): one FRF needs one "
@@ -1166,6 +1072,7 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
         g[0].extend(f)
         g[1].extend(r)
         g[2].extend(u)
+        g[4].extend(nz)
     for src, t, why in dropped:
         warnings.warn(f"impact at t = {t:.4f} s in {src!r} dropped: {why}")
     if speeds and (max(speeds) - min(speeds)) > 0.01 * np.mean(speeds):
@@ -1183,26 +1090,28 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
         raise RotoridError("the running speed of the impact tests cannot be known: the recordings have no keyphasor "
                            "and no speed_rpm in their metadata; give speed_rpm")
     tests, frfs, used, truncated = [], [], [], []
-    for (plane, direction, at, fs), (fl, rl, ul, rel) in groups.items():
+    for (plane, direction, at, fs), (fl, rl, ul, rel, nl) in groups.items():
         if not fl:
             # this test's reasons, without their per-impact details (times, counts)
             why = sorted({w.split(" (")[0] for _, _, w in group_dropped.get((plane, direction, at, fs), [])})
             raise RotoridError(f"no clean impact left for the test in {direction} at plane {plane:g} m" +
                                (f" (impacts dropped: {'; '.join(why)})" if why else ""))
-        frf = _h1(fl, rl, fs, zero_pad_s)
+        frf = impact_noise.h1(fl, rl, fs, zero_pad_s)
         pre = int(round(pre_s * fs))
-        noise = _impact_noise(fl[0], rl[0], pre) if len(fl) == 1 else None
+        noise = nl[0]() if len(fl) == 1 else None
         if len(fl) == 1 and frf.h.shape[1] in (4, 8):
-            frf = _single_impact_frf(frf, fl[0], rl[0], noise, pre, fs, zero_pad_s, exp_window_tau_s)
-            if np.isnan(frf.cov).all():
-                warnings.warn(f"test {direction} at {plane:g} m has one impact and {pre} sample(s) "
-                              f"before it (pre_s = {pre_s:g} s): too few to estimate its noise, so its FRF's "
-                              f"uncertainty is unknown and every point is flagged; give pre_s of at least "
-                              f"{MIN_NOISE_SAMPLES / fs:.2g} s, or two or more impacts")
-            else:
-                warnings.warn(f"test {direction} at {plane:g} m has one impact: its FRF's error bars come from the "
-                              "noise before the impact, taken as white (noise concentrated in the band is "
-                              "under-counted); two or more impacts give them from their scatter")
+            frf = impact_noise.single_impact_frf(frf, fl[0], noise, fs, zero_pad_s, exp_window_tau_s)
+            if noise is None:
+                warnings.warn(f"test {direction} at {plane:g} m has one impact, no quiet record before it and {pre} "
+                              f"sample(s) before it in its record (pre_s = {pre_s:g} s): too few to estimate its "
+                              f"noise, so its FRF's uncertainty is unknown and every point is flagged; give pre_s of "
+                              f"at least {impact_noise.MIN_NOISE_SAMPLES / fs:.2g} s, record the stretch before the "
+                              f"impact, or hit two or more times")
+            elif not noise.measured:
+                warnings.warn(f"test {direction} at {plane:g} m has one impact and less than 1.5 records of quiet "
+                              f"record before it: its FRF's error bars come from the {pre} samples before the impact, "
+                              "taken as white noise (noise concentrated in the band is under-counted); record the "
+                              "stretch before the impact, or hit two or more times")
         sel = (frf.freq_hz >= band_hz[0]) & (frf.freq_hz <= band_hz[1])
         coh = frf.coherence[sel]
         if np.any(coh < coherence_min):
@@ -1216,7 +1125,7 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
         sigma = 0.0 if exp_window_tau_s is None else 1.0 / exp_window_tau_s
         tests.append(_impact_response(frf, sel, speed, plane, direction, at, sigma,
                                       f"{direction}@{plane:g}m x{len(fl)}", rel,
-                                      _truncation_var(fl, rl, pre, fs, zero_pad_s, sel, exp_window_tau_s, noise)))
+                                      impact_noise.truncation_var(fl, rl, pre, fs, zero_pad_s, sel, exp_window_tau_s, noise)))
         frfs.append(frf)
         used.append(ul)
     # low coherence at a frequency (any test, any channel) flags the point: its FRFs are unreliable
@@ -1241,12 +1150,12 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
         from .kcm import fit_kcm, with_jackknife
 
         kcm = fit_kcm(ident, band_hz=kcm_band_hz, rotor=rotor)
-        group_data = [(fl, rl, fs, rel) for (_, _, _, fs), (fl, rl, _, rel) in groups.items()]
+        group_data = [(fl, rl, fs, rel) for (_, _, _, fs), (fl, rl, _, rel, _) in groups.items()]
         if all(len(g[0]) >= 2 for g in group_data):
             reps, labels = [], []
             for gi, (fl, rl, fs, rel) in enumerate(group_data):
                 for i in range(len(fl)):
-                    frf = _h1(fl[:i] + fl[i + 1:], rl[:i] + rl[i + 1:], fs, zero_pad_s)
+                    frf = impact_noise.h1(fl[:i] + fl[i + 1:], rl[:i] + rl[i + 1:], fs, zero_pad_s)
                     sel = (frf.freq_hz >= band_hz[0]) & (frf.freq_hz <= band_hz[1])
                     t0 = tests[gi]
                     rep_tests = list(tests)

@@ -1,0 +1,120 @@
+"""One impact's noise (rotorid.impact_noise): measured on the quiet record before the impact,
+checked against the H1 errors of many noisy records drawn directly."""
+
+import numpy as np
+import pytest
+
+from rotorid import impact_noise, signals
+
+FS, N, PRE = 5000.0, 1000, 50
+
+
+def _coloured(rng, shape, pole=0.97):
+    """AR(1) noise (most of its power below ~25 Hz at 5 kHz), unit-ish variance, along the last axis."""
+    e = rng.standard_normal(shape[:-1] + (shape[-1] + 500,))
+    out = np.empty_like(e)
+    out[..., 0] = e[..., 0]
+    for i in range(1, e.shape[-1]):
+        out[..., i] = pole * out[..., i - 1] + e[..., i]
+    return out[..., 500:] * np.sqrt(1 - pole ** 2)
+
+
+def _pulse():
+    """A 2 ms half-sine hammer pulse starting at PRE, its window, and a 4-channel response to it."""
+    t = np.arange(N)
+    f = np.where((t >= PRE) & (t < PRE + 10), 800.0 * np.sin(np.pi * (t - PRE) / 10), 0.0)
+    fw = signals.force_window(N, 0, PRE + 10 + PRE)
+    tt = np.clip(t - PRE, 0, None) / FS
+    h = np.stack([np.exp(-a * tt) * np.sin(2 * np.pi * f0 * tt) * 1e-9 for a, f0 in
+                  ((20, 40), (30, 65), (25, 90), (40, 120))])
+    y = np.stack([np.convolve(f, hc)[:N] for hc in h])
+    return f, fw, y
+
+
+@pytest.mark.parametrize("weighted", [False, True])
+def test_the_measured_noise_is_the_mean_square_h1_error_of_noisy_records(weighted):
+    """E|dH_c|² from 15 quiet segments of coloured noise (low-frequency, on the probes and on the
+    force, with a force offset the resting level takes off), averaged over 20 quiet stretches,
+    agrees with the mean |H1 - H|² of 600 records drawn with the same noise, frequency by
+    frequency (median ratio 0.9-1.1, 90 % of the frequencies within 0.7-1.4); with an exponential
+    window too. One stretch's estimate scatters more where the force noise dominates: at low
+    frequencies a short force window's noise spectrum is nearly real, one degree of freedom per
+    segment rather than two (ratios 0.4-1.8 over 30 stretches at 5-30 Hz)."""
+    f, fw, y = _pulse()
+    w = impact_noise.record_window(N, FS, PRE, 0.05 if weighted else None)
+    rng = np.random.default_rng(3)
+    levels, force_level, offset = np.array([2e-8, 1e-8, 3e-8, 2e-8])[:, None], 20.0, 50.0
+    F = np.fft.rfft(f * w)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        H = np.fft.rfft(y * w, axis=-1).T / F[:, None]
+    L = 9 * N
+    var = 0.0
+    for _ in range(20):
+        quiet = (levels * _coloured(rng, (4, L)), offset + force_level * _coloured(rng, (L,)))
+        noise = impact_noise.impact_noise(f, y, PRE, fw, quiet)
+        assert noise.measured and noise.segments.shape == (15, 4, N)
+        var = var + noise.var(H, f * w, w, N) / 20
+
+    draws = 600
+    yn = levels[None] * _coloured(rng, (draws, 4, N))
+    fn = offset + force_level * _coloured(rng, (draws, N + 64))
+    err = np.zeros_like(var)
+    for k in range(draws):
+        fk = fn[k, 64:]
+        rest = np.median(fn[k, PRE:PRE + 64])       # the resting level from the 64 samples before the pulse
+        fm = (f + fk - rest) * fw * w
+        ym = (y + yn[k]) * w
+        H1 = np.fft.rfft(ym, axis=-1).T / np.fft.rfft(fm)[:, None]
+        err += np.abs(H1 - H) ** 2
+    err /= draws
+    freq = np.fft.rfftfreq(N, 1 / FS)
+    band = (freq > 5) & (freq < 400)
+    ratio = var[band] / err[band]
+    assert 0.9 < np.median(ratio) < 1.1, np.median(ratio)
+    assert np.mean((ratio > 0.7) & (ratio < 1.4)) > 0.9, np.percentile(ratio, [5, 50, 95])
+    # the white model from the samples before the pulse misses the low-frequency excess
+    white = impact_noise.impact_noise(f + quiet[1][-N:] - offset, y + quiet[0][:, -N:], PRE, fw)
+    assert not white.measured
+    low = (freq > 5) & (freq < 30)
+    assert np.median(white.var(H, f * w, w, N)[low] / err[low]) < 0.5
+
+
+def test_quiet_segments_take_the_finite_end_and_the_forces_resting_level():
+    """Segments come from the stretch's finite end (a dropout earlier is skipped), at most
+    ``QUIET_SEGMENTS``, half overlapping, the last ending at the stretch's end; a constant force
+    offset leaves force segments of zero; fewer than two segments give the white model, or None
+    without enough samples before the impact."""
+    f, fw, y = _pulse()
+    rng = np.random.default_rng(0)
+    L = 3 * N
+    yq = rng.standard_normal((4, L))
+    fq = np.full(L, 7.0)
+    yq[2, 400] = np.nan
+    noise = impact_noise.impact_noise(f, y, PRE, fw, (yq, fq))
+    k = noise.segments.shape[0]
+    assert noise.hop == N // 2 and k == (L - 401 - (64 - PRE) - N) // (N // 2) + 1 == 4
+    np.testing.assert_array_equal(noise.segments[-1], yq[:, -N:])
+    np.testing.assert_array_equal(noise.segments[0], yq[:, L - N - 3 * (N // 2):L - 3 * (N // 2)])
+    assert not np.any(noise.force_segments)
+    long = impact_noise.impact_noise(f, y, PRE, fw, (rng.standard_normal((4, 40 * N)), rng.standard_normal(40 * N)))
+    assert long.segments.shape[0] == impact_noise.QUIET_SEGMENTS
+    # demeaned like records without the run-out filter: each segment less its first PRE samples' mean
+    dm = impact_noise.impact_noise(f, y, PRE, fw, (yq + 5.0, fq), demean=True)
+    np.testing.assert_allclose(dm.segments[-1][:, :PRE].mean(axis=1), 0.0, atol=1e-12)
+    # too little: white from the PRE samples, or nothing below MIN_NOISE_SAMPLES
+    short = impact_noise.impact_noise(f, y + rng.standard_normal((4, N)), PRE, fw, (yq[:, -N - 100:], fq[-N - 100:]))
+    assert not short.measured and short.dof(np.ones(N)) == PRE - 1
+    np.testing.assert_allclose(short.white[1], np.var(f[:PRE], ddof=1))
+    assert impact_noise.impact_noise(f, y, 8, fw, None) is None
+
+
+def test_the_measured_noises_degrees_of_freedom_follow_the_segments_overlap():
+    """Welch's 2K / (1 + 2 (1 - 1/K) rho): unweighted records half overlapping have rho = 1/4; a
+    short exponential window leaves neighbouring segments nearly independent (2K)."""
+    f, fw, y = _pulse()
+    rng = np.random.default_rng(1)
+    noise = impact_noise.impact_noise(f, y, PRE, fw, (rng.standard_normal((4, 9 * N)), rng.standard_normal(9 * N)))
+    k = noise.segments.shape[0]
+    assert noise.dof(np.ones(N)) == pytest.approx(2 * k / (1 + 2 * (1 - 1 / k) * 0.25))
+    w = impact_noise.record_window(N, FS, PRE, 0.005)
+    assert noise.dof(w) == pytest.approx(2 * k, rel=1e-3)
