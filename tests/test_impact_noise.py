@@ -79,32 +79,45 @@ def test_the_measured_noise_is_the_mean_square_h1_error_of_noisy_records(weighte
     assert np.median(white.var(H, f * w, w, N)[low] / err[low]) < 0.5
 
 
-def test_quiet_segments_take_the_finite_end_and_the_forces_resting_level():
-    """Segments come from the stretch's finite end (a dropout earlier is skipped), at most
-    ``QUIET_SEGMENTS``, half overlapping, the last ending at the stretch's end; a constant force
-    offset leaves force segments of zero; fewer than two segments give the white model, or None
-    without enough samples before the impact."""
+def test_quiet_segments_skip_missing_samples_and_events_and_take_the_forces_resting_level():
+    """Segments lie on a grid of half a record ending at the stretch's end, at most
+    ``QUIET_SEGMENTS``; those holding a missing sample (or whose force's resting-level samples do)
+    are skipped, on both sides of it; a force spike (a tap) leaves out the segments it lies in or a
+    record before (it rings into them), a burst of response noise the segments it lies in; a
+    constant force offset leaves force segments of zero; fewer than two segments give the white
+    model (saying why), or None without enough samples before the impact."""
     f, fw, y = _pulse()
     rng = np.random.default_rng(0)
-    L = 3 * N
+    L = 5 * N
     yq = rng.standard_normal((4, L))
-    fq = np.full(L, 7.0)
-    yq[2, 400] = np.nan
+    fq = np.full(L, 7.0) + 0.01 * rng.standard_normal(L)
+    yq[2, 2200] = np.nan
     noise = impact_noise.impact_noise(f, y, PRE, fw, (yq, fq))
-    k = noise.segments.shape[0]
-    assert noise.hop == N // 2 and k == (L - 401 - (64 - PRE) - N) // (N // 2) + 1 == 4
-    np.testing.assert_array_equal(noise.segments[-1], yq[:, -N:])
-    np.testing.assert_array_equal(noise.segments[0], yq[:, L - N - 3 * (N // 2):L - 3 * (N // 2)])
-    assert not np.any(noise.force_segments)
+    assert noise.hop == N // 2 and noise.left_out == 0
+    starts = [500, 1000, 2500, 3000, 3500, 4000]      # 1500 and 2000 hold sample 2200
+    np.testing.assert_array_equal(noise.segments, np.stack([yq[:, s:s + N] for s in starts]))
+    assert np.abs(noise.force_segments).max() < 0.1   # the resting level (7 N) taken off
     long = impact_noise.impact_noise(f, y, PRE, fw, (rng.standard_normal((4, 40 * N)), rng.standard_normal(40 * N)))
     assert long.segments.shape[0] == impact_noise.QUIET_SEGMENTS
+    # a tap at sample 3200 of the force: out go the segments from 2500 (it lies in them or a record
+    # before them); a burst on one probe at 600-700: out go 500 (and 0, off the grid's start)
+    tapped = fq.copy()
+    tapped[3200:3205] += 50.0
+    burst = np.nan_to_num(yq.copy())
+    burst[1, 600:700] *= 20.0
+    noise = impact_noise.impact_noise(f, y, PRE, fw, (burst, tapped))
+    kept = [1000, 1500, 2000]
+    np.testing.assert_array_equal(noise.segments, np.stack([burst[:, s:s + N] for s in kept]))
+    assert noise.left_out == 5
     # demeaned like records without the run-out filter: each segment less its first PRE samples' mean
     dm = impact_noise.impact_noise(f, y, PRE, fw, (yq + 5.0, fq), demean=True)
     np.testing.assert_allclose(dm.segments[-1][:, :PRE].mean(axis=1), 0.0, atol=1e-12)
     # too little: white from the PRE samples, or nothing below MIN_NOISE_SAMPLES
     short = impact_noise.impact_noise(f, y + rng.standard_normal((4, N)), PRE, fw, (yq[:, -N - 100:], fq[-N - 100:]))
-    assert not short.measured and short.dof(np.ones(N)) == PRE - 1
+    assert not short.measured and short.dof(np.ones(N)) == PRE - 1 and "less than 1.5 records" in short.why_white
     np.testing.assert_allclose(short.white[1], np.var(f[:PRE], ddof=1))
+    spiky = impact_noise.impact_noise(f, y, PRE, fw, (yq[:, -2 * N:], tapped[-2 * N:] + np.r_[50.0, np.zeros(2 * N - 1)]))
+    assert not spiky.measured and "an event" in spiky.why_white
     assert impact_noise.impact_noise(f, y, 8, fw, None) is None
 
 

@@ -726,33 +726,36 @@ def impact_segments(rec: Recording, *, record_s: float = 0.25, pre_s: float = 0.
     return forces, responses, used, dropped
 
 
-def _columns(x, lo, hi):
-    """Samples lo..hi of the channels ``x`` (C, N)."""
-    return x[:, lo:hi]
-
-
-def _impact_noise_of(x, force, lo, hi, filtered, n_seg, f, y, pre, fw, demean):
+def _impact_noise_of(rec, channels, lo, hi, signature, n_seg, f, y, pre, fw):
     """The :class:`rotorid.impact_noise.ImpactNoise` (or None) of an impact's records ``f``, ``y``
     (``pre`` samples before the impact, force window ``fw``), measured on samples lo..hi of the
-    recording's channels ``x`` and ``force`` (:func:`_quiet_stretch`)."""
-    return impact_noise.impact_noise(f, y, pre, fw, _quiet_stretch(x, force, lo, hi, n_seg, pre, filtered),
-                                     demean=demean)
+    recording ``rec`` (:func:`_quiet_stretch`): run-out filtered with ``signature`` = (keyphasor,
+    revolution signature) when given, else less the mean of each segment's first ``pre`` samples
+    as the record was."""
+    return impact_noise.impact_noise(f, y, pre, fw, _quiet_stretch(rec, channels, lo, hi, n_seg, signature),
+                                     demean=signature is None)
 
 
-def _quiet_stretch(x, force, lo, hi, n_seg, pre, filtered):
-    """(response (C, L), force (L,)) of samples lo..hi of a recording's channels ``x`` (C, N) and
-    ``force`` (N,): the last ``QUIET_SEGMENTS`` half-overlapping records of it (and the samples
-    their force's resting level is taken from) after its last non-finite sample, the response as
-    ``filtered(lo, hi)`` gives it; None where no more than a record is left."""
-    lo = max(lo, 0, hi - (impact_noise.QUIET_SEGMENTS + 1) * n_seg // 2 - max(impact_noise.FORCE_REST_SAMPLES, pre))
+def _quiet_stretch(rec, channels, lo, hi, n_seg, signature):
+    """(response (C, L), force (L,)) of samples lo..hi of the recording ``rec``'s ``channels`` and
+    force: the last ``QUIET_SEGMENTS`` half-overlapping records of it and the samples their force's
+    resting level is taken from, the response run-out filtered with ``signature`` = (keyphasor,
+    revolution signature) when given; missing samples NaN (the filter's too, outside the
+    keyphasor's pulses). None where no more than a record is left."""
+    lo = max(lo, 0, hi - (impact_noise.QUIET_SEGMENTS + 1) * n_seg // 2 - impact_noise.FORCE_REST_SAMPLES - n_seg)
     if hi - lo <= n_seg:
         return None
-    bad = np.flatnonzero(~(np.isfinite(x[:, lo:hi]).all(axis=0) & np.isfinite(force[lo:hi])))
-    if bad.size:
-        lo += int(bad[-1]) + 1
-        if hi - lo <= n_seg:
-            return None
-    return filtered(lo, hi), force[lo:hi]
+    x = np.stack([rec.channels[c][lo:hi] for c in channels])
+    force = np.array(rec.channels["force"][lo:hi], dtype=float)
+    if signature is not None:
+        kp, tmpl = signature
+        missing = ~np.isfinite(x)
+        # the filter refuses non-finite samples; it subtracts sample by sample, so zeros stand in for
+        # them and they are missing again after it
+        y = signals.runout_filter(np.where(missing, 0.0, x), rec.fs_hz, kp.times, tmpl, 0, hi - lo,
+                                  t0_s=rec.t0_s + lo / rec.fs_hz)
+        x = np.where(missing, np.nan, y)
+    return x, force
 
 
 def _impact_segments(rec, *, record_s, pre_s, revs_before, runout, kp, points_per_rev, exp_window_tau_s, detect,
@@ -798,10 +801,11 @@ def _impact_segments(rec, *, record_s, pre_s, revs_before, runout, kp, points_pe
         if a < 0 or b > rec.n_samples or b > nxt - pre:
             dropped.append((rec.source, t_imp, f"less than record_s = {record_s:g} s of clean record around it"))
             continue
-        # the quiet stretch before the impact, whose noise stands for its record's: from the end of
-        # the previous impact's record up to this record or, with the run-out filter, up to the
-        # revolutions its signature is taken from (their noise is in the signature)
-        quiet_from = imps[j - 1].start - pre + n_seg if j > 0 else 0
+        # the quiet stretch before the impact, whose noise stands for its record's: from a record's
+        # length after the previous impact's last pulse (a merged group of hits rings from its last)
+        # up to this record or, with the run-out filter, up to the revolutions its signature is
+        # taken from (their noise is in the signature)
+        quiet_from = imps[j - 1].stop - pre + n_seg if j > 0 else 0
         if runout:
             period = 60.0 / np.median(kp.speed_rpm)
             t_end = rec.t0_s + a / fs
@@ -828,10 +832,10 @@ def _impact_segments(rec, *, record_s, pre_s, revs_before, runout, kp, points_pe
             if not np.all(np.isfinite(y)):
                 dropped.append((rec.source, t_imp, "keyphasor pulses do not cover the record"))
                 continue
-            quiet = (quiet_from, win, functools.partial(signals.runout_filter, x, fs, kp.times, tmpl, t0_s=rec.t0_s))
+            quiet = (quiet_from, win, (kp, tmpl))
         else:
             y = x[:, a:b] - x[:, a:a + pre].mean(axis=1, keepdims=True) if pre > 0 else x[:, a:b]
-            quiet = (quiet_from, a, functools.partial(_columns, x))
+            quiet = (quiet_from, a, None)
         if imp.peak_N < 0:
             raise RotoridError(f"impact recording {rec.source!r}: the force channel's impact at t = {t_imp:.4f} s peaks "
                                f"at {imp.peak_N:.4g} N; a hammer pushes, which a force transducer reads as positive: the "
@@ -846,8 +850,7 @@ def _impact_segments(rec, *, record_s, pre_s, revs_before, runout, kp, points_pe
         f = (rec.channels["force"][a:b] - f0) * fw
         # measured when asked for (a test of one impact): the quiet stretch's segments would hold
         # 15 records per impact
-        noises.append(functools.partial(_impact_noise_of, x, rec.channels["force"], *quiet, n_seg, f, y, pre, fw,
-                                        not runout))
+        noises.append(functools.partial(_impact_noise_of, rec, channels, *quiet, n_seg, f, y, pre, fw))
         if exp_window_tau_s is not None:
             ew = signals.exponential_window(n_seg, fs, exp_window_tau_s, start=pre)
             f = f * ew
@@ -1101,17 +1104,32 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
         noise = nl[0]() if len(fl) == 1 else None
         if len(fl) == 1 and frf.h.shape[1] in (4, 8):
             frf = impact_noise.single_impact_frf(frf, fl[0], noise, fs, zero_pad_s, exp_window_tau_s)
+            # how much recording before an impact gives its noise: 1.5 records (two half-overlapping
+            # segments) and their resting-level samples, after the run-out signature's revolutions
+            need = 1.5 * record_s + impact_noise.FORCE_REST_SAMPLES / fs + \
+                ((revs_before + 1) * 60.0 / speed if runout else 0.0)
+            advice = (f"record at least {need:.2g} s before the impact (after any earlier impact's record), "
+                      "or hit two or more times")
             if noise is None:
-                warnings.warn(f"test {direction} at {plane:g} m has one impact, no quiet record before it and {pre} "
-                              f"sample(s) before it in its record (pre_s = {pre_s:g} s): too few to estimate its "
-                              f"noise, so its FRF's uncertainty is unknown and every point is flagged; give pre_s of "
-                              f"at least {impact_noise.MIN_NOISE_SAMPLES / fs:.2g} s, record the stretch before the "
-                              f"impact, or hit two or more times")
+                warnings.warn(f"test {direction} at {plane:g} m has one impact, no usable quiet record before it and "
+                              f"{pre} sample(s) before it in its record (pre_s = {pre_s:g} s): too few to estimate its "
+                              f"noise, so its FRF's uncertainty is unknown and every point is flagged; {advice}, or "
+                              f"give pre_s of at least {impact_noise.MIN_NOISE_SAMPLES / fs:.2g} s")
             elif not noise.measured:
-                warnings.warn(f"test {direction} at {plane:g} m has one impact and less than 1.5 records of quiet "
-                              f"record before it: its FRF's error bars come from the {pre} samples before the impact, "
-                              "taken as white noise (noise concentrated in the band is under-counted); record the "
-                              "stretch before the impact, or hit two or more times")
+                warnings.warn(f"test {direction} at {plane:g} m has one impact and {noise.why_white}: its FRF's error "
+                              f"bars come from the {pre} samples before the impact, taken as white noise (noise "
+                              f"concentrated in the band is under-counted); {advice}")
+            else:
+                if noise.left_out:
+                    warnings.warn(f"test {direction} at {plane:g} m: {noise.left_out} record-long segment(s) of the "
+                                  f"quiet record before its impact left out of its noise estimate (an event in them: a "
+                                  f"tap, a burst; {len(noise.segments)} used)")
+                if noise.grown.max() >= impact_noise.GROWN_WARNING:
+                    i = int(np.argmax(noise.grown))
+                    name = "force" if i == noise.grown.size - 1 else channels[i]
+                    warnings.warn(f"test {direction} at {plane:g} m: the noise just before its impact is "
+                                  f"{noise.grown[i]:.3g} times ({name}, in power) that of the quiet record before it; "
+                                  "its error bars are scaled up to it")
         sel = (frf.freq_hz >= band_hz[0]) & (frf.freq_hz <= band_hz[1])
         coh = frf.coherence[sel]
         if np.any(coh < coherence_min):
