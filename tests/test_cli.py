@@ -297,3 +297,24 @@ def test_distinct_file_stems():
     from rotorid.pipeline import _distinct
 
     assert _distinct(["a", "b", "A", "a", "a_2"]) == ["a", "b", "A_2", "a_3", "a_2_2"]
+
+
+def test_identify_prints_each_warning_once(monkeypatch, capsys, tmp_path):
+    """The chain's inner identifications (phase calibration, its reported path) repeat their
+    warnings: "pedestal motion is up to 2.42 times ..." came 5-6 times per run (an independent
+    simulator's log). The CLI prints each once."""
+    import warnings
+
+    from rotorid import pipeline
+
+    def fake(*a, **k):
+        for _ in range(3):
+            with warnings.catch_warnings():      # (inner contexts reset Python's once-registry)
+                warnings.warn("pedestal motion is up to 2.42 times the motion relative to the pedestals")
+        warnings.warn("another")
+        return None, None
+
+    monkeypatch.setattr(pipeline, "run_config", fake)
+    assert cli.main(["identify", "imbalance", str(tmp_path / "x.toml"), "-q"]) == 0
+    err = capsys.readouterr().err
+    assert err.count("pedestal motion is up to 2.42") == 1 and err.count("another") == 1, err

@@ -681,3 +681,29 @@ def test_a_clipped_probe_mounted_at_an_angle_is_reported_as_read(tmp_path):
     with pytest.warns(UserWarning, match=r"the probes 'Prox DE X' at 45° -> x1 and 'Prox DE Y' at 135° -> y1, as "
                                          r"read\): channel 'x1' possibly clipped: it sits at its maximum"):
         rio.load_recording(path, channel_map=cmap)
+
+
+def test_the_groups_of_a_tdms_file_warn_once_of_channels_they_drop(tmp_path):
+    """A TDMS file with one group per dwell and housing accelerometers left unmapped warned once
+    per group, naming each group's channels (40 lines for 4 files of 10 dwells, an independent
+    simulator's): the groups now name them bare, so the warning is one (Python's default filter,
+    the CLI) per file."""
+    rec = make_rec()
+    path = tmp_path / "dwells.tdms"
+    with TdmsWriter(path) as w:
+        for g in ("Dwell 01", "Dwell 02", "Dwell 03"):
+            w.write_segment([ChannelObject(g, c, rec.channels[c], properties={"wf_increment": 1 / FS,
+                                                                             "unit_string": "m" if c != "kp" else "V"})
+                             for c in ("x1", "x2", "y1", "y2", "kp")] +
+                            [ChannelObject(g, "Acc DE X", np.zeros(rec.n_samples), properties={"wf_increment": 1 / FS})])
+    with warnings.catch_warnings(record=True) as got:
+        warnings.simplefilter("always")
+        seg = rio.load_segmented(path, groups="*")
+    assert len(seg.blocks) == 3
+    msgs = {str(w.message) for w in got if "dropped" in str(w.message)}
+    assert len(msgs) == 1 and "['Acc DE X']" in msgs.pop(), got
+    # one group read alone names it in full, as before
+    with warnings.catch_warnings(record=True) as got:
+        warnings.simplefilter("always")
+        rio.load_recording(path, group="Dwell 02")
+    assert any("'Dwell 02/Acc DE X'" in str(w.message) for w in got), [str(w.message) for w in got]

@@ -919,20 +919,20 @@ def test_the_chains_phase_calibration_reports_applies_and_keeps_the_local_part()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         notes = []
-        same, kept, cal = pipeline._phase_calibrated(rig.rotor, runs, ident, "forces", {}, None, False, notes)
+        same, kept, cal, _ = pipeline._phase_calibrated(rig.rotor, runs, ident, "forces", {}, None, False, notes)
         assert same is runs and kept is ident and notes == [cal.message]
         assert abs(cal.offset_deg - 0.4) < 3 * cal.offset_std_deg   # (0.28 +- 0.19 deg at this noise)
-        _, bare, cal0 = pipeline._phase_calibrated(rig.rotor, runs, ident, "forces", {}, None, True, [])
+        _, bare, cal0, _ = pipeline._phase_calibrated(rig.rotor, runs, ident, "forces", {}, None, True, [])
         local = np.zeros(rpm.size)
         local[3] = 0.3
         notes = []
-        fixed, wide, cal8 = pipeline._phase_calibrated(rig.rotor, runs, ident, "forces", {}, local, True, notes)
+        fixed, wide, cal8, _ = pipeline._phase_calibrated(rig.rotor, runs, ident, "forces", {}, local, True, notes)
         # 5 speeds: the scatter rests on 2 degrees of freedom, the local part's common copy stays
         five = [_at_speed_indices(r, [0, 2, 3, 5, 7]) for r in runs]
         ident5 = rotorid.identify_synchronous(rig.rotor, five)
-        _, bare5, _ = pipeline._phase_calibrated(rig.rotor, five, ident5, "forces", {}, None, True, [])
+        _, bare5, _, _ = pipeline._phase_calibrated(rig.rotor, five, ident5, "forces", {}, None, True, [])
         notes5 = []
-        _, wide5, cal5 = pipeline._phase_calibrated(rig.rotor, five, ident5, "forces", {}, local[[0, 2, 3, 5, 7]], True,
+        _, wide5, cal5, _ = pipeline._phase_calibrated(rig.rotor, five, ident5, "forces", {}, local[[0, 2, 3, 5, 7]], True,
                                                     notes5)
     assert "applied" in notes[-1] and not np.allclose(fixed[0].q, runs[0].q)
     def z(i):
@@ -975,7 +975,7 @@ def test_a_reported_calibration_lets_its_scatter_stand_in_for_the_local_parts_co
         warnings.simplefilter("ignore")
         ident = rotorid.identify_synchronous(rig.rotor, runs, **used)
         notes = []
-        same, kept, cal = pipeline._phase_calibrated(rig.rotor, runs, ident, "forces", {}, local, False, notes, used)
+        same, kept, cal, _ = pipeline._phase_calibrated(rig.rotor, runs, ident, "forces", {}, local, False, notes, used)
         alone = rotorid.calibrate_phase(rig.rotor, runs)      # not weighted by the local part
         found = np.sqrt(np.clip(cal.error_deg(rpm) ** 2 - cal.line_std_deg(rpm) ** 2, 0, None))
         want = rotorid.identify_synchronous(rig.rotor, runs, keyphasor_angle_std_deg=np.hypot(
@@ -985,7 +985,7 @@ def test_a_reported_calibration_lets_its_scatter_stand_in_for_the_local_parts_co
         used5 = dict(keyphasor_angle_std_deg=used["keyphasor_angle_std_deg"][five_idx])
         ident5 = rotorid.identify_synchronous(rig.rotor, five, **used5)
         notes5 = []
-        _, kept5, cal5 = pipeline._phase_calibrated(rig.rotor, five, ident5, "forces", {}, local[five_idx], False,
+        _, kept5, cal5, _ = pipeline._phase_calibrated(rig.rotor, five, ident5, "forces", {}, local[five_idx], False,
                                                     notes5, used5)
         found5 = np.sqrt(np.clip(cal5.error_deg(rpm[five_idx]) ** 2 - cal5.line_std_deg(rpm[five_idx]) ** 2, 0, None))
         want5 = rotorid.identify_synchronous(rig.rotor, five, keyphasor_angle_std_deg=np.sqrt(
@@ -1019,7 +1019,7 @@ def test_a_reported_calibration_keeps_the_phase_error_it_found_in_the_error_bars
             warnings.simplefilter("ignore")
             ident = rotorid.identify_synchronous(rig.rotor, runs, **used)
             notes = []
-            _, kept, cal = pipeline._phase_calibrated(rig.rotor, runs, ident, "forces", {}, None, False, notes, used)
+            _, kept, cal, _ = pipeline._phase_calibrated(rig.rotor, runs, ident, "forces", {}, None, False, notes, used)
         assert cal.significant and "phase reference error the calibration found" in notes[-1], notes
 
         def hits(i):
@@ -1063,7 +1063,7 @@ def test_a_reported_calibration_that_finds_nothing_adds_nothing():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         ident = rotorid.identify_synchronous(rig.rotor, runs, **used)
-        _, kept, cal = pipeline._phase_calibrated(rig.rotor, runs, ident, "forces", {}, None, False, [], used)
+        _, kept, cal, _ = pipeline._phase_calibrated(rig.rotor, runs, ident, "forces", {}, None, False, [], used)
         stated = np.rad2deg(rpm * np.pi / 30 * 15e-6)
         found = np.sqrt(np.clip(cal.error_deg(rpm) ** 2 - cal.line_std_deg(rpm) ** 2, 0, None))
         want = rotorid.identify_synchronous(rig.rotor, runs, keyphasor_angle_std_deg=np.hypot(
@@ -1089,13 +1089,13 @@ def test_a_reported_calibration_keeps_a_speed_off_the_line_in_the_error_bars():
         notes = []
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            _, kept, cal = pipeline._phase_calibrated(rig.rotor, runs, ident, "forces", {}, None, False, notes, {})
+            _, kept, cal, _ = pipeline._phase_calibrated(rig.rotor, runs, ident, "forces", {}, None, False, notes, {})
         assert cal.outlier_speeds_rpm == (rpm[5],) and f"off the line with their own: {rpm[5]:g} rpm" in notes[-1], \
             (cal, notes)
         if seed == 0:   # applied, the note names them too
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                _, _, cal_a = pipeline._phase_calibrated(rig.rotor, runs, ident, "forces", {}, None, True, notes, {})
+                _, _, cal_a, _ = pipeline._phase_calibrated(rig.rotor, runs, ident, "forces", {}, None, True, notes, {})
             assert cal_a.outlier_speeds_rpm == (rpm[5],) and f"speeds off its line ({rpm[5]:g} rpm)" in notes[-1], notes
         iv = kept.interval(0.95)
         b = rig.bearings

@@ -191,6 +191,9 @@ def _run(args) -> int:
         shown = []
 
         def show(message, category, filename, lineno, file=None, line=None):
+            # once each: the chain's inner identifications (calibration, jackknife) repeat theirs
+            if str(message) in {str(m) for m in shown}:
+                return
             shown.append(message)
             print(_one_line_warning(message, category, filename, lineno), end="", file=sys.stderr)
 

@@ -303,7 +303,8 @@ GLS_MIN_DOF = 10
 
 
 def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_hz=None, accel_gain_std: float = 0.0,
-                       accel_phase_std_deg: float = 0.0, shared_cov=None) -> PedestalIdentification:
+                       accel_phase_std_deg: float = 0.0, shared_cov=None, keyphasor_angle_std_deg=0.0,
+                       keyphasor_delay_std_s: float = 0.0, phase_scatter_std_deg=0.0) -> PedestalIdentification:
     """Each pedestal's mass, stiffness and damping from imbalance runs (or impact tests) that carry
     pedestal motion.
 
@@ -328,6 +329,18 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
     ``shared_cov`` (n, 16, 16): the covariance of [Re q, Im q, Re p, Im p] common to every pair of
     runs (all runs less the same baseline run; see :func:`rotorid.identify_synchronous`): the
     equations of one point are then correlated across runs, and weighted and propagated as such.
+    ``keyphasor_angle_std_deg`` (a number or one per speed) and ``keyphasor_delay_std_s``: the
+    phase reference's uncertainty, a phase error common to every run's vectors (probes and
+    accelerometers) at a speed, as :func:`rotorid.identify_synchronous` takes it, here taken as one
+    error throughout the speeds (a mark angle, a delay, a keyphasor timed late by the same time:
+    wholly correlated between speeds, whose size at each speed this is); ``phase_scatter_std_deg``
+    (a number or one per speed): a further phase error drawn anew at each speed (independent between
+    speeds). Imbalance runs only (impact FRFs are relative to the force). Both are added to the
+    standard errors by central differences of the whole fit: along the correlated error's profile
+    (two fits), and for the scatter along each speed's phase (two fits per speed). Found by an
+    independent simulator: a keyphasor timed 2-5 of its stated uncertainties late at high speed
+    left the pedestal intervals covering 0.40-0.58 where the bearings' covered 0.98 (the imbalance
+    chain passes what its identification took, with what a phase calibration found).
 
     Examples
     --------
@@ -513,12 +526,28 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
                     ks[b, i, 1 - i], cs[b, i, 1 - i] = sd[3], sd[4]
         return mass, kk, cc, ms, ks, cs, dof, resid, src
 
+    from .identify import _phase_reference_std
+
+    phase_std = scatter_std = None
+    if not impact:
+        phase_std = _phase_reference_std(axis, keyphasor_angle_std_deg, keyphasor_delay_std_s)
+        scatter = real_array("phase_scatter_std_deg", phase_scatter_std_deg, nonneg=True)
+        if scatter.ndim > 1 or scatter.size not in (1, axis.size):
+            raise RotoridError(f"phase_scatter_std_deg must be a number or one per speed ({axis.size}), got shape "
+                               f"{scatter.shape}")
+        if np.any(scatter >= 45.0):
+            raise RotoridError(f"phase_scatter_std_deg must be below 45 degrees, got {float(np.max(scatter)):g}")
+        scatter_std = np.deg2rad(scatter) * np.ones(axis.size) if np.any(scatter > 0) else None
     mass, kk, cc, ms, ks, cs, dof, resid, src = fit(qs, ps)
     out = PedestalIdentification(mass, kk, cc, ms, ks, cs, dof, resid, src, cross, R * ns, labels)
     if cal_g or cal_ph:
         from .identify import _probe_maps
 
         _add_calibration(out, fit, qs, ps, _probe_maps(rotor, runs), cal_g, cal_ph)
+    if phase_std is not None or scatter_std is not None:
+        keep = (lambda v: v) if sel is None else (lambda v: np.where(sel, v, 0.0))
+        _add_phase_reference(out, fit, qs, ps, None if phase_std is None else keep(phase_std),
+                             None if scatter_std is None else keep(scatter_std))
     return out
 
 
@@ -533,6 +562,41 @@ def _name_nonfinite(labels, runs):
                 idx = tuple(int(v) for v in np.argwhere(bad)[0])
                 raise RotoridError(f"{lab}: {name} contains NaN or inf (first at index {idx})")
     raise RotoridError("runs contain NaN or inf")
+
+
+def _add_phase_reference(out, fit, qs, ps, common_rad, scatter_rad):
+    """Add the phase reference's uncertainty to a pedestal fit's standard errors. A phase error e_i
+    at speed i turns every run's relative and pedestal motion there by e^{j e_i}. ``common_rad``
+    (n,) or None: one error e_i = s_i eps throughout the speeds (eps standard normal), adding
+    (d theta / d eps)²; ``scatter_rad`` (n,) or None: errors independent between speeds, adding
+    sum_i s_i² (d theta / d e_i)². The derivatives by central differences of the whole fit
+    (``fit(qs, ps)``: weights, points and covariances fixed). (The scatter taken as correlated
+    instead made synthetic per-speed errors' intervals 4 times too wide; the correlated error as
+    independent left an error growing with speed covered 0.66-0.72.)"""
+    from .identify import _CAL_STEP
+
+    def derivative(direction):
+        """d(mass, k, c) / d eps for the phases eps * ``direction`` (rad per speed)."""
+        est = []
+        for step in (_CAL_STEP, -_CAL_STEP):
+            turn = np.exp(1j * step * direction)[:, None]
+            est.append(fit([q * turn for q in qs], [p * turn for p in ps])[:3])
+        return [(a - b) / (2.0 * _CAL_STEP) for a, b in zip(est[0], est[1])]
+
+    var = [np.zeros_like(out.mass_kg), np.zeros_like(out.k), np.zeros_like(out.c)]
+    if common_rad is not None:
+        for v, d in zip(var, derivative(common_rad)):
+            v += d ** 2
+    if scatter_rad is not None:
+        for i in np.flatnonzero(scatter_rad > 0):
+            unit = np.zeros(scatter_rad.size)
+            unit[i] = scatter_rad[i]
+            for v, d in zip(var, derivative(unit)):
+                v += d ** 2
+    out.mass_std = np.sqrt(out.mass_std ** 2 + var[0])
+    out.k_std = np.sqrt(out.k_std ** 2 + var[1])
+    out.c_std = np.sqrt(out.c_std ** 2 + var[2])
+    out.std_source += " + phase reference"
 
 
 def _add_calibration(out, fit, qs, ps, maps, gain_std, phase_std_rad):

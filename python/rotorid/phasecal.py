@@ -503,7 +503,9 @@ def calibrate_phase(rotor, runs, *, delay: bool = True, offset: bool = True, deg
                                f"{np.rad2deg(np.sqrt(own.max())):.1f} deg of a speed alone would (beyond "
                                f"{MAX_SCATTER_DEG:g} deg, where their linear error propagation no longer holds): the "
                                "phase reference cannot be calibrated from these runs (check the keyphasor, the "
-                               "imbalance masses and angles, or coefficients that vary with speed: degree)")
+                               "imbalance masses and angles, the accelerometers' sensitivities where the pedestals "
+                               "move, or whether the coefficients vary with speed beyond the calibration's model of "
+                               f"degree {degree})")
         if not weighted or not own.size or (fitted is None and not own.max() > 0):
             break
         if fitted is not None and np.allclose(own, fitted[0], rtol=0.05, atol=1e-12):
@@ -552,6 +554,12 @@ def calibrate_phase(rotor, runs, *, delay: bool = True, offset: bool = True, deg
                     "that errs from speed to speed (the coefficients' error bars miss it unless it is in their "
                     "keyphasor_angle_std_deg; the imbalance chain puts it there), or coefficients that vary with "
                     "speed (raise degree)")
+            if any(getattr(r, "pedestal", None) is not None for r in runs):
+                # an accelerometer's sensitivity off moves the pedestal motion's share of the bearing
+                # forces from speed to speed, which the calibration reads as such a scatter (an
+                # independent simulator's 3 % gain errors: Q up to 21,718 on 7 degrees of freedom)
+                msg += (", or an accelerometer's sensitivity or phase off (the pedestal motion's share of the "
+                        "bearing forces changes with speed; state it as accel_gain_std / accel_phase_std_deg)")
     elif shown:
         msg += (f"; a phase scatter of {scatter_deg:.3f} deg between speeds, in the calibrated reference's "
                 "uncertainty (without the runs' covariance, all of the misfit along the speeds' phases, noise included)")

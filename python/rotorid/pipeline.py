@@ -102,6 +102,13 @@ class ImbalanceChainResult:
     # the phase-reference calibration (phase_calibration "report" or "apply"; None otherwise or
     # where it could not be made, with a note saying why)
     phase_calibration: object = None
+    # the phase reference's uncertainty common to the runs at each grid speed (deg) that the
+    # identification's error bars hold (stated, the keyphasor pulse shape's, or what a phase
+    # calibration set), as one error throughout the speeds and a part drawn anew at each (the
+    # calibration's phase scatter, the keyphasors' local part): the identification took their
+    # quadrature sum at each speed; rotorid.identify_pedestals, pooling the speeds, takes them apart
+    phase_reference_std_deg: np.ndarray | None = None
+    phase_scatter_std_deg: np.ndarray | None = None
 
 
 def _near_only(track, speeds, tol, label, what):
@@ -151,6 +158,15 @@ def _pedestal_choice(pedestal_motion, runs, labels):
                                "identify with the housings' motion, or False to ignore the accelerometers")
         return False
     pedestal_motion = flag("pedestal_motion", pedestal_motion)
+    having = [lab for lab, ch in found if ch]
+    if not pedestal_motion and having:
+        # a choice, but one whose cost is not seen in the results: an independent simulator's
+        # housings moving 0.3-0.65 of the journals' relative motion gave K off by 23 %, C by 34 %,
+        # with a fifth of the points ok
+        warnings.warn(f"{having[0]}" + (f" and {len(having) - 1} more" if len(having) > 1 else "") +
+                      " carry housing accelerometers that are ignored (pedestal_motion=False; config: [pedestals] "
+                      "measured = false): where the housings move, the coefficients identified are those of each "
+                      "bearing in series with its pedestal, not the bearing's")
     if pedestal_motion:
         for lab, ch in found:
             missing = [c for c in ACCELEROMETERS if c not in ch]
@@ -519,17 +535,26 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
                      "degrees of 1X phase at these speeds: counted in the uncertainty as a phase reference error "
                      f"(a phase calibration, or a trigger level of your own, takes out what is common to the dwells){local}")
     ident = identify_synchronous(rotor, responses, method=method, **ident_kw)
-    cal = None
+    cal = phase = None
     if phase_calibration != "off":
-        responses, ident, cal = _phase_calibrated(rotor, responses, ident, method, fixed_kw, local_deg,
-                                                  phase_calibration == "apply", notes, ident_kw)
+        responses, ident, cal, phase = _phase_calibrated(rotor, responses, ident, method, fixed_kw, local_deg,
+                                                         phase_calibration == "apply", notes, ident_kw)
+    if phase is None:
+        # as stated (and the keyphasor pulse shape's): one error throughout the speeds
+        ref = _phase_reference_std(grid, ident_kw.get("keyphasor_angle_std_deg", 0.0),
+                                   ident_kw.get("keyphasor_delay_std_s", 0.0))
+        phase = (np.zeros(grid.shape) if ref is None else np.rad2deg(ref) * np.ones(grid.shape), np.zeros(grid.shape))
+    total, anew = (np.broadcast_to(v, grid.shape).astype(float) for v in phase)
     return ImbalanceChainResult(responses, tracks, ident, notes, ident_kw.get("shared_cov"),
-                                None if sr is None else np.asarray(sr[0]), shape_deg, local_deg, cal)
+                                None if sr is None else np.asarray(sr[0]), shape_deg, local_deg, cal,
+                                np.sqrt(np.clip(total ** 2 - anew ** 2, 0.0, None)), anew)
 
 
 def _phase_calibrated(rotor, responses, ident, method, ident_kw, local_deg, apply, notes, used_kw=None):
     """The chain's phase-reference calibration: (responses, identification, PhaseCalibration or
-    None), the first two corrected when ``apply``.
+    None, (the phase reference's uncertainty at each speed (deg) the identification took, its part
+    drawn anew at each speed) where the calibration set it, else None), the first two corrected
+    when ``apply``.
 
     Reported only, what the calibration found is an uncertainty of the vectors as measured, not a
     correction (:func:`_reported_phase_std`): the size of the phase error theta - Omega tau it
@@ -578,7 +603,7 @@ def _phase_calibrated(rotor, responses, ident, method, ident_kw, local_deg, appl
             # asked to correct, the user must not take the uncalibrated coefficients for corrected ones
             warnings.warn(f"phase_calibration = \"apply\": the phase reference could not be calibrated ({exc}); the "
                           "coefficients are identified from the vectors as measured")
-        return responses, ident, None
+        return responses, ident, None, None
     notes.append(cal.message)
     if not apply:
         if used_kw is not None:
@@ -594,12 +619,13 @@ def _phase_calibrated(rotor, responses, ident, method, ident_kw, local_deg, appl
                 ident = identify_synchronous(rotor, responses, method=method, **{
                     **used_kw, "keyphasor_angle_std_deg": phase, "keyphasor_delay_std_s": 0.0})
                 notes.append(f"{'; '.join(why)}: in the error bars; the calibration itself is reported, not applied")
-        return responses, ident, cal
+                return responses, ident, cal, (phase, _drawn_anew(cal, rpm, phase, local_deg, stand_in))
+        return responses, ident, cal, None
     responses = cal.apply(responses)
-    std = cal.phase_std_deg(responses[0].speed_rpm)
-    ident = identify_synchronous(rotor, responses, method=method, **own,
-                                 keyphasor_angle_std_deg=(std if stand_in or local_deg is None
-                                                          else np.hypot(std, local_deg)))
+    rpm = responses[0].speed_rpm
+    std = cal.phase_std_deg(rpm)
+    phase = std if stand_in or local_deg is None else np.hypot(std, local_deg)
+    ident = identify_synchronous(rotor, responses, method=method, **own, keyphasor_angle_std_deg=phase)
     kept = (["its uncertainty"] + (["the phase scatter between speeds it estimated"] if cal.scatter_deg > 0 else [])
             + ([f"the own phase errors of the speeds off its line ({_rpm_list(cal.outlier_speeds_rpm)})"]
                if cal.outlier_speeds_rpm else []))
@@ -607,7 +633,16 @@ def _phase_calibrated(rotor, responses, ident, method, ident_kw, local_deg, appl
                   ", with the keyphasor's local to each dwell in each recording's covariance" if stand_in else
                   ", with the keyphasor's local to each dwell, in each recording's covariance and common to the runs")
     notes.append(f"phase calibration applied to the 1X vectors ({' and '.join(kept)} in the error bars{local_note})")
-    return responses, ident, cal
+    return responses, ident, cal, (phase, _drawn_anew(cal, rpm, phase, local_deg, stand_in))
+
+
+def _drawn_anew(cal, rpm, phase, local_deg, stand_in):
+    """The part of the phase uncertainty ``phase`` (deg per speed) that a calibration's
+    identification took that is drawn anew at each speed: the phase scatter between speeds and, where
+    it does not stand in for it, the keyphasor's part local to each dwell (the rest, the found or
+    stated error and the calibrated line's uncertainty, is one error throughout the speeds)."""
+    loc2 = 0.0 if (stand_in or local_deg is None) else np.nan_to_num(np.asarray(local_deg, dtype=float)) ** 2
+    return np.minimum(np.sqrt(cal.scatter_std_deg(rpm) ** 2 + loc2), phase)
 
 
 def _reported_phase_std(cal, rpm, stated, local_deg, stand_in):
@@ -1484,8 +1519,10 @@ def _run_config(path, kind, *, out_dir, log, overwrite, plots, report, seen, lin
 
         try:
             shared = res.shared_cov if kind == "imbalance" else None
+            phase = dict(keyphasor_angle_std_deg=res.phase_reference_std_deg,
+                         phase_scatter_std_deg=res.phase_scatter_std_deg) if kind == "imbalance" else {}
             pfit = identify_pedestals(rotor, responses, cross_coupled=ped_cfg.cross_coupled,
-                                      freq_range_hz=ped_cfg.freq_range_hz, shared_cov=shared, **cal_kw)
+                                      freq_range_hz=ped_cfg.freq_range_hz, shared_cov=shared, **cal_kw, **phase)
         except RotoridError as exc:
             log(f"  pedestals not identified: {exc}")
         else:

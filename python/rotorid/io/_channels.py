@@ -151,8 +151,10 @@ def _check_stated_unit(use: _Use, path):
                            "file's, or, if the file's label is wrong, add override_file_unit = true")
 
 
-def _select(read: _Read, entries: dict, path, keep_other: bool) -> list[_Use]:
-    """Decide which file channels are used (mapped or canonically named); warn about the rest."""
+def _select(read: _Read, entries: dict, path, keep_other: bool, bare_names: bool = False) -> list[_Use]:
+    """Decide which file channels are used (mapped or canonically named); warn about the rest (by
+    their bare names with ``bare_names``: the groups of one TDMS file read one by one then warn
+    once, not once per group)."""
     raws = read.raws
     uses, used = [], set()
     for lab, use in entries.items():
@@ -173,13 +175,13 @@ def _select(read: _Read, entries: dict, path, keep_other: bool) -> list[_Use]:
             continue
         if raw.short in KNOWN:
             if raw.short in taken:
-                shadowed.append(raw.key)
+                shadowed.append(raw.short if bare_names else raw.key)
             else:
                 canonical.setdefault(raw.short, []).append(raw)
         elif keep_other:
             uses.append(_Use(raw.key, raw, raw.unit, "kept as is"))
         else:
-            dropped.append(raw.key)
+            dropped.append(raw.short if bare_names else raw.key)
     for name, rs in canonical.items():
         if len(rs) > 1:
             raise _ambiguous(read, path, f"several channels named {name!r}", [r.key for r in rs])
@@ -276,10 +278,11 @@ def _resolve_angled_probes(channels: dict, uses: list, sources: dict, path, fs: 
 
 
 def _assemble(path, read: _Read, channel_map, fs_hz, meta, *, source, keep_other=False,
-              provenance=True) -> tuple[Recording, bool]:
-    """The Recording, and whether the file stated its start time (False: t0 = 0 by default)."""
+              provenance=True, bare_names=False) -> tuple[Recording, bool]:
+    """The Recording, and whether the file stated its start time (False: t0 = 0 by default);
+    ``bare_names``: see :func:`_select`."""
     entries = _parse_channel_map(channel_map, path)
-    uses = _select(read, entries, path, keep_other)
+    uses = _select(read, entries, path, keep_other, bare_names)
     for u in uses:
         if u.raw.problem:
             raise RotoridError(f"{path}: channel {u.raw.key!r} (-> {u.name}) cannot be used: {u.raw.problem}")

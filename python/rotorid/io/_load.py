@@ -87,12 +87,13 @@ def _read(path, fmt, opts):
     return read, None
 
 
-def _finish(path, fmt, read, stored_source, channel_map, fs_hz, meta, source=None):
+def _finish(path, fmt, read, stored_source, channel_map, fs_hz, meta, source=None, bare_names=False):
     if fmt == "native":
         rec, stated = _assemble(path, read, channel_map, fs_hz, meta, source=stored_source or str(path),
                                 keep_other=True, provenance=channel_map is not None)
     else:
-        rec, stated = _assemble(path, read, channel_map, fs_hz, meta, source=source or str(path))
+        rec, stated = _assemble(path, read, channel_map, fs_hz, meta, source=source or str(path),
+                                bare_names=bare_names)
     check_clipping(rec)
     return rec, stated
 
@@ -253,7 +254,9 @@ def _segmented_groups(path, groups, channel_map, fs_hz, meta, fmt, layout):
     for g in groups:
         read = _tdms_read(path, content, g, opts.get("time_column"))
         read.meta = {"source_format": "tdms", **read.meta}
-        loaded.append(_finish(path, "tdms", read, None, channel_map, fs_hz, meta, source=f"{path} (group {g!r})"))
+        # (the groups' dropped channels named bare, so that one warning stands for all of them)
+        loaded.append(_finish(path, "tdms", read, None, channel_map, fs_hz, meta, source=f"{path} (group {g!r})",
+                              bare_names=len(groups) > 1))
     return _segments(loaded, meta, str(path))
 
 
