@@ -534,6 +534,17 @@ def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", ide
                   phase_std=phase_std, noise_planes=_noise_planes(rotor, runs) if identical else None)
 
 
+def _phase_std_deg_per_speed(name, value, n):
+    """``value`` checked as a phase uncertainty in degrees: a number or one per speed (``n``), not
+    negative, below 45 degrees (a phase that uncertain identifies nothing)."""
+    theta = real_array(name, value, nonneg=True)
+    if theta.ndim > 1 or theta.size not in (1, n):
+        raise RotoridError(f"{name} must be a number or one per speed ({n}), got shape {theta.shape}")
+    if np.any(theta >= 45.0):
+        raise RotoridError(f"{name} must be below 45 degrees, got {float(np.max(theta)):g}")
+    return theta
+
+
 def _phase_reference_std(rpm, angle_std_deg, delay_std_s):
     """(n,) standard uncertainty of the phase reference at each speed (rad), sqrt(theta² + (Omega
     tau)²), or None when both are zero (the defaults: no pass over the speeds)."""
@@ -542,12 +553,7 @@ def _phase_reference_std(rpm, angle_std_deg, delay_std_s):
     from ._validate import number
 
     tau = number("keyphasor_delay_std_s", delay_std_s, nonneg=True)
-    theta = real_array("keyphasor_angle_std_deg", angle_std_deg, nonneg=True)
-    if theta.ndim > 1 or theta.size not in (1, rpm.size):
-        raise RotoridError(f"keyphasor_angle_std_deg must be a number or one per speed ({rpm.size}), got shape "
-                           f"{theta.shape}")
-    if np.any(theta >= 45.0):
-        raise RotoridError(f"keyphasor_angle_std_deg must be below 45 degrees, got {float(np.max(theta)):g}")
+    theta = _phase_std_deg_per_speed("keyphasor_angle_std_deg", angle_std_deg, rpm.size)
     if tau * float(np.max(rpm)) * RPM >= np.pi / 4:
         raise RotoridError(f"keyphasor_delay_std_s = {tau:g} s is 45 degrees or more of a revolution at "
                            f"{float(np.max(rpm)):g} rpm: a phase reference that uncertain identifies nothing (a unit "

@@ -526,17 +526,12 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
                     ks[b, i, 1 - i], cs[b, i, 1 - i] = sd[3], sd[4]
         return mass, kk, cc, ms, ks, cs, dof, resid, src
 
-    from .identify import _phase_reference_std
+    from .identify import _phase_reference_std, _phase_std_deg_per_speed
 
     phase_std = scatter_std = None
     if not impact:
         phase_std = _phase_reference_std(axis, keyphasor_angle_std_deg, keyphasor_delay_std_s)
-        scatter = real_array("phase_scatter_std_deg", phase_scatter_std_deg, nonneg=True)
-        if scatter.ndim > 1 or scatter.size not in (1, axis.size):
-            raise RotoridError(f"phase_scatter_std_deg must be a number or one per speed ({axis.size}), got shape "
-                               f"{scatter.shape}")
-        if np.any(scatter >= 45.0):
-            raise RotoridError(f"phase_scatter_std_deg must be below 45 degrees, got {float(np.max(scatter)):g}")
+        scatter = _phase_std_deg_per_speed("phase_scatter_std_deg", phase_scatter_std_deg, axis.size)
         scatter_std = np.deg2rad(scatter) * np.ones(axis.size) if np.any(scatter > 0) else None
     mass, kk, cc, ms, ks, cs, dof, resid, src = fit(qs, ps)
     out = PedestalIdentification(mass, kk, cc, ms, ks, cs, dof, resid, src, cross, R * ns, labels)
