@@ -109,6 +109,12 @@ def test_quiet_segments_skip_missing_samples_and_events_and_take_the_forces_rest
     kept = [1000, 1500, 2000]
     np.testing.assert_array_equal(noise.segments, np.stack([burst[:, s:s + N] for s in kept]))
     assert noise.left_out == 5
+    # not events: a quantized force of little noise (its MAD 0, a step now and then), or spikes
+    # that recur in every segment (each left every segment out before, review)
+    steps = np.round(0.15 * rng.standard_normal(L))
+    assert impact_noise.impact_noise(f, y, PRE, fw, (burst, steps)).left_out == 1      # (the burst)
+    spikes = 0.01 * rng.standard_normal(L) + 30.0 * (np.arange(L) % 200 == 0)
+    assert impact_noise.impact_noise(f, y, PRE, fw, (burst, spikes)).left_out == 1
     # demeaned like records without the run-out filter: each segment less its first PRE samples' mean
     dm = impact_noise.impact_noise(f, y, PRE, fw, (yq + 5.0, fq), demean=True)
     np.testing.assert_allclose(dm.segments[-1][:, :PRE].mean(axis=1), 0.0, atol=1e-12)

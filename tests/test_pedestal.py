@@ -824,7 +824,11 @@ def test_identify_pedestals_bad_input():
                                                                r"speed"),
                       (dict(phase_scatter_std_deg=50.0), "phase_scatter_std_deg must be below 45 degrees"),
                       (dict(keyphasor_angle_std_deg=45.0), "keyphasor_angle_std_deg must be below 45 degrees"),
-                      (dict(keyphasor_delay_std_s="x"), "keyphasor_delay_std_s")):
+                      (dict(keyphasor_delay_std_s="x"), "keyphasor_delay_std_s"),
+                      (dict(phase_line_cov=np.eye(3)), "phase_line_cov"),
+                      (dict(phase_line_cov=[[1.0, np.nan], [np.nan, 1e-12]]), "phase_line_cov"),
+                      (dict(phase_line_cov=[[0.01, 0.0], [0.0, -1e-12]]), "positive semi-definite"),
+                      (dict(phase_line_cov=[[0.01, 1e-7], [0.0, 1e-12]]), "symmetric")):
         with pytest.raises(RotoridError, match=match):
             rotorid.identify_pedestals(RIG.rotor, runs, **kw)
 
@@ -885,6 +889,19 @@ def test_the_pedestal_fit_takes_in_the_phase_references_uncertainty():
 
     as_scatter, z = cover(drawn, phase_scatter_std_deg=0.1)
     assert as_scatter >= 0.95 and z > 0.2, (as_scatter, z)
+
+    # a mark angle and a delay of opposite effect: theta - Omega tau crosses zero at 5000 rpm. Its
+    # size at each speed cannot change sign; the line's second moment can (review: the chain passed
+    # the size, 0.32-0.70 coverage where the line crosses zero). Measured: nothing 0.33, the size
+    # 0.83, the line 1.0 (median |z| 0.87)
+    theta, tau = 0.1, np.deg2rad(0.1) / (5000.0 * np.pi / 30.0)
+
+    def line(seed):
+        return theta - np.rad2deg(rpm * np.pi / 30.0 * tau)
+
+    as_size, _ = cover(line, keyphasor_angle_std_deg=np.abs(line(0)))
+    as_line, z = cover(line, phase_line_cov=np.outer([theta, tau], [theta, tau]))
+    assert as_size < 0.85 and as_line >= 0.93 and z > 0.4, (as_size, as_line, z)
 
 
 def test_warning_and_flags_when_pedestal_motion_dominates():

@@ -304,7 +304,8 @@ GLS_MIN_DOF = 10
 
 def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_hz=None, accel_gain_std: float = 0.0,
                        accel_phase_std_deg: float = 0.0, shared_cov=None, keyphasor_angle_std_deg=0.0,
-                       keyphasor_delay_std_s: float = 0.0, phase_scatter_std_deg=0.0) -> PedestalIdentification:
+                       keyphasor_delay_std_s: float = 0.0, phase_line_cov=None,
+                       phase_scatter_std_deg=0.0) -> PedestalIdentification:
     """Each pedestal's mass, stiffness and damping from imbalance runs (or impact tests) that carry
     pedestal motion.
 
@@ -329,18 +330,24 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
     ``shared_cov`` (n, 16, 16): the covariance of [Re q, Im q, Re p, Im p] common to every pair of
     runs (all runs less the same baseline run; see :func:`rotorid.identify_synchronous`): the
     equations of one point are then correlated across runs, and weighted and propagated as such.
-    ``keyphasor_angle_std_deg`` (a number or one per speed) and ``keyphasor_delay_std_s``: the
-    phase reference's uncertainty, a phase error common to every run's vectors (probes and
-    accelerometers) at a speed, as :func:`rotorid.identify_synchronous` takes it, here taken as one
-    error throughout the speeds (a mark angle, a delay, a keyphasor timed late by the same time:
-    wholly correlated between speeds, whose size at each speed this is); ``phase_scatter_std_deg``
-    (a number or one per speed): a further phase error drawn anew at each speed (independent between
-    speeds). Imbalance runs only (impact FRFs are relative to the force). Both are added to the
-    standard errors by central differences of the whole fit: along the correlated error's profile
-    (two fits), and for the scatter along each speed's phase (two fits per speed). Found by an
-    independent simulator: a keyphasor timed 2-5 of its stated uncertainties late at high speed
-    left the pedestal intervals covering 0.40-0.58 where the bearings' covered 0.98 (the imbalance
-    chain passes what its identification took, with what a phase calibration found).
+    The phase reference's uncertainty (imbalance runs only: impact FRFs are relative to the force,
+    and these are ignored for them): a phase error common to every run's vectors (probes and
+    accelerometers) at a speed. The pedestal fit pools the speeds, so how the error goes from speed
+    to speed counts (the bearing identification, speed by speed, needs only its size at each):
+    ``keyphasor_angle_std_deg`` (a number or one per speed): one error throughout the speeds of
+    this size at each (a mark angle; wholly correlated between speeds); ``keyphasor_delay_std_s``:
+    a delay's, Omega times it, independent of the angle's; ``phase_line_cov`` (2, 2): the
+    covariance (or second moment) of an offset theta (deg) and a delay tau (s) whose error at each
+    speed is theta - Omega tau (a phase calibration's: :meth:`rotorid.phasecal.PhaseCalibration.line_cov`),
+    which changes sign where the two cancel; ``phase_scatter_std_deg`` (a number or one per speed):
+    errors drawn anew at each speed (independent between speeds). Each is added to the standard
+    errors by central differences of the whole fit: along the angle's profile and the delay's (two
+    fits each), along theta and tau (four), and along each speed's phase for the scatter (two per
+    speed; it also shows in the misfit, which widens the errors by itself, so it counts twice).
+    Found by an independent simulator: a keyphasor timed 2-5 of its stated uncertainties late at
+    high speed left the pedestal intervals covering 0.40-0.58 where the bearings' covered 0.98 (the
+    imbalance chain passes what its identification took, with what a phase calibration found:
+    ``ImbalanceChainResult.pedestal_phase_kw``).
 
     Examples
     --------
@@ -528,9 +535,23 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
 
     from .identify import _phase_reference_std, _phase_std_deg_per_speed
 
-    phase_std = scatter_std = None
+    directions, line, scatter_std = [], None, None
     if not impact:
-        phase_std = _phase_reference_std(axis, keyphasor_angle_std_deg, keyphasor_delay_std_s)
+        om = axis * RPM
+        angle = np.deg2rad(_phase_std_deg_per_speed("keyphasor_angle_std_deg", keyphasor_angle_std_deg, axis.size))
+        if np.any(angle > 0):
+            directions.append(angle * np.ones(axis.size))
+        if _phase_reference_std(axis, 0.0, keyphasor_delay_std_s) is not None:
+            directions.append(om * float(keyphasor_delay_std_s))
+        if phase_line_cov is not None:
+            line = real_array("phase_line_cov", phase_line_cov, shape=(2, 2))
+            # in (rad, rad at the top speed) the check of symmetry and semi-definiteness is unit-free
+            scale = np.array([np.pi / 180.0, float(np.max(om))])
+            unit = line * scale[:, None] * scale[None, :]
+            if not np.allclose(unit, unit.T, rtol=1e-9, atol=1e-300) or np.linalg.eigvalsh(unit).min() < \
+                    -1e-9 * max(np.abs(unit).max(), 1e-300):
+                raise RotoridError(f"phase_line_cov must be a symmetric positive semi-definite (2, 2) covariance of "
+                                   f"the offset (deg) and the delay (s), got {line.tolist()}")
         scatter = _phase_std_deg_per_speed("phase_scatter_std_deg", phase_scatter_std_deg, axis.size)
         scatter_std = np.deg2rad(scatter) * np.ones(axis.size) if np.any(scatter > 0) else None
     mass, kk, cc, ms, ks, cs, dof, resid, src = fit(qs, ps)
@@ -539,9 +560,10 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
         from .identify import _probe_maps
 
         _add_calibration(out, fit, qs, ps, _probe_maps(rotor, runs), cal_g, cal_ph)
-    if phase_std is not None or scatter_std is not None:
+    if directions or line is not None or scatter_std is not None:
         keep = (lambda v: v) if sel is None else (lambda v: np.where(sel, v, 0.0))
-        _add_phase_reference(out, fit, qs, ps, None if phase_std is None else keep(phase_std),
+        _add_phase_reference(out, fit, qs, ps, [keep(d) for d in directions],
+                             None if line is None else (line, keep(np.ones(axis.size)), keep(-om)),
                              None if scatter_std is None else keep(scatter_std))
     return out
 
@@ -559,15 +581,18 @@ def _name_nonfinite(labels, runs):
     raise RotoridError("runs contain NaN or inf")
 
 
-def _add_phase_reference(out, fit, qs, ps, common_rad, scatter_rad):
+def _add_phase_reference(out, fit, qs, ps, profiles, line, scatter_rad):
     """Add the phase reference's uncertainty to a pedestal fit's standard errors. A phase error e_i
-    at speed i turns every run's relative and pedestal motion there by e^{j e_i}. ``common_rad``
-    (n,) or None: one error e_i = s_i eps throughout the speeds (eps standard normal), adding
-    (d theta / d eps)²; ``scatter_rad`` (n,) or None: errors independent between speeds, adding
-    sum_i s_i² (d theta / d e_i)². The derivatives by central differences of the whole fit
-    (``fit(qs, ps)``: weights, points and covariances fixed). (The scatter taken as correlated
-    instead made synthetic per-speed errors' intervals 4 times too wide; the correlated error as
-    independent left an error growing with speed covered 0.66-0.72.)"""
+    at speed i turns every run's relative and pedestal motion there by e^{j e_i}; theta the fit's
+    estimates. ``profiles``: errors e_i = s_i eps throughout the speeds (eps standard normal), each
+    adding (d theta / d eps)²; ``line``: (M, ones, -Omega), an error theta_0 + tau (-Omega_i) with
+    (theta_0 in deg, tau in s) of covariance M, adding g M g^T for g = d theta / d(theta_0, tau);
+    ``scatter_rad`` (n,) or None: errors independent between speeds, adding sum_i s_i² (d theta /
+    d e_i)². The derivatives by central differences of the whole fit (``fit(qs, ps)``: weights,
+    points and covariances fixed). (The per-speed scatter taken as one error throughout the speeds
+    made synthetic per-speed errors' intervals 4 times too wide; an error growing with speed taken
+    as independent between speeds covered 0.66-0.72; a calibration's line passed as its size at
+    each speed, which cannot change sign, covered 0.32-0.70 where the line crosses zero, review.)"""
     from .identify import _CAL_STEP
 
     def derivative(direction):
@@ -579,18 +604,24 @@ def _add_phase_reference(out, fit, qs, ps, common_rad, scatter_rad):
         return [(a - b) / (2.0 * _CAL_STEP) for a, b in zip(est[0], est[1])]
 
     var = [np.zeros_like(out.mass_kg), np.zeros_like(out.k), np.zeros_like(out.c)]
-    if common_rad is not None:
-        for v, d in zip(var, derivative(common_rad)):
+    for profile in profiles:
+        for v, d in zip(var, derivative(profile)):
             v += d ** 2
+    if line is not None:
+        M, ones, minus_om = line
+        # per degree of offset and per second of delay
+        g0, g1 = derivative(np.deg2rad(ones)), derivative(minus_om)
+        for v, a, b in zip(var, g0, g1):
+            v += a * a * M[0, 0] + 2.0 * a * b * M[0, 1] + b * b * M[1, 1]
     if scatter_rad is not None:
         for i in np.flatnonzero(scatter_rad > 0):
             unit = np.zeros(scatter_rad.size)
             unit[i] = scatter_rad[i]
             for v, d in zip(var, derivative(unit)):
                 v += d ** 2
-    out.mass_std = np.sqrt(out.mass_std ** 2 + var[0])
-    out.k_std = np.sqrt(out.k_std ** 2 + var[1])
-    out.c_std = np.sqrt(out.c_std ** 2 + var[2])
+    out.mass_std = np.sqrt(out.mass_std ** 2 + np.clip(var[0], 0.0, None))
+    out.k_std = np.sqrt(out.k_std ** 2 + np.clip(var[1], 0.0, None))
+    out.c_std = np.sqrt(out.c_std ** 2 + np.clip(var[2], 0.0, None))
     out.std_source += " + phase reference"
 
 

@@ -95,6 +95,18 @@ class PhaseCalibration:
         rpm = _speeds(speed_rpm)
         return np.hypot(self.line_std_deg(rpm), self.scatter_std_deg(rpm))
 
+    def line_cov(self):
+        """(2, 2) covariance of the estimated offset (deg) and delay (s).
+
+        Examples
+        --------
+        >>> from rotorid.phasecal import PhaseCalibration
+        >>> PhaseCalibration(0.5, 0.1, 10e-6, 2e-6, 1.0, 8, True, "").line_cov()[0, 0].round(4)
+        np.float64(0.01)
+        """
+        c = self.offset_delay_corr * self.offset_std_deg * self.delay_std_s
+        return np.array([[self.offset_std_deg ** 2, c], [c, self.delay_std_s ** 2]])
+
     def line_std_deg(self, speed_rpm):
         """Standard uncertainty of the estimated line theta - Omega tau at each speed (deg), without
         the phase errors of each speed alone: sqrt(s_theta² + Omega² s_tau² - 2 Omega r s_theta

@@ -102,13 +102,11 @@ class ImbalanceChainResult:
     # the phase-reference calibration (phase_calibration "report" or "apply"; None otherwise or
     # where it could not be made, with a note saying why)
     phase_calibration: object = None
-    # the phase reference's uncertainty common to the runs at each grid speed (deg) that the
-    # identification's error bars hold (stated, the keyphasor pulse shape's, or what a phase
-    # calibration set), as one error throughout the speeds and a part drawn anew at each (the
-    # calibration's phase scatter, the keyphasors' local part): the identification took their
-    # quadrature sum at each speed; rotorid.identify_pedestals, pooling the speeds, takes them apart
-    phase_reference_std_deg: np.ndarray | None = None
-    phase_scatter_std_deg: np.ndarray | None = None
+    # the phase reference's uncertainty that the identification's error bars hold (stated, the
+    # keyphasor pulse shape's, what a phase calibration found or its uncertainty, its scatter), as
+    # keyword arguments of rotorid.identify_pedestals, which pools the speeds and so needs to know
+    # how the error goes from speed to speed
+    pedestal_phase_kw: dict = field(default_factory=dict)
 
 
 def _near_only(track, speeds, tol, label, what):
@@ -163,8 +161,8 @@ def _pedestal_choice(pedestal_motion, runs, labels):
         # a choice, but one whose cost is not seen in the results: an independent simulator's
         # housings moving 0.3-0.65 of the journals' relative motion gave K off by 23 %, C by 34 %,
         # with a fifth of the points ok
-        warnings.warn(f"{having[0]}" + (f" and {len(having) - 1} more" if len(having) > 1 else "") +
-                      " carry housing accelerometers that are ignored (pedestal_motion=False; config: [pedestals] "
+        warnings.warn(f"{having[0]}" + (f" and {len(having) - 1} more carry" if len(having) > 1 else " carries") +
+                      " housing accelerometers that are ignored (pedestal_motion=False; config: [pedestals] "
                       "measured = false): where the housings move, the coefficients identified are those of each "
                       "bearing in series with its pedestal, not the bearing's")
     if pedestal_motion:
@@ -539,22 +537,15 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
     if phase_calibration != "off":
         responses, ident, cal, phase = _phase_calibrated(rotor, responses, ident, method, fixed_kw, local_deg,
                                                          phase_calibration == "apply", notes, ident_kw)
-    if phase is None:
-        # as stated (and the keyphasor pulse shape's): one error throughout the speeds
-        ref = _phase_reference_std(grid, ident_kw.get("keyphasor_angle_std_deg", 0.0),
-                                   ident_kw.get("keyphasor_delay_std_s", 0.0))
-        phase = (np.zeros(grid.shape) if ref is None else np.rad2deg(ref) * np.ones(grid.shape), np.zeros(grid.shape))
-    total, anew = (np.broadcast_to(v, grid.shape).astype(float) for v in phase)
     return ImbalanceChainResult(responses, tracks, ident, notes, ident_kw.get("shared_cov"),
                                 None if sr is None else np.asarray(sr[0]), shape_deg, local_deg, cal,
-                                np.sqrt(np.clip(total ** 2 - anew ** 2, 0.0, None)), anew)
+                                _stated_phase_kw(ident_kw) if phase is None else phase)
 
 
 def _phase_calibrated(rotor, responses, ident, method, ident_kw, local_deg, apply, notes, used_kw=None):
     """The chain's phase-reference calibration: (responses, identification, PhaseCalibration or
-    None, (the phase reference's uncertainty at each speed (deg) the identification took, its part
-    drawn anew at each speed) where the calibration set it, else None), the first two corrected
-    when ``apply``.
+    None, the phase reference's uncertainty as :func:`rotorid.identify_pedestals` takes it where
+    the calibration set the identification's, else None), the first two corrected when ``apply``.
 
     Reported only, what the calibration found is an uncertainty of the vectors as measured, not a
     correction (:func:`_reported_phase_std`): the size of the phase error theta - Omega tau it
@@ -619,7 +610,12 @@ def _phase_calibrated(rotor, responses, ident, method, ident_kw, local_deg, appl
                 ident = identify_synchronous(rotor, responses, method=method, **{
                     **used_kw, "keyphasor_angle_std_deg": phase, "keyphasor_delay_std_s": 0.0})
                 notes.append(f"{'; '.join(why)}: in the error bars; the calibration itself is reported, not applied")
-                return responses, ident, cal, (phase, _drawn_anew(cal, rpm, phase, local_deg, stand_in))
+                # the pedestal fit: the line found, as measured (its second moment, its uncertainty
+                # taken out as the bearings' moment estimate does) beside what was stated
+                v = np.array([cal.offset_deg, cal.delay_s])
+                found = _psd_part(np.outer(v, v) - cal.line_cov(), float(np.max(rpm)) * RPM)
+                return responses, ident, cal, dict(_stated_phase_kw(used_kw), phase_line_cov=found,
+                                                   phase_scatter_std_deg=_drawn_anew(cal, rpm, local_deg, stand_in))
         return responses, ident, cal, None
     responses = cal.apply(responses)
     rpm = responses[0].speed_rpm
@@ -633,16 +629,32 @@ def _phase_calibrated(rotor, responses, ident, method, ident_kw, local_deg, appl
                   ", with the keyphasor's local to each dwell in each recording's covariance" if stand_in else
                   ", with the keyphasor's local to each dwell, in each recording's covariance and common to the runs")
     notes.append(f"phase calibration applied to the 1X vectors ({' and '.join(kept)} in the error bars{local_note})")
-    return responses, ident, cal, (phase, _drawn_anew(cal, rpm, phase, local_deg, stand_in))
+    # the pedestal fit: the calibrated line's uncertainty replaces what was stated
+    return responses, ident, cal, dict(phase_line_cov=cal.line_cov(),
+                                       phase_scatter_std_deg=_drawn_anew(cal, rpm, local_deg, stand_in))
 
 
-def _drawn_anew(cal, rpm, phase, local_deg, stand_in):
-    """The part of the phase uncertainty ``phase`` (deg per speed) that a calibration's
-    identification took that is drawn anew at each speed: the phase scatter between speeds and, where
-    it does not stand in for it, the keyphasor's part local to each dwell (the rest, the found or
-    stated error and the calibrated line's uncertainty, is one error throughout the speeds)."""
+def _stated_phase_kw(ident_kw):
+    """The phase reference's uncertainty the identification was given (``keyphasor_angle_std_deg``,
+    with the keyphasor pulse shape's, and ``keyphasor_delay_std_s``), as the pedestal fit takes it."""
+    return dict(keyphasor_angle_std_deg=ident_kw.get("keyphasor_angle_std_deg", 0.0),
+                keyphasor_delay_std_s=ident_kw.get("keyphasor_delay_std_s", 0.0))
+
+
+def _psd_part(m, om_max):
+    """The positive semi-definite part of a symmetric (2, 2) matrix of (offset deg, delay s),
+    taken in units where both are phases (deg, and deg at the top speed ``om_max``)."""
+    scale = np.array([1.0, np.rad2deg(om_max)])
+    w, v = np.linalg.eigh(m * scale[:, None] * scale[None, :])
+    return ((v * np.clip(w, 0.0, None)) @ v.T) / scale[:, None] / scale[None, :]
+
+
+def _drawn_anew(cal, rpm, local_deg, stand_in):
+    """The part of a calibration's phase uncertainty drawn anew at each speed (deg): the phase
+    scatter between speeds and, where it does not stand in for it, the keyphasor's part local to
+    each dwell."""
     loc2 = 0.0 if (stand_in or local_deg is None) else np.nan_to_num(np.asarray(local_deg, dtype=float)) ** 2
-    return np.minimum(np.sqrt(cal.scatter_std_deg(rpm) ** 2 + loc2), phase)
+    return np.minimum(np.sqrt(cal.scatter_std_deg(rpm) ** 2 + loc2), MAX_REPORTED_PHASE_DEG)
 
 
 def _reported_phase_std(cal, rpm, stated, local_deg, stand_in):
@@ -1519,8 +1531,7 @@ def _run_config(path, kind, *, out_dir, log, overwrite, plots, report, seen, lin
 
         try:
             shared = res.shared_cov if kind == "imbalance" else None
-            phase = dict(keyphasor_angle_std_deg=res.phase_reference_std_deg,
-                         phase_scatter_std_deg=res.phase_scatter_std_deg) if kind == "imbalance" else {}
+            phase = res.pedestal_phase_kw if kind == "imbalance" else {}
             pfit = identify_pedestals(rotor, responses, cross_coupled=ped_cfg.cross_coupled,
                                       freq_range_hz=ped_cfg.freq_range_hz, shared_cov=shared, **cal_kw, **phase)
         except RotoridError as exc:
