@@ -147,11 +147,12 @@ def impact_noise(force, response, pre, force_window, quiet=None, *, demean=False
     the impact's records had the mean of their first ``pre`` samples taken off (no run-out filter),
     and so have the segments.
 
-    The noise just before the impact is compared with the quiet record's: where its power over the
-    ``pre`` samples (for the force a robust width, which the foot of the pulse does not move)
-    exceeds 99 % of the same windows' across the segments, the channel's segments are scaled up by
-    its ratio to their mean (found by review: a quiet record half as noisy as the impact's left
-    coverage at 0.82, a quarter as noisy 0.62)."""
+    The noise just before the impact is compared with the quiet record's (:func:`_noise_growth`):
+    where its power over the ``pre`` samples (for the force a robust width over the first half of
+    them, which the foot of a soft tip's pulse does not reach) exceeds 99 % of the same windows'
+    across the segments, the channel's segments are scaled up by its ratio to their mean (found by
+    review: a quiet record half as noisy as the impact's left coverage at 0.82, a quarter as noisy
+    0.62)."""
     force_window = np.asarray(force_window, dtype=float)
     n = force_window.size
     why = "less than 1.5 records of quiet record before it"
@@ -173,9 +174,9 @@ def impact_noise(force, response, pre, force_window, quiet=None, *, demean=False
 
 
 #: a quiet segment whose mean square on a channel exceeds this multiple of the segments' median
-#: there, or whose force strays further than this many robust noise widths from its median, holds
-#: an event and is left out (a chi-square of 2 degrees of freedom passes 10 times its median with
-#: probability 0.1 %)
+#: there, or whose force strays further than this many noise widths from its median (and
+#: ``EVENT_SPREAD`` times the quietest segment's largest excursion), holds an event and is left
+#: out (a chi-square of 2 degrees of freedom passes 10 times its median with probability 0.1 %)
 EVENT_RATIO = 10.0
 
 #: how many times the quietest segment's largest force excursion an event's must be too (a
