@@ -189,11 +189,13 @@ def _run(args) -> int:
         from .pipeline import run_config
 
         shown = []
+        seen = set()
 
         def show(message, category, filename, lineno, file=None, line=None):
             # once each: the chain's inner identifications (calibration, jackknife) repeat theirs
-            if str(message) in {str(m) for m in shown}:
+            if str(message) in seen:
                 return
+            seen.add(str(message))
             shown.append(message)
             print(_one_line_warning(message, category, filename, lineno), end="", file=sys.stderr)
 

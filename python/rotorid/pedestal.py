@@ -544,9 +544,12 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
         if _phase_reference_std(axis, 0.0, keyphasor_delay_std_s) is not None:
             directions.append(om * float(keyphasor_delay_std_s))
         if phase_line_cov is not None:
+            from .phasecal import _line_scale
+
             line = real_array("phase_line_cov", phase_line_cov, shape=(2, 2))
-            # in (rad, rad at the top speed) the check of symmetry and semi-definiteness is unit-free
-            scale = np.array([np.pi / 180.0, float(np.max(om))])
+            # in phase units (deg, deg at the top speed) the check of symmetry and semi-definiteness
+            # is unit-free
+            scale = _line_scale(float(np.max(om)))
             unit = line * scale[:, None] * scale[None, :]
             if not np.allclose(unit, unit.T, rtol=1e-9, atol=1e-300) or np.linalg.eigvalsh(unit).min() < \
                     -1e-9 * max(np.abs(unit).max(), 1e-300):
@@ -563,7 +566,7 @@ def identify_pedestals(rotor, runs, *, cross_coupled: bool = False, freq_range_h
     if directions or line is not None or scatter_std is not None:
         keep = (lambda v: v) if sel is None else (lambda v: np.where(sel, v, 0.0))
         _add_phase_reference(out, fit, qs, ps, [keep(d) for d in directions],
-                             None if line is None else (line, keep(np.ones(axis.size)), keep(-om)),
+                             None if line is None else (line, keep(np.full(axis.size, np.pi / 180.0)), keep(-om)),
                              None if scatter_std is None else keep(scatter_std))
     return out
 
@@ -585,8 +588,9 @@ def _add_phase_reference(out, fit, qs, ps, profiles, line, scatter_rad):
     """Add the phase reference's uncertainty to a pedestal fit's standard errors. A phase error e_i
     at speed i turns every run's relative and pedestal motion there by e^{j e_i}; theta the fit's
     estimates. ``profiles``: errors e_i = s_i eps throughout the speeds (eps standard normal), each
-    adding (d theta / d eps)²; ``line``: (M, ones, -Omega), an error theta_0 + tau (-Omega_i) with
-    (theta_0 in deg, tau in s) of covariance M, adding g M g^T for g = d theta / d(theta_0, tau);
+    adding (d theta / d eps)²; ``line``: (M, d_0, d_tau), an error theta_0 d_0 + tau d_tau with
+    (theta_0 in deg, tau in s) of covariance M, d_0 the radians per degree and d_tau = -Omega at
+    each speed, adding g M g^T for g = d theta / d(theta_0, tau);
     ``scatter_rad`` (n,) or None: errors independent between speeds, adding sum_i s_i² (d theta /
     d e_i)². The derivatives by central differences of the whole fit (``fit(qs, ps)``: weights,
     points and covariances fixed). (The per-speed scatter taken as one error throughout the speeds
@@ -608,10 +612,8 @@ def _add_phase_reference(out, fit, qs, ps, profiles, line, scatter_rad):
         for v, d in zip(var, derivative(profile)):
             v += d ** 2
     if line is not None:
-        M, ones, minus_om = line
-        # per degree of offset and per second of delay
-        g0, g1 = derivative(np.deg2rad(ones)), derivative(minus_om)
-        for v, a, b in zip(var, g0, g1):
+        M, d0, d_tau = line
+        for v, a, b in zip(var, derivative(d0), derivative(d_tau)):
             v += a * a * M[0, 0] + 2.0 * a * b * M[0, 1] + b * b * M[1, 1]
     if scatter_rad is not None:
         for i in np.flatnonzero(scatter_rad > 0):
@@ -619,10 +621,16 @@ def _add_phase_reference(out, fit, qs, ps, profiles, line, scatter_rad):
             unit[i] = scatter_rad[i]
             for v, d in zip(var, derivative(unit)):
                 v += d ** 2
+    _widen(out, var, "phase reference")
+
+
+def _widen(out, var, source):
+    """Add the variances ``var`` (of mass, k, c; the negative rounding of a sum of cross terms as 0)
+    to a pedestal fit's standard errors, and ``source`` to its ``std_source``."""
     out.mass_std = np.sqrt(out.mass_std ** 2 + np.clip(var[0], 0.0, None))
     out.k_std = np.sqrt(out.k_std ** 2 + np.clip(var[1], 0.0, None))
     out.c_std = np.sqrt(out.c_std ** 2 + np.clip(var[2], 0.0, None))
-    out.std_source += " + phase reference"
+    out.std_source += f" + {source}"
 
 
 def _add_calibration(out, fit, qs, ps, maps, gain_std, phase_std_rad):
@@ -637,7 +645,4 @@ def _add_calibration(out, fit, qs, ps, maps, gain_std, phase_std_rad):
         est = [fit(*side)[:3] for side in (plus, minus)]
         for v, a, b in zip(var, est[0], est[1]):
             v += (std * (a - b) / (2.0 * _CAL_STEP)) ** 2
-    out.mass_std = np.sqrt(out.mass_std ** 2 + var[0])
-    out.k_std = np.sqrt(out.k_std ** 2 + var[1])
-    out.c_std = np.sqrt(out.c_std ** 2 + var[2])
-    out.std_source += " + accelerometer calibration"
+    _widen(out, var, "accelerometer calibration")

@@ -165,6 +165,12 @@ class PhaseCalibration:
         return [_rotated(r, -np.deg2rad(self.offset_deg), -self.delay_s) for r in runs]
 
 
+def _line_scale(om_max):
+    """(2,) factors that turn a line's (offset deg, delay s) into phases (deg, and deg at the top
+    speed ``om_max`` rad/s), where the two compare (symmetry, definiteness of a (2, 2) matrix)."""
+    return np.array([1.0, np.rad2deg(om_max)])
+
+
 def _speeds(speed_rpm):
     """Speeds in rpm as a 1-d float array, or a RotoridError."""
     from ._validate import real_array

@@ -644,7 +644,9 @@ def _stated_phase_kw(ident_kw):
 def _psd_part(m, om_max):
     """The positive semi-definite part of a symmetric (2, 2) matrix of (offset deg, delay s),
     taken in units where both are phases (deg, and deg at the top speed ``om_max``)."""
-    scale = np.array([1.0, np.rad2deg(om_max)])
+    from .phasecal import _line_scale
+
+    scale = _line_scale(om_max)
     w, v = np.linalg.eigh(m * scale[:, None] * scale[None, :])
     return ((v * np.clip(w, 0.0, None)) @ v.T) / scale[:, None] / scale[None, :]
 
@@ -891,7 +893,7 @@ def _impact_segments(rec, *, record_s, pre_s, revs_before, runout, kp, points_pe
         # the clean record before the impact, subtracted so that the window does not turn it into
         # spectral content (a 1 % offset cost 10-18 % in K and C)
         prev = imps[j - 1].stop if j > 0 else 0
-        rest = rec.channels["force"][max(prev, imp.start - max(pre, 64)):imp.start]
+        rest = rec.channels["force"][max(prev, imp.start - max(pre, impact_noise.FORCE_REST_SAMPLES)):imp.start]
         f0 = float(np.median(rest)) if rest.size >= 8 else 0.0
         fw = signals.force_window(n_seg, 0, imp.stop - a + pre, taper=0)
         f = (rec.channels["force"][a:b] - f0) * fw
