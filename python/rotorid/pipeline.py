@@ -754,6 +754,7 @@ class ImpactChainResult:
     dropped: list            # (source, time s, reason)
     identification: Identification
     kcm: object = None       # KCMFit over kcm_band_hz (jackknife over impacts), when asked
+    poolings: list = field(default_factory=list)  # impact_noise.Pooling per group of 2+ impacts, else None
 
 
 def impact_segments(rec: Recording, *, record_s: float = 0.25, pre_s: float = 0.01, revs_before: int = 8,
@@ -809,9 +810,9 @@ def _quiet_stretch(rec, channels, lo, hi, n_seg, signature):
 
 def _impact_segments(rec, *, record_s, pre_s, revs_before, runout, kp, points_per_rev, exp_window_tau_s, detect,
                      pedestal):
-    """:func:`impact_segments`, and per impact a function of no arguments giving the noise of its
+    """:func:`impact_segments`, and per impact (a function of no arguments giving the noise of its
     records (:class:`rotorid.impact_noise.ImpactNoise` or None), measured on the recording's quiet
-    stretch before it."""
+    stretch before it; whether that stretch follows an earlier impact of the recording)."""
     from ._validate import flag, index, instance, mapping, number
 
     instance("rec", rec, Recording, what="rotorid.Recording (one impact recording)")
@@ -899,7 +900,8 @@ def _impact_segments(rec, *, record_s, pre_s, revs_before, runout, kp, points_pe
         f = (rec.channels["force"][a:b] - f0) * fw
         # measured when asked for (a test of one impact): the quiet stretch's segments would hold
         # 15 records per impact
-        noises.append(functools.partial(_impact_noise_of, rec, channels, *quiet, n_seg, f, y, pre, fw))
+        # with whether its quiet stretch follows an earlier hit, whose tail may still ring in it
+        noises.append((functools.partial(_impact_noise_of, rec, channels, *quiet, n_seg, f, y, pre, fw), j > 0))
         if exp_window_tau_s is not None:
             ew = signals.exponential_window(n_seg, fs, exp_window_tau_s, start=pre)
             f = f * ew
@@ -1141,7 +1143,7 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
     else:
         raise RotoridError("the running speed of the impact tests cannot be known: the recordings have no keyphasor "
                            "and no speed_rpm in their metadata; give speed_rpm")
-    tests, frfs, used, truncated = [], [], [], []
+    tests, frfs, used, truncated, poolings = [], [], [], [], []
     for (plane, direction, at, fs), (fl, rl, ul, rel, nl) in groups.items():
         if not fl:
             # this test's reasons, without their per-impact details (times, counts)
@@ -1150,7 +1152,27 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
                                (f" (impacts dropped: {'; '.join(why)})" if why else ""))
         frf = impact_noise.h1(fl, rl, fs, zero_pad_s)
         pre = int(round(pre_s * fs))
-        noise = nl[0]() if len(fl) == 1 else None
+        sel = (frf.freq_hz >= band_hz[0]) & (frf.freq_hz <= band_hz[1])
+        noise = nl[0][0]() if len(fl) == 1 else None
+        pooling = None
+        if len(fl) >= 2 and frf.cov is not None:
+            # the scatter of few impacts pooled with the noise measured before them, where they agree
+            # (only quiet record before a recording's first hit: after a hit, the tail of its response
+            # rings on where a short record with an exponential window ends, and 0.1 s records with a
+            # 30 ms window took five times the noise from between the hits)
+            frf, pooling = impact_noise.pooled_frf(frf, fl, [None if after else nz() for nz, after in nl], fs,
+                                                   zero_pad_s, exp_window_tau_s, sel)
+            if pooling.measured and pooling.source == "scatter":
+                warnings.warn(f"test {direction} at {plane:g} m: its {len(fl)} impacts scatter "
+                              f"{pooling.excess:.3g} times as much (in power) as the noise measured before them "
+                              "explains: they differ from hit to hit (where and how the hammer struck, a rebound, a "
+                              "nonlinearity), and the error bars come from their scatter alone "
+                              f"({pooling.dof_scatter:g} degree(s) of freedom)")
+            elif pooling.source == "noise in step":
+                warnings.warn(f"test {direction} at {plane:g} m: its {len(fl)} impacts scatter "
+                              f"{pooling.shortfall:.3g} times as much (in power) as the noise measured before them: "
+                              "noise in step with the hits (a hum whose period divides their spacing) does not "
+                              "average out over them, and the error bars count it as the same in every record")
         if len(fl) == 1 and frf.h.shape[1] in (4, 8):
             frf = impact_noise.single_impact_frf(frf, fl[0], noise, fs, zero_pad_s, exp_window_tau_s)
             # how much recording before an impact gives its noise: 1.5 records (two half-overlapping
@@ -1179,7 +1201,6 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
                     warnings.warn(f"test {direction} at {plane:g} m: the noise just before its impact is "
                                   f"{noise.grown[i]:.3g} times ({name}, in power) that of the quiet record before it; "
                                   "its error bars are scaled up to it")
-        sel = (frf.freq_hz >= band_hz[0]) & (frf.freq_hz <= band_hz[1])
         coh = frf.coherence[sel]
         if np.any(coh < coherence_min):
             i, j = np.unravel_index(np.argmin(coh), coh.shape)
@@ -1194,6 +1215,7 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
                                       f"{direction}@{plane:g}m x{len(fl)}", rel,
                                       impact_noise.truncation_var(fl, rl, pre, fs, zero_pad_s, sel, exp_window_tau_s, noise)))
         frfs.append(frf)
+        poolings.append(pooling)
         used.append(ul)
     # low coherence at a frequency (any test, any channel) flags the point: its FRFs are unreliable
     low_coh = np.zeros(tests[0].freq_hz.size, bool)
@@ -1239,7 +1261,7 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
         g_std, ph_std = ident_kw.get("accel_gain_std", 0.0), ident_kw.get("accel_phase_std_deg", 0.0)
         if ped and (g_std or ph_std):
             kcm = _kcm_with_calibration(kcm, rotor, tests, ident, kcm_band_hz, identical, method, flags, ident_kw)
-    return ImpactChainResult(tests, frfs, used, dropped, ident, kcm)
+    return ImpactChainResult(tests, frfs, used, dropped, ident, kcm, poolings)
 
 
 def _kcm_with_calibration(kcm, rotor, tests, ident, band_hz, identical, method, flags, ident_kw):
