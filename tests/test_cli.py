@@ -318,3 +318,24 @@ def test_identify_prints_each_warning_once(monkeypatch, capsys, tmp_path):
     assert cli.main(["identify", "imbalance", str(tmp_path / "x.toml"), "-q"]) == 0
     err = capsys.readouterr().err
     assert err.count("pedestal motion is up to 2.42") == 1 and err.count("another") == 1, err
+
+
+def test_the_impact_log_says_where_each_tests_error_bars_come_from(tmp_path, capsys):
+    """The example's impact tests say, on screen and in the result file, where their error bars
+    come from and on how many degrees of freedom: their 5 hits' scatter alone, for their first
+    hits come 0.5 s into the recordings, too soon for a quiet record before them (the other
+    sources' lines: ``test_few_impacts...`` in test_pipeline.py)."""
+    import json
+    import os
+
+    from rotorid import example
+
+    ex = example.copy_example(str(tmp_path / "ex"))
+    assert cli.main(["identify", "impact", os.path.join(ex, "impact.toml"), "--out", str(tmp_path / "o"),
+                     "--no-plot"]) == 0
+    log = capsys.readouterr().out
+    lines = [ln for ln in log.splitlines() if "error bars from" in ln]
+    assert len(lines) == 2 and all("the scatter of its 5 impacts alone (4 dof; no quiet record before the first hit"
+                                   in ln for ln in lines), log
+    result = json.load(open(tmp_path / "o" / "result_impact.json", encoding="utf-8"))
+    assert sum("error bars from" in ln for ln in result["context"]["log"]) == 2, result["context"]["log"]

@@ -1187,6 +1187,8 @@ def test_few_impacts_pool_their_scatter_with_the_noise_measured_before_them(monk
     assert all(p.n_impacts == 2 and p.measured == 1 for p in pools)
     assert np.mean([p.pooled for p in pools]) >= 0.8, [p.source for p in pools]
     assert all(p.dof_scatter == 1 and p.dof_noise > 4 for p in pools)
+    assert "the scatter of its 2 impacts pooled with the noise measured before them (1 + 5.82 dof)" in \
+        {p.summary() for p in pools}
     assert cover >= 0.9, cover
     monkeypatch.setattr(impact_noise, "pooled_frf", lambda frf, *a: (frf, impact_noise.Pooling(2, 0, frf.dof)))
     cover_alone, width_alone, _, _ = _few_hit_draws(range(8))
@@ -1203,8 +1205,10 @@ def test_impacts_that_differ_from_hit_to_hit_keep_the_scatter_alone_and_a_hum_in
     cover, _, pools, warned = _few_hit_draws(range(4), n_hits=3, spread_m=0.002)
     assert np.mean([p.source == "scatter" for p in pools]) >= 0.75, [p.source for p in pools]
     assert any("times as much (in power) as the noise measured before them explains" in w for w in warned), warned
+    assert any(p.summary().startswith("the scatter of its 3 impacts alone (2 dof; they scatter ") for p in pools)
     assert cover >= 0.9, cover
     cover, _, pools, warned = _few_hit_draws(range(4), n_hits=3, hum_m=3e-7)
     assert all(p.source == "noise in step" and p.shortfall < 0.5 for p in pools), [p.source for p in pools]
     assert any("does not average out" in w for w in warned), warned
+    assert all(p.summary().startswith("the noise measured before its 3 impacts, as the same in every record") for p in pools)
     assert cover >= 0.95, cover

@@ -405,6 +405,18 @@ class Pooling:
         r = [self.ratio] + ([] if self.block_ratios is None else list(self.block_ratios))
         return float(np.nanmax(r))
 
+    def summary(self) -> str:
+        """One line: where the test's error bars come from, and on how many degrees of freedom."""
+        if self.source == "pooled":
+            return (f"the scatter of its {self.n_impacts} impacts pooled with the noise measured before them "
+                    f"({self.dof_scatter:g} + {self.dof_noise:.3g} dof)")
+        if self.source == "noise in step":
+            return (f"the noise measured before its {self.n_impacts} impacts, as the same in every record "
+                    f"({self.dof_noise:.3g} dof; they scatter {self.shortfall:.3g} times as much)")
+        why = ("no quiet record before the first hit to measure the noise on" if not self.measured else
+               f"they scatter {self.excess:.3g} times as much as the noise measured before them")
+        return f"the scatter of its {self.n_impacts} impacts alone ({self.dof_scatter:g} dof; {why})"
+
     @property
     def shortfall(self) -> float:
         """The smallest ratio of the scatter's power to the noise's, over the band and its blocks."""

@@ -1545,6 +1545,9 @@ def _run_config(path, kind, *, out_dir, log, overwrite, plots, report, seen, lin
         if res.dropped:
             write_csv(pd.DataFrame(res.dropped, columns=["source", "time_s", "reason"]), "dropped_impacts.csv")
         log(f"  {sum(len(u) for u in res.used)} impacts used, {len(res.dropped)} dropped")
+        for t, pooling in zip(res.tests, res.poolings):
+            if pooling is not None:
+                log(f"  test {t.name}: error bars from {pooling.summary()}")
         if res.kcm is not None:
             fit = res.kcm
             write_csv(_kcm_table(fit, conv), "kcm_fit.csv", float_format="%.6g")
