@@ -1005,6 +1005,19 @@ def _impact_response(frf, sel, speed, plane, direction, at, sigma, name, delays=
                           at=at, name=name, sigma=sigma, cov=cov, dof=dof, **pk)
 
 
+@dataclass
+class _ImpactGroup:
+    """The clean impacts of one test (plane, direction) over its recordings: per impact its force
+    and response records, (source, time) and noise (:func:`_impact_segments`); the test's channel
+    delays relative to the force (s), one set for all its recordings."""
+
+    delays: np.ndarray
+    forces: list = field(default_factory=list)
+    responses: list = field(default_factory=list)
+    used: list = field(default_factory=list)
+    noises: list = field(default_factory=list)
+
+
 def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_s: float = 0.25, runout: bool = True,
                  identical: bool = False, method: str = "forces", tests_meta=None, exp_window_tau_s: float | None = None,
                  pre_s: float = 0.01, zero_pad_s: float | None = None, revs_before: int = 8, points_per_rev: int = 256,
@@ -1118,15 +1131,15 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
         # channel delays (the channel map's delay_s): each response channel relative to the force
         dl = rec.meta.get("channel_delays_s", {}) or {}
         rel = np.array([float(dl.get(c, 0.0)) for c in channels]) - float(dl.get("force", 0.0))
-        g = groups.setdefault(key, ([], [], [], rel, []))
-        if not np.allclose(g[3], rel, rtol=0.0, atol=1e-12):
+        g = groups.setdefault(key, _ImpactGroup(rel))
+        if not np.allclose(g.delays, rel, rtol=0.0, atol=1e-12):
             raise RotoridError(f"impact recording {rec.source!r} has other channel delays than the other recordings "
                                f"of its test ({meta['direction']} at {float(meta['plane']):g} m): one FRF needs one "
                                "set of delays")
-        g[0].extend(f)
-        g[1].extend(r)
-        g[2].extend(u)
-        g[4].extend(nz)
+        g.forces.extend(f)
+        g.responses.extend(r)
+        g.used.extend(u)
+        g.noises.extend(nz)
     for src, t, why in dropped:
         warnings.warn(f"impact at t = {t:.4f} s in {src!r} dropped: {why}")
     if speeds and (max(speeds) - min(speeds)) > 0.01 * np.mean(speeds):
@@ -1144,7 +1157,8 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
         raise RotoridError("the running speed of the impact tests cannot be known: the recordings have no keyphasor "
                            "and no speed_rpm in their metadata; give speed_rpm")
     tests, frfs, used, truncated, poolings = [], [], [], [], []
-    for (plane, direction, at, fs), (fl, rl, ul, rel, nl) in groups.items():
+    for (plane, direction, at, fs), grp in groups.items():
+        fl, rl, ul, rel, nl = grp.forces, grp.responses, grp.used, grp.delays, grp.noises
         if not fl:
             # this test's reasons, without their per-impact details (times, counts)
             why = sorted({w.split(" (")[0] for _, _, w in group_dropped.get((plane, direction, at, fs), [])})
@@ -1239,7 +1253,7 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
         from .kcm import fit_kcm, with_jackknife
 
         kcm = fit_kcm(ident, band_hz=kcm_band_hz, rotor=rotor)
-        group_data = [(fl, rl, fs, rel) for (_, _, _, fs), (fl, rl, _, rel, _) in groups.items()]
+        group_data = [(g.forces, g.responses, fs, g.delays) for (_, _, _, fs), g in groups.items()]
         if all(len(g[0]) >= 2 for g in group_data):
             reps, labels = [], []
             for gi, (fl, rl, fs, rel) in enumerate(group_data):
