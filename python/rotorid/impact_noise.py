@@ -376,12 +376,15 @@ class Pooling:
     the noise's, summed over the band, and ``limits`` (low, high) the ratios the scatter of noise
     alone falls below with probability ``IN_STEP_ALPHA`` and exceeds with ``POOL_ALPHA``;
     ``block_ratios`` (B,) and ``block_limits`` (B, 2) the same per block of ``POOL_BLOCK_BINS``
-    independent bins (the probabilities divided by the number of blocks). ``source``: "scatter" (the impacts' scatter alone:
-    no noise measured, or the impacts scatter more than it explains), "pooled" (the two agree:
-    their pooled estimate on ``dof_scatter + dof_noise`` degrees of freedom) or "noise in step"
-    (the impacts scatter less than the noise explains: noise in step with the hits, as a hum whose
-    period divides their spacing, does not average out, and the noise counts as fully coherent
-    over the impacts, on ``dof_noise``)."""
+    independent bins (the probabilities divided by the number of blocks). ``source``: "scatter"
+    (the impacts' scatter alone: no noise measured, or the impacts scatter more than it explains),
+    "pooled" (the two agree: their pooled estimate on ``dof_scatter + dof_noise`` degrees of
+    freedom), "noise in step" (the impacts scatter less than the noise explains in some blocks and
+    as it explains in the rest: noise in step with the hits, as a hum whose period divides their
+    spacing, does not average out, and the noise counts as fully coherent over the impacts, on
+    ``dof_noise``) or "noise changed" (they scatter less than the noise explains over the band:
+    the noise before the hits, raised by a burst or falling over the recording, is not theirs,
+    and the scatter stands alone)."""
 
     n_impacts: int
     measured: int
@@ -414,6 +417,8 @@ class Pooling:
             return (f"the noise measured before its {self.n_impacts} impacts, as the same in every record "
                     f"({self.dof_noise:.3g} dof; they scatter {self.shortfall:.3g} times as much)")
         why = ("no quiet record before the first hit to measure the noise on" if not self.measured else
+               f"they scatter {self.shortfall:.3g} times as much as the noise measured before them, which is "
+               "not theirs" if self.source == "noise changed" else
                f"they scatter {self.excess:.3g} times as much as the noise measured before them")
         return f"the scatter of its {self.n_impacts} impacts alone ({self.dof_scatter:g} dof; {why})"
 
@@ -476,9 +481,13 @@ def pooled_frf(frf, forces, noises, fs, zero_pad_s, tau_s, sel):
     - within the limits, the two are pooled, (d_s V_s + d_m V_m) / (d_s + d_m) on d_s + d_m
       degrees of freedom;
     - above (the impacts differ), the scatter stands alone;
-    - below (noise in step with the hits: a hum whose period divides their spacing is the same in
-      every record and does not average out), the noise counts as coherent over the impacts,
-      Γ (sum |F_i|)² / (sum |F_i|²)², its bound by Cauchy-Schwarz, on d_m.
+    - below in some blocks, as expected in the rest (noise in step with the hits: a hum whose
+      period divides their spacing is the same in every record and does not average out), the
+      noise counts as coherent over the impacts, Γ (sum |F_i|)² / (sum |F_i|²)², its bound by
+      Cauchy-Schwarz, on d_m;
+    - below over the band (a burst in the quiet record that the event test let through, noise
+      that fell over the recording: the noise measured before the hits is not theirs), the
+      scatter stands alone.
 
     The white model (from the samples before an impact) is not pooled: it under-counts noise
     concentrated in the band, which a scatter of few degrees of freedom could not show."""
@@ -524,12 +533,23 @@ def pooled_frf(frf, forces, noises, fs, zero_pad_s, tau_s, sel):
     blocks = np.array([_scatter_check(ts[a:a + width], tm[a:a + width], resp[a:a + width], frc[a:a + width], d_s,
                                       d_m, widths, POOL_ALPHA / len(starts), IN_STEP_ALPHA / len(starts))
                        for a in starts])
+    short = blocks[:, 0] < blocks[:, 1]
     if ratio > high or np.any(blocks[:, 0] > blocks[:, 2]):
         source, cov, dof = "scatter", frf.cov, d_s
-    elif ratio < low or np.any(blocks[:, 0] < blocks[:, 1]):
-        amp = np.sum(np.sqrt(spectra), axis=0)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            source, cov, dof = "noise in step", gam * (amp / total)[:, None, None] ** 2, d_m
+    elif ratio < low or np.any(short):
+        # in step with the hits is narrow-band (a hum and its harmonics): the rest of the band
+        # agrees; a scatter short of the noise over the band (a burst in the quiet record, noise
+        # that fell over the recording: review) says the noise before the hits is not theirs
+        rest = np.ones(tm.shape[0], bool)
+        for a, low_here in zip(starts, short):
+            rest[a:a + width] = not low_here
+        if np.any(short) and rest.any() and _scatter_check(ts[rest], tm[rest], resp[rest], frc[rest], d_s, d_m,
+                                                          widths, POOL_ALPHA, IN_STEP_ALPHA)[0] >= low:
+            amp = np.sum(np.sqrt(spectra), axis=0)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                source, cov, dof = "noise in step", gam * (amp / total)[:, None, None] ** 2, d_m
+        else:
+            source, cov, dof = "noise changed", frf.cov, d_s
     else:
         source, cov, dof = "pooled", (d_s * frf.cov + d_m * v_m) / (d_s + d_m), d_s + d_m
     info = Pooling(n_imp, len(measured), d_s, d_m, ratio, (low, high), blocks[:, 0], blocks[:, 1:], source)

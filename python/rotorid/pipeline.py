@@ -1182,6 +1182,12 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
                               "explains: they differ from hit to hit (where and how the hammer struck, a rebound, a "
                               "nonlinearity), and the error bars come from their scatter alone "
                               f"({pooling.dof_scatter:g} degree(s) of freedom)")
+            elif pooling.source == "noise changed":
+                warnings.warn(f"test {direction} at {plane:g} m: its {len(fl)} impacts scatter "
+                              f"{pooling.shortfall:.3g} times as much (in power) as the noise measured before them, "
+                              "over the band: that noise is not theirs (a burst in the quiet record, noise that fell "
+                              "over the recording), and the error bars come from their scatter alone "
+                              f"({pooling.dof_scatter:g} degree(s) of freedom)")
             elif pooling.source == "noise in step":
                 warnings.warn(f"test {direction} at {plane:g} m: its {len(fl)} impacts scatter "
                               f"{pooling.shortfall:.3g} times as much (in power) as the noise measured before them: "
