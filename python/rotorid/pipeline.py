@@ -840,6 +840,7 @@ def _impact_segments(rec, *, record_s, pre_s, revs_before, runout, kp, points_pe
         kp = kp if kp is not None else signals.order.detect_keyphasor(rec)
     x = np.stack([rec.channels[c] for c in channels])
     forces, responses, used, dropped, noises = [], [], [], [], []
+    used_here = False
     for j, imp in enumerate(imps):
         t_imp = rec.t0_s + imp.start / fs
         if not imp.ok:
@@ -900,8 +901,16 @@ def _impact_segments(rec, *, record_s, pre_s, revs_before, runout, kp, points_pe
         f = (rec.channels["force"][a:b] - f0) * fw
         # measured when asked for (a test of one impact): the quiet stretch's segments would hold
         # 15 records per impact
+        if j > 0 and not used_here and imps[0].start - pre > quiet[1] - quiet[0]:
+            # every earlier impact of the recording was dropped (a rebound, an overload): the quiet
+            # record before the first of them, where longer, stands for this one's, with no hit's
+            # tail in it (a dropped first hit left a test of two hits on the scatter's 1 dof beside
+            # a second of quiet, review)
+            quiet = (0, imps[0].start - pre, quiet[2])
         # with whether its quiet stretch follows an earlier hit, whose tail may still ring in it
-        noises.append((functools.partial(_impact_noise_of, rec, channels, *quiet, n_seg, f, y, pre, fw), j > 0))
+        noises.append((functools.partial(_impact_noise_of, rec, channels, *quiet, n_seg, f, y, pre, fw),
+                       j > 0 and quiet[0] > 0))
+        used_here = True
         if exp_window_tau_s is not None:
             ew = signals.exponential_window(n_seg, fs, exp_window_tau_s, start=pre)
             f = f * ew
@@ -910,6 +919,11 @@ def _impact_segments(rec, *, record_s, pre_s, revs_before, runout, kp, points_pe
         responses.append(y)
         used.append((rec.source, t_imp))
     return forces, responses, used, dropped, noises
+
+
+#: the most impacts per test whose error bars, from their scatter alone for want of quiet record
+#: before the first hit, draw a warning (Student's t of 12.7 and 4.3 for 95 % at 1 and 2 dof)
+MAX_HITS_ADVISED = 3
 
 
 #: a test's impact records end too soon when the rms of their last tenth, above the noise before the
@@ -965,9 +979,11 @@ def _impact_response(frf, sel, speed, plane, direction, at, sigma, name, delays=
     and imaginary parts) added to the covariance (:func:`rotorid.impact_noise.truncation_var`)."""
     h = frf.h[sel]
     cov = None if frf.cov is None else frf.cov[sel]
+    dof = None if cov is None else np.full(cov.shape[0], frf.dof)
     if cov is not None and extra_var is not None:
         cov = cov.copy()
         re = impact_noise.real_rows(h.shape[1])
+        dof = impact_noise.with_truncation_dof(cov, extra_var, frf.dof)
         cov[:, re, re] += 0.5 * extra_var
         cov[:, re + 4, re + 4] += 0.5 * extra_var
     if delays is not None and np.any(delays):
@@ -982,7 +998,6 @@ def _impact_response(frf, sel, speed, plane, direction, at, sigma, name, delays=
             G = np.concatenate([gain[g:g + 4] for g in range(0, delays.size, 4) for _ in (0, 1)])
             R = R * G[None, :, None]
             cov = R @ cov @ np.swapaxes(R, 1, 2)
-    dof = None if cov is None else np.full(cov.shape[0], frf.dof)
     if h.shape[1] == 4:
         return ImpactResponse(speed_rpm=speed, freq_hz=frf.freq_hz[sel], q=h, plane=plane, direction=direction, at=at,
                               name=name, sigma=sigma, cov=cov, dof=dof)
@@ -1169,6 +1184,10 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
         sel = (frf.freq_hz >= band_hz[0]) & (frf.freq_hz <= band_hz[1])
         noise = nl[0][0]() if len(fl) == 1 else None
         pooling = None
+        # how much recording before an impact gives its noise: 1.5 records (two half-overlapping
+        # segments) and their resting-level samples, after the run-out signature's revolutions
+        need = 1.5 * record_s + impact_noise.FORCE_REST_SAMPLES / fs + \
+            ((revs_before + 1) * 60.0 / speed if runout else 0.0)
         if len(fl) >= 2 and frf.cov is not None:
             # the scatter of few impacts pooled with the noise measured before them, where they agree
             # (only quiet record before a recording's first hit: after a hit, the tail of its response
@@ -1176,11 +1195,20 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
             # 30 ms window took five times the noise from between the hits)
             frf, pooling = impact_noise.pooled_frf(frf, fl, [None if after else nz() for nz, after in nl], fs,
                                                    zero_pad_s, exp_window_tau_s, sel)
-            if pooling.measured and pooling.source == "scatter":
+            if not pooling.measured and len(fl) <= MAX_HITS_ADVISED:
+                from scipy.stats import t as t_dist
+
+                warnings.warn(f"test {direction} at {plane:g} m: the error bars of its {len(fl)} impacts rest on "
+                              f"their scatter's {pooling.dof_scatter:g} degree(s) of freedom (95 % intervals "
+                              f"{t_dist.ppf(0.975, pooling.dof_scatter):.3g} standard errors wide each way): no quiet "
+                              f"record before the first hit to measure the noise on; record at least {need:.2g} s "
+                              "before it to narrow them")
+            elif pooling.measured and pooling.source == "scatter":
                 warnings.warn(f"test {direction} at {plane:g} m: its {len(fl)} impacts scatter "
                               f"{pooling.excess:.3g} times as much (in power) as the noise measured before them "
                               "explains: they differ from hit to hit (where and how the hammer struck, a rebound, a "
-                              "nonlinearity), and the error bars come from their scatter alone "
+                              "nonlinearity) or the noise changed over the recording (rising, a noisier recording "
+                              "of the test), and the error bars come from their scatter alone "
                               f"({pooling.dof_scatter:g} degree(s) of freedom)")
             elif pooling.source == "noise changed":
                 warnings.warn(f"test {direction} at {plane:g} m: its {len(fl)} impacts scatter "
@@ -1195,10 +1223,6 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
                               "average out over them, and the error bars count it as the same in every record")
         if len(fl) == 1 and frf.h.shape[1] in (4, 8):
             frf = impact_noise.single_impact_frf(frf, fl[0], noise, fs, zero_pad_s, exp_window_tau_s)
-            # how much recording before an impact gives its noise: 1.5 records (two half-overlapping
-            # segments) and their resting-level samples, after the run-out signature's revolutions
-            need = 1.5 * record_s + impact_noise.FORCE_REST_SAMPLES / fs + \
-                ((revs_before + 1) * 60.0 / speed if runout else 0.0)
             advice = (f"record at least {need:.2g} s before the impact (after any earlier impact's record), "
                       "or hit two or more times")
             if noise is None:
