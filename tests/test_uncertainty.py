@@ -243,7 +243,9 @@ def test_impact_chain_intervals_from_single_impact_scatter_cover_the_truth():
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             i = pipeline.impact_chain(rotor, recs, band_hz=(20, 120)).identification
-        assert i.std_source == "measurement covariance" and np.all(i.dof == 4)  # 5 impacts per test
+        # 5 impacts per test: their scatter's 4 dof, with the truncation term's (also 4) a little more
+        # where it counts (Satterthwaite's over two parts of 4 dof lies in 4-8; measured 4.0-4.3)
+        assert i.std_source == "measurement covariance" and np.all((i.dof >= 4) & (i.dof <= 8)), i.dof
         h, z = _hits_and_z(i, brg.k, brg.c)
         hits.append(h)
         zs.append(z)
