@@ -335,7 +335,7 @@ def test_the_impact_log_says_where_each_tests_error_bars_come_from(tmp_path, cap
                      "--no-plot"]) == 0
     log = capsys.readouterr().out
     lines = [ln for ln in log.splitlines() if "error bars from" in ln]
-    assert len(lines) == 2 and all("the scatter of its 5 impacts alone (4 dof; no quiet record before the first hit"
+    assert len(lines) == 2 and all("the scatter of its 5 impacts alone (4 dof; too little quiet record before the first hit"
                                    in ln for ln in lines), log
     result = json.load(open(tmp_path / "o" / "result_impact.json", encoding="utf-8"))
     assert sum("error bars from" in ln for ln in result["context"]["log"]) == 2, result["context"]["log"]

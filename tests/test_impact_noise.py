@@ -239,3 +239,18 @@ def test_the_truncation_terms_share_lowers_a_frequencys_degrees_of_freedom():
     assert dof[0] == pytest.approx(26.0)
     assert dof[1] == pytest.approx(4.0 / (1.0 / 26.0 + 1.0 / impact_noise.TRUNCATION_DOF))
     assert dof[2] == pytest.approx(impact_noise.TRUNCATION_DOF, rel=1e-3)
+
+
+def test_h1_scatter_covariance_is_nan_not_inf_where_one_impact_carries_all_the_force():
+    """Where every other impact's force spectrum is exactly zero (noise-free boxcar pulses), the
+    scatter shows nothing: 1 - Σ w_i² = 0, the covariance NaN (the point "uncertainty unknown"),
+    not inf, which made the chain fail (review)."""
+    rng = np.random.default_rng(2)
+    f1 = np.zeros(N)
+    f1[PRE:PRE + 10] = 500.0                    # spectral zeros at multiples of FS / 10
+    f2 = np.zeros(N)
+    f2[PRE:PRE + 7] = 700.0
+    frf = signals.frf_h1([f1, f2], [1e-8 * rng.standard_normal((4, N)) for _ in range(2)], FS)
+    k = N // 10                                 # FS / 10 Hz: f1 has no force there, f2 all of it
+    assert np.all(np.isnan(frf.cov[k])) and not np.isinf(frf.cov).any()
+    assert np.isfinite(frf.cov[k - 1]).all()

@@ -1216,7 +1216,9 @@ def test_impacts_that_differ_from_hit_to_hit_keep_the_scatter_alone_and_a_hum_in
     cover, _, pools, warned = _few_hit_draws(range(4), n_hits=3, hum_m=3e-7)
     assert all(p.source == "noise in step" and p.shortfall < 0.5 for p in pools), [p.source for p in pools]
     assert any("does not average out" in w for w in warned), warned
-    assert all(p.summary().startswith("the noise measured before its 3 impacts, as the same in every record") for p in pools)
+    assert all(p.summary().startswith("the scatter of its 3 impacts pooled with the noise measured before them, that "
+                                      "noise as the same in every record at ") for p in pools)
+    assert all(p.in_step_hz[0] <= 50.0 <= p.in_step_hz[1] for p in pools), [p.in_step_hz for p in pools]
     assert cover >= 0.95, cover
 
 
@@ -1232,7 +1234,7 @@ def test_few_impacts_without_the_noise_before_them_say_so_and_a_dropped_first_hi
     _, _, pools, warned = _few_hit_draws(range(2), first_s=0.5)
     assert all(p.source == "scatter" and p.measured == 0 for p in pools), [p.source for p in pools]
     assert any("rest on their scatter's 1 degree(s) of freedom (95 % intervals 12.7 standard errors wide each way): "
-               "no quiet record before the first hit" in w and "record at least 0.65 s before it" in w
+               "too little quiet record before the first hit" in w and "record at least 0.70 s before it" in w
                for w in warned), warned
     cover, width, pools, _ = _few_hit_draws(range(4), n_hits=3, double_hit_at=0)
     assert all(p.n_impacts == 2 and p.measured == 1 and p.pooled for p in pools), [p.summary() for p in pools]

@@ -1186,8 +1186,11 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
         pooling = None
         # how much recording before an impact gives its noise: 1.5 records (two half-overlapping
         # segments) and their resting-level samples, after the run-out signature's revolutions
-        need = 1.5 * record_s + impact_noise.FORCE_REST_SAMPLES / fs + \
-            ((revs_before + 1) * 60.0 / speed if runout else 0.0)
+        # (and the record's pre_s, and a revolution before the first keyphasor pulse, which the
+        # run-out filter needs, rounded up: 0.65 s was advised where 0.685 s is needed, review)
+        need = 1.5 * record_s + pre_s + impact_noise.FORCE_REST_SAMPLES / fs + \
+            ((revs_before + 2) * 60.0 / speed if runout else 0.0)
+        need = float(np.ceil(need * 100.0) / 100.0)
         if len(fl) >= 2 and frf.cov is not None:
             # the scatter of few impacts pooled with the noise measured before them, where they agree
             # (only quiet record before a recording's first hit: after a hit, the tail of its response
@@ -1200,9 +1203,9 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
 
                 warnings.warn(f"test {direction} at {plane:g} m: the error bars of its {len(fl)} impacts rest on "
                               f"their scatter's {pooling.dof_scatter:g} degree(s) of freedom (95 % intervals "
-                              f"{t_dist.ppf(0.975, pooling.dof_scatter):.3g} standard errors wide each way): no quiet "
-                              f"record before the first hit to measure the noise on; record at least {need:.2g} s "
-                              "before it to narrow them")
+                              f"{t_dist.ppf(0.975, pooling.dof_scatter):.3g} standard errors wide each way): too "
+                              f"little quiet record before the first hit to measure the noise on; record at least "
+                              f"{need:.2f} s before it to narrow them")
             elif pooling.measured and pooling.source == "scatter":
                 warnings.warn(f"test {direction} at {plane:g} m: its {len(fl)} impacts scatter "
                               f"{pooling.excess:.3g} times as much (in power) as the noise measured before them "
@@ -1217,13 +1220,15 @@ def impact_chain(rotor: RigidRotor, recordings, *, band_hz=(5.0, 150.0), record_
                               "over the recording), and the error bars come from their scatter alone "
                               f"({pooling.dof_scatter:g} degree(s) of freedom)")
             elif pooling.source == "noise in step":
+                lo_hz, hi_hz = pooling.in_step_hz
                 warnings.warn(f"test {direction} at {plane:g} m: its {len(fl)} impacts scatter "
-                              f"{pooling.shortfall:.3g} times as much (in power) as the noise measured before them: "
-                              "noise in step with the hits (a hum whose period divides their spacing) does not "
-                              "average out over them, and the error bars count it as the same in every record")
+                              f"{pooling.shortfall:.3g} times as much (in power) as the noise measured before them "
+                              f"at {lo_hz:.4g}-{hi_hz:.4g} Hz: noise in step with the hits there (a hum whose period "
+                              "divides their spacing) does not average out over them, and the error bars count it "
+                              "as the same in every record")
         if len(fl) == 1 and frf.h.shape[1] in (4, 8):
             frf = impact_noise.single_impact_frf(frf, fl[0], noise, fs, zero_pad_s, exp_window_tau_s)
-            advice = (f"record at least {need:.2g} s before the impact (after any earlier impact's record), "
+            advice = (f"record at least {need:.2f} s before the impact (after any earlier impact's record), "
                       "or hit two or more times")
             if noise is None:
                 warnings.warn(f"test {direction} at {plane:g} m has one impact, no usable quiet record before it and "

@@ -301,7 +301,10 @@ def frf_h1(forces, responses, fs_hz: float) -> FRF:
         # so E Σ |R_i F_i*|² / (Σ|F|²)² = (1 - Σ w_i²) E|H1 - H|²: 1 - 1/n for equal forces (the
         # usual n / (n - 1)); hits of unequal force, a hammer tip changed after the first (3 ms, then
         # 0.7 ms pulses), made it 0.2-0.4 and the intervals covered 0.89 (review)
+        # (where one impact carries all the force, 1 - Σ w_i² is 0: no scatter to see, NaN, which
+        # flags the point "uncertainty unknown"; inf made the chain fail, review)
+        rest = 1.0 - lev
         with np.errstate(divide="ignore", invalid="ignore"):
-            cov /= (1.0 - lev)[:, None, None]
+            cov /= np.where(rest > 1e-12, rest, np.nan)[:, None, None]
         dof = float(m - 1)
     return FRF(freq, h, coh, np.sqrt(sff / m), m, cov=cov, dof=dof)
