@@ -840,7 +840,7 @@ def _impact_segments(rec, *, record_s, pre_s, revs_before, runout, kp, points_pe
         kp = kp if kp is not None else signals.order.detect_keyphasor(rec)
     x = np.stack([rec.channels[c] for c in channels])
     forces, responses, used, dropped, noises = [], [], [], [], []
-    used_here = False
+    kept_before = False          # an earlier impact of this recording was kept
     for j, imp in enumerate(imps):
         t_imp = rec.t0_s + imp.start / fs
         if not imp.ok:
@@ -899,9 +899,9 @@ def _impact_segments(rec, *, record_s, pre_s, revs_before, runout, kp, points_pe
         f0 = float(np.median(rest)) if rest.size >= 8 else 0.0
         fw = signals.force_window(n_seg, 0, imp.stop - a + pre, taper=0)
         f = (rec.channels["force"][a:b] - f0) * fw
-        # measured when asked for (a test of one impact): the quiet stretch's segments would hold
-        # 15 records per impact
-        if j > 0 and not used_here and imps[0].start - pre > quiet[1] - quiet[0]:
+        # measured when asked for (a test's single impact, or a recording's first kept hit in a test
+        # of several): the quiet stretch's segments would hold 15 records per impact
+        if j > 0 and not kept_before and imps[0].start - pre > quiet[1] - quiet[0]:
             # every earlier impact of the recording was dropped (a rebound, an overload): the quiet
             # record before the first of them, where longer, stands for this one's, with no hit's
             # tail in it (a dropped first hit left a test of two hits on the scatter's 1 dof beside
@@ -910,7 +910,7 @@ def _impact_segments(rec, *, record_s, pre_s, revs_before, runout, kp, points_pe
         # with whether its quiet stretch follows an earlier hit, whose tail may still ring in it
         noises.append((functools.partial(_impact_noise_of, rec, channels, *quiet, n_seg, f, y, pre, fw),
                        j > 0 and quiet[0] > 0))
-        used_here = True
+        kept_before = True
         if exp_window_tau_s is not None:
             ew = signals.exponential_window(n_seg, fs, exp_window_tau_s, start=pre)
             f = f * ew
