@@ -99,6 +99,15 @@ class ImpactNoise:
         """True where the noise's spectrum is measured on quiet segments, False where modelled white."""
         return self.segments is not None
 
+    def _segment_errors(self, h, force, w, n_fft, wf):
+        """Per measured segment, (N / F, h N_f / F) (n_f, C) each: its response noise and its force
+        noise in the units of H1's error dH = (N - h N_f) / F, weighted as the record is (NaN
+        where the force has no spectrum; h is NaN there: unknown, not an error)."""
+        F = np.fft.rfft(np.asarray(force, dtype=float), n_fft)[:, None]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            for y, f in zip(self.segments, self.force_segments):
+                yield (np.fft.rfft(y * w, n_fft, axis=-1).T / F, h * np.fft.rfft(f * wf, n_fft)[:, None] / F)
+
     def var(self, h, force, w, n_fft, wf=None):
         """(n_f, C) E|dH_c|² of an H1 ``h`` (n_f, C) from the impact's ``force`` record (n,), with
         the response weighted by ``w`` (n,) and the force by ``wf`` (default ``w``) on top of its
@@ -107,25 +116,21 @@ class ImpactNoise:
         Measured: the mean over the segments of |N_c - h_c N_f|² / |F|², N the segments' spectra.
         White: (s_c² sum w² + |h_c|² s_f² sum (wf force_window)²) / |F|²."""
         wf = w if wf is None else wf
+        if self.measured:
+            return sum(np.abs(a - b) ** 2 for a, b in self._segment_errors(h, force, w, n_fft, wf)) / \
+                len(self.segments)
         F2 = np.abs(np.fft.rfft(np.asarray(force, dtype=float), n_fft)) ** 2
-        # NaN where the force has no spectrum (h is NaN there: unknown, not an error)
+        s2, sf2 = self.white
+        num = (s2[None, :] * float(np.sum(w ** 2))
+               + np.abs(h) ** 2 * sf2 * float(np.sum((wf * self.force_window) ** 2)))
         with np.errstate(divide="ignore", invalid="ignore"):
-            if self.measured:
-                acc = np.zeros(h.shape)
-                for y, f in zip(self.segments, self.force_segments):
-                    N = np.fft.rfft(y * w, n_fft, axis=-1).T
-                    Nf = np.fft.rfft(f * wf, n_fft)
-                    acc += np.abs(N - h * Nf[:, None]) ** 2
-                num = acc / len(self.segments)
-            else:
-                s2, sf2 = self.white
-                num = (s2[None, :] * float(np.sum(w ** 2))
-                       + np.abs(h) ** 2 * sf2 * float(np.sum((wf * self.force_window) ** 2)))
             return num / F2[:, None]
 
-    def cov(self, h, force, w, n_fft, wf=None):
+    def cov(self, h, force, w, n_fft, wf=None, *, shares=False):
         """(n_f, 2C, 2C) covariance of the error of an H1 ``h`` (n_f, C) in the real form of
-        :attr:`rotorid.signals.FRF.cov` ([Re, Im] per group of 4 channels), arguments as :meth:`var`.
+        :attr:`rotorid.signals.FRF.cov` ([Re, Im] per group of 4 channels), arguments as :meth:`var`;
+        with ``shares`` (measured only) also its response-noise share mean |N / F|² and force-noise
+        share mean |h N_f / F|² ((n_f, C) each, their cross term left out), from the same pass.
 
         Measured: the noise of a stationary record has no preferred phase, so with
         e = (N - h N_f) / F and Γ = mean over the segments of e eᴴ (C, C), the covariance of
@@ -144,31 +149,21 @@ class ImpactNoise:
             out[:, re + 4, re + 4] = v
             return out
         wf = w if wf is None else wf
-        F = np.fft.rfft(np.asarray(force, dtype=float), n_fft)
         gam = np.zeros(h.shape + (c,), complex)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            for y, f in zip(self.segments, self.force_segments):
-                e = (np.fft.rfft(y * w, n_fft, axis=-1).T - h * np.fft.rfft(f * wf, n_fft)[:, None]) / F[:, None]
-                gam += e[:, :, None] * np.conj(e[:, None, :])
-        gam *= 0.5 / len(self.segments)
+        resp, frc = np.zeros(h.shape), np.zeros(h.shape)
+        for a, b in self._segment_errors(h, force, w, n_fft, wf):
+            e = a - b
+            gam += e[:, :, None] * np.conj(e[:, None, :])
+            if shares:
+                resp += np.abs(a) ** 2
+                frc += np.abs(b) ** 2
+        k = len(self.segments)
+        gam *= 0.5 / k
         out[:, re[:, None], re[None, :]] = gam.real
         out[:, (re + 4)[:, None], (re + 4)[None, :]] = gam.real
         out[:, (re + 4)[:, None], re[None, :]] = gam.imag
         out[:, re[:, None], (re + 4)[None, :]] = -gam.imag
-        return out
-
-    def var_parts(self, h, force, w, n_fft, wf=None):
-        """((n_f, C), (n_f, C)): the measured :meth:`var`'s response-noise share, mean |N / F|²,
-        and force-noise share, mean |h N_f / F|² (their cross term left out)."""
-        wf = w if wf is None else wf
-        F2 = np.abs(np.fft.rfft(np.asarray(force, dtype=float), n_fft)) ** 2
-        resp, frc = np.zeros(h.shape), np.zeros(h.shape)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            for y, f in zip(self.segments, self.force_segments):
-                resp += np.abs(np.fft.rfft(y * w, n_fft, axis=-1).T) ** 2
-                frc += np.abs(h * np.fft.rfft(f * wf, n_fft)[:, None]) ** 2
-            k = len(self.segments) * F2[:, None]
-            return resp / k, frc / k
+        return (out, resp / k, frc / k) if shares else out
 
     def dof(self, w):
         """Degrees of freedom of :meth:`var` for response weights ``w``: pre - 1 for the white model
@@ -361,8 +356,9 @@ POOL_ALPHA = 0.01
 #: tests at 0.01, while a hum in step with the hits leaves the scatter at a tenth of the noise
 IN_STEP_ALPHA = 0.001
 
-#: independent frequency bins (of the response records) per block of :func:`pooled_frf`'s local check (variation from hit to
-#: hit that stands out near one mode only would be diluted over the whole band)
+#: independent frequency bins (of the response records) per block of :func:`pooled_frf`'s local
+#: check (variation from hit to hit that stands out near one mode only would be diluted over the
+#: whole band)
 POOL_BLOCK_BINS = 8
 
 
@@ -382,9 +378,10 @@ class Pooling:
     freedom), "noise in step" (the impacts scatter less than the noise explains in some blocks and
     as it explains in the rest: noise in step with the hits, as a hum whose period divides their
     spacing, does not average out, and the noise counts as fully coherent over the impacts in
-    those blocks and two bins beside them, the two pooled elsewhere, on ``dof_noise``) or "noise changed" (they scatter less than the noise explains over the band:
-    the noise before the hits, raised by a burst or falling over the recording, is not theirs,
-    and the scatter stands alone). ``in_step_hz``: (low, high) Hz of the frequencies given the
+    those blocks and two bins beside them, the two pooled elsewhere, on ``dof_noise``) or "noise
+    changed" (they scatter less than the noise explains over the band: the noise before the hits,
+    raised by a burst or falling over the recording, is not theirs, and the scatter stands
+    alone). ``in_step_hz``: (low, high) Hz of the frequencies given the
     coherent bound ("noise in step")."""
 
     n_impacts: int
@@ -403,12 +400,14 @@ class Pooling:
         """True where the covariance pools the impacts' scatter with the measured noise."""
         return self.source == "pooled"
 
+    def _ratios(self):
+        return [self.ratio] + ([] if self.block_ratios is None else list(self.block_ratios))
+
     @property
     def excess(self) -> float:
         """The largest factor (in power) by which the scatter exceeds the noise, over the band and
         its blocks."""
-        r = [self.ratio] + ([] if self.block_ratios is None else list(self.block_ratios))
-        return float(np.nanmax(r))
+        return float(np.nanmax(self._ratios()))
 
     def summary(self) -> str:
         """One line: where the test's error bars come from, and on how many degrees of freedom."""
@@ -419,17 +418,19 @@ class Pooling:
             return (f"the scatter of its {self.n_impacts} impacts pooled with the noise measured before them, that "
                     f"noise as the same in every record at {self.in_step_hz[0]:.4g}-{self.in_step_hz[1]:.4g} Hz "
                     f"({self.dof_noise:.3g} dof; they scatter {self.shortfall:.3g} times as much)")
-        why = ("too little quiet record before the first hit to measure the noise on" if not self.measured else
-               f"they scatter {self.shortfall:.3g} times as much as the noise measured before them, which is "
-               "not theirs" if self.source == "noise changed" else
-               f"they scatter {self.excess:.3g} times as much as the noise measured before them")
+        if not self.measured:
+            why = "too little quiet record before the first hit to measure the noise on"
+        elif self.source == "noise changed":
+            why = (f"they scatter {self.shortfall:.3g} times as much as the noise measured before them, which "
+                   "is not theirs")
+        else:
+            why = f"they scatter {self.excess:.3g} times as much as the noise measured before them"
         return f"the scatter of its {self.n_impacts} impacts alone ({self.dof_scatter:g} dof; {why})"
 
     @property
     def shortfall(self) -> float:
         """The smallest ratio of the scatter's power to the noise's, over the band and its blocks."""
-        r = [self.ratio] + ([] if self.block_ratios is None else list(self.block_ratios))
-        return float(np.nanmin(r))
+        return float(np.nanmin(self._ratios()))
 
 
 def _effective_length(w):
@@ -534,14 +535,14 @@ def pooled_frf(frf, forces, noises, fs, zero_pad_s, tau_s, sel):
     n = forces[0].size
     n_fft = fft_samples(n, fs, zero_pad_s)
     spectra = [np.abs(np.fft.rfft(np.asarray(f, dtype=float), n_fft)) ** 2 for f in forces]
+    w = record_window(n, fs, measured[0].pre, tau_s)
     gam, resp, frc, d_m = 0.0, 0.0, 0.0, 0.0
     for j, nz in enumerate(noises):
         if nz is None or not nz.measured:
             continue
-        w = record_window(n, fs, nz.pre, tau_s)
         d = nz.dof(w)
-        gam = gam + d * nz.cov(frf.h, forces[j], w, n_fft) * spectra[j][:, None, None]
-        r, q = nz.var_parts(frf.h, forces[j], w, n_fft)
+        cov_j, r, q = nz.cov(frf.h, forces[j], w, n_fft, shares=True)
+        gam = gam + d * cov_j * spectra[j][:, None, None]
         resp, frc = resp + d * r * spectra[j][:, None], frc + d * q * spectra[j][:, None]
         d_m += d
     gam, resp, frc = gam / d_m, resp / d_m, frc / d_m
