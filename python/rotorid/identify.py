@@ -434,17 +434,111 @@ def _flag_list(extra_flags) -> list:
     return list(extra_flags)
 
 
+#: the farthest (relative) a run's speed may lie from the mean speed of the runs at a point
+MAX_SPEED_OFFSET = 0.01
+#: the flag of points where runs at slightly different speeds could not be carried to one
+SPEED_OFFSETS_UNRESOLVED = "speed offsets not resolved"
+
+
+def _same_speeds(runs):
+    """Every run at the first run's speeds (equal arrays at once; within 1e-9 relative for the
+    rounding of a stored axis)."""
+    ref = runs[0].speed_rpm
+    return all(r.speed_rpm is ref or np.array_equal(r.speed_rpm, ref)
+               or (r.speed_rpm.shape == ref.shape and np.allclose(r.speed_rpm, ref, rtol=1e-9, atol=0))
+               for r in runs[1:])
+
+
+def with_flag(ident: Identification, mask, reason: str) -> Identification:
+    """``ident`` with the points of ``mask`` flagged for ``reason`` (one more bit of its codes)."""
+    import dataclasses
+
+    mask = np.asarray(mask, dtype=bool)
+    if not mask.any():
+        return ident
+    reasons = tuple(ident.flag_reasons)
+    if reason in reasons:
+        bit = reasons.index(reason)
+    else:
+        if len(reasons) >= 16:
+            raise RotoridError("at most 16 flag reasons")
+        bit, reasons = len(reasons), reasons + (reason,)
+    code = np.asarray(ident.flag_code).astype(np.uint16) | (mask.astype(np.uint16) << bit)
+    return dataclasses.replace(ident, flag_code=code, ok=code == 0, flag_reasons=reasons)
+
+
+def _identify_at_offsets(rotor, runs, labels, max_offset, shared_cov, accel_gain_std, accel_phase_std_deg, kw):
+    """:func:`identify_synchronous` of runs whose speeds differ a little: at the mean speed of
+    each point, every run carried there (:func:`rotorid.speed_offsets.carry_to_grid`)."""
+    import warnings
+
+    from ._validate import number
+    from .speed_offsets import Dwells, carry_to_grid
+
+    max_offset = number("max_speed_offset", max_offset, nonneg=True)
+    ref = runs[0].speed_rpm
+    for lab, r in zip(labels, runs):
+        if r.speed_rpm.shape != ref.shape:
+            raise RotoridError(f"speed_rpm of {lab} has {r.speed_rpm.size} speeds, {labels[0]} {ref.size}: all runs "
+                               "must be given at the same speeds (one vector per run at each point)")
+    speeds = np.stack([r.speed_rpm for r in runs])
+    grid = speeds.mean(axis=0)
+    off = np.abs(speeds / grid - 1.0)
+    if not (off.max() <= max_offset):
+        i, j = np.unravel_index(np.argmax(off), off.shape)
+        # named as a pair: the run farthest from the mean and the one farthest from it
+        a, b = sorted((i, int(np.argmax(np.abs(speeds[:, j] - speeds[i, j])))))
+        raise RotoridError(f"speed_rpm of {labels[b]} differs from that of {labels[a]}: {speeds[b, j]:.2f} against "
+                           f"{speeds[a, j]:.2f} rpm, {off[i, j] * 100:.2f} % from the runs' mean speed there (beyond "
+                           f"max_speed_offset = {max_offset * 100:g} %); give the runs at the same speeds")
+    if any(r.pedestal is not None for r in runs):
+        raise RotoridError("runs with pedestal motion must be given at the same speeds (the carry of runs taken at "
+                           "slightly different speeds needs the rotor on rigid supports)")
+    if shared_cov is not None:
+        raise RotoridError("shared_cov is given but the runs' speeds differ: a baseline subtracted at other speeds "
+                           "cannot be carried; give the runs at the same speeds (rotorid.pipeline.imbalance_chain "
+                           "carries runs and baseline separately)")
+    at = runs[0].at if all(r.at == runs[0].at for r in runs) else "bearings"
+    moved = [r._moved(rotor, at) for r in runs]
+    dwells = [Dwells(r.speed_rpm, r.q, r.cov, r.dof) for r in moved]
+
+    def identify(qs, covs, shared):
+        rs = [SyncResponse(grid, q, r.imbalance, at, r.name, None if covs is None else covs[i], r.dof)
+              for i, (q, r) in enumerate(zip(qs, moved))]
+        return identify_synchronous(rotor, rs, accel_gain_std=accel_gain_std,
+                                    accel_phase_std_deg=accel_phase_std_deg, **kw)
+
+    done = carry_to_grid(rotor, grid, dwells, identify, at=at)
+    if done.unresolved.any():
+        warnings.warn(f"runs at slightly different speeds: the carry to common speeds did not settle at "
+                      f"{_listed(grid[done.unresolved])} rpm (flagged \"{SPEED_OFFSETS_UNRESOLVED}\")")
+    return with_flag(done.identification, done.unresolved, SPEED_OFFSETS_UNRESOLVED)
+
+
+def _listed(values, most=5):
+    return ", ".join(f"{v:.0f}" for v in values[:most]) + (", ..." if len(values) > most else "")
+
+
 def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", identical: bool = False,
                          cond_max: float = COND_MAX, min_rel_amplitude: float = MIN_REL_AMPLITUDE,
                          max_rel_std: float = MAX_REL_STD, estimator: str = "ls",
                          shared_cov=None, accel_gain_std: float = 0.0,
                          accel_phase_std_deg: float = 0.0, keyphasor_angle_std_deg=0.0,
-                         keyphasor_delay_std_s: float = 0.0) -> Identification:
+                         keyphasor_delay_std_s: float = 0.0, max_speed_offset: float = MAX_SPEED_OFFSET) -> Identification:
     """Synchronous K and C of both bearings at every speed from two or more imbalance runs.
 
     ``runs``: list (or dict name -> run) of SyncResponse, each with its added ``imbalance`` and the
-    same ``speed_rpm``; responses at the probes are moved to the bearings with eq. 19. Two runs
+    same number of speeds; responses at the probes are moved to the bearings with eq. 19. Two runs
     solve eq. 11 exactly; more runs are solved in the least-squares sense.
+
+    Runs whose speeds differ point by point (dwells that a speed control held at "3000 rpm" to
+    within a few rpm) are identified at the mean of their speeds, each run's vectors carried there
+    through the rotor on the bearings being identified (:mod:`rotorid.speed_offsets`; identified
+    as if at one speed, runs ±0.1 % apart put the example rig's direct damping up to 8 % off).
+    ``max_speed_offset`` (relative, default 1 %) is the farthest a run's speed may lie from
+    that mean; beyond it the call is refused as runs at different speeds. Points where the carry
+    did not settle are flagged "speed offsets not resolved". Not with pedestal motion or
+    ``shared_cov`` (the runs must then share their speeds).
 
     ``method``: "forces" (default; bearing reaction forces from the rotor equations, then a 2-unknown
     complex least-squares problem per bearing and direction) or "report" (the report's 16 real
@@ -507,7 +601,12 @@ def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", ide
         _wake_core_threads(runs[0])
     check_imbalance_independence(rotor, [r.imbalance for r in runs], labels, identical=identical)
     rpm = runs[0].speed_rpm
-    _check_same_axis("speed_rpm", [r.speed_rpm for r in runs], labels, "runs", "speeds", "interpolate the 1X vectors first")
+    if not _same_speeds(runs):
+        kw = dict(method=method, identical=identical, cond_max=cond_max, min_rel_amplitude=min_rel_amplitude,
+                  max_rel_std=max_rel_std, estimator=estimator, keyphasor_angle_std_deg=keyphasor_angle_std_deg,
+                  keyphasor_delay_std_s=keyphasor_delay_std_s)
+        return _identify_at_offsets(rotor, runs, labels, max_speed_offset, shared_cov, accel_gain_std,
+                                    accel_phase_std_deg, kw)
     phase_std = _phase_reference_std(rpm, keyphasor_angle_std_deg, keyphasor_delay_std_s)
     e = np.array([r.imbalance._generalized(rotor) for r in runs])  # (R, 4), scaled by Omega^2 below
     if _has_pedestal(runs, labels):

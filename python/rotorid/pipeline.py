@@ -16,7 +16,8 @@ import numpy as np
 
 from . import impact_noise, signals
 from .errors import RotoridError
-from .identify import Identification, _phase_reference_std, identify_impact, identify_synchronous
+from .identify import (SPEED_OFFSETS_UNRESOLVED, Identification, _phase_reference_std, identify_impact,
+                       identify_synchronous, with_flag)
 from .model import Imbalance, RigidRotor
 from .recording import ACCELEROMETERS, DISPLACEMENTS, Recording, SegmentedRecording
 from .simulate import RPM, ImpactResponse, SyncResponse
@@ -107,6 +108,48 @@ class ImbalanceChainResult:
     # keyword arguments of rotorid.identify_pedestals, which pools the speeds and so needs to know
     # how the error goes from speed to speed
     pedestal_phase_kw: dict = field(default_factory=dict)
+
+
+#: speed_match_rpm's default where the runs are carried to common speeds: this fraction of the
+#: lowest speed, at least 2 rpm (2 rpm where they are interpolated: pedestal motion)
+CARRY_MATCH = 0.01
+
+
+def _probes_at(run):
+    """Where a run's displacement probes are: "probes" (their planes) unless its file says
+    "bearings"."""
+    return (getattr(run, "meta", {}) or {}).get("probes_at", "probes")
+
+
+def _carried_dwells(rotor, grid, tracks, baseline, tol, centre, imbs, at, method, ident_kw, notes):
+    """The runs' (and baseline's) 1X vectors at the dwells nearest each grid speed, carried to it
+    through the bearings identified from them (:func:`rotorid.speed_offsets.carry_to_grid`);
+    ``centre``: the grid speed becomes the mean of the speeds measured there."""
+    from .speed_offsets import carry_to_grid, dwells_of
+
+    ds = [dwells_of(t, grid, tol, f"run {i}") for i, t in enumerate(tracks)]
+    db = None if baseline is None else dwells_of(baseline, grid, tol, "baseline")
+    if centre:
+        grid = np.mean([d.speed_rpm for d in ds + ([db] if db is not None else [])], axis=0)
+    kw = {k: v for k, v in ident_kw.items() if k != "shared_cov"}
+
+    def identify(qs, covs, shared):
+        rs = [SyncResponse(grid, q, imb, at, cov=None if covs is None else covs[i],
+                           dof=None if covs is None or d.dof is None else d.dof)
+              for i, (q, imb, d) in enumerate(zip(qs, imbs, ds))]
+        return identify_synchronous(rotor, rs, method=method, shared_cov=shared, **kw)
+
+    done = carry_to_grid(rotor, grid, ds, identify, baseline=db, at=at)
+    far = max(float(np.max(np.abs(d.speed_rpm - done.grid))) for d in ds + ([db] if db is not None else []))
+    if far >= 0.05:
+        notes.append(f"dwell speeds up to {far:.1f} rpm ({done.largest_offset * 100:.2f} %) from the common speeds: "
+                     f"each run's 1X vectors{' and the baseline' if db is not None else ''} carried to them through "
+                     f"the rotor on the bearings identified ({done.passes} passes)")
+    if done.unresolved.any():
+        listed = ", ".join(f"{v:.0f}" for v in done.grid[done.unresolved][:5])
+        warnings.warn(f"dwell speeds that differ between the runs: the carry to common speeds did not settle at "
+                      f"{listed} rpm (flagged \"{SPEED_OFFSETS_UNRESOLVED}\")")
+    return done
 
 
 def _near_only(track, speeds, tol, label, what):
@@ -408,11 +451,23 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
     # with a baseline the slow roll cancels (run - sr - (baseline - sr)): its covariance does not count
     sr_cov_used = None if baseline is not None else sr_cov
     comp = [t.minus(sr[: len(t.orders)], sr_cov_used) if sr is not None else t for t in tracks]
-    tol = 2.0 if speed_match_rpm is None else float(speed_match_rpm)
+    is_table = all(isinstance(r, signals.SyncTrack) for r in runs)
+    dwells = speed_match_rpm is not None or is_table or steady
+    # dwells and table rows on rigid supports: each run's and the baseline's vectors where they were
+    # measured, carried to the common speeds through the rotor on the bearings being identified
+    # (rotorid.speed_offsets), not interpolated between dwells
+    carry = dwells and not ped and len({_probes_at(r) for r in runs + ([baseline] if baseline is not None else [])}) == 1
+    if speed_match_rpm is not None:
+        tol = float(speed_match_rpm)
+    else:
+        lowest = min(float(np.min(t.speed_rpm)) for t in tracks)
+        tol = max(2.0, CARRY_MATCH * lowest) if carry else 2.0
+    pre = comp
     if baseline is not None:
         bt = _track_of(baseline, "baseline", **kw)
         bt_raw = bt
         bt = bt.minus(sr[: len(bt.orders)]) if sr is not None else bt
+    if baseline is not None and not carry:
         if steady or isinstance(baseline, signals.SyncTrack):
             # the baseline is interpolated to each run's speeds: only where it was measured close by
             comp = [_near_only(t, bt.speed_rpm, tol, f"run {i}", "the baseline") for i, t in enumerate(comp)]
@@ -422,8 +477,10 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
         notes.append("no baseline and no slow-roll: remnant imbalance and run-out stay in the vectors")
         warnings.warn("imbalance chain without baseline or slow-roll compensation: remnant imbalance and run-out "
                       "stay in the 1X vectors")
-    is_table = all(isinstance(r, signals.SyncTrack) for r in runs)
-    if speed_match_rpm is not None or is_table or steady:
+    imbs = [_imbalance_of(r, None if imbalances is None else imbalances[i], f"run {i} ({type(r).__name__})")
+            for i, r in enumerate(runs)]
+    carried = None
+    if dwells:
         # dwells and table rows: a common grid only where every run was measured within the tolerance
         # (interpolating 1X vectors across the gap between two dwells would invent data)
         from .tables import match_speeds
@@ -433,9 +490,19 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
             pk = dict(pedestal=t.pedestal[:, i1:i1 + 1]) if ped else {}
             return signals.SyncTrack(t.speed_rpm, t.vectors[:, i1:i1 + 1], (1,), t.n_revs, t.scatter, t.t_mid, **pk)
 
-        matched = match_speeds([one_x(t) for t in comp], grid=speeds_rpm, tolerance_rpm=tol, pedestal=ped)
-        grid, qs = matched[:2]
-        ped_on_grid = matched[2] if ped else None
+        if carry:
+            both = pre + ([bt] if baseline is not None else [])
+            # (the baseline's dwells too: a grid speed is kept where every run and the baseline were
+            # measured within the tolerance)
+            grid = match_speeds([one_x(t) for t in both], grid=speeds_rpm, tolerance_rpm=tol)[0]
+            carried = _carried_dwells(rotor, grid, pre, bt if baseline is not None else None, tol, speeds_rpm is None,
+                                      imbs, _probes_at(runs[0]), method, ident_kw, notes)
+            grid, qs = carried.grid, carried.q
+            ped_on_grid = None
+        else:
+            matched = match_speeds([one_x(t) for t in comp], grid=speeds_rpm, tolerance_rpm=tol, pedestal=ped)
+            grid, qs = matched[:2]
+            ped_on_grid = matched[2] if ped else None
     else:
         if speeds_rpm is None:
             if steady:
@@ -451,14 +518,19 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
         ped_on_grid = [t.pedestal_at_speeds(grid)[:, t.orders.index(1), :] for t in comp] if ped else None
     # the keyphasor timing uncertainty local to each recording's dwells: a phase error of that
     # recording's vectors alone (the baseline's reaches every run through the subtraction)
-    turns = [_local_phase_cov(t, grid, tol, ped) for t in tracks]
-    base_turn = _local_phase_cov(bt_raw, grid, tol, ped) if baseline is not None else None
+    # (the pulses of a grid speed: within max(kp_tol, 0.5 %) of it, the matching tolerance the user
+    # gave, else 2 rpm, as before the dwells were carried)
+    kp_tol = 2.0 if speed_match_rpm is None else tol
+    turns = [_local_phase_cov(t, grid, kp_tol, ped) for t in tracks]
+    base_turn = _local_phase_cov(bt_raw, grid, kp_tol, ped) if baseline is not None else None
     responses = []
     for i, (r, q, t) in enumerate(zip(runs, qs, comp)):
-        cov, dof = _labelled(lambda t=t: t.cov_at_speeds(grid), f"run {i}", "the common speed grid")
-        imb = _imbalance_of(r, None if imbalances is None else imbalances[i], f"run {i} ({type(r).__name__})")
-        meta = getattr(r, "meta", {}) or {}
-        at = meta.get("probes_at", "probes")
+        if carried is not None:
+            cov, dof = carried.cov[i], carried.dof[i]
+        else:
+            cov, dof = _labelled(lambda t=t: t.cov_at_speeds(grid), f"run {i}", "the common speed grid")
+        imb = imbs[i]
+        at = _probes_at(r)
         # a name from the file keeps no extension (sync_vectors_0_plain.csv, not ..._plain.csv.csv)
         name = imb.name or getattr(r, "name", None) or \
             os.path.splitext(os.path.basename(getattr(r, "source", "") or ""))[0] or f"run {i}"
@@ -494,7 +566,11 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
                      "relative to the housings")
     if baseline is not None and "shared_cov" not in ident_kw:
         # every run had the same baseline subtracted: its error is common to all runs
-        shared, _ = _labelled(lambda: bt.cov_at_speeds(grid), "baseline", "the common speed grid")
+        if carried is not None:
+            # (NaN, unknown, where the baseline states no accuracy: not passed on, as interpolated)
+            shared = carried.shared if carried.shared is not None else np.full((grid.size, 8, 8), np.nan)
+        else:
+            shared, _ = _labelled(lambda: bt.cov_at_speeds(grid), "baseline", "the common speed grid")
         if base_turn is not None:
             shared = shared + base_turn["cov"]
         if ped:
@@ -511,8 +587,8 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
         if np.all(np.isfinite(shared)) and own:
             ident_kw = dict(ident_kw, shared_cov=shared)
     kps = [k for t in tracks + ([bt] if baseline is not None else []) for k in t.keyphasors]
-    shape_deg = _keyphasor_phase_std(kps, grid, tol)
-    local_deg = _keyphasor_phase_std(kps, grid, tol, part="local_std_each_s")
+    shape_deg = _keyphasor_phase_std(kps, grid, kp_tol)
+    local_deg = _keyphasor_phase_std(kps, grid, kp_tol, part="local_std_each_s")
     fixed_kw = dict(ident_kw)   # the phase reference as the user stated it
     if shape_deg is not None:
         # pulses whose timing their shape leaves uncertain: a phase error common to every run (the
@@ -537,6 +613,8 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
     if phase_calibration != "off":
         responses, ident, cal, phase = _phase_calibrated(rotor, responses, ident, method, fixed_kw, local_deg,
                                                          phase_calibration == "apply", notes, ident_kw)
+    if carried is not None and carried.unresolved.any():
+        ident = with_flag(ident, carried.unresolved, SPEED_OFFSETS_UNRESOLVED)
     return ImbalanceChainResult(responses, tracks, ident, notes, ident_kw.get("shared_cov"),
                                 None if sr is None else np.asarray(sr[0]), shape_deg, local_deg, cal,
                                 _stated_phase_kw(ident_kw) if phase is None else phase)
