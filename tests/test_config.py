@@ -789,7 +789,7 @@ def test_defaults():
         (0.25, 0.01, True, 8, 256, 0.9, 1e4, 0.01, False, "forces")
     imb = parse_config(imbalance_cfg()).imbalance
     assert (imb.min_revs, imb.settle_revs, imb.speed_tolerance, imb.revs_per_block, imb.speed_match_rpm,
-            imb.cond_max, imb.min_rel_amplitude, imb.points_per_rev) == (8, 2, 0.005, 4, 2.0, 1e4, 0.08, "auto")
+            imb.cond_max, imb.min_rel_amplitude, imb.points_per_rev) == (8, 2, 0.005, 4, None, 1e4, 0.08, "auto")
     assert cfg.output_dir("impact") == Path.cwd() / "rotorid_impact"
 
 

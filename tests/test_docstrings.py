@@ -11,7 +11,7 @@ MODULES = ["rotorid.signals.keyphasor", "rotorid.signals.order", "rotorid.identi
            "rotorid.studies.monte_carlo", "rotorid.studies.sensitivity", "rotorid.studies.design",
            "rotorid.studies.config", "rotorid.studies.run", "rotorid.studies.report", "rotorid.pedestal",
            "rotorid.support.series", "rotorid.support.sfd", "rotorid.support.tpjb", "rotorid.support.compare",
-           "rotorid.exports", "rotorid.report", "rotorid.plot"]
+           "rotorid.exports", "rotorid.report", "rotorid.plot", "rotorid.speed_offsets"]
 
 
 @pytest.mark.parametrize("name", MODULES)

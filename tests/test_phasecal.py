@@ -327,3 +327,19 @@ def test_a_scatter_with_moving_pedestals_names_the_accelerometers_too():
         warnings.simplefilter("ignore")
         cal = rotorid.calibrate_phase(rig.rotor, plain)
     assert "scatter is significant" in cal.message and "accelerometer" not in cal.message, cal.message
+
+
+def test_runs_without_covariance_calibrate_without_numpy_warnings(tmp_path):
+    """The bundled 1X tables carry no stated accuracy: the calibration's robust scatter divided by
+    zero variances, and "rotorid: warning: divide by zero encountered in divide" reached the console
+    of `rotorid identify imbalance ex/imbalance_1x_table.toml`. Now the closed form, no warning; the
+    scatter it reports is the median of the squared misfits over chi²(1)'s median."""
+    from rotorid import example
+    from rotorid.pipeline import run_config
+
+    ex = example.copy_example(str(tmp_path / "ex"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        ident, _ = run_config(f"{ex}/imbalance_1x_table.toml", "imbalance", out_dir=str(tmp_path / "o"),
+                              log=lambda m: None, plots=False)
+    assert ident.ok.all()

@@ -946,7 +946,7 @@ class ImbalanceSection(_Model):
     settle_revs: _number(integer=True, ge=0) = 2
     speed_tolerance: _number(gt=0, lt=0.5) = 0.005
     revs_per_block: _number(integer=True, ge=1) = 4
-    speed_match_rpm: NonNeg = 2.0
+    speed_match_rpm: Optional[_number(gt=0)] = None
     cond_max: _number(gt=1) = 1e4
     min_rel_amplitude: _number(ge=0, lt=1) = 0.08
     max_rel_std: _number(gt=0) = 0.1

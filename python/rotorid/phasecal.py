@@ -447,7 +447,10 @@ def calibrate_phase(rotor, runs, *, delay: bool = True, offset: bool = True, deg
 
     def robust_scatter2(delta, var):
         """s_e² at which the median of delta² / (var + s_e²) is 0.4549, chi²(1)'s median (0 where it
-        is below at 0)."""
+        is below at 0); without variances the closed form median(delta²) / 0.4549 (the search
+        divided by zero at 0, and a numpy warning reached the user's console)."""
+        if not np.any(var > 0):
+            return float(np.median(delta ** 2)) / 0.45494
         return root_above_zero(lambda s2: float(np.median(delta ** 2 / (var + s2))) - 0.45494,
                                float(np.max(delta ** 2)) / 0.45494)
 

@@ -125,10 +125,10 @@ def _carried_dwells(rotor, grid, tracks, baseline, tol, centre, imbs, at, method
     """The runs' (and baseline's) 1X vectors at the dwells nearest each grid speed, carried to it
     through the bearings identified from them (:func:`rotorid.speed_offsets.carry_to_grid`);
     ``centre``: the grid speed becomes the mean of the speeds measured there."""
-    from .speed_offsets import carry_to_grid, dwells_of
+    from .speed_offsets import carry_to_grid, _dwells_of
 
-    ds = [dwells_of(t, grid, tol, f"run {i}") for i, t in enumerate(tracks)]
-    db = None if baseline is None else dwells_of(baseline, grid, tol, "baseline")
+    ds = [_dwells_of(t, grid, tol, f"run {i}") for i, t in enumerate(tracks)]
+    db = None if baseline is None else _dwells_of(baseline, grid, tol, "baseline")
     if centre:
         grid = np.mean([d.speed_rpm for d in ds + ([db] if db is not None else [])], axis=0)
     kw = {k: v for k, v in ident_kw.items() if k != "shared_cov"}
@@ -333,12 +333,18 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
         ``slow_roll_max_rpm``).
     speeds_rpm : array_like, optional
         Common speed grid. Default: the first run's speeds (steady dwells or table rows) inside
-        the range all runs share; for coast-downs every 50 rpm over that range.
+        the range all runs share, each moved to the mean of the runs' and the baseline's dwell
+        speeds there (where they are carried, see ``speed_match_rpm``); for coast-downs every 50
+        rpm over that range.
     speed_match_rpm : float, optional
         How far (rpm) a run's measured speed (a dwell, a table row) and the baseline's may be from
         a grid speed; farther grid speeds are dropped with a warning (interpolating 1X vectors
-        across the gap between dwells would invent data that no uncertainty accounts for).
-        Default 2 rpm. Coast-downs (``steady=False``) are interpolated over their common range.
+        across the gap between dwells would invent data that no uncertainty accounts for). The
+        dwells matched are carried to the grid speed through the rotor on the bearings being
+        identified (:mod:`rotorid.speed_offsets`), the grid speed being the mean of theirs unless
+        ``speeds_rpm`` is given. Default 1 % of the lowest speed, at least 2 rpm; with pedestal
+        motion (not carried: interpolated) 2 rpm. Coast-downs (``steady=False``) are interpolated
+        over their common range.
     keyphasor : dict, optional
         Keyphasor options for every recording (see :func:`rotorid.signals.keyphasor_times`).
     points_per_rev, min_revs, settle_revs, speed_tolerance, revs_per_block

@@ -219,6 +219,23 @@ def carry_to_grid(rotor, grid_rpm, runs, identify, *, baseline=None, at="probes"
     vectors (a list), their covariances (a list, or None unless every run has a finite one) and
     the shared covariance (or None);
     ``first``: the identification from the vectors as measured, if the caller has it.
+
+    Examples
+    --------
+    >>> import numpy as np, rotorid
+    >>> from rotorid.speed_offsets import Dwells, carry_to_grid
+    >>> rig = rotorid.nsf_rig()
+    >>> grid = np.array([3500.0, 4000.0])
+    >>> imbs = [rig.imbalances["A"], rig.imbalances["B"]]
+    >>> own = [grid * 1.002, grid * 0.998]          # each run a little off the grid
+    >>> runs = [Dwells(s, rotorid.imbalance_response(rig.rotor, rig.bearings, i, speed_rpm=s).q)
+    ...         for s, i in zip(own, imbs)]
+    >>> def identify(qs, covs, shared):
+    ...     rs = [rotorid.SyncResponse(grid, q, i) for q, i in zip(qs, imbs)]
+    ...     return rotorid.identify_synchronous(rig.rotor, rs)
+    >>> done = carry_to_grid(rig.rotor, grid, runs, identify, at="bearings")
+    >>> bool(np.allclose(done.identification.c, rig.bearings.c, rtol=1e-4)), bool(done.unresolved.any())
+    (True, False)
     """
     grid = np.asarray(grid_rpm, dtype=float)
     n = grid.size
@@ -260,11 +277,11 @@ def carry_to_grid(rotor, grid_rpm, runs, identify, *, baseline=None, at="probes"
     return Carried(grid, qs, covs, dofs, shared, ident, passes, unresolved, offset)
 
 
-def dwells_of(track, grid_rpm, tolerance_rpm, label):
+def _dwells_of(track, grid_rpm, tolerance_rpm, label):
     """A track's (:class:`rotorid.signals.SyncTrack`) 1X vectors at each grid speed: its block
     (dwell, table row) nearest in speed, within ``tolerance_rpm`` (a RotoridError naming ``label``
     otherwise), as :class:`Dwells` (covariance None where the track states none)."""
-    i = nearest_dwells(track.speed_rpm, grid_rpm, tolerance_rpm, label)
+    i = _nearest_dwells(track.speed_rpm, grid_rpm, tolerance_rpm, label)
     i1 = tuple(track.orders).index(1)
     cov = None if track.cov is None else np.asarray(track.cov)[i]
     if cov is not None and np.isnan(cov).all():
@@ -273,7 +290,7 @@ def dwells_of(track, grid_rpm, tolerance_rpm, label):
     return Dwells(np.asarray(track.speed_rpm, dtype=float)[i], np.asarray(track.vectors)[i, i1, :], cov, dof)
 
 
-def nearest_dwells(speed_rpm, grid_rpm, tolerance_rpm, label):
+def _nearest_dwells(speed_rpm, grid_rpm, tolerance_rpm, label):
     """For each grid speed, the index of the measured speed nearest it (within
     ``tolerance_rpm``; a RotoridError names ``label`` and the grid speed otherwise)."""
     s = np.asarray(speed_rpm, dtype=float)
