@@ -189,3 +189,22 @@ def test_chain_with_a_tolerance_of_the_users_drops_what_lies_beyond_it():
     with pytest.warns(UserWarning, match="dropped"):
         res = pipeline.imbalance_chain(ROTOR, runs, imbalances=SETS[:2], speed_match_rpm=2.0)
     assert res.identification.axis.size == 6
+
+
+def test_chain_default_tolerance_is_relative_to_each_speed():
+    """The default matching tolerance is 1 % of each grid speed: a run 25 rpm off at 6000 rpm (0.4 %)
+    is carried, where a fixed 2 rpm dropped it, and a slow dwell in the runs (600 rpm) does not
+    shrink the tolerance of the others."""
+    rng = np.random.default_rng(11)
+    rpm = np.array([600.0, 3000.0, 4500.0, 6000.0])
+    runs = [_table([imb], rpm + np.array([0.0, 5.0, -10.0, 25.0]) * (k % 2), rng, 0.02e-6)
+            for k, imb in enumerate(SETS)]
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        res = pipeline.imbalance_chain(ROTOR, runs, imbalances=SETS)
+    assert not any("dropped" in str(w.message) for w in seen), [str(w.message) for w in seen]
+    assert res.identification.axis.size == 4
+    np.testing.assert_allclose(res.identification.axis, rpm + np.array([0.0, 2.5, -5.0, 12.5]))
+    with pytest.warns(UserWarning, match="dropped"):
+        fixed = pipeline.imbalance_chain(ROTOR, runs, imbalances=SETS, speed_match_rpm=2.0)
+    assert fixed.identification.axis.size == 1

@@ -423,6 +423,19 @@ def test_match_speeds_grid_tolerance_and_ranges():
     raises(["tolerance_rpm"], tb.match_speeds, [a, b], tolerance_rpm=0)
 
 
+def test_match_speeds_relative_tolerance_grows_with_the_speed():
+    """tolerance_rel: max(tolerance_rpm, tolerance_rel * g) at grid speed g: 1 % keeps a run 25 rpm
+    off at 6000 rpm and drops one 25 rpm off at 2000 rpm, naming the rule."""
+    a = linear_track([2000.0, 4000.0, 6000.0], "a")
+    b = linear_track([2025.0, 4025.0, 6025.0], "b")
+    with pytest.warns(UserWarning, match=r"dropped 1 of 3 grid speed\(s\): 2000\.0 rpm .*farther than max\(2 rpm, "
+                                         r"1 % of the speed\)"):
+        g, _ = tb.match_speeds([a, b], grid=[2000.0, 4000.0, 6000.0], tolerance_rel=0.01)
+    assert g.tolist() == [4000.0, 6000.0]
+    for bad in (-0.1, 0.5, np.nan, "1 %"):
+        raises(["tolerance_rel"], tb.match_speeds, [a, b], tolerance_rel=bad)
+
+
 # ---------------------------------------------------------------------------------------------
 # slow roll
 

@@ -110,8 +110,8 @@ class ImbalanceChainResult:
     pedestal_phase_kw: dict = field(default_factory=dict)
 
 
-#: speed_match_rpm's default where the runs are carried to common speeds: this fraction of the
-#: lowest speed, at least 2 rpm (2 rpm where they are interpolated: pedestal motion)
+#: speed_match_rpm's default where the runs are carried to common speeds: this fraction of each
+#: grid speed, at least 2 rpm (2 rpm where they are interpolated: pedestal motion)
 CARRY_MATCH = 0.01
 
 
@@ -342,7 +342,7 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
         across the gap between dwells would invent data that no uncertainty accounts for). The
         dwells matched are carried to the grid speed through the rotor on the bearings being
         identified (:mod:`rotorid.speed_offsets`), the grid speed being the mean of theirs unless
-        ``speeds_rpm`` is given. Default 1 % of the lowest speed, at least 2 rpm; with pedestal
+        ``speeds_rpm`` is given. Default 1 % of the grid speed, at least 2 rpm; with pedestal
         motion (not carried: interpolated) 2 rpm. Coast-downs (``steady=False``) are interpolated
         over their common range.
     keyphasor : dict, optional
@@ -463,11 +463,10 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
     # measured, carried to the common speeds through the rotor on the bearings being identified
     # (rotorid.speed_offsets), not interpolated between dwells
     carry = dwells and not ped and len({_probes_at(r) for r in runs + ([baseline] if baseline is not None else [])}) == 1
-    if speed_match_rpm is not None:
-        tol = float(speed_match_rpm)
-    else:
-        lowest = min(float(np.min(t.speed_rpm)) for t in tracks)
-        tol = max(2.0, CARRY_MATCH * lowest) if carry else 2.0
+    # the matching tolerance: the user's (rpm), else 2 rpm, and where the runs are carried also
+    # CARRY_MATCH of each grid speed (tol_rel)
+    tol = 2.0 if speed_match_rpm is None else float(speed_match_rpm)
+    tol_rel = CARRY_MATCH if carry and speed_match_rpm is None else 0.0
     pre = comp
     if baseline is not None:
         bt = _track_of(baseline, "baseline", **kw)
@@ -500,9 +499,10 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
             both = pre + ([bt] if baseline is not None else [])
             # (the baseline's dwells too: a grid speed is kept where every run and the baseline were
             # measured within the tolerance)
-            grid = match_speeds([one_x(t) for t in both], grid=speeds_rpm, tolerance_rpm=tol)[0]
-            carried = _carried_dwells(rotor, grid, pre, bt if baseline is not None else None, tol, speeds_rpm is None,
-                                      imbs, _probes_at(runs[0]), method, ident_kw, notes)
+            grid = match_speeds([one_x(t) for t in both], grid=speeds_rpm, tolerance_rpm=tol, tolerance_rel=tol_rel)[0]
+            carried = _carried_dwells(rotor, grid, pre, bt if baseline is not None else None,
+                                      np.maximum(tol, tol_rel * grid), speeds_rpm is None, imbs, _probes_at(runs[0]),
+                                      method, ident_kw, notes)
             grid, qs = carried.grid, carried.q
             ped_on_grid = None
         else:

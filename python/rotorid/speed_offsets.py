@@ -292,12 +292,14 @@ def _dwells_of(track, grid_rpm, tolerance_rpm, label):
 
 def _nearest_dwells(speed_rpm, grid_rpm, tolerance_rpm, label):
     """For each grid speed, the index of the measured speed nearest it (within
-    ``tolerance_rpm``; a RotoridError names ``label`` and the grid speed otherwise)."""
+    ``tolerance_rpm``, a number or one per grid speed; a RotoridError names ``label`` and the grid
+    speed otherwise)."""
     s = np.asarray(speed_rpm, dtype=float)
     g = np.asarray(grid_rpm, dtype=float)
+    tol = np.broadcast_to(np.asarray(tolerance_rpm, dtype=float), g.shape)
     i = np.argmin(np.abs(s[None, :] - g[:, None]), axis=1)
-    far = np.abs(s[i] - g) > tolerance_rpm
+    far = np.abs(s[i] - g) > tol
     if far.any():
-        raise RotoridError(f"{label}: no speed within {tolerance_rpm:g} rpm of {g[far][0]:.1f} rpm (nearest "
+        raise RotoridError(f"{label}: no speed within {tol[far][0]:g} rpm of {g[far][0]:.1f} rpm (nearest "
                            f"{s[i][far][0]:.1f} rpm)")
     return i

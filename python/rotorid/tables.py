@@ -956,7 +956,7 @@ def _interp_1x(sp, v, g):
     return v[i] * (1 - w)[:, None] + v[i + 1] * w[:, None]
 
 
-def match_speeds(tracks, *, grid=None, tolerance_rpm=2.0, pedestal=False):
+def match_speeds(tracks, *, grid=None, tolerance_rpm=2.0, pedestal=False, tolerance_rel=0.0):
     """A common speed grid for several runs, with each run's 1X vectors on it.
 
     Runs recorded at "the same" speeds never are: a DAQ's speeds differ by fractions of an rpm
@@ -976,6 +976,9 @@ def match_speeds(tracks, *, grid=None, tolerance_rpm=2.0, pedestal=False):
         their end speeds).
     tolerance_rpm : float
         Largest distance (rpm) from a grid speed to the nearest measured speed of every run.
+    tolerance_rel : float
+        The same relative to the grid speed: the distance allowed at grid speed g is
+        max(tolerance_rpm, tolerance_rel * g) (default 0: tolerance_rpm alone).
     pedestal : bool
         Also return each run's 1X pedestal (housing) motion on the grid, interpolated in the same
         way; every run must then carry it (tables with accelerometer columns px1, px2, py1, py2,
@@ -1036,6 +1039,13 @@ def match_speeds(tracks, *, grid=None, tolerance_rpm=2.0, pedestal=False):
     from ._validate import flag
 
     tol = number("tolerance_rpm", tolerance_rpm, positive=True)
+    rel = number("tolerance_rel", tolerance_rel, nonneg=True)
+    if not rel < 0.5:
+        raise RotoridError(f"tolerance_rel must be below 0.5 (relative to the grid speed), got {tolerance_rel!r}")
+
+    def tol_at(speed):
+        return np.maximum(tol, rel * np.asarray(speed, dtype=float))
+
     pedestal = flag("pedestal", pedestal)
     labels, sps, vs, ps = [], [], [], []
     for i, (t, k) in enumerate(zip(tracks, keys)):
@@ -1067,11 +1077,11 @@ def match_speeds(tracks, *, grid=None, tolerance_rpm=2.0, pedestal=False):
     lo = max(s[0] for s in sps)
     hi = min(s[-1] for s in sps)
     ranges = "; ".join(f"{lab!r}: {s[0]:.1f}-{s[-1]:.1f} rpm" for lab, s in zip(labels, sps))
-    if lo - hi > tol:
+    if lo - hi > tol_at(lo):
         raise RotoridError(f"match_speeds: the runs share no speed range ({ranges})")
     if grid is None:
         g0 = sps[0]
-        inside = (g0 >= lo - tol) & (g0 <= hi + tol)
+        inside = (g0 >= lo - tol_at(g0)) & (g0 <= hi + tol_at(g0))
         if not inside.all():
             out = g0[~inside]
             warnings.warn(f"match_speeds: {out.size} speed(s) of {labels[0]!r} ({_speeds_text(out)}) lie outside the "
@@ -1094,7 +1104,7 @@ def match_speeds(tracks, *, grid=None, tolerance_rpm=2.0, pedestal=False):
         near = np.where(np.abs(sp[j - 1] - g) <= np.abs(sp[np.minimum(j, sp.size - 1)] - g),
                         sp[j - 1], sp[np.minimum(j, sp.size - 1)])
         d = np.abs(near - g)
-        bad = d > tol
+        bad = d > tol_at(g)
         far |= bad
         for k in np.nonzero(bad)[0]:
             why[k].append(f"{lab!r} nearest {near[k]:.1f}")
@@ -1102,8 +1112,9 @@ def match_speeds(tracks, *, grid=None, tolerance_rpm=2.0, pedestal=False):
         idx = np.nonzero(far)[0]
         detail = "; ".join(f"{g[k]:.1f} rpm ({', '.join(why[k])})" for k in idx[:_MAX_LIST])
         more = f"; and {idx.size - _MAX_LIST} more" if idx.size > _MAX_LIST else ""
+        allowed = f"tolerance_rpm={tol:g} rpm" if rel == 0 else f"max({tol:g} rpm, {rel * 100:g} % of the speed)"
         msg = (f"match_speeds: dropped {idx.size} of {g.size} grid speed(s): {detail}{more}: farther "
-               f"than tolerance_rpm={tol:g} rpm from every measured speed of the run(s) named, so they cannot be "
+               f"than {allowed} from every measured speed of the run(s) named, so they cannot be "
                "matched reliably")
         if idx.size == g.size:
             raise RotoridError(f"{msg}; no grid speed left (runs: {ranges})")
