@@ -228,3 +228,20 @@ def test_revolution_signature_checks_only_the_samples_it_reads():
     far = x.copy()
     far[1, 9000] = np.inf
     np.testing.assert_array_equal(signals.revolution_signature(far, fs, kp, 0.1, 0.5), ref)
+
+
+@pytest.mark.parametrize("rpm,fs", [(4000.0, 10240.0), (6000.0, 10240.0), (5000.0, 5120.0)])
+def test_a_dwell_timed_to_whole_samples_stays_one_steady_segment(rpm, fs):
+    """Pulses with step edges are timed to a sample: at 4000 rpm and 10,240 Hz the periods
+    alternate between 153 and 154 samples (±0.33 %), and no 16 revolutions agreed within 0.5 % of
+    one of them, so the whole dwell was dropped without a word. The speed over 4 revolutions keeps
+    it whole; a 1 % step in speed still splits it."""
+    n = 400
+    exact = np.arange(n + 1) * 60.0 / rpm + 0.37 / fs
+    times = (np.floor(exact * fs) + 0.5) / fs            # the crossing of a step: mid-sample
+    segs = signals.steady_segments(signals.Keyphasor(times))
+    # (at 61 samples per revolution, ±0.8 %, the first few revolutions go before two agree)
+    assert len(segs) == 1 and segs[0][0] <= 8 and segs[0][1] == n, segs
+    step = np.concatenate([exact[:201], exact[200] + (exact[201:] - exact[200]) / 1.01])
+    segs = signals.steady_segments(signals.Keyphasor((np.floor(step * fs) + 0.5) / fs))
+    assert len(segs) == 2 and abs(segs[0][1] - 200) <= 2 and abs(segs[1][0] - 202) <= 3, segs

@@ -218,11 +218,23 @@ def test_the_core_refuses_channels_of_different_lengths():
         _core.angle_resample([], 100.0, 0.0, kp, 0, 5, 8)
 
 
-def _steady_segments_reference(rpm, tolerance, min_revs, settle_revs):
+def _span_reference(times):
+    """Speed over the 4 revolutions centred on each (revolutions i-1 .. i+2, fewer at the ends)."""
+    n = times.size - 1
+    out = np.empty(n)
+    for i in range(n):
+        lo, hi = max(i - 1, 0), min(i + 3, n)
+        out[i] = 60.0 * (hi - lo) / (times[hi] - times[lo])
+    return out
+
+
+def _steady_segments_reference(times, tolerance, min_revs, settle_revs):
+    rpm = 60.0 / np.diff(times)
+    span = _span_reference(times)
     segs, start = [], 0
     ref = rpm[0] if rpm.size else 0.0
     for i in range(1, rpm.size + 1):
-        if i == rpm.size or abs(rpm[i] - ref) > tolerance * ref:
+        if i == rpm.size or (abs(rpm[i] - ref) > tolerance * ref and abs(span[i] - ref) > tolerance * ref):
             a = start + settle_revs if start > 0 else start
             if i - a >= min_revs:
                 segs.append((a, i))
@@ -230,7 +242,7 @@ def _steady_segments_reference(rpm, tolerance, min_revs, settle_revs):
             if i < rpm.size:
                 ref = rpm[i]
         elif i - start < 16:
-            ref = float(np.median(rpm[start:i + 1]))
+            ref = float(np.median(span[start + 1:i + 1]))
     return segs
 
 
@@ -246,7 +258,7 @@ def test_steady_segments_match_the_revolution_by_revolution_scan():
         kp = signals.Keyphasor(np.concatenate([[0.0], np.cumsum(60 / rpm)]))
         for tol, mr, sr in ((0.005, 8, 2), (0.002, 2, 0), (0.01, 1, 5)):
             assert signals.steady_segments(kp, tolerance=tol, min_revs=mr, settle_revs=sr) == \
-                _steady_segments_reference(kp.speed_rpm, tol, mr, sr)
+                _steady_segments_reference(kp.times, tol, mr, sr)
 
 
 def test_bad_input_still_raises_the_same_errors():

@@ -472,11 +472,13 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
         bt = _track_of(baseline, "baseline", **kw)
         bt_raw = bt
         bt = bt.minus(sr[: len(bt.orders)]) if sr is not None else bt
-    if baseline is not None and not carry:
-        if steady or isinstance(baseline, signals.SyncTrack):
-            # the baseline is interpolated to each run's speeds: only where it was measured close by
-            comp = [_near_only(t, bt.speed_rpm, tol, f"run {i}", "the baseline") for i, t in enumerate(comp)]
-        comp = [_labelled(lambda t=t: t.minus(bt), f"run {i}", "baseline subtraction") for i, t in enumerate(comp)]
+    if baseline is not None:
+        if not carry:
+            if steady or isinstance(baseline, signals.SyncTrack):
+                # the baseline is interpolated to each run's speeds: only where it was measured close by
+                comp = [_near_only(t, bt.speed_rpm, tol, f"run {i}", "the baseline") for i, t in enumerate(comp)]
+            comp = [_labelled(lambda t=t: t.minus(bt), f"run {i}", "baseline subtraction") for i, t in enumerate(comp)]
+        # (carried: subtracted after the runs and the baseline are carried to the grid speeds)
         notes.append("baseline subtracted (remnant imbalance and run-out removed)")
     elif sr is None:
         notes.append("no baseline and no slow-roll: remnant imbalance and run-out stay in the vectors")
