@@ -137,19 +137,20 @@ def test_what_cannot_be_carried_is_refused():
         rotorid.identify_synchronous(ROTOR, pr)
 
 
-def _table(imbs, speeds, rng, noise):
-    q = sum(rotorid.imbalance_response(ROTOR, BRG, imb, speed_rpm=speeds, at="probes").q for imb in imbs)
+def _table(imbs, speeds, rng, noise, runout=0.0):
+    q = sum(rotorid.imbalance_response(ROTOR, BRG, imb, speed_rpm=speeds, at="probes").q for imb in imbs) + runout
     q = q + noise * (rng.standard_normal(q.shape) + 1j * rng.standard_normal(q.shape))
     n = speeds.size
     return SyncTrack(speeds, q[:, None, :], (1,), np.full(n, 100), np.full((n, 4), np.nan), np.arange(n) * 10.0,
                      cov=np.broadcast_to(np.eye(8) * noise ** 2, (n, 8, 8)).copy(), dof=np.full(n, 100.0))
 
 
-def _chain_draw(seed, spread, noise=0.035e-6, **kw):
+def _chain_draw(seed, spread, noise=0.035e-6, runout=0.0, **kw):
     rng = np.random.default_rng(seed)
     rpm = np.arange(3000.0, 6001.0, 500.0)
-    runs = [_table([imb, REMNANT], rpm * (1 + rng.uniform(-spread, spread, rpm.size)), rng, noise) for imb in SETS]
-    base = _table([REMNANT], rpm * (1 + rng.uniform(-spread, spread, rpm.size)), rng, noise)
+    runs = [_table([imb, REMNANT], rpm * (1 + rng.uniform(-spread, spread, rpm.size)), rng, noise, runout)
+            for imb in SETS]
+    base = _table([REMNANT], rpm * (1 + rng.uniform(-spread, spread, rpm.size)), rng, noise, runout)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         return pipeline.imbalance_chain(ROTOR, runs, baseline=base, imbalances=SETS, **kw)
@@ -208,3 +209,41 @@ def test_chain_default_tolerance_is_relative_to_each_speed():
     with pytest.warns(UserWarning, match="dropped"):
         fixed = pipeline.imbalance_chain(ROTOR, runs, imbalances=SETS, speed_match_rpm=2.0)
     assert fixed.identification.axis.size == 1
+
+
+RUNOUT = 3 * np.array([4e-6 * np.exp(0.5j), 3e-6 * np.exp(2.0j), 4e-6 * np.exp(-1.0j), 2e-6 * np.exp(1.2j)])
+
+
+def _coverage(draws):
+    hits = []
+    for res in draws:
+        iv = res.identification.interval(0.95)
+        hits.append(np.concatenate([((iv.k_lower <= BRG.k) & (BRG.k <= iv.k_upper)).ravel(),
+                                    ((iv.c_lower <= BRG.c) & (BRG.c <= iv.c_upper)).ravel()]))
+    return np.concatenate(hits).mean()
+
+
+def test_run_out_without_a_slow_roll_is_estimated_from_the_baseline_before_carrying(monkeypatch):
+    """Run-out (6-12 µm, the same at every speed) in runs and baseline, no slow roll: subtracting
+    the baseline cancels it only at one speed; carried with the response, (T_r - T_b) R stayed (an
+    independent simulator's ±0.25 % offsets with 4 µm: 0.845 coverage on ok points, 55 % of points
+    ok). It is now estimated from the baseline's dwells (q_b = Ω² H u + R over the speeds) and
+    taken out first: the estimate within 1 % of the truth, coverage as without run-out (runs ±0.5 %
+    apart, 20 draws: 0.942, as with no run-out; without the estimate 0.72)."""
+    from rotorid import speed_offsets
+
+    res = _chain_draw(3, 0.005, runout=RUNOUT)
+    note = next(n for n in res.notes if n.startswith("1X run-out estimated from the baseline"))
+    est = np.array([float(x.split()[1]) for x in note.split(": ")[1].split(", ")]) * 1e-6
+    np.testing.assert_allclose(est, np.abs(RUNOUT), rtol=0.01)
+    assert _coverage(_chain_draw(200 + s, 0.005, runout=RUNOUT) for s in range(20)) > 0.92
+    # without the estimate (too few speeds, here forced): warned, and the run-out spoils the bars
+    monkeypatch.setattr(speed_offsets, "RUNOUT_MIN_SPEEDS", 100)
+    rng = np.random.default_rng(3)
+    rpm = np.arange(3000.0, 6001.0, 500.0)
+    runs = [_table([imb, REMNANT], rpm * (1 + rng.uniform(-0.005, 0.005, rpm.size)), rng, 0.035e-6, RUNOUT)
+            for imb in SETS]
+    base = _table([REMNANT], rpm * 1.004, rng, 0.035e-6, RUNOUT)
+    with pytest.warns(UserWarning, match="too few speeds .* to estimate the run-out from the baseline"):
+        pipeline.imbalance_chain(ROTOR, runs, baseline=base, imbalances=SETS)
+    assert _coverage(_chain_draw(200 + s, 0.005, runout=RUNOUT) for s in range(20)) < 0.8

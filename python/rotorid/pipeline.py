@@ -121,10 +121,11 @@ def _probes_at(run):
     return (getattr(run, "meta", {}) or {}).get("probes_at", "probes")
 
 
-def _carried_dwells(rotor, grid, tracks, baseline, tol, centre, imbs, at, method, ident_kw, notes):
+def _carried_dwells(rotor, grid, tracks, baseline, tol, centre, imbs, at, method, ident_kw, notes, runout):
     """The runs' (and baseline's) 1X vectors at the dwells nearest each grid speed, carried to it
     through the bearings identified from them (:func:`rotorid.speed_offsets.carry_to_grid`);
-    ``centre``: the grid speed becomes the mean of the speeds measured there."""
+    ``centre``: the grid speed becomes the mean of the speeds measured there; ``runout``: the
+    vectors still hold the run-out (no slow roll): estimated from the baseline and taken out."""
     from .speed_offsets import carry_to_grid, _dwells_of
 
     ds = [_dwells_of(t, grid, tol, f"run {i}") for i, t in enumerate(tracks)]
@@ -139,7 +140,14 @@ def _carried_dwells(rotor, grid, tracks, baseline, tol, centre, imbs, at, method
               for i, (q, imb, d) in enumerate(zip(qs, imbs, ds))]
         return identify_synchronous(rotor, rs, method=method, shared_cov=shared, **kw)
 
-    done = carry_to_grid(rotor, grid, ds, identify, baseline=db, at=at)
+    done = carry_to_grid(rotor, grid, ds, identify, baseline=db, at=at, runout=runout)
+    if done.runout is not None:
+        notes.append("1X run-out estimated from the baseline's dwells (no slow roll) and taken out before carrying: "
+                     + ", ".join(f"{ch} {abs(v) * 1e6:.2f} µm" for ch, v in zip(("x1", "x2", "y1", "y2"), done.runout)))
+    elif runout and db is not None and done.largest_offset > 0:
+        warnings.warn("no slow roll, and too few speeds (3 needed) to estimate the run-out from the baseline: the "
+                      "run-out left in the vectors is carried as if it were response, and does not cancel exactly "
+                      "between runs and a baseline measured at other speeds")
     far = max(float(np.max(np.abs(d.speed_rpm - done.grid))) for d in ds + ([db] if db is not None else []))
     if far >= 0.05:
         notes.append(f"dwell speeds up to {far:.1f} rpm ({done.largest_offset * 100:.2f} %) from the common speeds: "
@@ -504,7 +512,7 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
             grid = match_speeds([one_x(t) for t in both], grid=speeds_rpm, tolerance_rpm=tol, tolerance_rel=tol_rel)[0]
             carried = _carried_dwells(rotor, grid, pre, bt if baseline is not None else None,
                                       np.maximum(tol, tol_rel * grid), speeds_rpm is None, imbs, _probes_at(runs[0]),
-                                      method, ident_kw, notes)
+                                      method, ident_kw, notes, runout=sr is None)
             grid, qs = carried.grid, carried.q
             ped_on_grid = None
         else:

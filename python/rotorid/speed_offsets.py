@@ -21,12 +21,20 @@ the coefficients found, identify again) to its fixed point, which for noise-free
 answer; T is within a few percent of the identity (its distance is about the speed offset over
 the damping ratio), so the coefficients' own errors reach the carried vectors only scaled by it and
 the iteration contracts in a few steps. Covariances are carried with the vectors (T Σ Tᴴ, in
-the real [Re, Im] form). The run-out (a vector that does not scale with Omega² H) must be taken
-out first (slow roll); what is left of it is carried as if it were response.
+the real [Re, Im] form).
+
+Run-out (the probes' 1X reading of the shaft's surface, the same at every speed) does not scale
+with Omega² H: carried with the response it no longer cancels between a run and a baseline taken
+at different speeds, (T_r - T_b) R stays. A slow roll takes it out first; without one the run-out
+is estimated on every pass from the baseline's dwells, whose 1X is Omega² H(Omega) u + R at every
+speed (u a remnant imbalance in the rotor's two planes: 6 complex unknowns by least squares over
+the speeds), and taken out of the runs and the baseline before they are carried (its own error then
+reaches the vectors only through T_r - T_b, a few percent of it).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from dataclasses import dataclass
 
@@ -71,7 +79,8 @@ class Carried:
     run, or None; ``identification``: the last pass's; ``passes``: the identifications made;
     ``unresolved`` (n,): points where the passes had not settled (or where the coefficients found
     could not carry: singular or not finite), whose vectors are as the last pass left them;
-    ``largest_offset``: the largest relative distance of a measured speed from its grid speed.
+    ``largest_offset``: the largest relative distance of a measured speed from its grid speed;
+    ``runout``: the 1X run-out (4,) estimated from the baseline and taken out (m), or None.
     """
 
     grid: np.ndarray
@@ -83,6 +92,7 @@ class Carried:
     passes: int
     unresolved: np.ndarray
     largest_offset: float
+    runout: np.ndarray | None = None
 
 
 def _real_form(T):
@@ -157,10 +167,14 @@ def _carry(d: Dwells, T):
     return q, R @ d.cov @ np.swapaxes(R, 1, 2)
 
 
-def _compose(runs, baseline, Ts, Tb):
+def _compose(runs, baseline, Ts, Tb, runout=None):
     """(vectors, covariances, shared covariance) of the runs carried by ``Ts`` less the baseline
-    carried by ``Tb``: covariances a list with None for a run without one (NaN where the
-    baseline has none), shared None without a baseline covariance."""
+    carried by ``Tb``, ``runout`` (4,) taken out of both first: covariances a list with None for
+    a run without one (NaN where the baseline has none), shared None without a baseline
+    covariance."""
+    if runout is not None:
+        runs = [dataclasses.replace(d, q=d.q - runout) for d in runs]
+        baseline = dataclasses.replace(baseline, q=baseline.q - runout)
     qs, covs = [], []
     qb = cb = None
     if baseline is not None:
@@ -209,7 +223,46 @@ def _moved(old, new, d: Dwells):
     return dq.max(axis=1) / (MOVE_PER_SIZE * size)
 
 
-def carry_to_grid(rotor, grid_rpm, runs, identify, *, baseline=None, at="probes", first=None):
+#: the fewest speeds with usable coefficients from which the baseline's run-out is estimated
+RUNOUT_MIN_SPEEDS = 3
+
+
+def _runout_fit(rotor, k, c, baseline: Dwells, at):
+    """The 1X run-out R (4,) of the baseline's dwells, as least squares of q_b = Omega² H(Omega) u +
+    R over the speeds where the coefficients (k, c (n, 2, 2, 2)) are finite, u a remnant imbalance
+    in the rotor's two planes; each channel's equations weighted by the baseline's noise there
+    where it states it. None with fewer than RUNOUT_MIN_SPEEDS such speeds."""
+    from .model import Imbalance
+
+    good = np.isfinite(k).all(axis=(1, 2, 3)) & np.isfinite(c).all(axis=(1, 2, 3))
+    if good.sum() < RUNOUT_MIN_SPEEDS:
+        return None
+    g = int(good.sum())
+    planes = np.array([Imbalance((1.0, 0.0), (0.0, 0.0))._generalized(rotor),
+                       Imbalance((0.0, 1.0), (0.0, 0.0))._generalized(rotor)], dtype=complex)
+    om = np.ascontiguousarray(baseline.speed_rpm[good] * RPM)
+    k8 = np.ascontiguousarray(k[good].reshape(g, 8))
+    c8 = np.ascontiguousarray(c[good].reshape(g, 8))
+    # the response to a unit imbalance in each plane at each speed: (g, plane, channel)
+    h, nsing = _core.forced_response(rotor.core_params(), k8, c8, om, om, planes[None], gain=om ** 2,
+                                     planes=_planes_to(rotor, at))
+    if nsing or not np.isfinite(h).all():
+        return None
+    A = np.zeros((g, 4, 6), dtype=complex)
+    A[:, :, 0], A[:, :, 1] = h[:, 0, :], h[:, 1, :]
+    A[:, np.arange(4), 2 + np.arange(4)] = 1.0
+    b = np.asarray(baseline.q)[good]
+    w = np.ones((g, 4))
+    if baseline.cov is not None:
+        cov = np.asarray(baseline.cov)[good]
+        var = cov[:, np.arange(4), np.arange(4)] + cov[:, np.arange(4, 8), np.arange(4, 8)]
+        if np.isfinite(var).all() and (var > 0).all():
+            w = 1.0 / np.sqrt(var)
+    x = np.linalg.lstsq((A * w[:, :, None]).reshape(4 * g, 6), (b * w).reshape(4 * g), rcond=None)[0]
+    return x[2:]
+
+
+def carry_to_grid(rotor, grid_rpm, runs, identify, *, baseline=None, at="probes", first=None, runout=False):
     """Each run's vectors carried from where they were measured to the grid speeds, with the
     bearing coefficients identified from them, iterated to its fixed point.
 
@@ -218,7 +271,10 @@ def carry_to_grid(rotor, grid_rpm, runs, identify, *, baseline=None, at="probes"
     ``identify(qs, covs, shared)``: the identification at ``grid_rpm`` from the runs' (n, 4)
     vectors (a list), their covariances (a list, or None unless every run has a finite one) and
     the shared covariance (or None);
-    ``first``: the identification from the vectors as measured, if the caller has it.
+    ``first``: the identification from the vectors as measured, if the caller has it;
+    ``runout``: estimate the run-out from the baseline on every pass and take it out of the runs
+    and the baseline before carrying them (:func:`_runout_fit`; for vectors from which no slow roll
+    was subtracted).
 
     Examples
     --------
@@ -252,6 +308,8 @@ def carry_to_grid(rotor, grid_rpm, runs, identify, *, baseline=None, at="probes"
     ident = first
     passes = 0 if first is not None else None
     unresolved = np.ones(n, bool)
+    ro = None
+    fit_runout = runout and baseline is not None
     with warnings.catch_warnings():
         # the passes' warnings are those of the last identification, made by the caller
         warnings.simplefilter("ignore")
@@ -260,6 +318,8 @@ def carry_to_grid(rotor, grid_rpm, runs, identify, *, baseline=None, at="probes"
             ident, passes = identify(qs, *_usable(covs, shared)), 1
         for _ in range(MAX_PASSES):
             k, c = np.asarray(ident.k), np.asarray(ident.c)
+            if fit_runout:
+                ro = _runout_fit(rotor, k, c, baseline, at)
             new, bad = [], np.zeros(n, bool)
             for d in everyone:
                 T, b = carry_matrix(rotor, k, c, d.speed_rpm, grid, at=at)
@@ -269,12 +329,12 @@ def carry_to_grid(rotor, grid_rpm, runs, identify, *, baseline=None, at="probes"
             for d, old, T in zip(everyone, Ts + ([Tb] if baseline is not None else []), new):
                 moved = np.fmax(moved, _moved(old, T, d))
             Ts, Tb = new[:len(runs)], (new[-1] if baseline is not None else Tb)
-            qs, covs, shared = _compose(runs, baseline, Ts, Tb)
+            qs, covs, shared = _compose(runs, baseline, Ts, Tb, ro)
             ident, passes = identify(qs, *_usable(covs, shared)), passes + 1
             unresolved = bad | ~(moved <= 1.0)
             if not unresolved.any() or passes >= MAX_PASSES:
                 break
-    return Carried(grid, qs, covs, dofs, shared, ident, passes, unresolved, offset)
+    return Carried(grid, qs, covs, dofs, shared, ident, passes, unresolved, offset, ro)
 
 
 def _dwells_of(track, grid_rpm, tolerance_rpm, label):
