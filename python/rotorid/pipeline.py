@@ -121,15 +121,17 @@ def _probes_at(run):
     return (getattr(run, "meta", {}) or {}).get("probes_at", "probes")
 
 
-def _carried_dwells(rotor, grid, tracks, baseline, tol, centre, imbs, at, method, ident_kw, notes, runout):
+def _carried_dwells(rotor, grid, tracks, baseline, tol, centre, imbs, at, method, ident_kw, notes, runout, longest):
     """The runs' (and baseline's) 1X vectors at the dwells nearest each grid speed, carried to it
     through the bearings identified from them (:func:`rotorid.speed_offsets.carry_to_grid`);
     ``centre``: the grid speed becomes the mean of the speeds measured there; ``runout``: the
-    vectors still hold the run-out (no slow roll): estimated from the baseline and taken out."""
+    vectors still hold the run-out (no slow roll): estimated from the baseline and taken out;
+    ``longest``: per run, then the baseline, whether it was recorded (not a table): of its blocks
+    within the tolerance (a dwell split by a wandering speed) the longest is taken."""
     from .speed_offsets import carry_to_grid, _dwells_of
 
-    ds = [_dwells_of(t, grid, tol, f"run {i}") for i, t in enumerate(tracks)]
-    db = None if baseline is None else _dwells_of(baseline, grid, tol, "baseline")
+    ds = [_dwells_of(t, grid, tol, f"run {i}", longest=longest[i]) for i, t in enumerate(tracks)]
+    db = None if baseline is None else _dwells_of(baseline, grid, tol, "baseline", longest=longest[-1])
     if centre:
         grid = np.mean([d.speed_rpm for d in ds + ([db] if db is not None else [])], axis=0)
     kw = {k: v for k, v in ident_kw.items() if k != "shared_cov"}
@@ -509,10 +511,18 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
             both = pre + ([bt] if baseline is not None else [])
             # (the baseline's dwells too: a grid speed is kept where every run and the baseline were
             # measured within the tolerance)
-            grid = match_speeds([one_x(t) for t in both], grid=speeds_rpm, tolerance_rpm=tol, tolerance_rel=tol_rel)[0]
+            recorded = [not isinstance(r, signals.SyncTrack) for r in runs + ([baseline] if baseline is not None else [])]
+            candidates = speeds_rpm
+            if candidates is None and recorded[0]:
+                # a dwell split by a speed change within it (blocks within the tolerance of each
+                # other) is one grid speed, not several that would reuse the other runs' dwells
+                from .speed_offsets import merged_dwell_speeds
+
+                candidates = merged_dwell_speeds(pre[0].speed_rpm, pre[0].n_revs, tol, tol_rel)
+            grid = match_speeds([one_x(t) for t in both], grid=candidates, tolerance_rpm=tol, tolerance_rel=tol_rel)[0]
             carried = _carried_dwells(rotor, grid, pre, bt if baseline is not None else None,
                                       np.maximum(tol, tol_rel * grid), speeds_rpm is None, imbs, _probes_at(runs[0]),
-                                      method, ident_kw, notes, runout=sr is None)
+                                      method, ident_kw, notes, runout=sr is None, longest=recorded)
             grid, qs = carried.grid, carried.q
             ped_on_grid = None
         else:

@@ -337,17 +337,67 @@ def carry_to_grid(rotor, grid_rpm, runs, identify, *, baseline=None, at="probes"
     return Carried(grid, qs, covs, dofs, shared, ident, passes, unresolved, offset, ro)
 
 
-def _dwells_of(track, grid_rpm, tolerance_rpm, label):
+def _dwells_of(track, grid_rpm, tolerance_rpm, label, *, longest=False):
     """A track's (:class:`rotorid.signals.SyncTrack`) 1X vectors at each grid speed: its block
     (dwell, table row) nearest in speed, within ``tolerance_rpm`` (a RotoridError naming ``label``
-    otherwise), as :class:`Dwells` (covariance None where the track states none)."""
+    otherwise), as :class:`Dwells` (covariance None where the track states none).
+    ``longest``: of several blocks within the tolerance (a dwell split by a speed change within it)
+    the one of most revolutions, a UserWarning naming them."""
     i = _nearest_dwells(track.speed_rpm, grid_rpm, tolerance_rpm, label)
+    if longest:
+        i = _longest_within(track, grid_rpm, tolerance_rpm, label, i)
     i1 = tuple(track.orders).index(1)
     cov = None if track.cov is None else np.asarray(track.cov)[i]
     if cov is not None and np.isnan(cov).all():
         cov = None
     dof = None if track.dof is None or cov is None else np.asarray(track.dof, dtype=float)[i]
     return Dwells(np.asarray(track.speed_rpm, dtype=float)[i], np.asarray(track.vectors)[i, i1, :], cov, dof)
+
+
+def _longest_within(track, grid_rpm, tolerance_rpm, label, nearest):
+    """For each grid speed the block of most revolutions among those within the tolerance (the
+    nearest where they tie), with a warning where there were several."""
+    s = np.asarray(track.speed_rpm, dtype=float)
+    revs = np.nan_to_num(np.asarray(track.n_revs, dtype=float), nan=0.0)
+    g = np.asarray(grid_rpm, dtype=float)
+    tol = np.broadcast_to(np.asarray(tolerance_rpm, dtype=float), g.shape)
+    out = np.array(nearest)
+    split = []
+    for k in range(g.size):
+        near = np.flatnonzero(np.abs(s - g[k]) <= tol[k])
+        if near.size > 1:
+            split.append(f"{g[k]:.0f} rpm ({near.size} blocks, {', '.join(f'{int(r)}' for r in revs[near])} revs)")
+            best = near[revs[near] == revs[near].max()]
+            out[k] = best[np.argmin(np.abs(s[best] - g[k]))]
+    if split:
+        warnings.warn(f"{label}: dwells split by a speed change within them, the longest block used: "
+                      f"{'; '.join(split[:4])}{'; ...' if len(split) > 4 else ''} (a speed that wanders more than "
+                      "speed_tolerance; raise it to keep such a dwell whole)")
+    return out
+
+
+def merged_dwell_speeds(speed_rpm, n_revs, tolerance_rpm=2.0, tolerance_rel=0.0):
+    """A track's block speeds (rpm) with blocks that lie within the tolerance of each other (one
+    dwell split by a speed change within it) given once, by the speed of their longest block;
+    ascending. The tolerance at speed s is max(tolerance_rpm, tolerance_rel * s).
+
+    Examples
+    --------
+    >>> from rotorid.speed_offsets import merged_dwell_speeds
+    >>> merged_dwell_speeds([3000.0, 3010.0, 3500.0, 2995.0], [100, 300, 400, 50], tolerance_rel=0.01)
+    array([3010., 3500.])
+    """
+    s = np.asarray(speed_rpm, dtype=float)
+    revs = np.nan_to_num(np.asarray(n_revs, dtype=float), nan=0.0)
+    order = np.argsort(s, kind="stable")
+    s, revs = s[order], revs[order]
+    out, a = [], 0
+    for b in range(1, s.size + 1):
+        if b == s.size or s[b] - s[a] > max(tolerance_rpm, tolerance_rel * s[a]):
+            group = np.arange(a, b)
+            out.append(s[group[np.argmax(revs[group])]])
+            a = b
+    return np.array(out)
 
 
 def _nearest_dwells(speed_rpm, grid_rpm, tolerance_rpm, label):
