@@ -241,7 +241,53 @@ def test_a_dwell_timed_to_whole_samples_stays_one_steady_segment(rpm, fs):
     times = (np.floor(exact * fs) + 0.5) / fs            # the crossing of a step: mid-sample
     segs = signals.steady_segments(signals.Keyphasor(times))
     # (at 61 samples per revolution, ±0.8 %, the first few revolutions go before two agree)
-    assert len(segs) == 1 and segs[0][0] <= 8 and segs[0][1] == n, segs
+    assert len(segs) == 1 and segs[0][0] <= 8 and segs[0][1] >= n - 2, segs
     step = np.concatenate([exact[:201], exact[200] + (exact[201:] - exact[200]) / 1.01])
-    segs = signals.steady_segments(signals.Keyphasor((np.floor(step * fs) + 0.5) / fs))
+    kp = signals.Keyphasor((np.floor(step * fs) + 0.5) / fs)
+    segs = signals.steady_segments(kp)
     assert len(segs) == 2 and abs(segs[0][1] - 200) <= 2 and abs(segs[1][0] - 202) <= 3, segs
+    # each segment's own revolutions within the tolerance of their median but the alternation's
+    # one sample (the step revolution is not let in by its span speed)
+    for a, b in segs:
+        r = kp.speed_rpm[a:b]
+        assert np.ptp(r) / np.median(r) < 0.004 + 2.0 * rpm / 60 / fs, (a, b, np.ptp(r) / np.median(r))
+
+
+def _wandering_dwell(rpm, wander, *, fs=10240.0, seconds=6.0, noise=0.5e-6, seed=0):
+    """A dwell whose speed wanders sinusoidally (±wander at 0.3 Hz), the response quasi-steady,
+    x = Re(q(Omega(t)) e^{j theta(t)}), with a trapezoid keyphasor whose mid-height is at theta = 0."""
+    rotor, brg, remnant = rawsim.example_rig()
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(seconds * fs)) / fs
+    om = rpm * np.pi / 30 * (1 + wander * np.sin(2 * np.pi * 0.3 * t + 1.0))
+    theta = 0.3 + np.cumsum(om) / fs
+    fine = np.linspace(rpm * (1 - 1.5 * wander) - 1, rpm * (1 + 1.5 * wander) + 1, 301)
+    qf = rotorid.imbalance_response(rotor, brg, remnant, speed_rpm=fine, at="probes").q * 20
+    inst = om * 30 / np.pi
+    q = np.stack([np.interp(inst, fine, qf[:, c].real) + 1j * np.interp(inst, fine, qf[:, c].imag) for c in range(4)])
+    x = np.real(q * np.exp(1j * theta)) + noise * rng.standard_normal((4, t.size))
+    a = np.mod(theta + np.pi, 2 * np.pi) / (2 * np.pi) - 0.5
+    kp = 5.0 * np.clip(np.minimum(0.5 + a / 0.01, 0.5 + (0.05 - a) / 0.01), 0.0, 1.0)
+    kp = kp + 0.01 * rng.standard_normal(t.size)
+    return rotorid.Recording(fs, {"x1": x[0], "x2": x[1], "y1": x[2], "y2": x[3], "kp": kp}, {"kind": "imbalance"})
+
+
+def test_a_wandering_dwell_keeps_its_speed_trend_out_of_the_covariance(monkeypatch):
+    """Within a dwell whose speed wanders ±0.2 % (near the first critical speed, where the 1X
+    follows the speed closely), the batch means took the response's systematic change along the
+    speed for noise: an independent simulator's error bars came out ~10 times too wide (median
+    |z| 0.06-0.08). The change along the (15-revolution averaged) speed, to second order, is now
+    fitted and taken out of the revolutions: the covariance is that of the same dwell at a steady
+    speed within a factor 1.5 (measured 1.03 at 3300 rpm, 0.94-1.3 at 3000-4500), where it was 9000
+    times it; the mean is unchanged."""
+    from rotorid.signals import order
+
+    steady = signals.track(_wandering_dwell(3300.0, 0.0))
+    wander = signals.track(_wandering_dwell(3300.0, 0.002))
+    assert steady.speed_rpm.size == wander.speed_rpm.size == 1
+    ratio = np.trace(wander.cov[0]) / np.trace(steady.cov[0])
+    assert 0.67 < ratio < 1.5, ratio
+    monkeypatch.setattr(order, "TREND_MIN_REL", np.inf)      # the trend left in: as before
+    before = signals.track(_wandering_dwell(3300.0, 0.002))
+    np.testing.assert_allclose(before.vectors, wander.vectors, rtol=1e-9)
+    assert np.trace(before.cov[0]) / np.trace(steady.cov[0]) > 10

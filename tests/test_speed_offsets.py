@@ -74,7 +74,7 @@ def test_runs_at_their_own_speeds_are_identified_exactly():
     assert ident.ok.all(), ident.flag
 
 
-@pytest.mark.parametrize("n_runs,spread", [(2, 0.0025), (4, 0.006)])
+@pytest.mark.parametrize("n_runs,spread", [(2, 0.0025), (4, 0.0025)])
 def test_carried_runs_error_bars_cover_as_runs_at_one_speed(n_runs, spread):
     """Monte Carlo: 95 % intervals of runs at their own speeds (carried) cover the truth as often
     as those of runs all taken at one speed (measured 0.956 / 0.957, the same draws at one speed
@@ -112,10 +112,12 @@ def test_runs_at_different_speeds_are_refused_with_what_to_do():
     runs = _runs(rng, 0.0, n_runs=2)
     far = rotorid.SyncResponse(RPM * 1.03, runs[1].q, runs[1].imbalance, "probes")
     with pytest.raises(RotoridError, match=r"speed_rpm of run 1 \('C0'\) differs from that of run 0 \('S0'\): 3090.00 "
-                                           r"against 3000.00 rpm, 1.48 % .*max_speed_offset = 1 %"):
+                                           r"against 3000.00 rpm, 1.48 % .*max_speed_offset = 0.5 %"):
         rotorid.identify_synchronous(ROTOR, [runs[0], far])
-    # allowed farther when asked
+    # allowed farther when asked, to 5 %
     rotorid.identify_synchronous(ROTOR, [runs[0], far], max_speed_offset=0.02)
+    with pytest.raises(RotoridError, match=r"max_speed_offset must be at most 5 % .* got 0.2"):
+        rotorid.identify_synchronous(ROTOR, [runs[0], far], max_speed_offset=0.2)
     short = rotorid.SyncResponse(RPM[:-1] * 1.001, runs[1].q[:-1], runs[1].imbalance, "probes")
     with pytest.raises(RotoridError, match="has 12 speeds, run 0 .* 13"):
         rotorid.identify_synchronous(ROTOR, [runs[0], short])
@@ -193,7 +195,7 @@ def test_chain_with_a_tolerance_of_the_users_drops_what_lies_beyond_it():
 
 
 def test_chain_default_tolerance_is_relative_to_each_speed():
-    """The default matching tolerance is 1 % of each grid speed: a run 25 rpm off at 6000 rpm (0.4 %)
+    """The default matching tolerance is 0.5 % of each grid speed: a run 25 rpm off at 6000 rpm (0.4 %)
     is carried, where a fixed 2 rpm dropped it, and a slow dwell in the runs (600 rpm) does not
     shrink the tolerance of the others."""
     rng = np.random.default_rng(11)
@@ -228,25 +230,25 @@ def test_run_out_without_a_slow_roll_is_estimated_from_the_baseline_before_carry
     the baseline cancels it only at one speed; carried with the response, (T_r - T_b) R stayed (an
     independent simulator's ±0.25 % offsets with 4 µm: 0.845 coverage on ok points, 55 % of points
     ok). It is now estimated from the baseline's dwells (q_b = Ω² H u + R over the speeds) and
-    taken out first: the estimate within 1 % of the truth, coverage as without run-out (runs ±0.5 %
-    apart, 20 draws: 0.942, as with no run-out; without the estimate 0.72)."""
+    taken out first: the estimate within 1 % of the truth, coverage as without run-out (runs ±0.25
+    % apart, 20 draws: 0.943, as with no run-out; without the estimate 0.875)."""
     from rotorid import speed_offsets
 
-    res = _chain_draw(3, 0.005, runout=RUNOUT)
+    res = _chain_draw(3, 0.0025, runout=RUNOUT)
     note = next(n for n in res.notes if n.startswith("1X run-out estimated from the baseline"))
     est = np.array([float(x.split()[1]) for x in note.split(": ")[1].split(", ")]) * 1e-6
     np.testing.assert_allclose(est, np.abs(RUNOUT), rtol=0.01)
-    assert _coverage(_chain_draw(200 + s, 0.005, runout=RUNOUT) for s in range(20)) > 0.92
+    assert _coverage(_chain_draw(200 + s, 0.0025, runout=RUNOUT) for s in range(20)) > 0.92
     # without the estimate (too few speeds, here forced): warned, and the run-out spoils the bars
     monkeypatch.setattr(speed_offsets, "RUNOUT_MIN_SPEEDS", 100)
     rng = np.random.default_rng(3)
     rpm = np.arange(3000.0, 6001.0, 500.0)
-    runs = [_table([imb, REMNANT], rpm * (1 + rng.uniform(-0.005, 0.005, rpm.size)), rng, 0.035e-6, RUNOUT)
+    runs = [_table([imb, REMNANT], rpm * (1 + rng.uniform(-0.0025, 0.0025, rpm.size)), rng, 0.035e-6, RUNOUT)
             for imb in SETS]
-    base = _table([REMNANT], rpm * 1.004, rng, 0.035e-6, RUNOUT)
+    base = _table([REMNANT], rpm * 1.002, rng, 0.035e-6, RUNOUT)
     with pytest.warns(UserWarning, match="too few speeds .* to estimate the run-out from the baseline"):
         pipeline.imbalance_chain(ROTOR, runs, baseline=base, imbalances=SETS)
-    assert _coverage(_chain_draw(200 + s, 0.005, runout=RUNOUT) for s in range(20)) < 0.8
+    assert _coverage(_chain_draw(200 + s, 0.0025, runout=RUNOUT) for s in range(20)) < 0.9
 
 
 def test_a_dwell_split_by_its_wandering_speed_is_one_grid_speed():
@@ -254,7 +256,7 @@ def test_a_dwell_split_by_its_wandering_speed_is_one_grid_speed():
     blocks a few rpm apart: each became a grid speed of its own, reusing the other runs' one dwell
     (the same data counted twice, both points ok; review, 1 of 12 trials). Now one grid speed, the
     longest block of each run, and a warning that names the split."""
-    rpm_of = [[3000.0, 3025.0, 4000.0, 5000.0], [3010.0, 4010.0, 5010.0], [2995.0, 3995.0, 4995.0]]
+    rpm_of = [[3000.0, 3012.0, 4000.0, 5000.0], [3010.0, 4010.0, 5010.0], [2995.0, 3995.0, 4995.0]]
     runs = [rawsim.imbalance_recording(ROTOR, BRG, speeds_rpm=sp, added=imb, remnant=REMNANT, seed=30 + i,
                                        dwell_s=1.5 if i else 1.0)
             for i, (sp, imb) in enumerate(zip(rpm_of, SETS))]
@@ -262,8 +264,26 @@ def test_a_dwell_split_by_its_wandering_speed_is_one_grid_speed():
                                       seed=39, kind="baseline", dwell_s=1.5)
     with pytest.warns(UserWarning, match=r"run 0: dwells split by a speed change within them, the longest block "
                                          r"used: \d+ rpm \(2 blocks"):
-        res = pipeline.imbalance_chain(ROTOR, runs, baseline=base)
+        # (a tracker tolerance of ±0.3 % splits the 0.4 % step; the runs match within 0.5 %)
+        res = pipeline.imbalance_chain(ROTOR, runs, baseline=base, speed_tolerance=0.003)
     ident = res.identification
     assert ident.axis.size == 3 and np.all(np.abs(ident.axis - [3005, 4005, 5005]) < 8), ident.axis
     for b, i, j in DIRECT:
         assert np.all(np.abs(ident.k[:, b, i, j] / BRG.k[b, i, j] - 1) < 0.05)
+
+
+def test_points_where_the_carry_runs_away_do_not_spoil_the_others():
+    """Far below the critical speeds the identification is so ill-conditioned that the carry's own
+    error grows from pass to pass (review: runs ±0.99 % apart, a 2000 rpm vector went from 16 µm to
+    9 cm, and every other point became "low amplitude" beside it). Such points are carried by
+    (Ω/Ω_r)² alone and flagged; the others are exact."""
+    grid = np.array([1000.0, 2000.0, 3000.0, 3300.0, 3600.0, 4000.0, 5000.0, 6000.0, 7000.0, 8000.0])
+    runs = []
+    for i, imb in enumerate(SETS):
+        s = grid * (1 + (0.0099 if i % 2 == 0 else -0.0099))
+        runs.append(rotorid.SyncResponse(s, rotorid.imbalance_response(ROTOR, BRG, imb, speed_rpm=s).q, imb))
+    with pytest.warns(UserWarning, match="did not settle at 1000, 2000 rpm"):
+        ident = rotorid.identify_synchronous(ROTOR, runs, max_speed_offset=0.01)
+    assert ["speed offsets not resolved" in f for f in ident.flag] == [True, True] + [False] * 8
+    assert ident.ok[2:].all(), ident.flag
+    np.testing.assert_allclose(ident.c[2:], np.broadcast_to(BRG.c, ident.c[2:].shape), rtol=1e-5)

@@ -235,9 +235,14 @@ def _steady_segments_reference(times, tolerance, min_revs, settle_revs):
     ref = rpm[0] if rpm.size else 0.0
     for i in range(1, rpm.size + 1):
         if i == rpm.size or (abs(rpm[i] - ref) > tolerance * ref and abs(span[i] - ref) > tolerance * ref):
-            a = start + settle_revs if start > 0 else start
-            if i - a >= min_revs:
-                segs.append((a, i))
+            b, lead = i, start
+            while b > max(start, i - 2) and abs(rpm[b - 1] - ref) > tolerance * ref:
+                b -= 1
+            while lead < min(b, start + 2) and abs(rpm[lead] - ref) > tolerance * ref:
+                lead += 1
+            a = lead + settle_revs if start > 0 else lead
+            if b - a >= min_revs:
+                segs.append((a, b))
             start = i
             if i < rpm.size:
                 ref = rpm[i]

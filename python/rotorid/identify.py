@@ -435,7 +435,9 @@ def _flag_list(extra_flags) -> list:
 
 
 #: the farthest (relative) a run's speed may lie from the mean speed of the runs at a point
-MAX_SPEED_OFFSET = 0.01
+MAX_SPEED_OFFSET = 0.005
+#: the largest max_speed_offset a user may set
+MAX_SPEED_OFFSET_LIMIT = 0.05
 #: the flag of points where runs at slightly different speeds could not be carried to one
 SPEED_OFFSETS_UNRESOLVED = "speed offsets not resolved"
 
@@ -476,6 +478,9 @@ def _identify_at_offsets(rotor, runs, labels, max_offset, shared_cov, accel_gain
     from .speed_offsets import Dwells, carry_to_grid
 
     max_offset = number("max_speed_offset", max_offset, nonneg=True)
+    if not max_offset <= MAX_SPEED_OFFSET_LIMIT:
+        raise RotoridError(f"max_speed_offset must be at most {MAX_SPEED_OFFSET_LIMIT * 100:g} % (runs farther apart are "
+                           f"at different dwells, not one), got {max_offset!r}")
     ref = runs[0].speed_rpm
     for lab, r in zip(labels, runs):
         if r.speed_rpm.shape != ref.shape:
@@ -535,8 +540,12 @@ def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", ide
     within a few rpm) are identified at the mean of their speeds, each run's vectors carried there
     through the rotor on the bearings being identified (:mod:`rotorid.speed_offsets`; identified
     as if at one speed, runs ±0.1 % apart put the example rig's direct damping up to 8 % off).
-    ``max_speed_offset`` (relative, default 1 %) is the farthest a run's speed may lie from
-    that mean; beyond it the call is refused as runs at different speeds. Points where the carry
+    ``max_speed_offset`` (relative, default 0.5 %, at most 5 %) is the farthest a run's speed may
+    lie from that mean; beyond it the call is refused as runs at different speeds. (The carry's
+    own uncertainty, from the coefficients it uses, is not in the error bars: at ±0.25 % coverage
+    is as at one speed, at ±1 % 0.92-0.94 against 0.95.) Far below the critical speeds, where the
+    identification is ill-conditioned, the carry may not settle: those points are carried by
+    (W / W_r)² alone and flagged. Points where the carry
     did not settle are flagged "speed offsets not resolved". Not with pedestal motion or
     ``shared_cov`` (the runs must then share their speeds).
 

@@ -112,7 +112,7 @@ class ImbalanceChainResult:
 
 #: speed_match_rpm's default where the runs are carried to common speeds: this fraction of each
 #: grid speed, at least 2 rpm (2 rpm where they are interpolated: pedestal motion)
-CARRY_MATCH = 0.01
+CARRY_MATCH = 0.005
 
 
 def _probes_at(run):
@@ -352,7 +352,7 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
         across the gap between dwells would invent data that no uncertainty accounts for). The
         dwells matched are carried to the grid speed through the rotor on the bearings being
         identified (:mod:`rotorid.speed_offsets`), the grid speed being the mean of theirs unless
-        ``speeds_rpm`` is given. Default 1 % of the grid speed, at least 2 rpm; with pedestal
+        ``speeds_rpm`` is given. Default 0.5 % of the grid speed, at least 2 rpm; with pedestal
         motion (not carried: interpolated) 2 rpm. Coast-downs (``steady=False``) are interpolated
         over their common range.
     keyphasor : dict, optional
