@@ -20,8 +20,12 @@ carry is iterated with the identification (identify from the vectors as measured
 the coefficients found, identify again) to its fixed point, which for noise-free data is the exact
 answer; T is within a few percent of the identity (its distance is about the speed offset over
 the damping ratio), so the coefficients' own errors reach the carried vectors only scaled by it and
-the iteration contracts in a few steps. Covariances are carried with the vectors (T Σ Tᴴ, in
-the real [Re, Im] form).
+near and above the critical speeds the iteration contracts in a few steps. Far below them the
+identification is so ill-conditioned that the carry's error can grow from pass to pass: points that
+do not settle are carried by (Omega / Omega_r)² alone (no coefficients needed) and flagged.
+Covariances are carried with the vectors (T Σ Tᴴ, in the real [Re, Im] form); the carry's own
+uncertainty, from the coefficients it uses, is not added (at ±0.25 % coverage is as at one speed, at
+±1 % 0.92-0.94), and the coefficients are taken as the same at Omega_r and Omega.
 
 Run-out (the probes' 1X reading of the shaft's surface, the same at every speed) does not scale
 with Omega² H: carried with the response it no longer cancels between a run and a baseline taken
