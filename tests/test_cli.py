@@ -339,3 +339,23 @@ def test_the_impact_log_says_where_each_tests_error_bars_come_from(tmp_path, cap
                                    in ln for ln in lines), log
     result = json.load(open(tmp_path / "o" / "result_impact.json", encoding="utf-8"))
     assert sum("error bars from" in ln for ln in result["context"]["log"]) == 2, result["context"]["log"]
+
+
+def test_the_imbalance_log_says_how_far_the_dwells_were_carried(tmp_path, capsys):
+    """The bundled DAQ 1X tables' speeds are jittered by ±0.5 rpm: the log (screen and result
+    file) says how far the rows were from the common speeds and that they were carried there."""
+    import json
+    import os
+    import re
+
+    from rotorid import example
+
+    ex = example.copy_example(str(tmp_path / "ex"))
+    assert cli.main(["identify", "imbalance", os.path.join(ex, "imbalance_1x_table.toml"), "--out",
+                     str(tmp_path / "o"), "--no-plot"]) == 0
+    log = capsys.readouterr().out
+    line = next(ln for ln in log.splitlines() if "carried to them through the rotor" in ln)
+    far = float(re.search(r"dwell speeds up to ([\d.]+) rpm", line).group(1))
+    assert 0.1 <= far <= 1.0 and "and the baseline" in line and re.search(r"\(\d+ passes\)", line), line
+    result = json.load(open(tmp_path / "o" / "result_imbalance.json", encoding="utf-8"))
+    assert any("carried to them through the rotor" in ln for ln in result["context"]["log"])
