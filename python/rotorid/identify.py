@@ -451,7 +451,7 @@ def _same_speeds(runs):
                for r in runs[1:])
 
 
-def with_flag(ident: Identification, mask, reason: str) -> Identification:
+def _with_flag(ident: Identification, mask, reason: str) -> Identification:
     """``ident`` with the points of ``mask`` flagged for ``reason`` (one more bit of its codes)."""
     import dataclasses
 
@@ -517,7 +517,7 @@ def _identify_at_offsets(rotor, runs, labels, max_offset, shared_cov, accel_gain
     if done.unresolved.any():
         warnings.warn(f"runs at slightly different speeds: the carry to common speeds did not settle at "
                       f"{_listed(grid[done.unresolved])} rpm (flagged \"{SPEED_OFFSETS_UNRESOLVED}\")")
-    return with_flag(done.identification, done.unresolved, SPEED_OFFSETS_UNRESOLVED)
+    return _with_flag(done.identification, done.unresolved, SPEED_OFFSETS_UNRESOLVED)
 
 
 def _listed(values, most=5):

@@ -17,7 +17,7 @@ import numpy as np
 from . import impact_noise, signals
 from .errors import RotoridError
 from .identify import (SPEED_OFFSETS_UNRESOLVED, Identification, _phase_reference_std, identify_impact,
-                       identify_synchronous, with_flag)
+                       identify_synchronous, _with_flag)
 from .model import Imbalance, RigidRotor
 from .recording import ACCELEROMETERS, DISPLACEMENTS, Recording, SegmentedRecording
 from .simulate import RPM, ImpactResponse, SyncResponse
@@ -640,7 +640,7 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
         responses, ident, cal, phase = _phase_calibrated(rotor, responses, ident, method, fixed_kw, local_deg,
                                                          phase_calibration == "apply", notes, ident_kw)
     if carried is not None and carried.unresolved.any():
-        ident = with_flag(ident, carried.unresolved, SPEED_OFFSETS_UNRESOLVED)
+        ident = _with_flag(ident, carried.unresolved, SPEED_OFFSETS_UNRESOLVED)
     return ImbalanceChainResult(responses, tracks, ident, notes, ident_kw.get("shared_cov"),
                                 None if sr is None else np.asarray(sr[0]), shape_deg, local_deg, cal,
                                 _stated_phase_kw(ident_kw) if phase is None else phase)
