@@ -18,6 +18,7 @@ from ._validate import all_finite, choice, complex_array, frozen, real_array
 from .errors import IdentifiabilityError, RotoridError
 from .model import _REPORT_TO_BIJ, REPORT_ORDER, BearingCoefficients, Imbalance, RigidRotor
 from .simulate import RPM, ImpactResponse, SyncResponse, _plane_matrix, _q_as_checked, probes_to_bearings
+from .speed_offsets import SPEED_OFFSETS_UNRESOLVED
 
 #: default conditioning threshold above which a point is flagged as not trustworthy
 COND_MAX = 1e4
@@ -438,17 +439,11 @@ def _flag_list(extra_flags) -> list:
 MAX_SPEED_OFFSET = 0.005
 #: the largest max_speed_offset a user may set
 MAX_SPEED_OFFSET_LIMIT = 0.05
-#: the flag of points where runs at slightly different speeds could not be carried to one
-SPEED_OFFSETS_UNRESOLVED = "speed offsets not resolved"
 
 
 def _same_speeds(runs):
-    """Every run at the first run's speeds (equal arrays at once; within 1e-9 relative for the
-    rounding of a stored axis)."""
-    ref = runs[0].speed_rpm
-    return all(r.speed_rpm is ref or np.array_equal(r.speed_rpm, ref)
-               or (r.speed_rpm.shape == ref.shape and np.allclose(r.speed_rpm, ref, rtol=1e-9, atol=0))
-               for r in runs[1:])
+    """Every run at the first run's speeds (:func:`_on_axis`)."""
+    return all(_on_axis(r.speed_rpm, runs[0].speed_rpm) for r in runs[1:])
 
 
 def _with_flag(ident: Identification, mask, reason: str) -> Identification:
@@ -472,8 +467,6 @@ def _with_flag(ident: Identification, mask, reason: str) -> Identification:
 def _identify_at_offsets(rotor, runs, labels, max_offset, shared_cov, accel_gain_std, accel_phase_std_deg, kw):
     """:func:`identify_synchronous` of runs whose speeds differ a little: at the mean speed of
     each point, every run carried there (:func:`rotorid.speed_offsets.carry_to_grid`)."""
-    import warnings
-
     from ._validate import number
     from .speed_offsets import Dwells, carry_to_grid
 
@@ -514,14 +507,7 @@ def _identify_at_offsets(rotor, runs, labels, max_offset, shared_cov, accel_gain
                                     accel_phase_std_deg=accel_phase_std_deg, **kw)
 
     done = carry_to_grid(rotor, grid, dwells, identify, at=at)
-    if done.unresolved.any():
-        warnings.warn(f"runs at slightly different speeds: the carry to common speeds did not settle at "
-                      f"{_listed(grid[done.unresolved])} rpm (flagged \"{SPEED_OFFSETS_UNRESOLVED}\")")
     return _with_flag(done.identification, done.unresolved, SPEED_OFFSETS_UNRESOLVED)
-
-
-def _listed(values, most=5):
-    return ", ".join(f"{v:.0f}" for v in values[:most]) + (", ..." if len(values) > most else "")
 
 
 def identify_synchronous(rotor: RigidRotor, runs, *, method: str = "forces", identical: bool = False,
@@ -880,14 +866,17 @@ def calibration_perturbations(runs, gain_std, phase_std_rad):
         yield std, stepped(j, fp), stepped(j, fm)
 
 
+def _on_axis(a, ref):
+    """``a`` is the axis ``ref``: equal arrays pass at once (the common case, a pass over the
+    data), otherwise within 1e-9 relative (rounding of a stored axis)."""
+    return a is ref or np.array_equal(a, ref) or (a.shape == ref.shape and np.allclose(a, ref, rtol=1e-9, atol=0))
+
+
 def _check_same_axis(name, axes, labels, what, unit, advice):
-    """Every run on the first run's axis: equal arrays pass at once (the common case, a pass over
-    the data), otherwise within 1e-9 relative (rounding of a stored axis)."""
+    """Every run on the first run's axis (:func:`_on_axis`)."""
     ref = axes[0]
     for i, a in enumerate(axes[1:], 1):
-        if a is ref or np.array_equal(a, ref):
-            continue
-        if a.shape != ref.shape or not np.allclose(a, ref, rtol=1e-9, atol=0):
+        if not _on_axis(a, ref):
             raise RotoridError(f"{name} of {labels[i]} differs from that of {labels[0]}: all {what} must be given at "
                                f"the same {unit} ({advice})")
 

@@ -16,8 +16,7 @@ import numpy as np
 
 from . import impact_noise, signals
 from .errors import RotoridError
-from .identify import (SPEED_OFFSETS_UNRESOLVED, Identification, _phase_reference_std, identify_impact,
-                       identify_synchronous, _with_flag)
+from .identify import Identification, _phase_reference_std, _with_flag, identify_impact, identify_synchronous
 from .model import Imbalance, RigidRotor
 from .recording import ACCELEROMETERS, DISPLACEMENTS, Recording, SegmentedRecording
 from .simulate import RPM, ImpactResponse, SyncResponse
@@ -155,10 +154,6 @@ def _carried_dwells(rotor, grid, tracks, baseline, tol, centre, imbs, at, method
         notes.append(f"dwell speeds up to {far:.1f} rpm ({done.largest_offset * 100:.2f} %) from the common speeds: "
                      f"each run's 1X vectors{' and the baseline' if db is not None else ''} carried to them through "
                      f"the rotor on the bearings identified ({done.passes} passes)")
-    if done.unresolved.any():
-        listed = ", ".join(f"{v:.0f}" for v in done.grid[done.unresolved][:5])
-        warnings.warn(f"dwell speeds that differ between the runs: the carry to common speeds did not settle at "
-                      f"{listed} rpm (flagged \"{SPEED_OFFSETS_UNRESOLVED}\")")
     return done
 
 
@@ -640,6 +635,8 @@ def imbalance_chain(rotor: RigidRotor, runs, *, baseline=None, slow_roll=None, s
         responses, ident, cal, phase = _phase_calibrated(rotor, responses, ident, method, fixed_kw, local_deg,
                                                          phase_calibration == "apply", notes, ident_kw)
     if carried is not None and carried.unresolved.any():
+        from .speed_offsets import SPEED_OFFSETS_UNRESOLVED
+
         ident = _with_flag(ident, carried.unresolved, SPEED_OFFSETS_UNRESOLVED)
     return ImbalanceChainResult(responses, tracks, ident, notes, ident_kw.get("shared_cov"),
                                 None if sr is None else np.asarray(sr[0]), shape_deg, local_deg, cal,

@@ -48,6 +48,8 @@ from ._corecall import core as _core
 from .errors import RotoridError
 from .simulate import RPM, _planes_to
 
+#: the flag of points where runs at slightly different speeds could not be carried to one
+SPEED_OFFSETS_UNRESOLVED = "speed offsets not resolved"
 #: the largest number of identify-and-carry passes
 MAX_PASSES = 25
 #: the carried vectors have converged when a pass moves none of them by more than this fraction of
@@ -363,6 +365,11 @@ def carry_to_grid(rotor, grid_rpm, runs, identify, *, baseline=None, at="probes"
                 Tb = np.where(unresolved[:, None, None], plain[-1], Tb)
             qs, covs, shared = _compose(runs, baseline, Ts, Tb, ro)
             ident, passes = identify(qs, *_usable(covs, shared)), passes + 1
+    if unresolved.any():
+        bad = grid[unresolved]
+        listed = ", ".join(f"{v:.0f}" for v in bad[:5]) + (", ..." if bad.size > 5 else "")
+        warnings.warn(f"runs at slightly different speeds: the carry to common speeds did not settle at {listed} rpm "
+                      f"(flagged \"{SPEED_OFFSETS_UNRESOLVED}\")")
     return Carried(grid, qs, covs, dofs, shared, ident, passes, unresolved, offset, ro)
 
 
